@@ -1,0 +1,25 @@
+//! # rgbn — editing RGBN images (colour + normals) without breaking integrability
+//!
+//! An RGBN image holds linear colour and a unit surface normal per pixel. rgbn edits the
+//! normals through their foreshorten-corrected gradients `(p, q) = (−n_x/n_z, −n_y/n_z)`, after
+//! Pereira & Velho, "RGBN image editing", so that linear edits keep the field integrable, and it
+//! reports integrability as curl everywhere.
+//!
+//! Modules:
+//! - [`raster`]: the image model ([`RgbnImage`]), file I/O, gradient maths and curl,
+//!   convolution kernels, built-in sample and analytic surfaces.
+//! - [`ops`]: operators (filters, …).
+//! - [`render`]: relighting and the diagnostic views.
+//! - [`cli`]: the command line (used by the `rgbn` binary).
+//!
+//! The library never depends on the GUI: build with `--no-default-features` for the core.
+
+pub mod cli;
+pub mod error;
+pub mod ops;
+pub mod raster;
+pub mod render;
+
+pub use error::RgbnError;
+pub use raster::gradient::GradientField;
+pub use raster::{Plane, RgbnImage};

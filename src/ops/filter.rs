@@ -1,0 +1,794 @@
+//! Linear filters on foreshorten-corrected gradients (Pereira & Velho §III).
+//!
+//! Normals → `(p, q) = (−n_x/n_z, −n_y/n_z)` → the same linear, shift-invariant kernel on `p`
+//! and `q` → `n = normalize(−p, −q, 1)`. Because the kernel commutes with differentiation,
+//! filtering the normals of a height `z` gives the normals of `z ∗ g`, and an integrable field
+//! stays integrable (curl ≈ 0 up to the border treatment).
+//!
+//! # Kernels (CLI syntax in brackets)
+//!
+//! | kernel | effect on a gradient field `g` |
+//! |---|---|
+//! | Gaussian σ (`gauss:σ`) | `G_σ ∗ g` (recursive for σ ≥ 3, cost independent of σ) |
+//! | Box r (`box:r`) | mean over a `(2r+1)²` window |
+//! | Sharpen σ,k (`sharpen:σ,k`) | `g + k·(g − G_σ ∗ g)` (all-pass + k·high-pass) |
+//! | Edge enhance σ₁,σ₂,k (`edge:σ₁,σ₂,k`) | `g + k·(G_σ₁ − G_σ₂) ∗ g` (all-pass + k·band-pass) |
+//! | High-pass σ (`highpass:σ`) | `g − G_σ ∗ g` |
+//! | DoG σ₁,σ₂ (`dog:σ₁,σ₂`) | `(G_σ₁ − G_σ₂) ∗ g` |
+//! | LoG σ (`log:σ`) | `−σ²·∇²(G_σ ∗ g)` (scale-normalised, centre-positive) |
+//! | Depth scale s (`scale:s`) | `s·g` (exaggerates or flattens relief) |
+//! | Separable (`sep:r₀,r₁,…/c₀,c₁,…`) | row kernel then column kernel (odd lengths, as given) |
+//! | Dense (`kernel:WxH:k₀,k₁,…`) | direct 2-D kernel, row 0 at the top, odd sizes ≤ 63 |
+//!
+//! **Borders.** No border extension of a gradient field is the gradient of a height in general,
+//! so within the kernel's reach of the image border (≈3σ) the curl of a filtered integrable
+//! field is not zero; the curl readout shows it. Away from the border it is zero to rounding.
+//!
+//! **Mask-aware** filtering uses normalised convolution inside the mask: every smoothing term
+//! `S ∗ g` becomes `S ∗ (m·g) / S ∗ m`, so values outside the mask never bleed in, and the result
+//! is blended with the original by coverage (`m·filtered + (1−m)·original`).
+
+use crate::error::RgbnError;
+use crate::raster::convolve::{self, BorderMode, Fir};
+use crate::raster::gradient::{CurlStats, GradientField};
+use crate::raster::RgbnImage;
+use rayon::prelude::*;
+
+/// Largest σ or radius accepted (pixels): beyond this a filter is a constant.
+pub const MAX_SIGMA_PX: f32 = 4096.0;
+/// Largest side of a user kernel.
+pub const MAX_USER_KERNEL: usize = 63;
+
+/// A linear kernel applied to gradients. See the module docs for the maths.
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+pub enum Kernel {
+    Gaussian {
+        sigma_px: f32,
+    },
+    Box {
+        radius_px: u32,
+    },
+    Sharpen {
+        sigma_px: f32,
+        amount: f32,
+    },
+    EdgeEnhance {
+        sigma_fine_px: f32,
+        sigma_coarse_px: f32,
+        amount: f32,
+    },
+    HighPass {
+        sigma_px: f32,
+    },
+    DoG {
+        sigma_fine_px: f32,
+        sigma_coarse_px: f32,
+    },
+    LoG {
+        sigma_px: f32,
+    },
+    DepthScale {
+        scale: f32,
+    },
+    Separable {
+        row: Vec<f32>,
+        col: Vec<f32>,
+    },
+    Dense {
+        width: usize,
+        height: usize,
+        weights: Vec<f32>,
+    },
+}
+
+/// The smoothing building blocks kernels are made of.
+#[derive(Clone, Debug, PartialEq)]
+enum Smoother<'a> {
+    Gaussian(f32),
+    Box(usize),
+    Separable(&'a [f32], &'a [f32]),
+    Dense(usize, usize, &'a [f32]),
+}
+
+fn check_sigma(name: &str, s: f32) -> Result<(), RgbnError> {
+    if !(s.is_finite() && s > 0.0 && s <= MAX_SIGMA_PX) {
+        return Err(RgbnError::param(
+            name,
+            format!("{s} must be in (0, {MAX_SIGMA_PX}] pixels"),
+        ));
+    }
+    Ok(())
+}
+
+fn check_finite(name: &str, v: f32) -> Result<(), RgbnError> {
+    if !v.is_finite() || v.abs() > 1e6 {
+        return Err(RgbnError::param(
+            name,
+            format!("{v} must be a finite number (|v| ≤ 1e6)"),
+        ));
+    }
+    Ok(())
+}
+
+fn check_taps(name: &str, taps: &[f32]) -> Result<(), RgbnError> {
+    if taps.is_empty() || taps.len() % 2 == 0 || taps.len() > MAX_USER_KERNEL {
+        return Err(RgbnError::param(
+            name,
+            format!(
+                "needs an odd number of taps (1..={MAX_USER_KERNEL}), got {}",
+                taps.len()
+            ),
+        ));
+    }
+    if let Some(v) = taps.iter().find(|v| !v.is_finite()) {
+        return Err(RgbnError::param(name, format!("tap {v} is not finite")));
+    }
+    Ok(())
+}
+
+impl Kernel {
+    /// Checks every parameter; filtering calls this first.
+    pub fn validate(&self) -> Result<(), RgbnError> {
+        match self {
+            Kernel::Gaussian { sigma_px }
+            | Kernel::HighPass { sigma_px }
+            | Kernel::LoG { sigma_px } => check_sigma("sigma_px", *sigma_px),
+            Kernel::Box { radius_px } => {
+                if *radius_px == 0 || *radius_px as f32 > MAX_SIGMA_PX {
+                    return Err(RgbnError::param(
+                        "radius_px",
+                        format!("{radius_px} must be in 1..={MAX_SIGMA_PX}"),
+                    ));
+                }
+                Ok(())
+            }
+            Kernel::Sharpen { sigma_px, amount } => {
+                check_sigma("sigma_px", *sigma_px)?;
+                check_finite("amount", *amount)
+            }
+            Kernel::EdgeEnhance {
+                sigma_fine_px,
+                sigma_coarse_px,
+                amount,
+            } => {
+                check_sigma("sigma_fine_px", *sigma_fine_px)?;
+                check_sigma("sigma_coarse_px", *sigma_coarse_px)?;
+                check_finite("amount", *amount)
+            }
+            Kernel::DoG {
+                sigma_fine_px,
+                sigma_coarse_px,
+            } => {
+                check_sigma("sigma_fine_px", *sigma_fine_px)?;
+                check_sigma("sigma_coarse_px", *sigma_coarse_px)
+            }
+            Kernel::DepthScale { scale } => check_finite("scale", *scale),
+            Kernel::Separable { row, col } => {
+                check_taps("row", row)?;
+                check_taps("col", col)
+            }
+            Kernel::Dense {
+                width,
+                height,
+                weights,
+            } => {
+                for (n, v) in [("width", width), ("height", height)] {
+                    if *v == 0 || v % 2 == 0 || *v > MAX_USER_KERNEL {
+                        return Err(RgbnError::param(
+                            n,
+                            format!("{v} must be odd, 1..={MAX_USER_KERNEL}"),
+                        ));
+                    }
+                }
+                if weights.len() != width * height {
+                    return Err(RgbnError::param(
+                        "weights",
+                        format!(
+                            "a {width}x{height} kernel needs {} weights, got {}",
+                            width * height,
+                            weights.len()
+                        ),
+                    ));
+                }
+                check_taps("weights", &[0.0]).and_then(|()| {
+                    weights.iter().find(|v| !v.is_finite()).map_or(Ok(()), |v| {
+                        Err(RgbnError::param("weights", format!("{v} is not finite")))
+                    })
+                })
+            }
+        }
+    }
+
+    /// Parses the CLI syntax of the module docs, e.g. `gauss:8`, `sharpen:2,1.5`.
+    pub fn parse(s: &str) -> Result<Self, RgbnError> {
+        let (name, args) = s.split_once(':').unwrap_or((s, ""));
+        let nums = |a: &str| -> Result<Vec<f32>, RgbnError> {
+            a.split(',')
+                .filter(|t| !t.trim().is_empty())
+                .map(|t| {
+                    t.trim().parse::<f32>().map_err(|_| {
+                        RgbnError::param("kernel", format!("{t:?} in {s:?} is not a number"))
+                    })
+                })
+                .collect()
+        };
+        let want = |v: Vec<f32>, n: usize, usage: &str| -> Result<Vec<f32>, RgbnError> {
+            if v.len() == n {
+                Ok(v)
+            } else {
+                Err(RgbnError::param(
+                    "kernel",
+                    format!("{s:?}: expected {usage}"),
+                ))
+            }
+        };
+        let k = match name.to_ascii_lowercase().as_str() {
+            "gauss" | "gaussian" => Kernel::Gaussian {
+                sigma_px: want(nums(args)?, 1, "gauss:SIGMA")?[0],
+            },
+            "box" => {
+                let r = want(nums(args)?, 1, "box:RADIUS")?[0];
+                if r.fract() != 0.0 || r < 1.0 {
+                    return Err(RgbnError::param("kernel", format!("{s:?}: box radius must be a whole number ≥ 1")));
+                }
+                Kernel::Box { radius_px: r as u32 }
+            }
+            "sharpen" => {
+                let v = want(nums(args)?, 2, "sharpen:SIGMA,AMOUNT")?;
+                Kernel::Sharpen {
+                    sigma_px: v[0],
+                    amount: v[1],
+                }
+            }
+            "edge" => {
+                let v = want(nums(args)?, 3, "edge:SIGMA_FINE,SIGMA_COARSE,AMOUNT")?;
+                Kernel::EdgeEnhance {
+                    sigma_fine_px: v[0],
+                    sigma_coarse_px: v[1],
+                    amount: v[2],
+                }
+            }
+            "highpass" => Kernel::HighPass {
+                sigma_px: want(nums(args)?, 1, "highpass:SIGMA")?[0],
+            },
+            "dog" => {
+                let v = want(nums(args)?, 2, "dog:SIGMA_FINE,SIGMA_COARSE")?;
+                Kernel::DoG {
+                    sigma_fine_px: v[0],
+                    sigma_coarse_px: v[1],
+                }
+            }
+            "log" => Kernel::LoG {
+                sigma_px: want(nums(args)?, 1, "log:SIGMA")?[0],
+            },
+            "scale" => Kernel::DepthScale {
+                scale: want(nums(args)?, 1, "scale:FACTOR")?[0],
+            },
+            "sep" => {
+                let (r, c) = args.split_once('/').ok_or_else(|| {
+                    RgbnError::param("kernel", format!("{s:?}: expected sep:ROW_TAPS/COLUMN_TAPS, e.g. sep:1,2,1/1,2,1"))
+                })?;
+                Kernel::Separable {
+                    row: nums(r)?,
+                    col: nums(c)?,
+                }
+            }
+            "kernel" => {
+                let (size, w) = args.split_once(':').ok_or_else(|| {
+                    RgbnError::param("kernel", format!("{s:?}: expected kernel:WxH:WEIGHTS, e.g. kernel:3x3:0,-1,0,-1,5,-1,0,-1,0"))
+                })?;
+                let (kw, kh) = size
+                    .split_once(['x', 'X'])
+                    .and_then(|(a, b)| Some((a.trim().parse().ok()?, b.trim().parse().ok()?)))
+                    .ok_or_else(|| RgbnError::param("kernel", format!("{s:?}: size {size:?} is not WxH")))?;
+                Kernel::Dense {
+                    width: kw,
+                    height: kh,
+                    weights: nums(w)?,
+                }
+            }
+            other => {
+                return Err(RgbnError::param(
+                    "kernel",
+                    format!("unknown kernel {other:?} (gauss, box, sharpen, edge, highpass, dog, log, scale, sep, kernel)"),
+                ))
+            }
+        };
+        k.validate()?;
+        Ok(k)
+    }
+
+    /// Applies the kernel to one plane (in place). `mask_norm` holds the mask and, per smoother,
+    /// its smoothed version, for normalised convolution.
+    fn apply_plane(
+        &self,
+        x: &mut [f32],
+        w: usize,
+        h: usize,
+        border: BorderMode,
+        mask: Option<&[f32]>,
+    ) {
+        let smooth = |s: Smoother<'_>, src: &[f32]| -> Vec<f32> {
+            smooth_plane(&s, src, w, h, border, mask)
+        };
+        match self {
+            Kernel::Gaussian { sigma_px } => {
+                let y = smooth(Smoother::Gaussian(*sigma_px), x);
+                x.copy_from_slice(&y);
+            }
+            Kernel::Box { radius_px } => {
+                let y = smooth(Smoother::Box(*radius_px as usize), x);
+                x.copy_from_slice(&y);
+            }
+            Kernel::Sharpen { sigma_px, amount } => {
+                let y = smooth(Smoother::Gaussian(*sigma_px), x);
+                let k = *amount;
+                x.par_iter_mut()
+                    .zip(&y)
+                    .for_each(|(a, b)| *a += k * (*a - b));
+            }
+            Kernel::EdgeEnhance {
+                sigma_fine_px,
+                sigma_coarse_px,
+                amount,
+            } => {
+                let f = smooth(Smoother::Gaussian(*sigma_fine_px), x);
+                let c = smooth(Smoother::Gaussian(*sigma_coarse_px), x);
+                let k = *amount;
+                x.par_iter_mut()
+                    .zip(f.par_iter().zip(&c))
+                    .for_each(|(a, (f, c))| *a += k * (f - c));
+            }
+            Kernel::HighPass { sigma_px } => {
+                let y = smooth(Smoother::Gaussian(*sigma_px), x);
+                x.par_iter_mut().zip(&y).for_each(|(a, b)| *a -= b);
+            }
+            Kernel::DoG {
+                sigma_fine_px,
+                sigma_coarse_px,
+            } => {
+                let f = smooth(Smoother::Gaussian(*sigma_fine_px), x);
+                let c = smooth(Smoother::Gaussian(*sigma_coarse_px), x);
+                x.par_iter_mut()
+                    .zip(f.par_iter().zip(&c))
+                    .for_each(|(a, (f, c))| *a = f - c);
+            }
+            Kernel::LoG { sigma_px } => {
+                let y = smooth(Smoother::Gaussian(*sigma_px), x);
+                let lap = convolve::laplacian(&y, w, h, border);
+                let s2 = sigma_px * sigma_px;
+                x.par_iter_mut().zip(&lap).for_each(|(a, l)| *a = -s2 * l);
+            }
+            Kernel::DepthScale { scale } => x.par_iter_mut().for_each(|a| *a *= scale),
+            Kernel::Separable { row, col } => {
+                let y = smooth(Smoother::Separable(row, col), x);
+                x.copy_from_slice(&y);
+            }
+            Kernel::Dense {
+                width,
+                height,
+                weights,
+            } => {
+                let y = smooth(Smoother::Dense(*width, *height, weights), x);
+                x.copy_from_slice(&y);
+            }
+        }
+    }
+}
+
+impl std::fmt::Display for Kernel {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let list = |v: &[f32]| v.iter().map(f32::to_string).collect::<Vec<_>>().join(",");
+        match self {
+            Kernel::Gaussian { sigma_px } => write!(f, "gauss:{sigma_px}"),
+            Kernel::Box { radius_px } => write!(f, "box:{radius_px}"),
+            Kernel::Sharpen { sigma_px, amount } => write!(f, "sharpen:{sigma_px},{amount}"),
+            Kernel::EdgeEnhance {
+                sigma_fine_px,
+                sigma_coarse_px,
+                amount,
+            } => write!(f, "edge:{sigma_fine_px},{sigma_coarse_px},{amount}"),
+            Kernel::HighPass { sigma_px } => write!(f, "highpass:{sigma_px}"),
+            Kernel::DoG {
+                sigma_fine_px,
+                sigma_coarse_px,
+            } => write!(f, "dog:{sigma_fine_px},{sigma_coarse_px}"),
+            Kernel::LoG { sigma_px } => write!(f, "log:{sigma_px}"),
+            Kernel::DepthScale { scale } => write!(f, "scale:{scale}"),
+            Kernel::Separable { row, col } => write!(f, "sep:{}/{}", list(row), list(col)),
+            Kernel::Dense {
+                width,
+                height,
+                weights,
+            } => write!(f, "kernel:{width}x{height}:{}", list(weights)),
+        }
+    }
+}
+
+/// `S ∗ src`, or with a mask the normalised convolution `S ∗ (m·src) / S ∗ m` (falling back to
+/// `src` where `S ∗ m` vanishes).
+fn smooth_plane(
+    s: &Smoother<'_>,
+    src: &[f32],
+    w: usize,
+    h: usize,
+    border: BorderMode,
+    mask: Option<&[f32]>,
+) -> Vec<f32> {
+    let run = |buf: &mut Vec<f32>| match s {
+        Smoother::Gaussian(sigma) => convolve::gaussian(buf, w, h, *sigma, border),
+        Smoother::Box(r) => convolve::box_blur(buf, w, h, *r, border),
+        Smoother::Separable(row, col) => convolve::convolve_separable(
+            buf,
+            w,
+            h,
+            &Fir { taps: row.to_vec() },
+            &Fir { taps: col.to_vec() },
+            border,
+        ),
+        Smoother::Dense(kw, kh, k) => *buf = convolve::convolve_2d(buf, w, h, k, *kw, *kh, border),
+    };
+    match mask {
+        None => {
+            let mut y = src.to_vec();
+            run(&mut y);
+            y
+        }
+        Some(m) => {
+            let dc: f32 = match s {
+                Smoother::Separable(r, c) => r.iter().sum::<f32>() * c.iter().sum::<f32>(),
+                Smoother::Dense(_, _, k) => k.iter().sum(),
+                _ => 1.0,
+            };
+            let mut num: Vec<f32> = src.par_iter().zip(m).map(|(v, m)| v * m).collect();
+            let mut den = m.to_vec();
+            run(&mut num);
+            run(&mut den);
+            num.par_iter_mut()
+                .zip(den.par_iter().zip(src))
+                .for_each(|(n, (d, s))| *n = if d.abs() > 1e-6 { *n / d * dc } else { *s });
+            num
+        }
+    }
+}
+
+/// Options shared by every kernel.
+#[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct FilterOptions {
+    pub border: BorderMode,
+    /// Normalised convolution inside the image's mask (no effect without a mask).
+    pub mask_aware: bool,
+}
+
+/// What a filter run measured.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct FilterReport {
+    /// Pixels whose `n_z` was clamped when converting to gradients.
+    pub clamped: usize,
+    pub curl_before: CurlStats,
+    pub curl_after: CurlStats,
+}
+
+/// Applies `kernels` in order to a gradient field (both components).
+pub fn filter_gradients(
+    g: &mut GradientField,
+    kernels: &[Kernel],
+    opts: &FilterOptions,
+    mask: Option<&[f32]>,
+) -> Result<(), RgbnError> {
+    for k in kernels {
+        k.validate()?;
+    }
+    let (w, h) = (g.width, g.height);
+    let m = if opts.mask_aware { mask } else { None };
+    let orig = m.map(|_| (g.p.clone(), g.q.clone()));
+    for k in kernels {
+        k.apply_plane(&mut g.p, w, h, opts.border, m);
+        k.apply_plane(&mut g.q, w, h, opts.border, m);
+    }
+    if let (Some(m), Some((p0, q0))) = (m, orig) {
+        for (plane, orig) in [(&mut g.p, p0), (&mut g.q, q0)] {
+            plane
+                .par_iter_mut()
+                .zip(orig.par_iter().zip(m))
+                .for_each(|(v, (o, c))| *v = c * *v + (1.0 - c) * o);
+        }
+    }
+    Ok(())
+}
+
+/// Filters the normals of `img` (colour and mask are shared, unchanged).
+pub fn filter_normals(
+    img: &RgbnImage,
+    kernels: &[Kernel],
+    opts: &FilterOptions,
+) -> Result<(RgbnImage, FilterReport), RgbnError> {
+    let mut g = GradientField::from_normals(img);
+    let curl_before = g.curl_stats(img.mask());
+    filter_gradients(&mut g, kernels, opts, img.mask())?;
+    let curl_after = g.curl_stats(img.mask());
+    let mut out = img.clone();
+    g.write_normals(&mut out);
+    Ok((
+        out,
+        FilterReport {
+            clamped: g.clamped,
+            curl_before,
+            curl_after,
+        },
+    ))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::raster::sample::Surface;
+    use crate::raster::Plane;
+
+    #[test]
+    fn parse_and_display_roundtrip() {
+        for s in [
+            "gauss:8",
+            "box:3",
+            "sharpen:2,1.5",
+            "edge:1,4,0.5",
+            "highpass:6",
+            "dog:1,3",
+            "log:2",
+            "scale:-0.5",
+            "sep:1,2,1/0.25,0.5,0.25",
+            "kernel:3x3:0,-1,0,-1,5,-1,0,-1,0",
+        ] {
+            let k = Kernel::parse(s).unwrap();
+            assert_eq!(k.to_string(), s);
+            assert_eq!(Kernel::parse(&k.to_string()).unwrap(), k);
+        }
+    }
+
+    #[test]
+    fn bad_kernels_say_what_is_wrong() {
+        for (s, needle) in [
+            ("gauss:-1", "must be in (0"),
+            ("gauss:nan", "must be in (0"),
+            ("gauss", "expected gauss:SIGMA"),
+            ("blur:3", "unknown kernel \"blur\""),
+            ("box:1.5", "whole number"),
+            ("sep:1,2/1", "odd number of taps"),
+            ("kernel:3x3:1,2", "needs 9 weights"),
+            ("sharpen:2,x", "\"x\" in"),
+        ] {
+            let e = Kernel::parse(s).unwrap_err().to_string();
+            assert!(e.contains(needle), "{s}: {e}");
+        }
+    }
+
+    /// Angular error (radians) between two unit normals.
+    /// (atan2 of |a×b| and a·b: accurate for tiny angles, unlike acos in f32.)
+    fn angle(a: [f32; 3], b: [f32; 3]) -> f32 {
+        let d = a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+        let c = [
+            a[1] * b[2] - a[2] * b[1],
+            a[2] * b[0] - a[0] * b[2],
+            a[0] * b[1] - a[1] * b[0],
+        ];
+        (c[0] * c[0] + c[1] * c[1] + c[2] * c[2]).sqrt().atan2(d)
+    }
+
+    #[test]
+    fn gaussian_filtered_normals_equal_normals_of_the_blurred_height() {
+        // Independent oracle: a Gaussian bump of width s blurred by G_σ is a Gaussian bump of
+        // width √(s²+σ²) and amplitude a·s²/(s²+σ²) — differentiate that analytically.
+        let size = 256;
+        let (a, s, sigma) = (30.0f64, 14.0f64, 8.0f64);
+        let bump = |amp: f64, width: f64| Surface::Gaussians {
+            bumps: vec![[0.0, 0.0, amp, width]],
+        };
+        let (img, _) = bump(a, s).render(size, size);
+        let s2 = (s * s + sigma * sigma).sqrt();
+        let (want, _) = bump(a * s * s / (s2 * s2), s2).render(size, size);
+        for sig_f32 in [sigma as f32] {
+            let (out, _) = filter_normals(
+                &img,
+                &[Kernel::Gaussian { sigma_px: sig_f32 }],
+                &FilterOptions::default(),
+            )
+            .unwrap();
+            let mut max_err = 0.0f32;
+            for r in 0..size {
+                for x in 0..size {
+                    max_err = max_err.max(angle(out.normal_at(x, r), want.normal_at(x, r)));
+                }
+            }
+            // The sampled, recursive Gaussian vs the continuous one: stated tolerance 0.1°.
+            assert!(
+                max_err.to_degrees() < 0.1,
+                "max angular error {}°",
+                max_err.to_degrees()
+            );
+        }
+    }
+
+    #[test]
+    fn box_and_sharpen_follow_the_sinusoid_transfer_function() {
+        // A sinusoid z = A sin(ku) sin(kv) is an eigenfunction of every symmetric LSI kernel:
+        // the box of width 2r+1 scales it by (sin((2r+1)k/2) / ((2r+1) sin(k/2)))² on the
+        // grid, sharpen by (1 + k_s·(1 − ĝ²)) with ĝ the Gaussian's 1-D response.
+        let size = 192; // whole number of periods (32 px) → wrap border is exact
+        let (amp, period) = (2.0f64, 32.0f64);
+        let surf = |a: f64| Surface::Sinusoid {
+            amplitude_px: a,
+            period_px: period,
+        };
+        let (img, _) = surf(amp).render(size, size);
+        let k = std::f64::consts::TAU / period;
+        let r = 3.0f64;
+        let box_gain = ((2.0 * r + 1.0) * k / 2.0).sin() / ((2.0 * r + 1.0) * (k / 2.0).sin());
+        let opts = FilterOptions {
+            border: BorderMode::Wrap,
+            mask_aware: false,
+        };
+        let (out, _) = filter_normals(&img, &[Kernel::Box { radius_px: 3 }], &opts).unwrap();
+        let (want, _) = surf(amp * box_gain * box_gain).render(size, size);
+        let err = (0..size * size)
+            .map(|i| {
+                angle(
+                    out.normal_at(i % size, i / size),
+                    want.normal_at(i % size, i / size),
+                )
+            })
+            .fold(0.0f32, f32::max);
+        assert!(err.to_degrees() < 0.01, "box: {}°", err.to_degrees());
+
+        // Gaussian σ=2 (FIR path) sampled response on the grid: Σ g_i cos(k i).
+        let fir = Fir::gaussian(2.0);
+        let rr = fir.taps.len() as i32 / 2;
+        let g_hat: f64 = fir
+            .taps
+            .iter()
+            .enumerate()
+            .map(|(i, t)| f64::from(*t) * (k * f64::from(i as i32 - rr)).cos())
+            .sum();
+        let ks = 1.5f64;
+        let (out, _) = filter_normals(
+            &img,
+            &[Kernel::Sharpen {
+                sigma_px: 2.0,
+                amount: ks as f32,
+            }],
+            &opts,
+        )
+        .unwrap();
+        let (want, _) = surf(amp * (1.0 + ks * (1.0 - g_hat * g_hat))).render(size, size);
+        let err = (0..size * size)
+            .map(|i| {
+                angle(
+                    out.normal_at(i % size, i / size),
+                    want.normal_at(i % size, i / size),
+                )
+            })
+            .fold(0.0f32, f32::max);
+        assert!(err.to_degrees() < 0.01, "sharpen: {}°", err.to_degrees());
+    }
+
+    #[test]
+    fn every_linear_filter_keeps_integrable_input_integrable() {
+        // Integrable input: the discrete (forward-difference) gradient of a height whose relief
+        // lies well inside the image.
+        // Relief (σ ≤ 12 px) within 60 px of the centre of a 512² image: even blurred by σ = 32
+        // it is negligible at the border, where no extension of a gradient field is integrable.
+        let size = 512;
+        let surf = Surface::Gaussians {
+            bumps: vec![
+                [-40.0, 25.0, 20.0, 12.0],
+                [35.0, -30.0, -12.0, 9.0],
+                [5.0, 40.0, 6.0, 4.0],
+            ],
+        };
+        let (_, z) = surf.render(size, size);
+        let z = Plane::from_vec(size, size, z.into_vec()).unwrap();
+        let base = GradientField::from_height(&z);
+        assert!(base.relative_rms_curl(None) < 1e-6);
+        let kernels = [
+            "gauss:1.5",
+            "gauss:8",
+            "gauss:32",
+            "box:4",
+            "sharpen:3,2",
+            "edge:1,4,1.5",
+            "highpass:6",
+            "dog:1,4",
+            "log:3",
+            "scale:2.5",
+            "sep:1,4,6,4,1/1,2,1",
+            "kernel:3x3:0,-1,0,-1,5,-1,0,-1,0",
+        ];
+        for ks in kernels {
+            for border in BorderMode::ALL {
+                let mut g = base.clone();
+                filter_gradients(
+                    &mut g,
+                    &[Kernel::parse(ks).unwrap()],
+                    &FilterOptions {
+                        border,
+                        mask_aware: false,
+                    },
+                    None,
+                )
+                .unwrap();
+                let rel = g.relative_rms_curl(None);
+                assert!(rel <= 1e-4, "{ks} {border:?}: relative RMS curl {rel:e}");
+            }
+        }
+    }
+
+    #[test]
+    fn mask_aware_filter_does_not_bleed_across_the_mask() {
+        // Left half steep (p = 1), right half flat; mask = left half. A mask-aware blur keeps
+        // the left half at p = 1 exactly (no flat values averaged in) and leaves the right alone.
+        let (w, h) = (64, 16);
+        let mut g = GradientField::zeros(w, h);
+        let mut mask = vec![0.0f32; w * h];
+        for r in 0..h {
+            for x in 0..w / 2 {
+                g.p[r * w + x] = 1.0;
+                mask[r * w + x] = 1.0;
+            }
+        }
+        let mut a = g.clone();
+        filter_gradients(
+            &mut a,
+            &[Kernel::Gaussian { sigma_px: 4.0 }],
+            &FilterOptions {
+                border: BorderMode::Mirror,
+                mask_aware: true,
+            },
+            Some(&mask),
+        )
+        .unwrap();
+        assert!(a.p.iter().zip(&g.p).all(|(x, y)| (x - y).abs() < 1e-4));
+        let mut b = g.clone();
+        filter_gradients(
+            &mut b,
+            &[Kernel::Gaussian { sigma_px: 4.0 }],
+            &FilterOptions::default(),
+            Some(&mask),
+        )
+        .unwrap();
+        assert!(
+            (b.p[w / 2 - 1] - 0.5).abs() < 0.1,
+            "plain blur does bleed: {}",
+            b.p[w / 2 - 1]
+        );
+    }
+
+    #[test]
+    fn depth_scale_scales_the_gradient() {
+        let (img, _) = Surface::Paraboloid { curvature: 0.002 }.render(64, 64);
+        let (out, _) = filter_normals(
+            &img,
+            &[Kernel::DepthScale { scale: 2.0 }],
+            &FilterOptions::default(),
+        )
+        .unwrap();
+        let a = GradientField::from_normals(&img);
+        let b = GradientField::from_normals(&out);
+        for i in 0..64 * 64 {
+            assert!((b.p[i] - 2.0 * a.p[i]).abs() < 1e-4 && (b.q[i] - 2.0 * a.q[i]).abs() < 1e-4);
+        }
+    }
+
+    #[test]
+    fn partial_derivative_blend_test_vector() {
+        // Sum of gradients of n1 and n2 (the "partial derivative" blend, Barré-Brisebois & Hill).
+        use crate::raster::gradient::{gradient_of_normal, normal_of_gradient};
+        let n1 = [0.3f32, 0.4, 0.866];
+        let l = (0.04f32 + 0.01 + 0.97 * 0.97).sqrt();
+        let n2 = [-0.2 / l, 0.1 / l, 0.97 / l];
+        let (g1, g2) = (gradient_of_normal(n1), gradient_of_normal(n2));
+        let n = normal_of_gradient(g1[0] + g2[0], g1[1] + g2[1]);
+        let want = [0.1212f32, 0.4883, 0.8642];
+        for k in 0..3 {
+            assert!((n[k] - want[k]).abs() <= 1e-4, "{n:?}");
+        }
+    }
+}

@@ -1,0 +1,333 @@
+//! Normal ↔ gradient conversion and the integrability (curl) readout. **The only place that
+//! knows the sign conventions.**
+//!
+//! - Height `z(x, y)` in pixel units with `y` **up**; rows go **down** in memory, so moving one
+//!   row down is `Δy = −1`.
+//! - Gradient `(p, q) = (∂z/∂x, ∂z/∂y) = (−n_x/n_z, −n_y/n_z)`; back:
+//!   `n = normalize(−p, −q, 1)` (Pereira & Velho §III).
+//! - `n_z` is clamped to at least [`NZ_EPSILON`] before dividing, so grazing or back-facing
+//!   normals give a finite (steep, slope ≤ 1000) gradient instead of NaN/inf; such pixels are
+//!   counted in [`GradientField::clamped`].
+//! - Discrete gradients of a sampled height use forward differences in this frame:
+//!   `p(x, r) = z(x+1, r) − z(x, r)`, `q(x, r) = z(x, r−1) − z(x, r)`.
+//! - Curl `c = ∂p/∂y − ∂q/∂x` with the same forward differences:
+//!   `c(x, r) = (p(x, r−1) − p(x, r)) − (q(x+1, r) − q(x, r))`, defined for `r ≥ 1`,
+//!   `x ≤ W−2` (0 on the top row and right column). It is exactly zero (to rounding) for
+//!   the discrete gradient of any height (Agrawal et al. 2005).
+
+use super::{Plane, RgbnImage};
+use rayon::prelude::*;
+
+/// Smallest `n_z` used when dividing; slopes are thus bounded by `1/NZ_EPSILON = 1000`.
+pub const NZ_EPSILON: f32 = 1e-3;
+
+/// A gradient field `(p, q)` in the frame of the module docs.
+#[derive(Clone, Debug, PartialEq)]
+pub struct GradientField {
+    pub width: usize,
+    pub height: usize,
+    pub p: Vec<f32>,
+    pub q: Vec<f32>,
+    /// Pixels whose `n_z` was below [`NZ_EPSILON`] and got clamped when converting.
+    pub clamped: usize,
+}
+
+/// `(p, q)` of one normal, with the `n_z` clamp.
+#[inline(always)]
+#[must_use]
+pub fn gradient_of_normal(n: [f32; 3]) -> [f32; 2] {
+    let inv = 1.0 / n[2].max(NZ_EPSILON);
+    [-n[0] * inv, -n[1] * inv]
+}
+
+/// The unit normal of slope `(p, q)`.
+#[inline(always)]
+#[must_use]
+pub fn normal_of_gradient(p: f32, q: f32) -> [f32; 3] {
+    let inv = (p * p + q * q + 1.0).sqrt().recip();
+    [-p * inv, -q * inv, inv]
+}
+
+impl GradientField {
+    /// Zero gradient (a flat surface).
+    #[must_use]
+    pub fn zeros(width: usize, height: usize) -> Self {
+        Self {
+            width,
+            height,
+            p: vec![0.0; width * height],
+            q: vec![0.0; width * height],
+            clamped: 0,
+        }
+    }
+
+    /// Foreshorten-corrected gradients of an image's normals.
+    #[must_use]
+    pub fn from_normals(img: &RgbnImage) -> Self {
+        let (w, h) = (img.width(), img.height());
+        let [nx, ny, nz] = img.normal();
+        let mut p = vec![0.0f32; w * h];
+        let mut q = vec![0.0f32; w * h];
+        let clamped = p
+            .par_chunks_mut(w.max(1))
+            .zip(q.par_chunks_mut(w.max(1)))
+            .enumerate()
+            .map(|(row, (pr, qr))| {
+                let o = row * w;
+                let (nx, ny, nz) = (&nx[o..o + w], &ny[o..o + w], &nz[o..o + w]);
+                let mut clamped = 0usize;
+                for x in 0..w {
+                    let [pp, qq] = gradient_of_normal([nx[x], ny[x], nz[x]]);
+                    pr[x] = pp;
+                    qr[x] = qq;
+                    clamped += usize::from(nz[x] < NZ_EPSILON);
+                }
+                clamped
+            })
+            .sum();
+        Self {
+            width: w,
+            height: h,
+            p,
+            q,
+            clamped,
+        }
+    }
+
+    /// Forward-difference gradient of a sampled height (see module docs). The last column's `p`
+    /// and the top row's `q` repeat their neighbours (the curl does not use them).
+    #[must_use]
+    pub fn from_height(z: &Plane) -> Self {
+        let (w, h) = (z.width(), z.height());
+        let d = z.data();
+        let mut p = vec![0.0f32; w * h];
+        let mut q = vec![0.0f32; w * h];
+        p.par_chunks_mut(w.max(1))
+            .zip(q.par_chunks_mut(w.max(1)))
+            .enumerate()
+            .for_each(|(r, (pr, qr))| {
+                let row = &d[r * w..(r + 1) * w];
+                for x in 0..w {
+                    pr[x] = if x + 1 < w {
+                        row[x + 1] - row[x]
+                    } else if w > 1 {
+                        row[x] - row[x - 1]
+                    } else {
+                        0.0
+                    };
+                    qr[x] = if r >= 1 {
+                        d[(r - 1) * w + x] - row[x]
+                    } else if h > 1 {
+                        row[x] - d[w + x]
+                    } else {
+                        0.0
+                    };
+                }
+            });
+        Self {
+            width: w,
+            height: h,
+            p,
+            q,
+            clamped: 0,
+        }
+    }
+
+    /// Writes `normalize(−p, −q, 1)` into the image's normal planes (colour kept).
+    pub fn write_normals(&self, img: &mut RgbnImage) {
+        assert_eq!((img.width(), img.height()), (self.width, self.height));
+        let w = self.width.max(1);
+        let [nx, ny, nz] = img.normal_mut();
+        nx.par_chunks_mut(w)
+            .zip(ny.par_chunks_mut(w))
+            .zip(nz.par_chunks_mut(w))
+            .zip(self.p.par_chunks(w).zip(self.q.par_chunks(w)))
+            .for_each(|(((x, y), z), (p, q))| {
+                for i in 0..x.len() {
+                    let [a, b, c] = normal_of_gradient(p[i], q[i]);
+                    x[i] = a;
+                    y[i] = b;
+                    z[i] = c;
+                }
+            });
+    }
+
+    /// The curl map (module docs), 0 where undefined.
+    #[must_use]
+    pub fn curl(&self) -> Plane {
+        let (w, h) = (self.width, self.height);
+        let (p, q) = (&self.p, &self.q);
+        Plane::from_fn_rows(w, h, |r, out| {
+            if r == 0 || w < 2 {
+                out.fill(0.0);
+                return;
+            }
+            let (pu, pc) = (&p[(r - 1) * w..r * w], &p[r * w..(r + 1) * w]);
+            let qc = &q[r * w..(r + 1) * w];
+            for x in 0..w - 1 {
+                out[x] = (pu[x] - pc[x]) - (qc[x + 1] - qc[x]);
+            }
+            out[w - 1] = 0.0;
+        })
+    }
+
+    /// `RMS(curl) / RMS(|g|)` over the pixels where the curl is defined (and, with a mask, where
+    /// coverage ≥ 0.5). 0 for a flat field.
+    #[must_use]
+    pub fn relative_rms_curl(&self, mask: Option<&[f32]>) -> f64 {
+        let s = self.curl_stats(mask);
+        s.relative
+    }
+
+    /// Curl statistics without allocating a curl map.
+    #[must_use]
+    pub fn curl_stats(&self, mask: Option<&[f32]>) -> CurlStats {
+        let (w, h) = (self.width, self.height);
+        if w < 2 || h < 2 {
+            return CurlStats::default();
+        }
+        let (p, q) = (&self.p, &self.q);
+        let (c2, g2, n, max) = (1..h)
+            .into_par_iter()
+            .map(|r| {
+                let (pu, pc) = (&p[(r - 1) * w..r * w], &p[r * w..(r + 1) * w]);
+                let qc = &q[r * w..(r + 1) * w];
+                let m = mask.map(|m| &m[r * w..(r + 1) * w]);
+                let (mut c2, mut g2, mut n, mut max) = (0.0f64, 0.0f64, 0usize, 0.0f32);
+                let mut c2_row = 0.0f32;
+                let mut g2_row = 0.0f32;
+                for x in 0..w - 1 {
+                    if m.is_some_and(|m| m[x] < 0.5) {
+                        continue;
+                    }
+                    let c = (pu[x] - pc[x]) - (qc[x + 1] - qc[x]);
+                    c2_row += c * c;
+                    g2_row += pc[x] * pc[x] + qc[x] * qc[x];
+                    max = max.max(c.abs());
+                    n += 1;
+                }
+                c2 += f64::from(c2_row);
+                g2 += f64::from(g2_row);
+                (c2, g2, n, max)
+            })
+            .reduce(
+                || (0.0, 0.0, 0, 0.0f32),
+                |a, b| (a.0 + b.0, a.1 + b.1, a.2 + b.2, a.3.max(b.3)),
+            );
+        if n == 0 {
+            return CurlStats::default();
+        }
+        let rms_curl = (c2 / n as f64).sqrt();
+        let rms_grad = (g2 / n as f64).sqrt();
+        CurlStats {
+            rms_curl,
+            rms_gradient: rms_grad,
+            max_abs_curl: f64::from(max),
+            relative: if rms_grad > 0.0 {
+                rms_curl / rms_grad
+            } else {
+                0.0
+            },
+        }
+    }
+}
+
+/// Integrability numbers of a gradient field.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct CurlStats {
+    pub rms_curl: f64,
+    pub rms_gradient: f64,
+    pub max_abs_curl: f64,
+    /// `rms_curl / rms_gradient` (0 for a flat field).
+    pub relative: f64,
+}
+
+impl Plane {
+    /// Fills each row with `f(row, out)`, rows in parallel.
+    #[must_use]
+    pub fn from_fn_rows(
+        width: usize,
+        height: usize,
+        f: impl Fn(usize, &mut [f32]) + Sync + Send,
+    ) -> Self {
+        let mut data = vec![0.0f32; width * height];
+        data.par_chunks_mut(width.max(1))
+            .enumerate()
+            .for_each(|(r, out)| f(r, out));
+        Plane::from_vec(width, height, data).expect("sizes match by construction")
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn signs_follow_the_opengl_frame() {
+        // A surface rising to the right (z = 0.5 x) tilts its normal to the left (n_x < 0).
+        let [p, q] = gradient_of_normal(normal_of_gradient(0.5, 0.0));
+        assert!((p - 0.5).abs() < 1e-6 && q.abs() < 1e-6);
+        assert!(normal_of_gradient(0.5, 0.0)[0] < 0.0);
+        // A surface rising upwards (z = y, y up) tilts its normal down (n_y < 0).
+        assert!(normal_of_gradient(0.0, 1.0)[1] < 0.0);
+        // Height rising towards the top of the image: rows above are higher → q > 0.
+        let z = Plane::from_fn(5, 5, |_, r| -(r as f32));
+        let g = GradientField::from_height(&z);
+        assert!(g.q.iter().all(|&q| (q - 1.0).abs() < 1e-6));
+        assert!(g.p.iter().all(|&p| p == 0.0));
+    }
+
+    #[test]
+    fn grazing_and_back_facing_normals_are_clamped_not_nan() {
+        let [p, q] = gradient_of_normal([1.0, 0.0, 0.0]);
+        assert!((p + 1000.0).abs() < 1e-3 && q == 0.0, "{p}");
+        let [p, _] = gradient_of_normal([0.6, 0.0, -0.8]);
+        assert!(p.is_finite() && (p + 600.0).abs() < 1e-3, "{p}");
+    }
+
+    #[test]
+    fn roundtrip_normal_gradient_normal() {
+        for &(p, q) in &[(0.0, 0.0), (0.3, -2.0), (-5.0, 7.0), (100.0, 0.1)] {
+            let n = normal_of_gradient(p, q);
+            let len = (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt();
+            assert!((len - 1.0).abs() < 1e-6);
+            let [p2, q2] = gradient_of_normal(n);
+            assert!((p2 - p).abs() <= 1e-5 * p.abs().max(1.0), "{p} {p2}");
+            assert!((q2 - q).abs() <= 1e-5 * q.abs().max(1.0), "{q} {q2}");
+        }
+    }
+
+    #[test]
+    fn curl_is_zero_for_discrete_gradients_of_any_height() {
+        // A rough, non-smooth height: forward differences are still exactly integrable.
+        let z = Plane::from_fn(37, 23, |x, r| {
+            ((x * 7919 + r * 104_729) % 1000) as f32 * 0.01 + (x as f32 * 0.3).sin()
+        });
+        let g = GradientField::from_height(&z);
+        let s = g.curl_stats(None);
+        assert!(s.rms_gradient > 1.0);
+        assert!(s.relative < 1e-6, "{s:?}");
+    }
+
+    #[test]
+    fn curl_of_a_rotational_field_is_its_known_value() {
+        // (p, q) = (−y, x) has curl ∂p/∂y − ∂q/∂x = −1 − 1 = −2 everywhere.
+        let (w, h) = (9, 7);
+        let mut g = GradientField::zeros(w, h);
+        for r in 0..h {
+            for x in 0..w {
+                let y = -(r as f32);
+                g.p[r * w + x] = -y;
+                g.q[r * w + x] = x as f32;
+            }
+        }
+        let c = g.curl();
+        for r in 1..h {
+            for x in 0..w - 1 {
+                assert!((c.at(x, r) + 2.0).abs() < 1e-6);
+            }
+        }
+        assert_eq!(c.at(0, 0), 0.0);
+        assert!((g.curl_stats(None).rms_curl - 2.0).abs() < 1e-9);
+    }
+}

@@ -1,0 +1,1176 @@
+//! Reading and writing RGBN images.
+//!
+//! - **EXR** (exr crate): colour `R,G,B` (linear), normal `N.X,N.Y,N.Z`, mask `A`; f16 or f32.
+//!   By option, an EXR whose `R,G,B` *is* a normal pass (Blender style) is read as normals.
+//! - **Colour** PNG/JPEG/TIFF, 8 or 16 bit, sRGB → linear; EXR colour is already linear.
+//! - **Normal maps** PNG/TIFF (8/16 bit) or EXR: `n = v/(2^bits−1)·2−1`, then renormalised;
+//!   OpenGL (`+y` up, the internal frame) or DirectX (`y` flipped) convention.
+//! - **Masks**: any greyscale (or first channel) image, values in [0, 1].
+//!
+//! Bad normals on load are **repaired, with counts** (see [`RgbnImage::repair`]): non-finite and
+//! zero-length normals become `(0, 0, 1)`, others are renormalised; back-facing normals are kept
+//! and counted. [`LoadOptions::strict`] turns any repair into an error instead.
+//!
+//! Writes are atomic (a temporary file in the same folder, then rename) and refuse to write over
+//! any input (see [`check_output`]).
+
+use super::{check_size, RgbnImage, Validation};
+use crate::error::RgbnError;
+use rayon::prelude::*;
+use std::path::{Path, PathBuf};
+
+/// File formats rgbn reads and writes, decided by extension.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Format {
+    Exr,
+    Png,
+    Jpeg,
+    Tiff,
+}
+
+impl Format {
+    /// The format of `path` by its extension (case-insensitive).
+    pub fn of(path: &Path) -> Result<Self, RgbnError> {
+        let ext = path
+            .extension()
+            .and_then(|e| e.to_str())
+            .map(str::to_ascii_lowercase)
+            .unwrap_or_default();
+        Ok(match ext.as_str() {
+            "exr" => Self::Exr,
+            "png" => Self::Png,
+            "jpg" | "jpeg" => Self::Jpeg,
+            "tif" | "tiff" => Self::Tiff,
+            _ => {
+                return Err(RgbnError::UnsupportedFormat {
+                    format: if ext.is_empty() {
+                        "(no extension)".into()
+                    } else {
+                        ext
+                    },
+                    path: path.into(),
+                })
+            }
+        })
+    }
+}
+
+/// Normal-map convention of a file. Internally rgbn always uses OpenGL (`+y` up).
+#[derive(
+    Clone, Copy, Debug, Default, PartialEq, Eq, Hash, serde::Serialize, serde::Deserialize,
+)]
+pub enum NormalConvention {
+    /// `+y` up (OpenGL, Blender, DiLiGenT).
+    #[default]
+    OpenGl,
+    /// `+y` down (DirectX, Unreal): the green channel is flipped on load and save.
+    DirectX,
+}
+
+/// Options for loading.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct LoadOptions {
+    /// Convention of normal-map files (EXR `N.*` channels are always OpenGL).
+    pub convention: NormalConvention,
+    /// Read an EXR's `R,G,B` as the normal (a Blender-style normal pass) instead of colour.
+    pub exr_rgb_is_normal: bool,
+    /// Refuse (instead of repairing) non-finite or zero-length normals and non-finite colours.
+    pub strict: bool,
+}
+
+/// Where the parts of one RGBN image come from.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct InputSpec {
+    /// An RGBN EXR (colour + `N.*`), or a normal map alone (any supported format).
+    pub rgbn: Option<PathBuf>,
+    /// Colour image (overrides an EXR's colour).
+    pub color: Option<PathBuf>,
+    /// Normal map (when `rgbn` is not given).
+    pub normal: Option<PathBuf>,
+    /// Coverage mask.
+    pub mask: Option<PathBuf>,
+}
+
+impl InputSpec {
+    /// Every path named, for the "never overwrite an input" check.
+    #[must_use]
+    pub fn paths(&self) -> Vec<&Path> {
+        [&self.rgbn, &self.color, &self.normal, &self.mask]
+            .into_iter()
+            .flatten()
+            .map(PathBuf::as_path)
+            .collect()
+    }
+}
+
+/// A loaded image and what was repaired.
+#[derive(Clone, Debug)]
+pub struct Loaded {
+    pub image: RgbnImage,
+    /// Validation *before* repair: the counts of what was fixed (and back-facing normals).
+    pub repaired: Validation,
+}
+
+/// Albedo given to images that come without colour (a normal map alone).
+pub const DEFAULT_ALBEDO: f32 = 0.75;
+
+/// Loads an image as described by `spec`.
+pub fn load(spec: &InputSpec, opts: &LoadOptions) -> Result<Loaded, RgbnError> {
+    let (mut image, normal_path) = match (&spec.rgbn, &spec.normal) {
+        (Some(p), None) | (None, Some(p)) => {
+            let img = if Format::of(p)? == Format::Exr {
+                load_exr(p, opts)?
+            } else {
+                load_normal_map(p, opts)?
+            };
+            (img, p.clone())
+        }
+        (Some(_), Some(n)) => {
+            return Err(RgbnError::param(
+                "input",
+                format!(
+                    "give either an RGBN file or --normal, not both (--normal {})",
+                    n.display()
+                ),
+            ))
+        }
+        (None, None) => {
+            return Err(RgbnError::param(
+                "input",
+                "no normals given: name an RGBN EXR or a normal map (or use the built-in demo)",
+            ))
+        }
+    };
+    let (w, h) = (image.width(), image.height());
+    if let Some(c) = &spec.color {
+        let (cw, ch, color) = load_color(c)?;
+        if (cw, ch) != (w, h) {
+            return Err(RgbnError::SizeMismatch {
+                what: "colour image",
+                want_w: w,
+                want_h: h,
+                got_w: cw,
+                got_h: ch,
+                path: c.clone(),
+            });
+        }
+        image.set_color(color)?;
+    }
+    if let Some(m) = &spec.mask {
+        let (mw, mh, mask) = load_mask(m)?;
+        if (mw, mh) != (w, h) {
+            return Err(RgbnError::SizeMismatch {
+                what: "mask",
+                want_w: w,
+                want_h: h,
+                got_w: mw,
+                got_h: mh,
+                path: m.clone(),
+            });
+        }
+        image.set_mask(Some(mask))?;
+    }
+    let before = image.validate();
+    if opts.strict && !before.is_clean() {
+        let (count, kind) = if before.non_finite_normal > 0 {
+            (before.non_finite_normal, "NaN or infinite")
+        } else if before.zero_length_normal > 0 {
+            (before.zero_length_normal, "zero-length")
+        } else if before.non_finite_color > 0 {
+            (
+                before.non_finite_color,
+                "non-finite colour or mask values, not normals",
+            )
+        } else {
+            (before.non_unit, "not unit length")
+        };
+        return Err(RgbnError::InvalidNormals {
+            count,
+            kind: kind.into(),
+            path: normal_path,
+        });
+    }
+    let repaired = image.repair();
+    Ok(Loaded { image, repaired })
+}
+
+fn open_check(path: &Path) -> Result<(), RgbnError> {
+    match std::fs::metadata(path) {
+        Ok(m) if m.is_file() => Ok(()),
+        Ok(_) => Err(RgbnError::Read {
+            path: path.into(),
+            source: std::io::Error::other("not a regular file"),
+        }),
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => {
+            Err(RgbnError::NotFound { path: path.into() })
+        }
+        Err(e) => Err(RgbnError::Read {
+            path: path.into(),
+            source: e,
+        }),
+    }
+}
+
+/// Decoded integer or float samples of a raster file, interleaved.
+enum Samples {
+    U8(Vec<u8>),
+    U16(Vec<u16>),
+    F32(Vec<f32>),
+}
+
+struct Raster {
+    width: usize,
+    height: usize,
+    channels: usize,
+    samples: Samples,
+}
+
+/// Decodes a PNG/JPEG/TIFF with the image crate, checking the size before decoding.
+fn decode_raster(path: &Path) -> Result<Raster, RgbnError> {
+    open_check(path)?;
+    let fmt = match Format::of(path)? {
+        Format::Png => image::ImageFormat::Png,
+        Format::Jpeg => image::ImageFormat::Jpeg,
+        Format::Tiff => image::ImageFormat::Tiff,
+        Format::Exr => unreachable!("EXR is decoded by the exr crate"),
+    };
+    let decode_err = |e: image::ImageError| match e {
+        image::ImageError::IoError(io) if io.kind() != std::io::ErrorKind::UnexpectedEof => {
+            RgbnError::Read {
+                path: path.into(),
+                source: io,
+            }
+        }
+        other => RgbnError::Decode {
+            detail: other.to_string(),
+            path: path.into(),
+        },
+    };
+    let open = || {
+        image::ImageReader::open(path)
+            .map(|mut r| {
+                r.set_format(fmt);
+                r
+            })
+            .map_err(|e| RgbnError::Read {
+                path: path.into(),
+                source: e,
+            })
+    };
+    let (w, h) = open()?.into_dimensions().map_err(decode_err)?;
+    let (w, h) = (w as usize, h as usize);
+    check_size(w, h, &path.display().to_string())?;
+    let mut reader = open()?;
+    reader.no_limits(); // our own limit was checked above
+    let img = reader.decode().map_err(decode_err)?;
+    use image::DynamicImage as D;
+    let channels = usize::from(img.color().channel_count());
+    let samples = match img {
+        D::ImageLuma8(b) => Samples::U8(b.into_raw()),
+        D::ImageLumaA8(b) => Samples::U8(b.into_raw()),
+        D::ImageRgb8(b) => Samples::U8(b.into_raw()),
+        D::ImageRgba8(b) => Samples::U8(b.into_raw()),
+        D::ImageLuma16(b) => Samples::U16(b.into_raw()),
+        D::ImageLumaA16(b) => Samples::U16(b.into_raw()),
+        D::ImageRgb16(b) => Samples::U16(b.into_raw()),
+        D::ImageRgba16(b) => Samples::U16(b.into_raw()),
+        D::ImageRgb32F(b) => Samples::F32(b.into_raw()),
+        D::ImageRgba32F(b) => Samples::F32(b.into_raw()),
+        other => Samples::F32(other.into_rgb32f().into_raw()),
+    };
+    let channels = if matches!(samples, Samples::F32(_)) && channels != 4 {
+        3
+    } else {
+        channels
+    };
+    Ok(Raster {
+        width: w,
+        height: h,
+        channels,
+        samples,
+    })
+}
+
+/// Splits interleaved samples into `out.len()` planes, mapping each sample through `f`.
+/// Missing channels (greyscale input) repeat channel 0.
+fn deinterleave<T: Copy + Sync>(
+    src: &[T],
+    channels: usize,
+    out: &mut [Vec<f32>],
+    f: impl Fn(T) -> f32 + Sync,
+) {
+    let n = src.len() / channels;
+    for o in out.iter_mut() {
+        o.resize(n, 0.0);
+    }
+    let chunk = 4096;
+    let k_out = out.len();
+    // Split each plane into chunks and process chunk-aligned pieces in parallel.
+    let mut planes: Vec<std::slice::ChunksMut<'_, f32>> =
+        out.iter_mut().map(|o| o.chunks_mut(chunk)).collect();
+    let mut pieces: Vec<Vec<&mut [f32]>> = Vec::new();
+    while let Some(first) = planes[0].next() {
+        let mut v = vec![first];
+        for p in planes.iter_mut().skip(1) {
+            v.push(p.next().expect("planes have equal length"));
+        }
+        pieces.push(v);
+    }
+    pieces
+        .into_par_iter()
+        .enumerate()
+        .for_each(|(ci, mut piece)| {
+            let base = ci * chunk;
+            for i in 0..piece[0].len() {
+                let s = &src[(base + i) * channels..(base + i + 1) * channels];
+                for (k, plane) in piece.iter_mut().enumerate().take(k_out) {
+                    plane[i] = f(s[k.min(channels - 1)]);
+                }
+            }
+        });
+}
+
+/// 8-bit sRGB → linear table.
+fn srgb8_lut() -> &'static [f32; 256] {
+    static LUT: std::sync::OnceLock<[f32; 256]> = std::sync::OnceLock::new();
+    LUT.get_or_init(|| std::array::from_fn(|i| srgb_to_linear(i as f32 / 255.0)))
+}
+
+/// 16-bit sRGB → linear table.
+fn srgb16_lut() -> &'static [f32] {
+    static LUT: std::sync::OnceLock<Vec<f32>> = std::sync::OnceLock::new();
+    LUT.get_or_init(|| {
+        (0..65536)
+            .map(|i| srgb_to_linear(i as f32 / 65535.0))
+            .collect()
+    })
+}
+
+/// The sRGB electro-optical transfer function (IEC 61966-2-1), value in [0, 1].
+#[must_use]
+pub fn srgb_to_linear(v: f32) -> f32 {
+    if v <= 0.04045 {
+        v / 12.92
+    } else {
+        ((v + 0.055) / 1.055).powf(2.4)
+    }
+}
+
+/// Inverse of [`srgb_to_linear`].
+#[must_use]
+pub fn linear_to_srgb(v: f32) -> f32 {
+    if v <= 0.003_130_8 {
+        v * 12.92
+    } else {
+        1.055 * v.powf(1.0 / 2.4) - 0.055
+    }
+}
+
+/// Entries of the linear → sRGB 8-bit table.
+pub const SRGB8_LUT_SIZE: usize = 16384;
+
+/// The linear [0,1] → sRGB 8-bit table; index with [`srgb8_index`].
+#[must_use]
+pub fn srgb8_lut_encode() -> &'static [u8] {
+    static LUT: std::sync::OnceLock<Vec<u8>> = std::sync::OnceLock::new();
+    LUT.get_or_init(|| {
+        (0..SRGB8_LUT_SIZE)
+            .map(|i| (linear_to_srgb(i as f32 / (SRGB8_LUT_SIZE - 1) as f32) * 255.0 + 0.5) as u8)
+            .collect()
+    })
+}
+
+/// Table index of a linear value (clamped to [0, 1]; NaN maps to 0).
+#[inline(always)]
+#[must_use]
+pub fn srgb8_index(v: f32) -> usize {
+    ((v.clamp(0.0, 1.0) * (SRGB8_LUT_SIZE - 1) as f32 + 0.5) as usize).min(SRGB8_LUT_SIZE - 1)
+}
+
+/// Linear [0,1] → sRGB 8-bit via a 16384-entry table (within 1 level of the formula).
+#[inline]
+#[must_use]
+pub fn linear_to_srgb8(v: f32) -> u8 {
+    srgb8_lut_encode()[srgb8_index(v)]
+}
+
+/// Loads a colour image as linear planes: PNG/JPEG/TIFF are sRGB, EXR `R,G,B` are linear.
+pub fn load_color(path: &Path) -> Result<(usize, usize, [Vec<f32>; 3]), RgbnError> {
+    if Format::of(path)? == Format::Exr {
+        let e = read_exr_channels(path)?;
+        let color = e.take_rgb(path)?;
+        return Ok((e.width, e.height, color));
+    }
+    let r = decode_raster(path)?;
+    let mut planes = vec![Vec::new(), Vec::new(), Vec::new()];
+    match &r.samples {
+        Samples::U8(s) => {
+            let lut = srgb8_lut();
+            deinterleave(s, r.channels, &mut planes, |v| lut[usize::from(v)]);
+        }
+        Samples::U16(s) => {
+            let lut = srgb16_lut();
+            deinterleave(s, r.channels, &mut planes, |v| lut[usize::from(v)]);
+        }
+        Samples::F32(s) => deinterleave(s, r.channels, &mut planes, |v| v),
+    }
+    let [a, b, c]: [Vec<f32>; 3] = planes.try_into().expect("three planes");
+    Ok((r.width, r.height, [a, b, c]))
+}
+
+/// Loads a greyscale (or first-channel) mask in [0, 1]; EXR: `A`, else `Y`, else `R`.
+pub fn load_mask(path: &Path) -> Result<(usize, usize, Vec<f32>), RgbnError> {
+    if Format::of(path)? == Format::Exr {
+        let mut e = read_exr_channels(path)?;
+        for name in ["A", "Y", "R"] {
+            if let Some(m) = e.take(name) {
+                return Ok((e.width, e.height, m));
+            }
+        }
+        return Err(RgbnError::Decode {
+            detail: "no A, Y or R channel for a mask".into(),
+            path: path.into(),
+        });
+    }
+    let r = decode_raster(path)?;
+    let mut planes = vec![Vec::new()];
+    match &r.samples {
+        Samples::U8(s) => deinterleave(s, r.channels, &mut planes, |v| f32::from(v) / 255.0),
+        Samples::U16(s) => deinterleave(s, r.channels, &mut planes, |v| f32::from(v) / 65535.0),
+        Samples::F32(s) => deinterleave(s, r.channels, &mut planes, |v| v),
+    }
+    Ok((r.width, r.height, planes.pop().expect("one plane")))
+}
+
+/// Loads a normal map (PNG/TIFF/JPEG 8/16-bit, or EXR `N.*`/`R,G,B`) as an RGBN image with the
+/// default albedo. Normals are decoded `v/(2^bits−1)·2−1` and *not yet* renormalised (that is
+/// [`load`]'s repair step, which also counts problems).
+pub fn load_normal_map(path: &Path, opts: &LoadOptions) -> Result<RgbnImage, RgbnError> {
+    if Format::of(path)? == Format::Exr {
+        let o = LoadOptions {
+            exr_rgb_is_normal: true,
+            ..opts.clone()
+        };
+        return load_exr(path, &o);
+    }
+    let r = decode_raster(path)?;
+    if r.channels < 3 {
+        return Err(RgbnError::Decode {
+            detail: format!(
+                "a normal map needs 3 channels, this image has {}",
+                r.channels
+            ),
+            path: path.into(),
+        });
+    }
+    let mut planes = vec![Vec::new(), Vec::new(), Vec::new()];
+    match &r.samples {
+        Samples::U8(s) => deinterleave(s, r.channels, &mut planes, |v| {
+            f32::from(v) * (2.0 / 255.0) - 1.0
+        }),
+        Samples::U16(s) => deinterleave(s, r.channels, &mut planes, |v| {
+            f32::from(v) * (2.0 / 65535.0) - 1.0
+        }),
+        Samples::F32(s) => deinterleave(s, r.channels, &mut planes, |v| v * 2.0 - 1.0),
+    }
+    let [nx, mut ny, nz]: [Vec<f32>; 3] = planes.try_into().expect("three planes");
+    if opts.convention == NormalConvention::DirectX {
+        ny.par_iter_mut().for_each(|v| *v = -*v);
+    }
+    let n = r.width * r.height;
+    RgbnImage::new(
+        r.width,
+        r.height,
+        [
+            vec![DEFAULT_ALBEDO; n],
+            vec![DEFAULT_ALBEDO; n],
+            vec![DEFAULT_ALBEDO; n],
+        ],
+        [nx, ny, nz],
+        None,
+    )
+}
+
+struct ExrChannels {
+    width: usize,
+    height: usize,
+    channels: Vec<(String, Vec<f32>)>,
+}
+
+impl ExrChannels {
+    fn take(&mut self, name: &str) -> Option<Vec<f32>> {
+        let i = self.channels.iter().position(|(n, _)| n == name)?;
+        Some(self.channels.swap_remove(i).1)
+    }
+    fn names(&self) -> String {
+        self.channels
+            .iter()
+            .map(|(n, _)| n.as_str())
+            .collect::<Vec<_>>()
+            .join(",")
+    }
+    fn take_rgb(&self, path: &Path) -> Result<[Vec<f32>; 3], RgbnError> {
+        let mut me = ExrChannels {
+            width: self.width,
+            height: self.height,
+            channels: self.channels.clone(),
+        };
+        me.take_three(["R", "G", "B"], path)
+    }
+    fn take_three(&mut self, names: [&str; 3], path: &Path) -> Result<[Vec<f32>; 3], RgbnError> {
+        let have = self.names();
+        let mut out = Vec::with_capacity(3);
+        for n in names {
+            out.push(self.take(n).ok_or_else(|| RgbnError::Decode {
+                detail: format!("missing channel {n} (channels present: {have})"),
+                path: path.into(),
+            })?);
+        }
+        Ok(out.try_into().expect("three channels"))
+    }
+}
+
+/// Reads every channel of an EXR's first layer (largest resolution) as f32.
+fn read_exr_channels(path: &Path) -> Result<ExrChannels, RgbnError> {
+    open_check(path)?;
+    let exr_err = |e: exr::error::Error| match e {
+        exr::error::Error::Io(io) if io.kind() != std::io::ErrorKind::UnexpectedEof => {
+            RgbnError::Read {
+                path: path.into(),
+                source: io,
+            }
+        }
+        other => RgbnError::Decode {
+            detail: other.to_string(),
+            path: path.into(),
+        },
+    };
+    let meta = exr::meta::MetaData::read_from_file(path, false).map_err(exr_err)?;
+    let header = meta.headers.first().ok_or_else(|| RgbnError::Decode {
+        detail: "no layers".into(),
+        path: path.into(),
+    })?;
+    let size = header.layer_size;
+    check_size(size.0, size.1, &path.display().to_string())?;
+    use exr::prelude::*;
+    let image = read()
+        .no_deep_data()
+        .largest_resolution_level()
+        .all_channels()
+        .first_valid_layer()
+        .all_attributes()
+        .from_file(path)
+        .map_err(exr_err)?;
+    let layer = image.layer_data;
+    let (width, height) = (layer.size.0, layer.size.1);
+    let channels = layer
+        .channel_data
+        .list
+        .into_iter()
+        .map(|c| {
+            let v: Vec<f32> = match c.sample_data {
+                FlatSamples::F32(v) => v,
+                FlatSamples::F16(v) => v.into_par_iter().map(f16::to_f32).collect(),
+                FlatSamples::U32(v) => v.into_par_iter().map(|u| u as f32).collect(),
+            };
+            (c.name.to_string(), v)
+        })
+        .collect();
+    Ok(ExrChannels {
+        width,
+        height,
+        channels,
+    })
+}
+
+/// Loads an RGBN EXR: colour `R,G,B` (default albedo if absent), normals `N.X,N.Y,N.Z` (or, with
+/// [`LoadOptions::exr_rgb_is_normal`], `R,G,B` as normals in [−1, 1]), mask `A` if present.
+pub fn load_exr(path: &Path, opts: &LoadOptions) -> Result<RgbnImage, RgbnError> {
+    let mut e = read_exr_channels(path)?;
+    let (w, h) = (e.width, e.height);
+    let n = w * h;
+    let (color, normal) = if opts.exr_rgb_is_normal {
+        let normal = e.take_three(["R", "G", "B"], path)?;
+        (
+            [
+                vec![DEFAULT_ALBEDO; n],
+                vec![DEFAULT_ALBEDO; n],
+                vec![DEFAULT_ALBEDO; n],
+            ],
+            normal,
+        )
+    } else {
+        let have = e.names();
+        let normal = e.take_three(["N.X", "N.Y", "N.Z"], path).map_err(|_| RgbnError::Decode {
+            detail: format!(
+                "no normal channels N.X,N.Y,N.Z (channels present: {have}); if R,G,B is a normal pass, use --exr-rgb-is-normal"
+            ),
+            path: path.into(),
+        })?;
+        let color = e.take_three(["R", "G", "B"], path).unwrap_or_else(|_| {
+            [
+                vec![DEFAULT_ALBEDO; n],
+                vec![DEFAULT_ALBEDO; n],
+                vec![DEFAULT_ALBEDO; n],
+            ]
+        });
+        (color, normal)
+    };
+    let mask = e.take("A");
+    RgbnImage::new(w, h, color, normal, mask)
+}
+
+// ------------------------------------------------------------------------------------------
+// Writing
+// ------------------------------------------------------------------------------------------
+
+/// Refuses `out` if its folder is missing or it is (the same file as) one of `inputs`.
+pub fn check_output(out: &Path, inputs: &[&Path]) -> Result<(), RgbnError> {
+    let dir = match out.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d,
+        _ => Path::new("."),
+    };
+    if !dir.is_dir() {
+        return Err(RgbnError::MissingDir { path: out.into() });
+    }
+    let out_abs = std::fs::canonicalize(dir)
+        .map(|d| d.join(out.file_name().unwrap_or_default()))
+        .unwrap_or_else(|_| out.to_path_buf());
+    for input in inputs {
+        let same_path = std::fs::canonicalize(input).is_ok_and(|i| i == out_abs);
+        if same_path || same_file(out, input) {
+            return Err(RgbnError::OutputIsInput { path: out.into() });
+        }
+    }
+    Ok(())
+}
+
+#[cfg(unix)]
+fn same_file(a: &Path, b: &Path) -> bool {
+    use std::os::unix::fs::MetadataExt;
+    match (std::fs::metadata(a), std::fs::metadata(b)) {
+        (Ok(x), Ok(y)) => x.dev() == y.dev() && x.ino() == y.ino(),
+        _ => false,
+    }
+}
+#[cfg(not(unix))]
+fn same_file(_: &Path, _: &Path) -> bool {
+    false
+}
+
+/// Writes through `write` into a temporary file next to `path`, then renames it over `path`.
+/// On error the temporary file is removed and `path` is untouched.
+pub fn write_atomic(
+    path: &Path,
+    write: impl FnOnce(&mut std::io::BufWriter<std::fs::File>) -> Result<(), String>,
+) -> Result<(), RgbnError> {
+    let dir = match path.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d,
+        _ => Path::new("."),
+    };
+    if !dir.is_dir() {
+        return Err(RgbnError::MissingDir { path: path.into() });
+    }
+    let name = path.file_name().and_then(|n| n.to_str()).unwrap_or("out");
+    let tmp = dir.join(format!(".{name}.{}.tmp", std::process::id()));
+    let werr = |detail: String| RgbnError::Write {
+        detail,
+        path: path.into(),
+    };
+    let result = (|| {
+        let file = std::fs::File::create(&tmp).map_err(|e| werr(e.to_string()))?;
+        let mut buf = std::io::BufWriter::with_capacity(1 << 20, file);
+        write(&mut buf).map_err(werr)?;
+        let file = buf.into_inner().map_err(|e| werr(e.error().to_string()))?;
+        file.sync_data().map_err(|e| werr(e.to_string()))?;
+        drop(file);
+        std::fs::rename(&tmp, path).map_err(|e| werr(e.to_string()))
+    })();
+    if result.is_err() {
+        let _ = std::fs::remove_file(&tmp);
+    }
+    result
+}
+
+/// Precision of EXR output channels.
+#[derive(
+    Clone, Copy, Debug, Default, PartialEq, Eq, Hash, serde::Serialize, serde::Deserialize,
+)]
+pub enum ExrPrecision {
+    /// 16-bit half floats: half the size, ~3 significant digits (normals to ~5e-4).
+    Half,
+    /// 32-bit floats: exact round trip.
+    #[default]
+    Full,
+}
+
+/// Writes an RGBN EXR (`R,G,B`, `N.X,N.Y,N.Z`, and `A` if masked), ZIP-compressed.
+pub fn save_exr(img: &RgbnImage, path: &Path, precision: ExrPrecision) -> Result<(), RgbnError> {
+    use exr::prelude::*;
+    let mut list = Vec::with_capacity(7);
+    let mut push = |name: &str, data: &[f32]| {
+        let samples = match precision {
+            ExrPrecision::Full => FlatSamples::F32(data.to_vec()),
+            ExrPrecision::Half => {
+                FlatSamples::F16(data.par_iter().map(|&v| f16::from_f32(v)).collect())
+            }
+        };
+        list.push(AnyChannel::new(name, samples));
+    };
+    for (name, plane) in ["R", "G", "B"].iter().zip(img.color()) {
+        push(name, plane);
+    }
+    for (name, plane) in ["N.X", "N.Y", "N.Z"].iter().zip(img.normal()) {
+        push(name, plane);
+    }
+    if let Some(m) = img.mask() {
+        push("A", m);
+    }
+    write_exr_channels(img.width(), img.height(), list, path)
+}
+
+fn write_exr_channels(
+    w: usize,
+    h: usize,
+    list: Vec<exr::prelude::AnyChannel<exr::prelude::FlatSamples>>,
+    path: &Path,
+) -> Result<(), RgbnError> {
+    use exr::prelude::*;
+    let layer = Layer::new(
+        (w, h),
+        LayerAttributes::named("rgbn"),
+        Encoding {
+            compression: Compression::ZIP16,
+            blocks: Blocks::ScanLines,
+            line_order: LineOrder::Increasing,
+        },
+        AnyChannels::sort(SmallVec::from_vec(list)),
+    );
+    let image = Image::from_layer(layer);
+    write_atomic(path, |out| {
+        image.write().to_buffered(out).map_err(|e| e.to_string())
+    })
+}
+
+/// Writes only the colour: EXR (linear `R,G,B`) or PNG/TIFF (sRGB, 8 or 16 bit).
+pub fn save_color(img: &RgbnImage, path: &Path, bits: u8) -> Result<(), RgbnError> {
+    match Format::of(path)? {
+        Format::Exr => {
+            use exr::prelude::*;
+            let list = ["R", "G", "B"]
+                .iter()
+                .zip(img.color())
+                .map(|(n, p)| AnyChannel::new(*n, FlatSamples::F32(p.clone())))
+                .collect();
+            write_exr_channels(img.width(), img.height(), list, path)
+        }
+        fmt => {
+            let [r, g, b] = img.color();
+            if bits == 16 {
+                let enc = |v: f32| (linear_to_srgb(v.clamp(0.0, 1.0)) * 65535.0 + 0.5) as u16;
+                let data = interleave3(r, g, b, enc);
+                write_raster16(&data, img.width(), img.height(), 3, fmt, path)
+            } else {
+                let data = interleave3(r, g, b, linear_to_srgb8);
+                write_raster8(&data, img.width(), img.height(), 3, fmt, path)
+            }
+        }
+    }
+}
+
+/// Writes the normals as a normal map: EXR (`R,G,B` = normal in [−1, 1]) or PNG/TIFF encoded
+/// `v = round((n+1)/2 · (2^bits−1))`, in the given convention.
+pub fn save_normal_map(
+    img: &RgbnImage,
+    path: &Path,
+    bits: u8,
+    convention: NormalConvention,
+) -> Result<(), RgbnError> {
+    let [nx, ny, nz] = img.normal();
+    let flip = if convention == NormalConvention::DirectX {
+        -1.0
+    } else {
+        1.0
+    };
+    match Format::of(path)? {
+        Format::Exr => {
+            use exr::prelude::*;
+            let ny: Vec<f32> = ny.iter().map(|v| v * flip).collect();
+            let list = vec![
+                AnyChannel::new("R", FlatSamples::F32(nx.clone())),
+                AnyChannel::new("G", FlatSamples::F32(ny)),
+                AnyChannel::new("B", FlatSamples::F32(nz.clone())),
+            ];
+            write_exr_channels(img.width(), img.height(), list, path)
+        }
+        Format::Jpeg => Err(RgbnError::UnsupportedFormat {
+            format: "jpeg (lossy; write normal maps as .png, .tif or .exr)".into(),
+            path: path.into(),
+        }),
+        fmt => {
+            if bits == 16 {
+                let data = interleave_normals(nx, ny, nz, flip, 65535.0, |v| v as u16);
+                write_raster16(&data, img.width(), img.height(), 3, fmt, path)
+            } else {
+                let data = interleave_normals(nx, ny, nz, flip, 255.0, |v| v as u8);
+                write_raster8(&data, img.width(), img.height(), 3, fmt, path)
+            }
+        }
+    }
+}
+
+fn interleave_normals<T: Copy + Default + Send>(
+    nx: &[f32],
+    ny: &[f32],
+    nz: &[f32],
+    flip: f32,
+    scale: f32,
+    cast: impl Fn(f32) -> T + Sync,
+) -> Vec<T> {
+    let enc = |v: f32| cast(((v.clamp(-1.0, 1.0) + 1.0) * 0.5 * scale + 0.5).min(scale));
+    let mut out = vec![T::default(); nx.len() * 3];
+    out.par_chunks_mut(3 * 4096).enumerate().for_each(|(c, o)| {
+        let base = c * 4096;
+        for (i, px) in o.chunks_exact_mut(3).enumerate() {
+            let j = base + i;
+            px[0] = enc(nx[j]);
+            px[1] = enc(ny[j] * flip);
+            px[2] = enc(nz[j]);
+        }
+    });
+    out
+}
+
+fn interleave3<T: Copy + Default + Send>(
+    a: &[f32],
+    b: &[f32],
+    c: &[f32],
+    f: impl Fn(f32) -> T + Sync,
+) -> Vec<T> {
+    let mut out = vec![T::default(); a.len() * 3];
+    out.par_chunks_mut(3 * 4096)
+        .enumerate()
+        .for_each(|(ci, o)| {
+            let base = ci * 4096;
+            for (i, px) in o.chunks_exact_mut(3).enumerate() {
+                let j = base + i;
+                px[0] = f(a[j]);
+                px[1] = f(b[j]);
+                px[2] = f(c[j]);
+            }
+        });
+    out
+}
+
+fn color_type(channels: usize, sixteen: bool) -> image::ExtendedColorType {
+    use image::ExtendedColorType as C;
+    match (channels, sixteen) {
+        (1, false) => C::L8,
+        (1, true) => C::L16,
+        (4, false) => C::Rgba8,
+        (4, true) => C::Rgba16,
+        (_, false) => C::Rgb8,
+        (_, true) => C::Rgb16,
+    }
+}
+
+fn encode_raster(
+    bytes: &[u8],
+    w: usize,
+    h: usize,
+    ct: image::ExtendedColorType,
+    fmt: Format,
+    path: &Path,
+) -> Result<(), RgbnError> {
+    use image::ImageEncoder;
+    write_atomic(path, |out| {
+        let r = match fmt {
+            Format::Png => image::codecs::png::PngEncoder::new_with_quality(
+                out,
+                image::codecs::png::CompressionType::Fast,
+                image::codecs::png::FilterType::Adaptive,
+            )
+            .write_image(bytes, w as u32, h as u32, ct),
+            Format::Tiff => image::codecs::tiff::TiffEncoder::new(out)
+                .write_image(bytes, w as u32, h as u32, ct),
+            Format::Jpeg => image::codecs::jpeg::JpegEncoder::new_with_quality(out, 95)
+                .write_image(bytes, w as u32, h as u32, ct),
+            Format::Exr => unreachable!("EXR goes through the exr crate"),
+        };
+        r.map_err(|e| e.to_string())
+    })
+}
+
+/// Writes interleaved 8-bit samples (1, 3 or 4 channels) as PNG/TIFF/JPEG.
+pub fn write_raster8(
+    data: &[u8],
+    w: usize,
+    h: usize,
+    channels: usize,
+    fmt: Format,
+    path: &Path,
+) -> Result<(), RgbnError> {
+    encode_raster(data, w, h, color_type(channels, false), fmt, path)
+}
+
+/// Writes interleaved 16-bit samples as PNG/TIFF.
+pub fn write_raster16(
+    data: &[u16],
+    w: usize,
+    h: usize,
+    channels: usize,
+    fmt: Format,
+    path: &Path,
+) -> Result<(), RgbnError> {
+    if fmt == Format::Jpeg {
+        return Err(RgbnError::UnsupportedFormat {
+            format: "jpeg (8-bit only; use .png or .tif for 16 bit)".into(),
+            path: path.into(),
+        });
+    }
+    let mut bytes = Vec::with_capacity(data.len() * 2);
+    for v in data {
+        bytes.extend_from_slice(&v.to_ne_bytes());
+    }
+    encode_raster(&bytes, w, h, color_type(channels, true), fmt, path)
+}
+
+/// Saves an RGBN image by extension: `.exr` gets everything (colour, normals, mask); PNG/TIFF get
+/// the normal map (`bits` 8 or 16).
+pub fn save(img: &RgbnImage, path: &Path, opts: &SaveOptions) -> Result<(), RgbnError> {
+    match Format::of(path)? {
+        Format::Exr => save_exr(img, path, opts.precision),
+        _ => save_normal_map(img, path, opts.bits, opts.convention),
+    }
+}
+
+/// Options for [`save`].
+#[derive(Clone, Debug, PartialEq)]
+pub struct SaveOptions {
+    pub bits: u8,
+    pub convention: NormalConvention,
+    pub precision: ExrPrecision,
+}
+
+impl Default for SaveOptions {
+    fn default() -> Self {
+        Self {
+            bits: 16,
+            convention: NormalConvention::OpenGl,
+            precision: ExrPrecision::Full,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::raster::sample::demo_medallion;
+
+    fn tmp() -> tempfile::TempDir {
+        tempfile::tempdir().unwrap()
+    }
+
+    #[test]
+    fn exr_f32_roundtrip_is_exact() {
+        let mut img = demo_medallion(64);
+        img.set_mask(Some((0..64 * 64).map(|i| (i % 7) as f32 / 6.0).collect()))
+            .unwrap();
+        let d = tmp();
+        let p = d.path().join("a.exr");
+        save_exr(&img, &p, ExrPrecision::Full).unwrap();
+        let back = load(
+            &InputSpec {
+                rgbn: Some(p),
+                ..Default::default()
+            },
+            &LoadOptions::default(),
+        )
+        .unwrap();
+        assert_eq!(back.image, img);
+    }
+
+    #[test]
+    fn exr_f16_roundtrip_is_within_half_precision() {
+        let img = demo_medallion(32);
+        let d = tmp();
+        let p = d.path().join("h.exr");
+        save_exr(&img, &p, ExrPrecision::Half).unwrap();
+        let back = load_exr(&p, &LoadOptions::default()).unwrap();
+        for (a, b) in img.normal().iter().zip(back.normal()) {
+            for (x, y) in a.iter().zip(b) {
+                assert!((x - y).abs() <= 5e-4, "{x} {y}");
+            }
+        }
+    }
+
+    #[test]
+    fn png16_normal_roundtrip_within_quantisation_and_dx_flip() {
+        let img = demo_medallion(48);
+        let d = tmp();
+        for (conv, bits, tol) in [
+            (NormalConvention::OpenGl, 16, 2.0 / 65535.0 * 1.01),
+            (NormalConvention::DirectX, 16, 2.0 / 65535.0 * 1.01),
+            (NormalConvention::OpenGl, 8, 2.0 / 255.0 * 1.01),
+        ] {
+            let p = d.path().join(format!("n{bits}{conv:?}.png"));
+            save_normal_map(&img, &p, bits, conv).unwrap();
+            let opts = LoadOptions {
+                convention: conv,
+                ..Default::default()
+            };
+            let back = load(
+                &InputSpec {
+                    normal: Some(p.clone()),
+                    ..Default::default()
+                },
+                &opts,
+            )
+            .unwrap()
+            .image;
+            // half a quantisation step per component, plus renormalisation
+            for (a, b) in img.normal().iter().zip(back.normal()) {
+                for (x, y) in a.iter().zip(b) {
+                    assert!((x - y).abs() <= tol, "{conv:?} {bits}: {x} vs {y}");
+                }
+            }
+            if conv == NormalConvention::DirectX {
+                // Reading the DX file as GL must show the y flip.
+                let gl = load_normal_map(&p, &LoadOptions::default()).unwrap();
+                let i = img.normal()[1].iter().position(|v| v.abs() > 0.3).unwrap();
+                assert!((gl.normal()[1][i] + img.normal()[1][i]).abs() < 1e-3);
+            }
+        }
+    }
+
+    #[test]
+    fn srgb_roundtrip_and_known_values() {
+        assert!((srgb_to_linear(0.5) - 0.214_041).abs() < 1e-5);
+        assert!((linear_to_srgb(0.214_041) - 0.5).abs() < 1e-5);
+        for i in 0..=255u8 {
+            let lin = srgb8_lut()[usize::from(i)];
+            assert_eq!(linear_to_srgb8(lin), i, "8-bit sRGB round trip of {i}");
+        }
+    }
+
+    #[test]
+    fn colour_png_is_decoded_to_linear() {
+        let d = tmp();
+        let p = d.path().join("c.png");
+        let data: Vec<u8> = [128u8, 0, 255].repeat(4);
+        write_raster8(&data, 2, 2, 3, Format::Png, &p).unwrap();
+        let (w, h, [r, g, b]) = load_color(&p).unwrap();
+        assert_eq!((w, h), (2, 2));
+        assert!((r[0] - srgb_to_linear(128.0 / 255.0)).abs() < 1e-6);
+        assert_eq!((g[3], b[3]), (0.0, 1.0));
+    }
+
+    #[test]
+    fn bad_inputs_give_clear_errors() {
+        let d = tmp();
+        let missing = d.path().join("nope.png");
+        let e = load_normal_map(&missing, &LoadOptions::default()).unwrap_err();
+        assert!(
+            matches!(e, RgbnError::NotFound { .. }) && e.to_string().ends_with("nope.png"),
+            "{e}"
+        );
+
+        let txt = d.path().join("x.bmp");
+        std::fs::write(&txt, b"hi").unwrap();
+        assert!(matches!(
+            Format::of(&txt),
+            Err(RgbnError::UnsupportedFormat { .. })
+        ));
+
+        // truncated PNG
+        let img = demo_medallion(32);
+        let good = d.path().join("good.png");
+        save_normal_map(&img, &good, 16, NormalConvention::OpenGl).unwrap();
+        let bytes = std::fs::read(&good).unwrap();
+        let cut = d.path().join("cut.png");
+        std::fs::write(&cut, &bytes[..bytes.len() / 2]).unwrap();
+        let e = load_normal_map(&cut, &LoadOptions::default()).unwrap_err();
+        assert!(matches!(e, RgbnError::Decode { .. }), "{e:?}");
+        assert!(e.to_string().ends_with("cut.png"));
+
+        // garbage EXR
+        let bad = d.path().join("bad.exr");
+        std::fs::write(&bad, b"not an exr at all").unwrap();
+        assert!(matches!(
+            load_exr(&bad, &LoadOptions::default()),
+            Err(RgbnError::Decode { .. })
+        ));
+
+        // colour/normal size mismatch
+        let small = d.path().join("small.png");
+        write_raster8(&[0u8; 3 * 4], 2, 2, 3, Format::Png, &small).unwrap();
+        let spec = InputSpec {
+            normal: Some(good.clone()),
+            color: Some(small),
+            ..Default::default()
+        };
+        let e = load(&spec, &LoadOptions::default()).unwrap_err();
+        assert!(e.to_string().contains("2×2 but the image is 32×32"), "{e}");
+
+        // output equal to an input, output in a missing folder
+        assert!(matches!(
+            check_output(&good, &[&good]),
+            Err(RgbnError::OutputIsInput { .. })
+        ));
+        let via_dots = d.path().join(".").join("good.png");
+        assert!(matches!(
+            check_output(&via_dots, &[&good]),
+            Err(RgbnError::OutputIsInput { .. })
+        ));
+        let nodir = d.path().join("missing/out.png");
+        assert!(matches!(
+            check_output(&nodir, &[]),
+            Err(RgbnError::MissingDir { .. })
+        ));
+    }
+
+    #[test]
+    fn strict_refuses_and_default_repairs_zero_normals() {
+        let d = tmp();
+        let p = d.path().join("z.exr");
+        let mut img = RgbnImage::flat(4, 4, [0.5; 3]);
+        img.normal_mut()[2][5] = 0.0;
+        img.normal_mut()[0][6] = f32::NAN;
+        save_exr(&img, &p, ExrPrecision::Full).unwrap();
+        let spec = InputSpec {
+            rgbn: Some(p),
+            ..Default::default()
+        };
+        let l = load(&spec, &LoadOptions::default()).unwrap();
+        assert_eq!(
+            (l.repaired.zero_length_normal, l.repaired.non_finite_normal),
+            (1, 1)
+        );
+        assert_eq!(l.image.normal_at(1, 1), [0.0, 0.0, 1.0]);
+        let strict = LoadOptions {
+            strict: true,
+            ..Default::default()
+        };
+        let e = load(&spec, &strict).unwrap_err();
+        assert!(
+            e.to_string()
+                .contains("1 invalid normals (NaN or infinite)"),
+            "{e}"
+        );
+    }
+
+    #[test]
+    fn failed_write_leaves_no_file_and_keeps_the_old_one() {
+        let d = tmp();
+        let p = d.path().join("keep.png");
+        std::fs::write(&p, b"old").unwrap();
+        let e = write_atomic(&p, |_| Err("boom".into())).unwrap_err();
+        assert!(e.to_string().contains("boom"));
+        assert_eq!(std::fs::read(&p).unwrap(), b"old");
+        assert_eq!(
+            std::fs::read_dir(d.path()).unwrap().count(),
+            1,
+            "temp file removed"
+        );
+    }
+}

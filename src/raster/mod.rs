@@ -1,0 +1,440 @@
+//! The RGBN image model and the pixel maths shared by many operators.
+//!
+//! Storage is planar `f32` (one `Vec` per channel, row-major, row 0 at the top) so that kernels
+//! can run over rows with rayon and let the compiler vectorise the inner loops.
+//!
+//! Conventions (see `ARCHITECTURE.md`): colour is linear light; normals are unit vectors in the
+//! OpenGL frame (`+x` right, `+y` up, `+z` towards the viewer).
+
+pub mod convolve;
+pub mod gradient;
+pub mod io;
+pub mod sample;
+
+use crate::error::RgbnError;
+use std::sync::Arc;
+
+/// Pixels refused before allocating. 2^27 ≈ 134 Mpx (e.g. 16384 × 8192) needs ~3.8 GB as an
+/// RGBN image (28 bytes per pixel) plus working buffers. Override with `RGBN_MAX_PIXELS`.
+pub const DEFAULT_MAX_PIXELS: u64 = 1 << 27;
+
+/// Normals shorter than this (before normalisation) are "zero-length": no direction can be
+/// recovered. Covers the 8-bit mid-grey `(128,128,128)` whose decoded length is 0.0068.
+pub const MIN_NORMAL_LENGTH: f32 = 0.02;
+
+/// The current pixel limit: `RGBN_MAX_PIXELS` if set to a number, else [`DEFAULT_MAX_PIXELS`].
+#[must_use]
+pub fn max_pixels() -> u64 {
+    std::env::var("RGBN_MAX_PIXELS")
+        .ok()
+        .and_then(|v| v.trim().parse().ok())
+        .unwrap_or(DEFAULT_MAX_PIXELS)
+}
+
+/// Refuses sizes over [`max_pixels`] (or zero) before anything is allocated.
+pub fn check_size(width: usize, height: usize, source: &str) -> Result<(), RgbnError> {
+    let limit = max_pixels();
+    let pixels = width as u64 * height as u64;
+    if width == 0 || height == 0 {
+        return Err(RgbnError::Decode {
+            detail: format!("image has no pixels ({width}×{height})"),
+            path: source.into(),
+        });
+    }
+    if pixels > limit {
+        return Err(RgbnError::TooLarge {
+            width,
+            height,
+            limit,
+            path: source.into(),
+        });
+    }
+    Ok(())
+}
+
+/// A single `f32` channel: a height, a curl map, a mask or one gradient component.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Plane {
+    width: usize,
+    height: usize,
+    data: Vec<f32>,
+}
+
+impl Plane {
+    /// A plane filled with `value`.
+    #[must_use]
+    pub fn filled(width: usize, height: usize, value: f32) -> Self {
+        Self {
+            width,
+            height,
+            data: vec![value; width * height],
+        }
+    }
+
+    /// Wraps `data` (row-major, `width * height` values).
+    pub fn from_vec(width: usize, height: usize, data: Vec<f32>) -> Result<Self, RgbnError> {
+        if data.len() != width * height {
+            return Err(RgbnError::InvalidImage(format!(
+                "plane of {width}×{height} needs {} values, got {}",
+                width * height,
+                data.len()
+            )));
+        }
+        Ok(Self {
+            width,
+            height,
+            data,
+        })
+    }
+
+    /// Samples `f(x, y_row)` at every pixel.
+    #[must_use]
+    pub fn from_fn(width: usize, height: usize, f: impl Fn(usize, usize) -> f32 + Sync) -> Self {
+        use rayon::prelude::*;
+        let mut data = vec![0.0; width * height];
+        data.par_chunks_mut(width.max(1))
+            .enumerate()
+            .for_each(|(row, out)| {
+                for (x, v) in out.iter_mut().enumerate() {
+                    *v = f(x, row);
+                }
+            });
+        Self {
+            width,
+            height,
+            data,
+        }
+    }
+
+    #[must_use]
+    pub fn width(&self) -> usize {
+        self.width
+    }
+    #[must_use]
+    pub fn height(&self) -> usize {
+        self.height
+    }
+    #[must_use]
+    pub fn data(&self) -> &[f32] {
+        &self.data
+    }
+    pub fn data_mut(&mut self) -> &mut [f32] {
+        &mut self.data
+    }
+    #[must_use]
+    pub fn into_vec(self) -> Vec<f32> {
+        self.data
+    }
+    /// The value at column `x`, row `row`.
+    #[must_use]
+    pub fn at(&self, x: usize, row: usize) -> f32 {
+        self.data[row * self.width + x]
+    }
+}
+
+/// Colour + unit normal (+ optional coverage mask) per pixel.
+///
+/// The three parts are reference-counted and copy-on-write: cloning an image is cheap, and an
+/// operator that changes only the normals shares the colour and mask with its input.
+#[derive(Clone, Debug, PartialEq)]
+pub struct RgbnImage {
+    width: usize,
+    height: usize,
+    /// Linear-light R, G, B planes.
+    color: Arc<[Vec<f32>; 3]>,
+    /// Normal x, y, z planes (OpenGL frame, unit length).
+    normal: Arc<[Vec<f32>; 3]>,
+    /// Coverage in [0, 1]; `None` means everything is covered.
+    mask: Option<Arc<Vec<f32>>>,
+}
+
+/// What [`RgbnImage::validate`] found. Counts are pixels.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Validation {
+    pub pixels: usize,
+    /// Colour or mask values that are NaN or infinite.
+    pub non_finite_color: usize,
+    /// Normals with a NaN or infinite component.
+    pub non_finite_normal: usize,
+    /// Normals shorter than [`MIN_NORMAL_LENGTH`].
+    pub zero_length_normal: usize,
+    /// Normals with `n_z ≤ 0` (facing away from the viewer).
+    pub back_facing: usize,
+    /// Normals whose length is off 1 by more than 1e-3 (not normalised).
+    pub non_unit: usize,
+}
+
+impl Validation {
+    /// True when nothing needs repair (back-facing normals are reported, not repaired).
+    #[must_use]
+    pub fn is_clean(&self) -> bool {
+        self.non_finite_color == 0
+            && self.non_finite_normal == 0
+            && self.zero_length_normal == 0
+            && self.non_unit == 0
+    }
+}
+
+impl RgbnImage {
+    /// An image of constant colour and normal `(0, 0, 1)` (a flat surface facing the viewer).
+    #[must_use]
+    pub fn flat(width: usize, height: usize, color: [f32; 3]) -> Self {
+        let n = width * height;
+        Self {
+            width,
+            height,
+            color: Arc::new(color.map(|c| vec![c; n])),
+            normal: Arc::new([vec![0.0; n], vec![0.0; n], vec![1.0; n]]),
+            mask: None,
+        }
+    }
+
+    /// Builds an image from planes; every plane must hold `width * height` values.
+    pub fn new(
+        width: usize,
+        height: usize,
+        color: [Vec<f32>; 3],
+        normal: [Vec<f32>; 3],
+        mask: Option<Vec<f32>>,
+    ) -> Result<Self, RgbnError> {
+        let n = width * height;
+        let bad = color.iter().chain(normal.iter()).any(|c| c.len() != n)
+            || mask.as_ref().is_some_and(|m| m.len() != n);
+        if bad {
+            return Err(RgbnError::InvalidImage(format!(
+                "every plane of a {width}×{height} image needs {n} values"
+            )));
+        }
+        Ok(Self {
+            width,
+            height,
+            color: Arc::new(color),
+            normal: Arc::new(normal),
+            mask: mask.map(Arc::new),
+        })
+    }
+
+    #[must_use]
+    pub fn width(&self) -> usize {
+        self.width
+    }
+    #[must_use]
+    pub fn height(&self) -> usize {
+        self.height
+    }
+    #[must_use]
+    pub fn len(&self) -> usize {
+        self.width * self.height
+    }
+    #[must_use]
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+    #[must_use]
+    pub fn color(&self) -> &[Vec<f32>; 3] {
+        &self.color
+    }
+    /// Mutable colour planes (copied first if shared).
+    pub fn color_mut(&mut self) -> &mut [Vec<f32>; 3] {
+        Arc::make_mut(&mut self.color)
+    }
+    #[must_use]
+    pub fn normal(&self) -> &[Vec<f32>; 3] {
+        &self.normal
+    }
+    /// Mutable normal planes (copied first if shared).
+    pub fn normal_mut(&mut self) -> &mut [Vec<f32>; 3] {
+        Arc::make_mut(&mut self.normal)
+    }
+    /// A copy sharing colour and mask, with new normal planes (each `width * height` long).
+    pub fn with_normals(&self, normal: [Vec<f32>; 3]) -> Result<Self, RgbnError> {
+        if normal.iter().any(|c| c.len() != self.len()) {
+            return Err(RgbnError::InvalidImage("normal plane size mismatch".into()));
+        }
+        Ok(Self {
+            normal: Arc::new(normal),
+            ..self.clone()
+        })
+    }
+    #[must_use]
+    pub fn mask(&self) -> Option<&[f32]> {
+        self.mask.as_ref().map(|m| m.as_slice())
+    }
+    /// Replaces the mask; its length must match.
+    pub fn set_mask(&mut self, mask: Option<Vec<f32>>) -> Result<(), RgbnError> {
+        if let Some(m) = &mask {
+            if m.len() != self.len() {
+                return Err(RgbnError::InvalidImage(format!(
+                    "mask has {} values, image has {}",
+                    m.len(),
+                    self.len()
+                )));
+            }
+        }
+        self.mask = mask.map(Arc::new);
+        Ok(())
+    }
+    /// Replaces the colour planes (same size).
+    pub fn set_color(&mut self, color: [Vec<f32>; 3]) -> Result<(), RgbnError> {
+        if color.iter().any(|c| c.len() != self.len()) {
+            return Err(RgbnError::InvalidImage("colour plane size mismatch".into()));
+        }
+        self.color = Arc::new(color);
+        Ok(())
+    }
+
+    /// The normal at column `x`, row `row`.
+    #[must_use]
+    pub fn normal_at(&self, x: usize, row: usize) -> [f32; 3] {
+        let i = row * self.width + x;
+        [self.normal[0][i], self.normal[1][i], self.normal[2][i]]
+    }
+    /// The colour at column `x`, row `row`.
+    #[must_use]
+    pub fn color_at(&self, x: usize, row: usize) -> [f32; 3] {
+        let i = row * self.width + x;
+        [self.color[0][i], self.color[1][i], self.color[2][i]]
+    }
+
+    /// Bytes held by the pixel planes.
+    #[must_use]
+    pub fn byte_size(&self) -> usize {
+        (6 + usize::from(self.mask.is_some())) * self.len() * std::mem::size_of::<f32>()
+    }
+
+    /// Counts problem pixels without changing anything.
+    #[must_use]
+    pub fn validate(&self) -> Validation {
+        use rayon::prelude::*;
+        let n = self.len();
+        let chunk = 1 << 16;
+        (0..n.div_ceil(chunk))
+            .into_par_iter()
+            .map(|c| {
+                let mut v = Validation::default();
+                for i in c * chunk..((c + 1) * chunk).min(n) {
+                    v.pixels += 1;
+                    let col_bad = self.color.iter().any(|p| !p[i].is_finite())
+                        || self.mask.as_ref().is_some_and(|m| !m[i].is_finite());
+                    v.non_finite_color += usize::from(col_bad);
+                    let [x, y, z] = [self.normal[0][i], self.normal[1][i], self.normal[2][i]];
+                    if !(x.is_finite() && y.is_finite() && z.is_finite()) {
+                        v.non_finite_normal += 1;
+                        continue;
+                    }
+                    let len = (x * x + y * y + z * z).sqrt();
+                    if len < MIN_NORMAL_LENGTH {
+                        v.zero_length_normal += 1;
+                        continue;
+                    }
+                    v.non_unit += usize::from((len - 1.0).abs() > 1e-3);
+                    v.back_facing += usize::from(z <= 0.0);
+                }
+                v
+            })
+            .reduce(Validation::default, |a, b| Validation {
+                pixels: a.pixels + b.pixels,
+                non_finite_color: a.non_finite_color + b.non_finite_color,
+                non_finite_normal: a.non_finite_normal + b.non_finite_normal,
+                zero_length_normal: a.zero_length_normal + b.zero_length_normal,
+                back_facing: a.back_facing + b.back_facing,
+                non_unit: a.non_unit + b.non_unit,
+            })
+    }
+
+    /// Repairs what [`validate`](Self::validate) counts: non-finite colour/mask values become 0,
+    /// non-finite or zero-length normals become `(0, 0, 1)`, other normals are normalised.
+    /// Back-facing normals are kept (gradient conversion clamps them, see [`gradient`]).
+    /// Returns the validation of the image *before* repair.
+    pub fn repair(&mut self) -> Validation {
+        let before = self.validate();
+        if before.is_clean() {
+            return before;
+        }
+        use rayon::prelude::*;
+        let [nx, ny, nz] = self.normal_mut();
+        (nx.par_iter_mut(), ny.par_iter_mut(), nz.par_iter_mut())
+            .into_par_iter()
+            .for_each(|(x, y, z)| {
+                let len = (*x * *x + *y * *y + *z * *z).sqrt();
+                if !len.is_finite() || len < MIN_NORMAL_LENGTH {
+                    (*x, *y, *z) = (0.0, 0.0, 1.0);
+                } else {
+                    (*x, *y, *z) = (*x / len, *y / len, *z / len);
+                }
+            });
+        let fix = |plane: &mut Vec<f32>| {
+            plane.par_iter_mut().for_each(|v| {
+                if !v.is_finite() {
+                    *v = 0.0;
+                }
+            })
+        };
+        if before.non_finite_color > 0 {
+            self.color_mut().iter_mut().for_each(fix);
+            if let Some(m) = self.mask.as_mut() {
+                fix(Arc::make_mut(m));
+            }
+        }
+        before
+    }
+
+    /// Renormalises every normal in place (zero-length ones become `(0, 0, 1)`).
+    pub fn normalize(&mut self) {
+        use rayon::prelude::*;
+        let [nx, ny, nz] = self.normal_mut();
+        (nx.par_iter_mut(), ny.par_iter_mut(), nz.par_iter_mut())
+            .into_par_iter()
+            .for_each(|(x, y, z)| {
+                let len2 = *x * *x + *y * *y + *z * *z;
+                if len2.is_finite() && len2 > MIN_NORMAL_LENGTH * MIN_NORMAL_LENGTH {
+                    let inv = len2.sqrt().recip();
+                    (*x, *y, *z) = (*x * inv, *y * inv, *z * inv);
+                } else {
+                    (*x, *y, *z) = (0.0, 0.0, 1.0);
+                }
+            });
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn validate_counts_each_problem_once() {
+        let mut img = RgbnImage::flat(4, 1, [0.5; 3]);
+        let n = img.normal_mut();
+        // pixel 0 fine; 1 NaN; 2 zero-length; 3 back-facing and unnormalised
+        n[0][1] = f32::NAN;
+        n[2][2] = 0.0;
+        n[0][3] = 0.6;
+        n[2][3] = -0.9;
+        img.color_mut()[1][0] = f32::INFINITY;
+        let v = img.validate();
+        assert_eq!(v.pixels, 4);
+        assert_eq!(v.non_finite_normal, 1);
+        assert_eq!(v.zero_length_normal, 1);
+        assert_eq!(v.back_facing, 1);
+        assert_eq!(v.non_unit, 1);
+        assert_eq!(v.non_finite_color, 1);
+        let before = img.repair();
+        assert_eq!(before, v);
+        let after = img.validate();
+        assert!(after.is_clean(), "{after:?}");
+        assert_eq!(after.back_facing, 1, "back-facing normals are kept");
+        assert_eq!(img.normal_at(1, 0), [0.0, 0.0, 1.0]);
+        let [x, _, z] = img.normal_at(3, 0);
+        assert!((x - 0.6 / (0.36f32 + 0.81).sqrt()).abs() < 1e-6 && z < 0.0);
+    }
+
+    #[test]
+    fn size_limit_is_checked_before_allocation() {
+        let err = check_size(1 << 20, 1 << 20, "huge.exr").unwrap_err();
+        let msg = err.to_string();
+        assert!(msg.contains("1048576×1048576"), "{msg}");
+        assert!(msg.ends_with("huge.exr"), "{msg}");
+        assert!(check_size(0, 5, "empty.png").is_err());
+        assert!(check_size(64, 64, "ok.png").is_ok());
+    }
+}

@@ -1,0 +1,333 @@
+//! Built-in inputs: the procedural demo medallion (so rgbn runs with no files) and analytic
+//! test surfaces with exact heights *and* exact normals.
+//!
+//! Coordinates: pixel `(x, row)` maps to `u = x − cx`, `v = cy − row` (y up), heights in pixels.
+
+use super::gradient::normal_of_gradient;
+use super::{Plane, RgbnImage};
+use rayon::prelude::*;
+
+/// An analytic height field `z(u, v)` with its exact gradient.
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+pub enum Surface {
+    /// Upper hemisphere of radius `radius_px` centred in the image; flat (z = 0) outside, where
+    /// the mask is 0. Slopes grow without bound at the rim.
+    Sphere { radius_px: f64 },
+    /// `z = −curvature · (u² + v²)`: a dome whose slope grows linearly.
+    Paraboloid { curvature: f64 },
+    /// `z = amplitude · sin(2π u / period) · sin(2π v / period)`.
+    Sinusoid { amplitude_px: f64, period_px: f64 },
+    /// `Σ aᵢ · exp(−((u−uᵢ)² + (v−vᵢ)²) / 2sᵢ²)`, each bump `(u, v, amplitude, sigma)`.
+    Gaussians { bumps: Vec<[f64; 4]> },
+}
+
+impl Surface {
+    /// A default sum of Gaussians well inside a `size × size` image (zero slope at the borders).
+    #[must_use]
+    pub fn gaussians_for(size: usize) -> Self {
+        let s = size as f64;
+        Surface::Gaussians {
+            bumps: vec![
+                [-0.15 * s, 0.1 * s, 0.12 * s, 0.09 * s],
+                [0.18 * s, -0.12 * s, -0.08 * s, 0.06 * s],
+                [0.05 * s, 0.2 * s, 0.05 * s, 0.04 * s],
+            ],
+        }
+    }
+
+    /// Height at `(u, v)`.
+    #[must_use]
+    pub fn height(&self, u: f64, v: f64) -> f64 {
+        match self {
+            Surface::Sphere { radius_px: r } => (r * r - u * u - v * v).max(0.0).sqrt(),
+            Surface::Paraboloid { curvature: c } => -c * (u * u + v * v),
+            Surface::Sinusoid {
+                amplitude_px: a,
+                period_px: l,
+            } => {
+                let k = std::f64::consts::TAU / l;
+                a * (k * u).sin() * (k * v).sin()
+            }
+            Surface::Gaussians { bumps } => bumps
+                .iter()
+                .map(|[bu, bv, a, s]| {
+                    a * (-((u - bu).powi(2) + (v - bv).powi(2)) / (2.0 * s * s)).exp()
+                })
+                .sum(),
+        }
+    }
+
+    /// Exact gradient `(∂z/∂u, ∂z/∂v)`; `None` where the surface has no finite slope (outside or
+    /// on the sphere's rim).
+    #[must_use]
+    pub fn gradient(&self, u: f64, v: f64) -> Option<[f64; 2]> {
+        Some(match self {
+            Surface::Sphere { radius_px: r } => {
+                let z2 = r * r - u * u - v * v;
+                if z2 <= 0.0 {
+                    return None;
+                }
+                let z = z2.sqrt();
+                [-u / z, -v / z]
+            }
+            Surface::Paraboloid { curvature: c } => [-2.0 * c * u, -2.0 * c * v],
+            Surface::Sinusoid {
+                amplitude_px: a,
+                period_px: l,
+            } => {
+                let k = std::f64::consts::TAU / l;
+                [
+                    a * k * (k * u).cos() * (k * v).sin(),
+                    a * k * (k * u).sin() * (k * v).cos(),
+                ]
+            }
+            Surface::Gaussians { bumps } => {
+                bumps.iter().fold([0.0, 0.0], |[gu, gv], [bu, bv, a, s]| {
+                    let e = a * (-((u - bu).powi(2) + (v - bv).powi(2)) / (2.0 * s * s)).exp();
+                    [gu - e * (u - bu) / (s * s), gv - e * (v - bv) / (s * s)]
+                })
+            }
+        })
+    }
+
+    /// Samples the surface on a `width × height` grid: the RGBN (albedo 0.8 grey, exact normals,
+    /// a mask where the slope is undefined) and the height plane.
+    #[must_use]
+    pub fn render(&self, width: usize, height: usize) -> (RgbnImage, Plane) {
+        let (cx, cy) = (width as f64 / 2.0, height as f64 / 2.0);
+        let n = width * height;
+        let mut normal = [vec![0.0f32; n], vec![0.0f32; n], vec![1.0f32; n]];
+        let mut mask = vec![1.0f32; n];
+        let z = Plane::from_fn(width, height, |x, r| {
+            self.height(x as f64 - cx, cy - r as f64) as f32
+        });
+        let [nx, ny, nz] = &mut normal;
+        let mut any_masked = false;
+        for (i, ((a, b), (c, m))) in nx
+            .iter_mut()
+            .zip(ny.iter_mut())
+            .zip(nz.iter_mut().zip(mask.iter_mut()))
+            .enumerate()
+        {
+            let (u, v) = ((i % width) as f64 - cx, cy - (i / width) as f64);
+            match self.gradient(u, v) {
+                Some([p, q]) => [*a, *b, *c] = normal_of_gradient(p as f32, q as f32),
+                None => {
+                    *m = 0.0;
+                    any_masked = true;
+                }
+            }
+        }
+        let img = RgbnImage::new(
+            width,
+            height,
+            [vec![0.8; n], vec![0.8; n], vec![0.8; n]],
+            normal,
+            any_masked.then_some(mask),
+        )
+        .expect("sizes match by construction");
+        (img, z)
+    }
+}
+
+fn smoothstep(e0: f64, e1: f64, x: f64) -> f64 {
+    let t = ((x - e0) / (e1 - e0)).clamp(0.0, 1.0);
+    t * t * t * (t * (6.0 * t - 15.0) + 10.0)
+}
+
+/// Signed distance to a five-pointed star of outer radius `r` (inner ratio `rf`), negative inside.
+fn star_sd(mut px: f64, mut py: f64, r: f64, rf: f64) -> f64 {
+    let k1 = (0.809_016_994_375, -0.587_785_252_292);
+    let k2 = (-k1.0, k1.1);
+    px = px.abs();
+    let d1 = 2.0 * (k1.0 * px + k1.1 * py).max(0.0);
+    px -= d1 * k1.0;
+    py -= d1 * k1.1;
+    let d2 = 2.0 * (k2.0 * px + k2.1 * py).max(0.0);
+    px -= d2 * k2.0;
+    py -= d2 * k2.1;
+    px = px.abs();
+    py -= r;
+    let ba = (rf * -k1.1 - 0.0, rf * k1.0 - 1.0);
+    let h = ((px * ba.0 + py * ba.1) / (ba.0 * ba.0 + ba.1 * ba.1)).clamp(0.0, r);
+    let (dx, dy) = (px - ba.0 * h, py - ba.1 * h);
+    (dx * dx + dy * dy).sqrt() * (py * ba.0 - px * ba.1).signum()
+}
+
+/// Height and linear colour of the medallion at `(u, v)` for a design of radius `rr`.
+fn medallion(u: f64, v: f64, rr: f64) -> (f64, [f32; 3]) {
+    let r = (u * u + v * v).sqrt();
+    let th = v.atan2(u);
+    let s = rr / 440.0; // design units → pixels
+    let plate = 1.0 - smoothstep(rr - 10.0 * s, rr, r);
+    let mut z = 10.0 * s * plate;
+    // rim ridge
+    z += 9.0 * s * (-(r - (rr - 28.0 * s)).powi(2) / (2.0 * (7.0 * s).powi(2))).exp();
+    // central dome
+    let rd = 230.0 * s;
+    if r < rd {
+        z += 38.0 * s * (1.0 - (r / rd).powi(2)).powi(2);
+    }
+    // raised star on the dome
+    let star = 1.0 - smoothstep(-2.0 * s, 2.0 * s, star_sd(u, v, 150.0 * s, 0.45));
+    z += 6.0 * s * star;
+    // sixteen rays between the dome and the beads
+    let env = smoothstep(245.0 * s, 262.0 * s, r) * (1.0 - smoothstep(320.0 * s, 338.0 * s, r));
+    let ray = (16.0 * th).cos();
+    z += 3.5 * s * env * ray;
+    // ring of 24 beads
+    let bead_r = 368.0 * s;
+    let sector = std::f64::consts::TAU / 24.0;
+    let a = (th / sector).round() * sector;
+    let (bu, bv) = (bead_r * a.cos(), bead_r * a.sin());
+    let bd2 = (u - bu).powi(2) + (v - bv).powi(2);
+    let bead = (-bd2 / (2.0 * (9.0 * s).powi(2))).exp();
+    z += 8.0 * s * bead;
+    // hammered fine texture on the plate, woven texture outside
+    let fine =
+        (0.9 * u + 0.4 * v).sin() * (0.35 * u - 0.8 * v).sin() + 0.5 * (0.25 * (u + 2.0 * v)).sin();
+    let weave = (std::f64::consts::TAU * u / 6.0).sin() * (std::f64::consts::TAU * v / 6.0).cos();
+    z += plate * 0.35 * fine + (1.0 - plate) * 0.6 * weave;
+
+    // colour (linear)
+    let gold = [0.80f32, 0.52, 0.18];
+    let cloth = if ((u / 24.0).floor() + (v / 24.0).floor()) as i64 % 2 == 0 {
+        [0.05f32, 0.07, 0.16]
+    } else {
+        [0.07, 0.09, 0.20]
+    };
+    let teal = [0.05f32, 0.35, 0.33];
+    let cream = [0.75f32, 0.65, 0.45];
+    let enamel_red = [0.55f32, 0.05, 0.04];
+    let silver = [0.80f32, 0.80, 0.82];
+    let blue = [0.06f32, 0.12, 0.55];
+    let mix = |a: [f32; 3], b: [f32; 3], t: f64| {
+        let t = t as f32;
+        [
+            a[0] + (b[0] - a[0]) * t,
+            a[1] + (b[1] - a[1]) * t,
+            a[2] + (b[2] - a[2]) * t,
+        ]
+    };
+    let sector_col = if ray > 0.0 { teal } else { cream };
+    let mut c = mix(gold, sector_col, env * 0.85);
+    c = mix(
+        c,
+        enamel_red,
+        if r < rd {
+            1.0 - smoothstep(rd - 6.0 * s, rd, r)
+        } else {
+            0.0
+        },
+    );
+    c = mix(c, silver, star);
+    c = mix(c, blue, smoothstep(0.35, 0.6, bead));
+    c = mix(cloth, c, plate);
+    (z, c)
+}
+
+/// The procedural demo RGBN: a relief medallion (dome, star, rays, beads, rim, hammered and woven
+/// textures, enamel colours) of `size × size` pixels; 1024 is the intended size. Normals are the
+/// exact derivatives of its height (central differences of the analytic function at 0.01 px).
+#[must_use]
+pub fn demo_medallion(size: usize) -> RgbnImage {
+    let n = size * size;
+    let c = size as f64 / 2.0;
+    let rr = 0.45 * size as f64;
+    let mut color = [vec![0.0f32; n], vec![0.0f32; n], vec![0.0f32; n]];
+    let mut normal = [vec![0.0f32; n], vec![0.0f32; n], vec![0.0f32; n]];
+    let rows: Vec<(Vec<[f32; 3]>, Vec<[f32; 3]>)> = (0..size)
+        .into_par_iter()
+        .map(|row| {
+            let mut cols = Vec::with_capacity(size);
+            let mut nors = Vec::with_capacity(size);
+            for x in 0..size {
+                let (u, v) = (x as f64 + 0.5 - c, c - row as f64 - 0.5);
+                let (_, col) = medallion(u, v, rr);
+                let h = 0.01;
+                let p = (medallion(u + h, v, rr).0 - medallion(u - h, v, rr).0) / (2.0 * h);
+                let q = (medallion(u, v + h, rr).0 - medallion(u, v - h, rr).0) / (2.0 * h);
+                cols.push(col);
+                nors.push(normal_of_gradient(p as f32, q as f32));
+            }
+            (cols, nors)
+        })
+        .collect();
+    for (row, (cols, nors)) in rows.into_iter().enumerate() {
+        for x in 0..size {
+            let i = row * size + x;
+            for k in 0..3 {
+                color[k][i] = cols[x][k];
+                normal[k][i] = nors[x][k];
+            }
+        }
+    }
+    RgbnImage::new(size, size, color, normal, None).expect("sizes match by construction")
+}
+
+/// The height of the demo medallion (pixels), for tests and the height view.
+#[must_use]
+pub fn demo_height(size: usize) -> Plane {
+    let c = size as f64 / 2.0;
+    let rr = 0.45 * size as f64;
+    Plane::from_fn(size, size, |x, row| {
+        medallion(x as f64 + 0.5 - c, c - row as f64 - 0.5, rr).0 as f32
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn analytic_gradients_match_finite_differences_of_the_height() {
+        let surfaces = [
+            Surface::Sphere { radius_px: 40.0 },
+            Surface::Paraboloid { curvature: 0.01 },
+            Surface::Sinusoid {
+                amplitude_px: 3.0,
+                period_px: 17.0,
+            },
+            Surface::gaussians_for(128),
+        ];
+        for s in &surfaces {
+            for &(u, v) in &[(3.0, -7.0), (-11.5, 2.25), (20.0, 15.0)] {
+                let h = 1e-4;
+                let fd = [
+                    (s.height(u + h, v) - s.height(u - h, v)) / (2.0 * h),
+                    (s.height(u, v + h) - s.height(u, v - h)) / (2.0 * h),
+                ];
+                let g = s.gradient(u, v).unwrap();
+                assert!(
+                    (g[0] - fd[0]).abs() < 1e-6 && (g[1] - fd[1]).abs() < 1e-6,
+                    "{s:?}"
+                );
+            }
+        }
+    }
+
+    #[test]
+    fn sphere_normals_point_radially_out() {
+        let (img, _) = Surface::Sphere { radius_px: 20.0 }.render(64, 64);
+        // pixel right of and above centre: normal has +x and +y components
+        let n = img.normal_at(32 + 10, 32 - 5);
+        let want = [10.0 / 20.0, 5.0 / 20.0, (400.0f32 - 125.0).sqrt() / 20.0];
+        for k in 0..3 {
+            assert!((n[k] - want[k]).abs() < 1e-5, "{n:?} vs {want:?}");
+        }
+        assert_eq!(
+            img.mask().unwrap()[0],
+            0.0,
+            "corner lies outside the sphere"
+        );
+    }
+
+    #[test]
+    fn demo_is_valid_and_has_relief() {
+        let img = demo_medallion(128);
+        let v = img.validate();
+        assert!(v.is_clean() && v.back_facing == 0, "{v:?}");
+        let tilted = img.normal()[2].iter().filter(|&&z| z < 0.95).count();
+        assert!(tilted > 128 * 128 / 20, "demo should have visible relief");
+    }
+}
