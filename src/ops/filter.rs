@@ -111,7 +111,7 @@ fn check_finite(name: &str, v: f32) -> Result<(), RgbnError> {
 }
 
 fn check_taps(name: &str, taps: &[f32]) -> Result<(), RgbnError> {
-    if taps.is_empty() || taps.len() % 2 == 0 || taps.len() > MAX_USER_KERNEL {
+    if taps.is_empty() || taps.len().is_multiple_of(2) || taps.len() > MAX_USER_KERNEL {
         return Err(RgbnError::param(
             name,
             format!(

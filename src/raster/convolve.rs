@@ -277,49 +277,42 @@ impl LineFilter for Deriche {
         let x0 = fetch(line, -(pad as isize) - 1, border);
         let mut xp = x0; // x[i-1]
         let (g0, g1) = (gain(&s0, true), gain(&s1, true));
-        let (mut a1, mut a2, mut b1, mut b2) = (
-            lane_splat(0.0),
-            lane_splat(0.0),
-            lane_splat(0.0),
-            lane_splat(0.0),
-        );
+        // Recursion state of the two second-order sections: [a1, a2, b1, b2] (y[i-1], y[i-2]).
+        let mut st = [lane_splat(0.0); 4];
         for l in 0..LANES {
-            a1[l] = x0[l] * g0;
-            a2[l] = a1[l];
-            b1[l] = x0[l] * g1;
-            b2[l] = b1[l];
+            st[0][l] = x0[l] * g0;
+            st[1][l] = st[0][l];
+            st[2][l] = x0[l] * g1;
+            st[3][l] = st[2][l];
         }
         #[inline(always)]
         fn causal_step(
             x: &Lane,
             xp: &Lane,
-            a1: &mut Lane,
-            a2: &mut Lane,
-            b1: &mut Lane,
-            b2: &mut Lane,
+            st: &mut [Lane; 4],
             s0: &Section,
             s1: &Section,
         ) -> Lane {
             let mut out = [0.0; LANES];
             for l in 0..LANES {
-                let ya = s0.n0 * x[l] + s0.n1 * xp[l] - s0.d1 * a1[l] - s0.d2 * a2[l];
-                let yb = s1.n0 * x[l] + s1.n1 * xp[l] - s1.d1 * b1[l] - s1.d2 * b2[l];
-                a2[l] = a1[l];
-                a1[l] = ya;
-                b2[l] = b1[l];
-                b1[l] = yb;
+                let ya = s0.n0 * x[l] + s0.n1 * xp[l] - s0.d1 * st[0][l] - s0.d2 * st[1][l];
+                let yb = s1.n0 * x[l] + s1.n1 * xp[l] - s1.d1 * st[2][l] - s1.d2 * st[3][l];
+                st[1][l] = st[0][l];
+                st[0][l] = ya;
+                st[3][l] = st[2][l];
+                st[2][l] = yb;
                 out[l] = ya + yb;
             }
             out
         }
         for i in -(pad as isize)..0 {
             let x = fetch(line, i, border);
-            causal_step(&x, &xp, &mut a1, &mut a2, &mut b1, &mut b2, &s0, &s1);
+            causal_step(&x, &xp, &mut st, &s0, &s1);
             xp = x;
         }
         for i in 0..n {
             let x = line[i];
-            scratch[i] = causal_step(&x, &xp, &mut a1, &mut a2, &mut b1, &mut b2, &s0, &s1);
+            scratch[i] = causal_step(&x, &xp, &mut st, &s0, &s1);
             xp = x;
         }
 
@@ -328,41 +321,32 @@ impl LineFilter for Deriche {
         let (g0, g1) = (gain(&s0, false), gain(&s1, false));
         let (mut x1, mut x2) = (xe, xe); // x[i+1], x[i+2]
         for l in 0..LANES {
-            a1[l] = xe[l] * g0;
-            a2[l] = a1[l];
-            b1[l] = xe[l] * g1;
-            b2[l] = b1[l];
+            st[0][l] = xe[l] * g0;
+            st[1][l] = st[0][l];
+            st[2][l] = xe[l] * g1;
+            st[3][l] = st[2][l];
         }
         #[inline(always)]
-        fn anti_step(
-            x1: &Lane,
-            x2: &Lane,
-            a1: &mut Lane,
-            a2: &mut Lane,
-            b1: &mut Lane,
-            b2: &mut Lane,
-            s0: &Section,
-            s1: &Section,
-        ) -> Lane {
+        fn anti_step(x1: &Lane, x2: &Lane, st: &mut [Lane; 4], s0: &Section, s1: &Section) -> Lane {
             let mut out = [0.0; LANES];
             for l in 0..LANES {
-                let ya = s0.m1 * x1[l] + s0.m2 * x2[l] - s0.d1 * a1[l] - s0.d2 * a2[l];
-                let yb = s1.m1 * x1[l] + s1.m2 * x2[l] - s1.d1 * b1[l] - s1.d2 * b2[l];
-                a2[l] = a1[l];
-                a1[l] = ya;
-                b2[l] = b1[l];
-                b1[l] = yb;
+                let ya = s0.m1 * x1[l] + s0.m2 * x2[l] - s0.d1 * st[0][l] - s0.d2 * st[1][l];
+                let yb = s1.m1 * x1[l] + s1.m2 * x2[l] - s1.d1 * st[2][l] - s1.d2 * st[3][l];
+                st[1][l] = st[0][l];
+                st[0][l] = ya;
+                st[3][l] = st[2][l];
+                st[2][l] = yb;
                 out[l] = ya + yb;
             }
             out
         }
         for i in (n as isize..(n + pad) as isize).rev() {
-            anti_step(&x1, &x2, &mut a1, &mut a2, &mut b1, &mut b2, &s0, &s1);
+            anti_step(&x1, &x2, &mut st, &s0, &s1);
             x2 = x1;
             x1 = fetch(line, i, border);
         }
         for i in (0..n).rev() {
-            let y = anti_step(&x1, &x2, &mut a1, &mut a2, &mut b1, &mut b2, &s0, &s1);
+            let y = anti_step(&x1, &x2, &mut st, &s0, &s1);
             x2 = x1;
             x1 = line[i];
             let c = scratch[i];
@@ -376,6 +360,13 @@ impl LineFilter for Deriche {
 /// A raw pointer that may be shared between rayon tasks writing disjoint elements.
 #[derive(Clone, Copy)]
 struct SharedMut(*mut f32);
+
+impl SharedMut {
+    /// The pointer. A method (not field access) so closures capture the whole `Sync` wrapper.
+    fn get(self) -> *mut f32 {
+        self.0
+    }
+}
 // SAFETY: used only to write disjoint column groups from parallel tasks (see `filter_columns`).
 unsafe impl Send for SharedMut {}
 unsafe impl Sync for SharedMut {}
@@ -432,7 +423,6 @@ pub fn filter_columns<F: LineFilter>(
     (0..groups).into_par_iter().for_each_init(
         || (Vec::<Lane>::new(), Vec::<Lane>::new()),
         |(buf, scratch), g| {
-            let ptr = ptr;
             let c0 = g * LANES;
             let cols = LANES.min(width - c0);
             buf.clear();
@@ -440,14 +430,15 @@ pub fn filter_columns<F: LineFilter>(
             for (r, lane) in buf.iter_mut().enumerate() {
                 // SAFETY: reads columns c0..c0+cols of row r, inside the buffer; no other task
                 // writes these columns (groups are disjoint).
-                let src = unsafe { std::slice::from_raw_parts(ptr.0.add(r * width + c0), cols) };
+                let src =
+                    unsafe { std::slice::from_raw_parts(ptr.get().add(r * width + c0), cols) };
                 lane[..cols].copy_from_slice(src);
             }
             f.run(buf, scratch, border);
             for (r, lane) in buf.iter().enumerate() {
                 // SAFETY: as above; this task alone owns columns c0..c0+cols.
                 let dst =
-                    unsafe { std::slice::from_raw_parts_mut(ptr.0.add(r * width + c0), cols) };
+                    unsafe { std::slice::from_raw_parts_mut(ptr.get().add(r * width + c0), cols) };
                 dst.copy_from_slice(&lane[..cols]);
             }
         },

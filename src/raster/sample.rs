@@ -236,7 +236,8 @@ pub fn demo_medallion(size: usize) -> RgbnImage {
     let rr = 0.45 * size as f64;
     let mut color = [vec![0.0f32; n], vec![0.0f32; n], vec![0.0f32; n]];
     let mut normal = [vec![0.0f32; n], vec![0.0f32; n], vec![0.0f32; n]];
-    let rows: Vec<(Vec<[f32; 3]>, Vec<[f32; 3]>)> = (0..size)
+    type Row = (Vec<[f32; 3]>, Vec<[f32; 3]>);
+    let rows: Vec<Row> = (0..size)
         .into_par_iter()
         .map(|row| {
             let mut cols = Vec::with_capacity(size);
