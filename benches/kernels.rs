@@ -1,1 +1,102 @@
-fn main() {}
+//! Headline kernels at 4K (3840×2160), the sizes and operations that `BENCHMARKS.md` compares
+//! with the peers in `../shared/peers` (OpenCV / NumPy on the same machine).
+//!
+//! Run: `cargo bench --bench kernels` (set `RAYON_NUM_THREADS=2` to match the peer runs).
+
+use criterion::{criterion_group, criterion_main, Criterion};
+use rgbn::ops::filter::{filter_gradients, filter_normals, FilterOptions, Kernel};
+use rgbn::raster::gradient::GradientField;
+use rgbn::raster::io::{self, ExrPrecision, NormalConvention};
+use rgbn::raster::sample::Surface;
+use rgbn::raster::RgbnImage;
+use rgbn::render::{self, Shading};
+use std::hint::black_box;
+use std::time::Duration;
+
+const W: usize = 3840;
+const H: usize = 2160;
+
+/// A 4K RGBN with relief at many scales (sum of Gaussians + a fine sinusoid), coloured.
+fn input_4k() -> RgbnImage {
+    let coarse = Surface::gaussians_for(H);
+    let fine = Surface::Sinusoid {
+        amplitude_px: 1.5,
+        period_px: 23.0,
+    };
+    let (mut img, _) = coarse.render(W, H);
+    let (f, _) = fine.render(W, H);
+    let mut g = GradientField::from_normals(&img);
+    let gf = GradientField::from_normals(&f);
+    for (a, b) in g.p.iter_mut().zip(&gf.p) {
+        *a += b;
+    }
+    for (a, b) in g.q.iter_mut().zip(&gf.q) {
+        *a += b;
+    }
+    g.write_normals(&mut img);
+    let n = W * H;
+    let color = [
+        (0..n).map(|i| (i % W) as f32 / W as f32).collect(),
+        (0..n).map(|i| (i / W) as f32 / H as f32).collect(),
+        vec![0.5; n],
+    ];
+    img.set_color(color).unwrap();
+    img.set_mask(None).unwrap();
+    img
+}
+
+fn kernels(c: &mut Criterion) {
+    let img = input_4k();
+    let opts = FilterOptions::default();
+    let mut group = c.benchmark_group("4k");
+    group
+        .sample_size(10)
+        .warm_up_time(Duration::from_secs(1))
+        .measurement_time(Duration::from_secs(4));
+
+    for sigma in [8.0f32, 32.0] {
+        group.bench_function(format!("normals_gauss{sigma}_normals"), |b| {
+            b.iter(|| {
+                filter_normals(
+                    black_box(&img),
+                    &[Kernel::Gaussian { sigma_px: sigma }],
+                    &opts,
+                )
+                .unwrap()
+            })
+        });
+    }
+    let g0 = GradientField::from_normals(&img);
+    group.bench_function("gauss8_on_gradient_field", |b| {
+        b.iter_batched_ref(
+            || g0.clone(),
+            |g| filter_gradients(g, &[Kernel::Gaussian { sigma_px: 8.0 }], &opts, None).unwrap(),
+            criterion::BatchSize::LargeInput,
+        )
+    });
+    group.bench_function("curl", |b| b.iter(|| black_box(&g0).curl()));
+    let shading = Shading::default();
+    group.bench_function("relight", |b| {
+        b.iter(|| render::relight(black_box(&img), &shading).unwrap())
+    });
+
+    let dir = tempfile::tempdir().unwrap();
+    let exr = dir.path().join("bench.exr");
+    group.bench_function("exr_f32_write", |b| {
+        b.iter(|| io::save_exr(&img, &exr, ExrPrecision::Full).unwrap())
+    });
+    group.bench_function("exr_f32_read", |b| {
+        b.iter(|| io::load_exr(&exr, &Default::default()).unwrap())
+    });
+    let png = dir.path().join("bench.png");
+    group.bench_function("png16_normal_write", |b| {
+        b.iter(|| io::save_normal_map(&img, &png, 16, NormalConvention::OpenGl).unwrap())
+    });
+    group.bench_function("png16_normal_read", |b| {
+        b.iter(|| io::load_normal_map(&png, &Default::default()).unwrap())
+    });
+    group.finish();
+}
+
+criterion_group!(benches, kernels);
+criterion_main!(benches);
