@@ -166,7 +166,9 @@ pub fn split_band(
     )?;
     let mut rest = g.clone();
     for (r, k) in [(&mut rest.p, &keep.p), (&mut rest.q, &keep.q)] {
-        r.par_iter_mut().zip(k.par_iter()).for_each(|(r, k)| *r -= k);
+        r.par_iter_mut()
+            .zip(k.par_iter())
+            .for_each(|(r, k)| *r -= k);
     }
     Ok((keep, rest))
 }
@@ -246,9 +248,8 @@ mod tests {
         // keeps the coarse one, the high-pass the fine one, the DoG band between them neither
         // fully.
         let size = 192;
-        let energy = |g: &GradientField| -> f64 {
-            g.p.iter().map(|v| f64::from(*v).powi(2)).sum::<f64>()
-        };
+        let energy =
+            |g: &GradientField| -> f64 { g.p.iter().map(|v| f64::from(*v).powi(2)).sum::<f64>() };
         let field = |period: f64| {
             let (_, z) = Surface::Sinusoid {
                 amplitude_px: 1.0,
@@ -266,12 +267,23 @@ mod tests {
             };
             energy(&band_filter(g, &p).unwrap()) / energy(g)
         };
+        // 2-D sinusoid: the energy gain is ĝ(k)⁴ (both axes), ĝ(k) = exp(−σ²k²/2).
         let low = Band::LowPass { sigma_px: 4.0 };
-        assert!(run(&fine, low.clone()) < 1e-3 && run(&coarse, low) > 0.9);
+        let (lf, lc) = (run(&fine, low.clone()), run(&coarse, low));
         let high = Band::HighPass { sigma_px: 4.0 };
-        assert!(run(&fine, high.clone()) > 0.9 && run(&coarse, high) < 0.05);
-        let log = Band::LoG { sigma_px: 1.0 };
-        assert!(run(&coarse, log) < 1e-3);
+        let (hf, hc) = (run(&fine, high.clone()), run(&coarse, high));
+        let log = run(&coarse, Band::LoG { sigma_px: 1.0 });
+        println!(
+            "band energy gains: low {lf:.2e}/{lc:.3} high {hf:.3}/{hc:.2e} LoG coarse {log:.2e}"
+        );
+        let k = std::f64::consts::TAU / 96.0;
+        let want_lc = (-16.0 * k * k / 2.0f64).exp().powi(4);
+        assert!(
+            lf < 1e-3 && (lc - want_lc).abs() < 0.01,
+            "{lf} {lc} vs {want_lc}"
+        );
+        assert!(hf > 0.99 && hc < 0.01, "{hf} {hc}");
+        assert!(log < 1e-3, "{log}");
     }
 
     #[test]

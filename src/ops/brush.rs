@@ -56,7 +56,10 @@ impl BrushStroke {
     /// Checks points, radius and feather.
     pub fn validate(&self) -> Result<(), RgbnError> {
         check_points("points", &self.points, 1)?;
-        for (name, v) in [("radius_px", self.radius_px), ("feather_px", self.feather_px)] {
+        for (name, v) in [
+            ("radius_px", self.radius_px),
+            ("feather_px", self.feather_px),
+        ] {
             if !(v.is_finite() && (0.0..=MAX_BRUSH_PX).contains(&v)) {
                 return Err(RgbnError::param(
                     name,
@@ -111,7 +114,11 @@ impl BrushParams {
 }
 
 /// The region weight of some strokes on a `width × height` grid (module docs).
-pub fn stroke_mask(width: usize, height: usize, strokes: &[BrushStroke]) -> Result<Plane, RgbnError> {
+pub fn stroke_mask(
+    width: usize,
+    height: usize,
+    strokes: &[BrushStroke],
+) -> Result<Plane, RgbnError> {
     for s in strokes {
         s.validate()?;
     }
@@ -131,7 +138,11 @@ pub fn stroke_mask(width: usize, height: usize, strokes: &[BrushStroke]) -> Resu
         for (pl, rad, fe) in &lines {
             let b = pl.bounds();
             let reach = rad + fe;
-            if p[0] < b[0] - reach || p[0] > b[2] + reach || p[1] < b[1] - reach || p[1] > b[3] + reach {
+            if p[0] < b[0] - reach
+                || p[0] > b[2] + reach
+                || p[1] < b[1] - reach
+                || p[1] > b[3] + reach
+            {
                 continue;
             }
             if let Some(pr) = pl.project(p) {
@@ -243,8 +254,16 @@ mod tests {
         let g = GradientField::from_normals(&out);
         let g0 = GradientField::from_normals(&img);
         let i = 48 * size + 40;
-        assert!(g.p[i].abs() < 0.2 * g0.p[i].abs().max(0.5), "{} {}", g.p[i], g0.p[i]);
-        println!("brush curl before {:?} after {:?}", rep.curl_before, rep.curl_after);
+        assert!(
+            g.p[i].abs() < 0.2 * g0.p[i].abs().max(0.5),
+            "{} {}",
+            g.p[i],
+            g0.p[i]
+        );
+        println!(
+            "brush curl before {:?} after {:?}",
+            rep.curl_before, rep.curl_after
+        );
         assert!(rep.curl_after.rms_curl.is_finite() && rep.curl_after.rms_curl > 0.0);
         let region = rep.region.unwrap();
         assert_eq!(region.at(40, 48), 1.0);

@@ -108,6 +108,9 @@ impl Polyline {
                 pts.push(p);
             }
         }
+        if closed && pts.len() > 1 && pts.first() == pts.last() {
+            pts.pop();
+        }
         let closed = closed && pts.len() >= 3;
         if closed {
             pts.push(pts[0]);
@@ -135,8 +138,20 @@ impl Polyline {
     #[must_use]
     pub fn bounds(&self) -> [f64; 4] {
         self.pts.iter().fold(
-            [f64::INFINITY, f64::INFINITY, f64::NEG_INFINITY, f64::NEG_INFINITY],
-            |b, p| [b[0].min(p[0]), b[1].min(p[1]), b[2].max(p[0]), b[3].max(p[1])],
+            [
+                f64::INFINITY,
+                f64::INFINITY,
+                f64::NEG_INFINITY,
+                f64::NEG_INFINITY,
+            ],
+            |b, p| {
+                [
+                    b[0].min(p[0]),
+                    b[1].min(p[1]),
+                    b[2].max(p[0]),
+                    b[3].max(p[1]),
+                ]
+            },
         )
     }
 

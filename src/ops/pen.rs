@@ -19,11 +19,24 @@
 //! tangent where `C` is inside a segment (0 where `C` is a vertex or an end: `v` is constant
 //! there).
 //!
-//! The analytic gradient is sampled at the staggered points of [`super::geom`] (`p` at
-//! `(x+½, row)`, `q` at `(x, row−½)`), so the discrete curl is `O(h²)` wherever `φ` is smooth.
-//! It is **not** zero on the path's *medial axis* (where two parts of the path are equally
-//! close: inside sharp concave corners, T junctions, self-intersections), because `u` has a
-//! kink there. The **distance-transform mode** ([`PenMode::DistanceTransform`]) handles those
+//! Three modes ([`PenMode`]):
+//! - **Integrable** (default): `h` is evaluated at pixel centres and the gradient is its
+//!   forward difference (the convention of [`crate::raster::gradient`]), so the field is the
+//!   exact discrete gradient of a height — curl 0 to rounding everywhere — and equals the
+//!   formula above up to the `O(h²)` midpoint error of a forward difference (< 1 % of the
+//!   slope for strokes ≥ 8 px wide).
+//! - **Analytic**: the formula above sampled at the staggered points of [`super::geom`] (`p`
+//!   at `(x+½, row)`, `q` at `(x, row−½)`): exact `h′(u)∇u`, discrete curl `O(h²)` wherever
+//!   `φ` is smooth, but **not** small on the path's *medial axis* (where two parts of the path
+//!   are equally close: inside concave corners, T junctions, self-intersections — and, for a
+//!   polyline approximating a curve, the bisector at each vertex on its concave side, where
+//!   `∇u` turns by the vertex angle), because `u` has a kink there; likewise on the thin
+//!   wedges at convex vertices where `v` is constant (the taper term jumps), and along the
+//!   crest of kinked profiles (ridge, crease) on curved paths. Measured relative RMS curl
+//!   (tests): straight strokes ≈ 1e-8; step circle as a 180-gon 1.1e-2, as a 1440-gon
+//!   2.7e-3; tapered bump/scratch on a 400-vertex arc ≈ 2.5e-2; ridge ≈ 0.23. The
+//!   Integrable mode gives ≈ 1e-8 on all of these.
+//! - The **distance-transform mode** ([`PenMode::DistanceTransform`]) handles those
 //! shapes: it rasterises the path, takes the exact Euclidean distance transform of the seeds
 //! (Felzenszwalb & Huttenlocher), builds the height `f(u)` from it, and differentiates that
 //! height with forward differences — integrable by construction (curl 0 to rounding) at the
@@ -95,9 +108,9 @@ impl Profile {
     /// Checks amplitudes and samples (not the open-path level condition: see [`PenParams`]).
     pub fn validate(&self) -> Result<(), RgbnError> {
         match self {
-            Profile::Bump { height_px } | Profile::Ridge { height_px } | Profile::Step { height_px } => {
-                check_amp("height_px", *height_px)
-            }
+            Profile::Bump { height_px }
+            | Profile::Ridge { height_px }
+            | Profile::Step { height_px } => check_amp("height_px", *height_px),
             Profile::Crease { depth_px } | Profile::Scratch { depth_px } => {
                 check_amp("depth_px", *depth_px)
             }
@@ -127,7 +140,10 @@ impl Profile {
         let (f, df) = match self {
             Profile::Bump { height_px } => {
                 let a = f64::from(*height_px);
-                (a * (1.0 + (PI * u).cos()) / 2.0, -a * PI * (PI * u).sin() / 2.0)
+                (
+                    a * (1.0 + (PI * u).cos()) / 2.0,
+                    -a * PI * (PI * u).sin() / 2.0,
+                )
             }
             Profile::Ridge { height_px } => {
                 let a = f64::from(*height_px);
@@ -174,11 +190,18 @@ impl Profile {
     }
 }
 
-/// How the stroke coordinates are computed.
+/// How the stroke coordinates and the gradient are computed.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 pub enum PenMode {
-    /// Exact point-to-segment projections, analytic gradient (tapering supported).
+    /// Exact projections; the analytic height `h` is sampled at pixel centres and
+    /// differentiated with forward differences: integrable everywhere by construction (curl 0
+    /// to rounding, also on medial axes), gradient = `h′(u)∇u` up to the `O(h²)` midpoint
+    /// error of a forward difference.
     #[default]
+    Integrable,
+    /// Exact projections, the analytic gradient `h′(u)∇u + …` sampled at the staggered points
+    /// (curl `O(h²)` where `φ` is smooth, `O(1)` on medial-axis lines — which for a polyline
+    /// include the bisectors at every vertex on its concave side).
     Analytic,
     /// Euclidean distance transform of the rasterised path; integrable everywhere (T shapes,
     /// self-intersections), quantised to the raster.
@@ -207,8 +230,8 @@ impl Default for PenParams {
             closed: false,
             width_px: 8.0,
             profile: Profile::default(),
-            taper_px: 8.0,
-            mode: PenMode::Analytic,
+            taper_px: 16.0,
+            mode: PenMode::Integrable,
         }
     }
 }
@@ -307,7 +330,10 @@ impl Stroke<'_> {
         } else {
             let (v, l, tau) = (pr.arclength_px, self.pl.length_px(), self.taper);
             let (a, b) = (smoothstep(0.0, tau, v), smoothstep(0.0, tau, l - v));
-            let (da, db) = (smoothstep_deriv(0.0, tau, v), smoothstep_deriv(0.0, tau, l - v));
+            let (da, db) = (
+                smoothstep_deriv(0.0, tau, v),
+                smoothstep_deriv(0.0, tau, l - v),
+            );
             (a * b, da * b - a * db)
         };
         let h = self.f0 + t * (f - self.f0);
@@ -348,13 +374,12 @@ pub fn pen_field(width: usize, height: usize, params: &PenParams) -> Result<PenO
         closed: params.closed,
     };
     match params.mode {
-        PenMode::Analytic => {
+        PenMode::Analytic | PenMode::Integrable => {
             // Only pixels near the path's bounding box can be inside the stroke.
             let b = stroke.pl.bounds();
             let m = stroke.half_w + 1.0;
-            let near = |x: f64, r: f64| {
-                x >= b[0] - m && x <= b[2] + m && r >= b[1] - m && r <= b[3] + m
-            };
+            let near =
+                |x: f64, r: f64| x >= b[0] - m && x <= b[2] + m && r >= b[1] - m && r <= b[3] + m;
             let outside_level = |x: f64, r: f64| {
                 if stroke.closed && stroke.pl.contains([x, r]) {
                     params.profile.eval(1.0).0
@@ -362,13 +387,6 @@ pub fn pen_field(width: usize, height: usize, params: &PenParams) -> Result<PenO
                     stroke.f0
                 }
             };
-            let gradients = sample_gradient_staggered(width, height, |x, r| {
-                if near(x, r) {
-                    stroke.eval(x, r).1
-                } else {
-                    [0.0, 0.0]
-                }
-            });
             let height_plane = Plane::from_fn(width, height, |x, r| {
                 let (x, r) = (x as f64, r as f64);
                 (if near(x, r) {
@@ -377,6 +395,17 @@ pub fn pen_field(width: usize, height: usize, params: &PenParams) -> Result<PenO
                     outside_level(x, r)
                 }) as f32
             });
+            let gradients = if params.mode == PenMode::Analytic {
+                sample_gradient_staggered(width, height, |x, r| {
+                    if near(x, r) {
+                        stroke.eval(x, r).1
+                    } else {
+                        [0.0, 0.0]
+                    }
+                })
+            } else {
+                GradientField::from_height(&height_plane)
+            };
             Ok(PenOutput {
                 gradients,
                 height: height_plane,
@@ -503,46 +532,57 @@ mod tests {
     #[test]
     fn closed_circle_with_a_step_raises_the_inside() {
         let size = 128;
-        let p = PenParams {
-            points: circle(64.0, 64.0, 30.0, 180),
-            closed: true,
-            width_px: 10.0,
-            profile: Profile::Step { height_px: 3.0 },
-            taper_px: 0.0,
-            mode: PenMode::Analytic,
-        };
-        let out = pen_field(size, size, &p).unwrap();
-        // Integrate p along row 64 from the left border to the centre: z(64) − z(0).
-        let rise: f32 = (0..64).map(|x| out.gradients.p[64 * size + x]).sum();
-        assert!((rise - 3.0).abs() < 0.01, "{rise}");
-        // And back down on the right.
-        let fall: f32 = (64..size - 1).map(|x| out.gradients.p[64 * size + x]).sum();
-        assert!((fall + 3.0).abs() < 0.01, "{fall}");
-        assert!((out.height.at(64, 64) - 3.0).abs() < 1e-6 && out.height.at(2, 2).abs() < 1e-6);
-        let rel = out.gradients.relative_rms_curl(None);
-        println!("pen step circle: relative RMS curl {rel:.3e}");
-        assert!(rel <= 1e-3, "{rel:e}");
-        // Negative height lowers the inside.
-        let low = pen_field(
-            size,
-            size,
-            &PenParams {
-                profile: Profile::Step { height_px: -2.0 },
-                ..p
-            },
-        )
-        .unwrap();
-        let rise: f32 = (0..64).map(|x| low.gradients.p[64 * size + x]).sum();
-        assert!((rise + 2.0).abs() < 0.01, "{rise}");
+        for (mode, n) in [
+            (PenMode::Integrable, 180),
+            (PenMode::Analytic, 180),
+            (PenMode::Analytic, 1440),
+        ] {
+            let p = PenParams {
+                points: circle(64.0, 64.0, 30.0, n),
+                closed: true,
+                width_px: 10.0,
+                profile: Profile::Step { height_px: 3.0 },
+                taper_px: 0.0,
+                mode,
+            };
+            let out = pen_field(size, size, &p).unwrap();
+            // Integrate p along row 64 from the left border to the centre: z(64) − z(0).
+            let rise: f32 = (0..64).map(|x| out.gradients.p[64 * size + x]).sum();
+            // And back down on the right.
+            let fall: f32 = (64..size - 1).map(|x| out.gradients.p[64 * size + x]).sum();
+            let rel = out.gradients.relative_rms_curl(None);
+            println!("pen step circle {mode:?} {n}-gon: rise {rise:.5} fall {fall:.5}, relative RMS curl {rel:.3e}");
+            assert!((rise - 3.0).abs() < 0.01, "{rise}");
+            assert!((fall + 3.0).abs() < 0.01, "{fall}");
+            assert!((out.height.at(64, 64) - 3.0).abs() < 1e-6 && out.height.at(2, 2).abs() < 1e-6);
+            match mode {
+                PenMode::Integrable => assert!(rel < 1e-6, "{rel:e}"),
+                // Polygon-vertex bisectors (module docs): reported, shrinking with the vertex
+                // angle.
+                _ => assert!(rel < if n > 1000 { 5e-3 } else { 2e-2 }, "{rel:e}"),
+            }
+            // Negative height lowers the inside.
+            let low = pen_field(
+                size,
+                size,
+                &PenParams {
+                    profile: Profile::Step { height_px: -2.0 },
+                    ..p
+                },
+            )
+            .unwrap();
+            let rise: f32 = (0..64).map(|x| low.gradients.p[64 * size + x]).sum();
+            assert!((rise + 2.0).abs() < 0.01, "{rise}");
+        }
     }
 
     #[test]
     fn curved_open_strokes_with_taper_are_integrable() {
-        // An arc of radius 60 (centre far away: the medial axis is outside the stroke).
+        // An arc of radius 60 (centre far away: no medial axis of the arc inside the stroke).
         let size = 160;
-        let arc: Vec<[f32; 2]> = (0..=40)
+        let arc: Vec<[f32; 2]> = (0..=400)
             .map(|k| {
-                let a = 0.3 + 2.2 * k as f32 / 40.0;
+                let a = 0.3 + 2.2 * k as f32 / 400.0;
                 [80.0 + 60.0 * a.cos(), 120.0 - 60.0 * a.sin()]
             })
             .collect();
@@ -558,24 +598,55 @@ mod tests {
                 width_px: 14.0,
                 profile: profile.clone(),
                 taper_px: 20.0,
-                mode: PenMode::Analytic,
+                mode: PenMode::Integrable,
             };
             let out = pen_field(size, size, &p).unwrap();
             let rel = out.gradients.relative_rms_curl(None);
-            println!("pen open arc {profile:?}: relative RMS curl {rel:.3e}");
+            assert!(rel < 1e-6, "{profile:?}: {rel:e}");
+            let a = pen_field(
+                size,
+                size,
+                &PenParams {
+                    mode: PenMode::Analytic,
+                    ..p
+                },
+            )
+            .unwrap();
+            let rel_a = a.gradients.relative_rms_curl(None);
+            println!("pen open arc {profile:?}: relative RMS curl integrable {rel:.3e}, analytic {rel_a:.3e}");
+            // Analytic mode: O(1) curl on vertex bisectors, taper wedges and (ridge, crease)
+            // the crest kink of the profile (module docs): reported, bounded.
             let smooth = matches!(profile, Profile::Bump { .. } | Profile::Scratch { .. });
-            // Kinked profiles (ridge, crease) have O(h) curl along their kinks.
-            assert!(rel <= if smooth { 1e-3 } else { 2e-2 }, "{profile:?}: {rel:e}");
-            // The stroke's gradient matches its own height's forward differences.
-            let fd = GradientField::from_height(&out.height);
+            assert!(
+                rel_a <= if smooth { 5e-2 } else { 0.5 },
+                "{profile:?}: {rel_a:e}"
+            );
+            // The two modes agree (the midpoint error of a forward difference).
             let n = size * size;
             let e: f64 = (0..n)
                 .filter(|i| i % size < size - 1 && i / size > 0)
-                .map(|i| f64::from(out.gradients.p[i] - fd.p[i]).powi(2))
+                .map(|i| f64::from(a.gradients.p[i] - out.gradients.p[i]).powi(2))
                 .sum::<f64>()
                 / n as f64;
-            let g: f64 = fd.p.iter().map(|v| f64::from(*v).powi(2)).sum::<f64>() / n as f64;
-            assert!(e.sqrt() < 0.05 * g.sqrt(), "{profile:?}: {} vs {}", e.sqrt(), g.sqrt());
+            let g: f64 = out
+                .gradients
+                .p
+                .iter()
+                .map(|v| f64::from(*v).powi(2))
+                .sum::<f64>()
+                / n as f64;
+            println!(
+                "  analytic vs integrable: relative RMS difference {:.3e}",
+                (e / g).sqrt()
+            );
+            if smooth {
+                assert!(
+                    e.sqrt() < 0.05 * g.sqrt(),
+                    "{profile:?}: {} vs {}",
+                    e.sqrt(),
+                    g.sqrt()
+                );
+            }
         }
     }
 
@@ -693,7 +764,10 @@ mod tests {
             ),
         ];
         for (p, needle) in cases {
-            let e = pen_field(32, 32, &p).unwrap_err().to_string();
+            let e = match pen_field(32, 32, &p) {
+                Ok(_) => panic!("{needle}: accepted"),
+                Err(e) => e.to_string(),
+            };
             assert!(e.contains(needle), "{needle}: {e}");
         }
         let e = PenParams {
@@ -720,7 +794,11 @@ mod tests {
         .unwrap();
         // Above the horizontal stroke's centre line (row 22, y up) the bump falls towards +y,
         // so the normal tilts up (n_y > 0).
-        assert!(out.normal_at(24, 22)[1] > 0.05, "{:?}", out.normal_at(24, 22));
+        assert!(
+            out.normal_at(24, 22)[1] > 0.05,
+            "{:?}",
+            out.normal_at(24, 22)
+        );
         assert!(out.normal_at(24, 26)[1] < -0.05);
         assert_eq!(out.normal_at(24, 5), [0.0, 0.0, 1.0]);
         assert!(rep.curl_pen.relative <= 1e-3, "{rep:?}");

@@ -366,9 +366,11 @@ pub fn combine_one(
         }
         CombineMode::Udn => normalize3([n[0] + dw[0], n[1] + dw[1], n[2]]),
         CombineMode::Whiteout => normalize3([n[0] + dw[0], n[1] + dw[1], n[2] * dw[2]]),
-        CombineMode::PartialDerivative => {
-            normalize3([n[0] * dw[2] + dw[0] * n[2], n[1] * dw[2] + dw[1] * n[2], n[2] * dw[2]])
-        }
+        CombineMode::PartialDerivative => normalize3([
+            n[0] * dw[2] + dw[0] * n[2],
+            n[1] * dw[2] + dw[1] * n[2],
+            n[2] * dw[2],
+        ]),
     };
     let r = normalize3(r);
     if params.saturate && r[2] < f64::from(params.min_z) {
@@ -387,7 +389,13 @@ pub struct RotateReport {
     pub curl_after: CurlStats,
 }
 
-fn check_size(what: &'static str, w: usize, h: usize, gw: usize, gh: usize) -> Result<(), RgbnError> {
+fn check_size(
+    what: &'static str,
+    w: usize,
+    h: usize,
+    gw: usize,
+    gh: usize,
+) -> Result<(), RgbnError> {
     if (w, h) != (gw, gh) {
         return Err(RgbnError::SizeMismatch {
             what,
@@ -422,7 +430,11 @@ pub fn rotation_combine(
     }
     let ex = existing.unwrap_or(base);
     let (bn, dn, en) = (base.normal(), detail.normal(), ex.normal());
-    let mut out = [vec![0.0f32; w * h], vec![0.0f32; w * h], vec![0.0f32; w * h]];
+    let mut out = [
+        vec![0.0f32; w * h],
+        vec![0.0f32; w * h],
+        vec![0.0f32; w * h],
+    ];
     let [ox, oy, oz] = &mut out;
     let saturated: usize = ox
         .par_iter_mut()
@@ -546,7 +558,16 @@ mod tests {
         assert!(r[0] > 0.99 && r[1].abs() < 1e-6, "on the arc: {r:?}");
         // Off-plane: the saturated result lies on the great circle through base and raw result.
         let det = [0.3f32, 0.4, 0.866];
-        let (raw_r, _) = combine_one(n, det, n, 1.0, &RotateParams { saturate: false, ..p.clone() });
+        let (raw_r, _) = combine_one(
+            n,
+            det,
+            n,
+            1.0,
+            &RotateParams {
+                saturate: false,
+                ..p.clone()
+            },
+        );
         let (sat, s) = combine_one(n, det, n, 1.0, &p);
         assert!(s && (sat[2] - p.min_z).abs() < 1e-5);
         let c = cross(to64(n), to64(raw_r));
@@ -571,7 +592,11 @@ mod tests {
         let bad = Frame::Oriented {
             orientation: [0.0; 3],
         };
-        assert!(bad.validate().unwrap_err().to_string().contains("orientation"));
+        assert!(bad
+            .validate()
+            .unwrap_err()
+            .to_string()
+            .contains("orientation"));
     }
 
     #[test]

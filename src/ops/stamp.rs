@@ -343,8 +343,12 @@ pub fn stamp_image(
     let prepared = stamp_height_from_normals(stamp, params.falloff_px)?;
     let sg = stamp_gradients(w, h, &prepared, params)?;
     let mut g = GradientField::from_normals(target);
-    g.p.par_iter_mut().zip(sg.p.par_iter()).for_each(|(a, b)| *a += b);
-    g.q.par_iter_mut().zip(sg.q.par_iter()).for_each(|(a, b)| *a += b);
+    g.p.par_iter_mut()
+        .zip(sg.p.par_iter())
+        .for_each(|(a, b)| *a += b);
+    g.q.par_iter_mut()
+        .zip(sg.q.par_iter())
+        .for_each(|(a, b)| *a += b);
     let mut out = target.clone();
     g.write_normals(&mut out);
     if let StampColor::Over { opacity } = params.color {
@@ -379,7 +383,11 @@ pub fn stamp_image(
                             continue;
                         };
                         let al = (al * opacity).clamp(0.0, 1.0);
-                        for (dst, src) in [(&mut cr[x], &sc[0]), (&mut cg[x], &sc[1]), (&mut cb[x], &sc[2])] {
+                        for (dst, src) in [
+                            (&mut cr[x], &sc[0]),
+                            (&mut cg[x], &sc[1]),
+                            (&mut cb[x], &sc[2]),
+                        ] {
                             if let Some(s) = bilinear(src, sw, sh, i, j) {
                                 *dst = (1.0 - al) * *dst + al * s;
                             }
@@ -483,7 +491,10 @@ mod tests {
         let g = [0.4, -1.3];
         let ainv = inverse(a);
         let hh = |x: f64, y: f64| {
-            let s = [ainv[0][0] * x + ainv[0][1] * y, ainv[1][0] * x + ainv[1][1] * y];
+            let s = [
+                ainv[0][0] * x + ainv[0][1] * y,
+                ainv[1][0] * x + ainv[1][1] * y,
+            ];
             g[0] * s[0] + g[1] * s[1]
         };
         let want = [hh(1.0, 0.0) - hh(0.0, 0.0), hh(0.0, 1.0) - hh(0.0, 0.0)];
@@ -524,7 +535,7 @@ mod tests {
         // Counter-clockwise on screen: the positive bump at stamp (u, v) = (6, 3) lands at
         // P − t = (−3, 6), i.e. x = 37, row = 34.
         assert!(rotated.at(37, 34) > 3.5, "{}", rotated.at(37, 34));
-        assert_eq!(got.relative_rms_curl(None), 0.0);
+        assert!(got.relative_rms_curl(None) < 1e-6);
     }
 
     #[test]
@@ -533,10 +544,12 @@ mod tests {
         let n = 65;
         let prepared = prepare_stamp_height(&stamp_plane(&surf, n), 6.0);
         let size = 160;
-        for (angle_rad, scale, shear) in [
-            (0.5f32, [1.5f32, 0.8f32], 0.2f32),
-            (0.0, [2.0, 2.0], 0.0),
-            (-1.2, [1.0, -1.0], 0.0),
+        // Tolerances: bilinear sampling of the stamp height; magnified stamps show its facets.
+        for (angle_rad, scale, shear, tol) in [
+            (0.5f32, [1.5f32, 0.8f32], 0.2f32, 0.04),
+            (0.0, [2.0, 2.0], 0.0, 0.08),
+            (-1.2, [1.0, -1.0], 0.0, 0.03),
+            (0.3, [0.7, 0.7], 0.0, 0.03),
         ] {
             let p = StampParams {
                 positions: vec![[80.0, 80.0]],
@@ -550,24 +563,47 @@ mod tests {
             let ainv = inverse(a);
             let analytic = |x: f64, r: f64| {
                 let (dx, dy) = (x - 80.0, 80.0 - r);
-                let s = [ainv[0][0] * dx + ainv[0][1] * dy, ainv[1][0] * dx + ainv[1][1] * dy];
+                let s = [
+                    ainv[0][0] * dx + ainv[0][1] * dy,
+                    ainv[1][0] * dx + ainv[1][1] * dy,
+                ];
                 let g = surf.gradient(s[0], s[1]).unwrap_or([0.0, 0.0]);
                 transform_gradient(a, g).unwrap_or([0.0, 0.0])
             };
             let want = crate::ops::geom::sample_gradient_staggered(size, size, analytic);
             let (mut e2, mut g2) = (0.0f64, 0.0f64);
             for i in 0..size * size {
-                e2 += f64::from(got.p[i] - want.p[i]).powi(2) + f64::from(got.q[i] - want.q[i]).powi(2);
+                e2 += f64::from(got.p[i] - want.p[i]).powi(2)
+                    + f64::from(got.q[i] - want.q[i]).powi(2);
                 g2 += f64::from(want.p[i]).powi(2) + f64::from(want.q[i]).powi(2);
             }
             let rel = (e2 / g2).sqrt();
             println!("stamp A⁻ᵀ check angle {angle_rad} scale {scale:?} shear {shear}: relative RMS error {rel:.3e}");
-            assert!(rel < 0.03, "{rel}");
-            assert_eq!(got.relative_rms_curl(None), 0.0);
+            assert!(rel < tol, "{rel}");
+            assert!(got.relative_rms_curl(None) < 1e-6);
         }
         // Scaling by s divides gradients by s.
-        let g1 = stamp_gradients(size, size, &prepared, &StampParams { positions: vec![[80.0, 80.0]], ..StampParams::default() }).unwrap();
-        let g2 = stamp_gradients(size, size, &prepared, &StampParams { positions: vec![[80.0, 80.0]], scale: [2.0, 2.0], ..StampParams::default() }).unwrap();
+        let g1 = stamp_gradients(
+            size,
+            size,
+            &prepared,
+            &StampParams {
+                positions: vec![[80.0, 80.0]],
+                ..StampParams::default()
+            },
+        )
+        .unwrap();
+        let g2 = stamp_gradients(
+            size,
+            size,
+            &prepared,
+            &StampParams {
+                positions: vec![[80.0, 80.0]],
+                scale: [2.0, 2.0],
+                ..StampParams::default()
+            },
+        )
+        .unwrap();
         let max = |g: &GradientField| g.p.iter().fold(0.0f32, |m, v| m.max(v.abs()));
         let ratio = max(&g2) / max(&g1);
         println!("stamp scale 2: max |p| ratio {ratio:.4}");
@@ -578,7 +614,9 @@ mod tests {
     fn stamp_image_from_normals_is_integrable_and_composites_colour() {
         let (stamp, _) = two_bumps().render(40, 40);
         let mut stamp = stamp;
-        stamp.set_color([vec![1.0; 1600], vec![0.0; 1600], vec![0.0; 1600]]).unwrap();
+        stamp
+            .set_color([vec![1.0; 1600], vec![0.0; 1600], vec![0.0; 1600]])
+            .unwrap();
         // Integrable target.
         let (target, _) = Surface::gaussians_for(128).render(128, 128);
         let p = StampParams {
@@ -591,7 +629,10 @@ mod tests {
         println!("stamp_image: {rep:?}");
         assert!(rep.curl_stamp.relative < 1e-6, "{rep:?}");
         let before = GradientField::from_normals(&target).relative_rms_curl(None);
-        assert!(rep.curl_after.relative <= before + 1e-3, "{rep:?} vs {before}");
+        assert!(
+            rep.curl_after.relative <= before + 1e-3,
+            "{rep:?} vs {before}"
+        );
         assert!((out.color_at(40, 40)[0] - 1.0).abs() < 1e-5 && out.color_at(40, 40)[1] < 1e-5);
         assert_eq!(out.color_at(5, 120), target.color_at(5, 120));
         // The stamped relief appears: normals differ near the placements, not far away.
@@ -619,11 +660,41 @@ mod tests {
     fn bad_params_are_refused() {
         let ok = StampParams::default();
         for (p, needle) in [
-            (StampParams { scale: [0.0, 1.0], ..ok.clone() }, "zero area"),
-            (StampParams { scale: [f32::NAN, 1.0], ..ok.clone() }, "scale"),
-            (StampParams { positions: vec![], ..ok.clone() }, "positions"),
-            (StampParams { falloff_px: -1.0, ..ok.clone() }, "falloff_px"),
-            (StampParams { color: StampColor::Over { opacity: 2.0 }, ..ok.clone() }, "[0, 1]"),
+            (
+                StampParams {
+                    scale: [0.0, 1.0],
+                    ..ok.clone()
+                },
+                "zero area",
+            ),
+            (
+                StampParams {
+                    scale: [f32::NAN, 1.0],
+                    ..ok.clone()
+                },
+                "scale",
+            ),
+            (
+                StampParams {
+                    positions: vec![],
+                    ..ok.clone()
+                },
+                "positions",
+            ),
+            (
+                StampParams {
+                    falloff_px: -1.0,
+                    ..ok.clone()
+                },
+                "falloff_px",
+            ),
+            (
+                StampParams {
+                    color: StampColor::Over { opacity: 2.0 },
+                    ..ok.clone()
+                },
+                "[0, 1]",
+            ),
         ] {
             let e = p.validate().unwrap_err().to_string();
             assert!(e.contains(needle), "{needle}: {e}");
