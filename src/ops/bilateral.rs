@@ -151,8 +151,9 @@ pub fn bilateral(
     } else {
         None
     };
-    // Row results, computed in parallel then scattered.
-    let rows: Vec<(Vec<[f32; 3]>, Vec<[f32; 3]>)> = (0..h)
+    // Row results (normals, colours), computed in parallel then scattered.
+    type Row = (Vec<[f32; 3]>, Vec<[f32; 3]>);
+    let rows: Vec<Row> = (0..h)
         .into_par_iter()
         .map(|r| {
             let mut rn = vec![[0.0f32; 3]; w];

@@ -468,7 +468,7 @@ mod tests {
                 assert!((f64::from(d.at(x, r)) - best).abs() < 1e-5, "({x},{r})");
             }
         }
-        assert!(distance_transform(&vec![false; 6], 3, 2)
+        assert!(distance_transform(&[false; 6], 3, 2)
             .data()
             .iter()
             .all(|v| v.is_infinite()));

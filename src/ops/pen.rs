@@ -37,12 +37,12 @@
 //!   2.7e-3; tapered bump/scratch on a 400-vertex arc ≈ 2.5e-2; ridge ≈ 0.23. The
 //!   Integrable mode gives ≈ 1e-8 on all of these.
 //! - The **distance-transform mode** ([`PenMode::DistanceTransform`]) handles those
-//! shapes: it rasterises the path, takes the exact Euclidean distance transform of the seeds
-//! (Felzenszwalb & Huttenlocher), builds the height `f(u)` from it, and differentiates that
-//! height with forward differences — integrable by construction (curl 0 to rounding) at the
-//! cost of distances quantised to the rasterised path (≤ ½ px) and no end tapering. There
-//! `u = +d/(W/2)` for open paths (the profile's half `u ∈ [0, 1]`, mirrored) and `±` by the
-//! inside test for closed paths.
+//!   shapes: it rasterises the path, takes the exact Euclidean distance transform of the seeds
+//!   (Felzenszwalb & Huttenlocher), builds the height `f(u)` from it, and differentiates that
+//!   height with forward differences — integrable by construction (curl 0 to rounding) at the
+//!   cost of distances quantised to the rasterised path (≤ ½ px) and no end tapering. There
+//!   `u = +d/(W/2)` for open paths (the profile's half `u ∈ [0, 1]`, mirrored) and `±` by the
+//!   inside test for closed paths.
 //!
 //! **Level changes.** Outside the stroke the gradient is zero, so the two sides of an open path
 //! must be at the same level, `f(−1) = f(1)` (i.e. `∫f′du = 0`): otherwise the surface would

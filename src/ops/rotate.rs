@@ -126,21 +126,16 @@ pub fn min_rotation_inverse(n: V3, x: V3) -> V3 {
 }
 
 /// How the tangent frame of a base normal is built.
-#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+#[derive(Clone, Debug, Default, PartialEq, serde::Serialize, serde::Deserialize)]
 pub enum Frame {
     /// Shortest-arc rotation from `e_z` to the base normal (makes Blend equal RNM).
+    #[default]
     MinimalRotation,
     /// Tangent = the orientation vector projected onto the base's tangent plane.
     Oriented {
         /// Orientation vector in the image frame (x right, y up, z to the viewer).
         orientation: [f32; 3],
     },
-}
-
-impl Default for Frame {
-    fn default() -> Self {
-        Frame::MinimalRotation
-    }
 }
 
 impl Frame {
@@ -157,7 +152,7 @@ impl Frame {
                 let o = to64(*orientation);
                 let t = add(o, scale(n, -dot(o, n)));
                 let l = dot(t, t).sqrt();
-                if !(l > 1e-6) {
+                if l.is_nan() || l <= 1e-6 {
                     return Frame::MinimalRotation.axes(n);
                 }
                 let t = scale(t, 1.0 / l);

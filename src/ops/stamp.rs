@@ -153,7 +153,7 @@ impl StampParams {
         }
         let a = self.affine();
         let det = a[0][0] * a[1][1] - a[0][1] * a[1][0];
-        if !(det.abs() >= MIN_AFFINE_DET) {
+        if det.is_nan() || det.abs() < MIN_AFFINE_DET {
             return Err(RgbnError::param(
                 "scale",
                 format!(
