@@ -306,6 +306,31 @@ mod tests {
         }
     }
 
+    proptest::proptest! {
+        #![proptest_config(proptest::prelude::ProptestConfig::with_cases(16))]
+        #[test]
+        fn keep_plus_remove_is_identity_on_any_field(
+            vals in proptest::collection::vec(-5.0f32..5.0, 2 * 24 * 20),
+            sigma in 0.5f32..8.0, which in 0usize..4
+        ) {
+            let (w, h) = (24, 20);
+            let mut g = GradientField::zeros(w, h);
+            g.p.copy_from_slice(&vals[..w * h]);
+            g.q.copy_from_slice(&vals[w * h..]);
+            let band = match which {
+                0 => Band::LowPass { sigma_px: sigma },
+                1 => Band::HighPass { sigma_px: sigma },
+                2 => Band::BandPass { sigma_fine_px: sigma, sigma_coarse_px: 2.0 * sigma },
+                _ => Band::LoG { sigma_px: sigma },
+            };
+            let (keep, rest) = split_band(&g, &band, BorderMode::Mirror).unwrap();
+            for i in 0..w * h {
+                proptest::prop_assert!((keep.p[i] + rest.p[i] - g.p[i]).abs() < 1e-4);
+                proptest::prop_assert!((keep.q[i] + rest.q[i] - g.q[i]).abs() < 1e-4);
+            }
+        }
+    }
+
     #[test]
     fn bad_sigmas_are_refused() {
         for (b, needle) in [

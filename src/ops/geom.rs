@@ -447,6 +447,44 @@ pub fn integrate_least_squares(g: &GradientField, rel_tol: f64, max_iter: usize)
         .expect("sizes match by construction")
 }
 
+/// Test fixture: a `size × size` crop (top-left) of the Poly Haven rosewood veneer (colour +
+/// GL normal map) from `$RGBN_DATA` or `../shared/data`; `None` (with a message saying the test
+/// skips) when the data is absent.
+#[cfg(test)]
+pub(crate) fn rosewood_crop(size: usize) -> Option<crate::raster::RgbnImage> {
+    use crate::raster::io::{load, InputSpec, LoadOptions};
+    let root = std::env::var_os("RGBN_DATA")
+        .map(std::path::PathBuf::from)
+        .unwrap_or_else(|| std::path::PathBuf::from("../shared/data"));
+    let dir = root.join("polyhaven-rosewood-veneer");
+    let (color, normal) = (
+        dir.join("rosewood_veneer1_diff_1k.jpg"),
+        dir.join("rosewood_veneer1_nor_gl_1k.png"),
+    );
+    if !(color.exists() && normal.exists()) {
+        eprintln!(
+            "SKIP: real data not found in {} (set RGBN_DATA)",
+            dir.display()
+        );
+        return None;
+    }
+    let spec = InputSpec {
+        color: Some(color),
+        normal: Some(normal),
+        ..InputSpec::default()
+    };
+    let img = load(&spec, &LoadOptions::default()).ok()?.image;
+    super::stamp::extract_stamp(
+        &img,
+        0,
+        0,
+        size.min(img.width()),
+        size.min(img.height()),
+        None,
+    )
+    .ok()
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

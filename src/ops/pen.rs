@@ -780,6 +780,40 @@ mod tests {
         assert!(e.contains("only valid on closed paths"), "{e}");
     }
 
+    proptest::proptest! {
+        #![proptest_config(proptest::prelude::ProptestConfig::with_cases(32))]
+        #[test]
+        fn arbitrary_params_never_panic_and_valid_ones_give_finite_fields(
+            pts in proptest::collection::vec((-20.0f32..60.0, -20.0f32..60.0), 0..6),
+            closed in proptest::bool::ANY, width in -5.0f32..30.0, amp in -5.0f32..5.0,
+            kind in 0usize..6, mode in 0usize..3, taper in -1.0f32..20.0
+        ) {
+            let profile = match kind {
+                0 => Profile::Bump { height_px: amp },
+                1 => Profile::Ridge { height_px: amp },
+                2 => Profile::Crease { depth_px: amp },
+                3 => Profile::Scratch { depth_px: amp },
+                4 => Profile::Step { height_px: amp },
+                _ => Profile::Custom { samples_px: vec![0.0, amp, -amp, 0.0] },
+            };
+            let p = PenParams {
+                points: pts.iter().map(|&(x, y)| [x, y]).collect(),
+                closed,
+                width_px: width,
+                profile,
+                taper_px: taper,
+                mode: [PenMode::Integrable, PenMode::Analytic, PenMode::DistanceTransform][mode],
+            };
+            if let Ok(out) = pen_field(40, 40, &p) {
+                proptest::prop_assert!(out.gradients.p.iter().chain(&out.gradients.q).all(|v| v.is_finite()));
+                proptest::prop_assert!(out.height.data().iter().all(|v| v.is_finite()));
+                if p.mode != PenMode::Analytic {
+                    proptest::prop_assert!(out.gradients.relative_rms_curl(None) < 1e-5);
+                }
+            }
+        }
+    }
+
     #[test]
     fn apply_pen_adds_relief_to_an_image() {
         let img = RgbnImage::flat(48, 48, [0.5; 3]);

@@ -657,6 +657,52 @@ mod tests {
     }
 
     #[test]
+    fn real_data_stamp_from_rosewood_is_integrable() {
+        let Some(img) = crate::ops::geom::rosewood_crop(256) else {
+            return;
+        };
+        let stamp = extract_stamp(&img, 40, 60, 48, 48, Some(6.0)).unwrap();
+        let target = RgbnImage::flat(160, 160, [0.5; 3]);
+        let p = StampParams {
+            positions: vec![[50.0, 50.0], [110.0, 100.0]],
+            angle_rad: 0.8,
+            scale: [1.2, 0.9],
+            falloff_px: 6.0,
+            ..StampParams::default()
+        };
+        let (out, rep) = stamp_image(&target, &stamp, &p).unwrap();
+        let raw = GradientField::from_normals(&stamp).curl_stats(None);
+        println!(
+            "rosewood stamp: stamp's own curl {:.3e} (rms slope {:.3e}) → stamped {:.3e} (rms slope {:.3e})",
+            raw.relative, raw.rms_gradient, rep.curl_after.relative, rep.curl_after.rms_gradient
+        );
+        assert!(rep.curl_after.relative < 1e-5, "{rep:?}");
+        assert!(rep.curl_after.rms_gradient > 0.05 * raw.rms_gradient);
+        assert!(out.validate().is_clean());
+    }
+
+    proptest::proptest! {
+        #![proptest_config(proptest::prelude::ProptestConfig::with_cases(24))]
+        #[test]
+        fn any_valid_affine_gives_a_curl_free_stamp(
+            angle in -4.0f32..4.0, sx in 0.3f32..3.0, sy in -3.0f32..-0.3, shear in -1.0f32..1.0,
+            x in 0.0f32..96.0, r in 0.0f32..96.0
+        ) {
+            let prepared = prepare_stamp_height(&stamp_plane(&two_bumps(), 25), 3.0);
+            let p = StampParams {
+                positions: vec![[x, r]],
+                angle_rad: angle,
+                scale: [sx, sy],
+                shear,
+                ..StampParams::default()
+            };
+            let g = stamp_gradients(96, 96, &prepared, &p).unwrap();
+            proptest::prop_assert!(g.relative_rms_curl(None) < 1e-5);
+            proptest::prop_assert!(g.p.iter().chain(&g.q).all(|v| v.is_finite()));
+        }
+    }
+
+    #[test]
     fn bad_params_are_refused() {
         let ok = StampParams::default();
         for (p, needle) in [
