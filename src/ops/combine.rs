@@ -16,7 +16,9 @@
 //! inputs (curl ≈ 0 away from the borders). A spatially varying weight multiplies a gradient
 //! field by `m`, and `curl(m ∇h) = ∇m × ∇h ≠ 0` where the weight varies across the detail's
 //! slopes; the report gives the measured curl. (The integrable alternative, `∇(m·h)`, needs
-//! the detail's height — see [`super::stamp`], which integrates its stamp for this reason.)
+//! the detail's height: [`linear_combine_height`] takes the detail as a height and adds
+//! `α ∇(m·h)`, integrable for any weight; [`super::stamp`] integrates its stamp for the same
+//! reason.)
 //!
 //! # References
 //! - T. Pereira, L. Velho, "RGBN image editing", SIBGRAPI 2011, §IV.
@@ -143,6 +145,85 @@ pub fn linear_combine(
         });
     }
     out.clamped = base.clamped + detail.clamped;
+    Ok(out)
+}
+
+/// The integrable variant for a detail given as a **height** `h`: `w = ∇b + α ∇(m·h)` (forward
+/// differences of `m·h`, the convention of [`GradientField::from_height`]), with the band (if
+/// any) applied to the height: `B(h)` for the detail and `m·B(∇b)` removed from the base.
+/// With a varying weight, only the base-band removal (`m·B(∇b)`) can add curl; without
+/// `replace_band` the result is exactly as integrable as the base, for any weight.
+pub fn linear_combine_height(
+    base: &GradientField,
+    detail_height: &Plane,
+    weight: Option<&Plane>,
+    params: &LinearCombineParams,
+) -> Result<GradientField, RgbnError> {
+    params.validate()?;
+    let size = (base.width, base.height);
+    check_same_size(
+        "detail_height",
+        size,
+        (detail_height.width(), detail_height.height()),
+    )?;
+    if let Some(m) = weight {
+        check_weight(m, size)?;
+    }
+    if let Some(v) = detail_height.data().iter().find(|v| !v.is_finite()) {
+        return Err(RgbnError::param(
+            "detail_height",
+            format!("value {v} must be finite"),
+        ));
+    }
+    let mut h = detail_height.clone();
+    let mut out = base.clone();
+    if let Some(band) = &params.replace_band {
+        let filter_plane = |data: &mut Plane| -> Result<(), RgbnError> {
+            // A plane filtered as the p-component of a field (q unused).
+            let mut g = GradientField::zeros(data.width(), data.height());
+            g.p.copy_from_slice(data.data());
+            let f = band_filter(
+                &g,
+                &BandParams {
+                    band: band.clone(),
+                    op: BandOp::Keep,
+                    border: params.border,
+                },
+            )?;
+            data.data_mut().copy_from_slice(&f.p);
+            Ok(())
+        };
+        filter_plane(&mut h)?;
+        let bb = band_filter(
+            base,
+            &BandParams {
+                band: band.clone(),
+                op: BandOp::Keep,
+                border: params.border,
+            },
+        )?;
+        for (o, b) in [(&mut out.p, &bb.p), (&mut out.q, &bb.q)] {
+            o.par_iter_mut().enumerate().for_each(|(i, v)| {
+                *v -= weight.map_or(1.0, |m| m.data()[i]) * b[i];
+            });
+        }
+    }
+    let alpha = params.alpha;
+    if let Some(m) = weight {
+        h.data_mut()
+            .par_iter_mut()
+            .zip(m.data().par_iter())
+            .for_each(|(v, m)| *v *= m);
+    }
+    let d = GradientField::from_height(&h);
+    out.p
+        .par_iter_mut()
+        .zip(d.p.par_iter())
+        .for_each(|(o, d)| *o += alpha * d);
+    out.q
+        .par_iter_mut()
+        .zip(d.q.par_iter())
+        .for_each(|(o, d)| *o += alpha * d);
     Ok(out)
 }
 
@@ -273,6 +354,38 @@ mod tests {
         let rel = w.relative_rms_curl(None);
         println!("linear combine with a ramp weight: relative RMS curl {rel:.3e}");
         assert!(rel.is_finite() && rel > 0.0);
+    }
+
+    #[test]
+    fn height_variant_is_integrable_for_any_weight() {
+        let size = 128;
+        let base = height_field(&Surface::gaussians_for(size), size);
+        let (_, h) = Surface::Sinusoid {
+            amplitude_px: 1.5,
+            period_px: 9.0,
+        }
+        .render(size, size);
+        let m = Plane::from_fn(size, size, |x, _| (x as f32 / size as f32).clamp(0.0, 1.0));
+        let p = LinearCombineParams {
+            alpha: 0.8,
+            ..LinearCombineParams::default()
+        };
+        let w = linear_combine_height(&base, &h, Some(&m), &p).unwrap();
+        let rel = w.relative_rms_curl(None);
+        let grad = linear_combine(&base, &GradientField::from_height(&h), Some(&m), &p).unwrap();
+        let rel_g = grad.relative_rms_curl(None);
+        println!("ramp weight: height variant curl {rel:.3e}, gradient variant {rel_g:.3e}");
+        assert!(rel < 1e-6 && rel_g > 100.0 * rel, "{rel:e} {rel_g:e}");
+        // Weight 1: both variants agree exactly.
+        let a = linear_combine_height(&base, &h, None, &p).unwrap();
+        let b = linear_combine(&base, &GradientField::from_height(&h), None, &p).unwrap();
+        assert!(a.p.iter().zip(&b.p).all(|(x, y)| (x - y).abs() < 1e-5));
+        let mut bad = h.clone();
+        bad.data_mut()[3] = f32::NAN;
+        assert!(linear_combine_height(&base, &bad, None, &p)
+            .unwrap_err()
+            .to_string()
+            .contains("detail_height"));
     }
 
     #[test]

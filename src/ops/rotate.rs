@@ -33,8 +33,8 @@
 //!
 //! Rotating a tilted base by a tilted detail can push a normal over the horizon (RNM gives
 //! `z < 0` for a base at 80° and a 30° detail in the same direction). With saturation on,
-//! a result with `z < min_z` is moved back along the great arc from the base normal `n` to
-//! the result, to the first point where `z = min_z` (the rotation "stops" at the threshold);
+//! a result with `z < min_z` is moved back along the great arc from the base normal `n` (the
+//! existing normal `e` in Rotate mode) to the result, to the first point where `z = min_z` (the rotation "stops" at the threshold);
 //! if the base itself is below `min_z`, along the meridian (keeping the azimuth).
 //!
 //! # References
@@ -369,7 +369,13 @@ pub fn combine_one(
     };
     let r = normalize3(r);
     if params.saturate && r[2] < f64::from(params.min_z) {
-        (to32(saturate(n, r, f64::from(params.min_z))), true)
+        // The arc starts where the rotation starts: the existing normal for Rotate.
+        let from = if params.mode == CombineMode::Rotate {
+            normalize3(to64(e))
+        } else {
+            n
+        };
+        (to32(saturate(from, r, f64::from(params.min_z))), true)
     } else {
         (to32(r), false)
     }
