@@ -103,17 +103,7 @@ impl BilateralParams {
                 }
             }
         }
-        if let Frame::Oriented { orientation } = &self.frame {
-            if !(orientation.iter().all(|v| v.is_finite())
-                && orientation.iter().map(|v| v * v).sum::<f32>() > 1e-12)
-            {
-                return Err(RgbnError::param(
-                    "orientation",
-                    format!("{orientation:?} must be a finite, non-zero vector"),
-                ));
-            }
-        }
-        Ok(())
+        self.frame.validate()
     }
 }
 

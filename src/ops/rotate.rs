@@ -181,7 +181,8 @@ impl Frame {
         [dot(x, t), dot(x, b), dot(x, n)]
     }
 
-    fn validate(&self) -> Result<(), RgbnError> {
+    /// Checks the orientation vector (finite, non-zero).
+    pub fn validate(&self) -> Result<(), RgbnError> {
         if let Frame::Oriented { orientation } = self {
             let o = to64(*orientation);
             if !(o.iter().all(|v| v.is_finite()) && dot(o, o) > 1e-12) {
