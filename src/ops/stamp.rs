@@ -45,8 +45,9 @@ use crate::raster::gradient::{CurlStats, GradientField};
 use crate::raster::{Plane, RgbnImage};
 use rayon::prelude::*;
 
-/// Largest stamp side (pixels): the stamp is integrated with an iterative solver.
-pub const MAX_STAMP_SIDE: usize = 1024;
+/// Largest stamp side (pixels): the stamp is integrated with an iterative solver whose cost
+/// grows as `side³`.
+pub const MAX_STAMP_SIDE: usize = 512;
 /// Smallest `|det A|` accepted (area scale of the map).
 pub const MIN_AFFINE_DET: f64 = 1e-4;
 /// Most placements per call.
