@@ -244,6 +244,9 @@ impl Polyline {
 #[inline]
 #[must_use]
 pub fn bilinear(plane: &[f32], w: usize, h: usize, x: f64, row: f64) -> Option<f32> {
+    if w == 0 || h == 0 || plane.len() < w * h {
+        return None;
+    }
     if !(x >= 0.0 && row >= 0.0 && x <= (w - 1) as f64 && row <= (h - 1) as f64) {
         return None;
     }
