@@ -1,0 +1,559 @@
+//! Small geometry shared by the region-based operators (brush, pen, stamp): polyline distance
+//! and projection, stroke masks, smoothstep, bilinear sampling, the exact Euclidean distance
+//! transform, staggered sampling of analytic gradients and a least-squares integrator.
+//!
+//! Coordinates: points are given in **pixel coordinates** `(x, row)` — `x` right, `row` down,
+//! pixel centres at integer values — as a user clicks them. Vector maths that involves
+//! gradients converts to the y-up frame of [`crate::raster::gradient`] with `y = −row`.
+//!
+//! # Staggered sampling
+//!
+//! The discrete gradient of a height in this crate is a forward difference
+//! (`p(x, r) = z(x+1, r) − z(x, r)`, `q(x, r) = z(x, r−1) − z(x, r)`), i.e. `p` lives at
+//! `(x + ½, r)` and `q` at `(x, r − ½)`. Sampling an analytic gradient at exactly these points
+//! ([`sample_gradient_staggered`]) makes the discrete curl a midpoint-rule circulation, `O(h²)`
+//! instead of the `O(h)` of sampling both at the pixel centre.
+//!
+//! # References
+//! - P. Felzenszwalb, D. Huttenlocher, "Distance Transforms of Sampled Functions", Theory of
+//!   Computing 8 (2012).
+//! - M. Hestenes, E. Stiefel, "Methods of conjugate gradients for solving linear systems" (1952).
+
+use crate::error::RgbnError;
+use crate::raster::gradient::GradientField;
+use crate::raster::Plane;
+use rayon::prelude::*;
+
+/// Quintic smoothstep `6t⁵ − 15t⁴ + 10t³` of `t = (x − e0)/(e1 − e0)` clamped to `[0, 1]`
+/// (C² at both ends).
+#[inline]
+#[must_use]
+pub fn smoothstep(e0: f64, e1: f64, x: f64) -> f64 {
+    if e1 <= e0 {
+        return if x < e0 { 0.0 } else { 1.0 };
+    }
+    let t = ((x - e0) / (e1 - e0)).clamp(0.0, 1.0);
+    t * t * t * (t * (6.0 * t - 15.0) + 10.0)
+}
+
+/// Derivative of [`smoothstep`] with respect to `x`.
+#[inline]
+#[must_use]
+pub fn smoothstep_deriv(e0: f64, e1: f64, x: f64) -> f64 {
+    if e1 <= e0 {
+        return 0.0;
+    }
+    let t = (x - e0) / (e1 - e0);
+    if !(0.0..=1.0).contains(&t) {
+        return 0.0;
+    }
+    30.0 * t * t * (t - 1.0) * (t - 1.0) / (e1 - e0)
+}
+
+/// Where a point projects onto a polyline.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Projection {
+    /// Euclidean distance (pixels) to the closest point.
+    pub dist_px: f64,
+    /// Closest point, pixel coordinates `(x, row)`.
+    pub closest: [f64; 2],
+    /// Arclength (pixels) from the first point to the closest point.
+    pub arclength_px: f64,
+    /// Unit tangent of the closest segment in pixel coordinates `(x, row)`.
+    pub tangent: [f64; 2],
+    /// Whether the closest point is strictly inside a segment (not a clamped end or vertex).
+    pub interior: bool,
+    /// Cross product sign of the tangent and `point − closest` in the **y-up** frame: `> 0` when
+    /// the point lies to the left of the direction of travel as seen on screen.
+    pub side: f64,
+}
+
+/// Validates a polyline (at least one point, all finite, within ±1e7 px).
+pub fn check_points(name: &str, points: &[[f32; 2]], min: usize) -> Result<(), RgbnError> {
+    if points.len() < min {
+        return Err(RgbnError::param(
+            name,
+            format!("needs at least {min} point(s), got {}", points.len()),
+        ));
+    }
+    if let Some(p) = points
+        .iter()
+        .find(|p| !(p[0].is_finite() && p[1].is_finite() && p[0].abs() < 1e7 && p[1].abs() < 1e7))
+    {
+        return Err(RgbnError::param(
+            name,
+            format!("point {p:?} must be finite with |coordinate| < 1e7 px"),
+        ));
+    }
+    Ok(())
+}
+
+/// A polyline prepared for many distance queries (segments, cumulative arclength).
+#[derive(Clone, Debug)]
+pub struct Polyline {
+    pts: Vec<[f64; 2]>,
+    cum: Vec<f64>,
+    closed: bool,
+}
+
+impl Polyline {
+    /// From pixel-coordinate points; `closed` adds the segment back to the start. Consecutive
+    /// duplicate points are dropped.
+    #[must_use]
+    pub fn new(points: &[[f32; 2]], closed: bool) -> Self {
+        let mut pts: Vec<[f64; 2]> = Vec::with_capacity(points.len() + 1);
+        for p in points {
+            let p = [f64::from(p[0]), f64::from(p[1])];
+            if pts.last().is_none_or(|l| l[0] != p[0] || l[1] != p[1]) {
+                pts.push(p);
+            }
+        }
+        if closed && pts.len() > 1 && pts.first() == pts.last() {
+            pts.pop();
+        }
+        let closed = closed && pts.len() >= 3;
+        if closed {
+            pts.push(pts[0]);
+        }
+        let mut cum = vec![0.0; pts.len()];
+        for i in 1..pts.len() {
+            cum[i] = cum[i - 1] + (pts[i][0] - pts[i - 1][0]).hypot(pts[i][1] - pts[i - 1][1]);
+        }
+        Self { pts, cum, closed }
+    }
+
+    /// Total length in pixels.
+    #[must_use]
+    pub fn length_px(&self) -> f64 {
+        self.cum.last().copied().unwrap_or(0.0)
+    }
+
+    /// Whether the polyline is closed (≥ 3 distinct points and asked to be closed).
+    #[must_use]
+    pub fn is_closed(&self) -> bool {
+        self.closed
+    }
+
+    /// Axis-aligned bounds `[min_x, min_row, max_x, max_row]`.
+    #[must_use]
+    pub fn bounds(&self) -> [f64; 4] {
+        self.pts.iter().fold(
+            [
+                f64::INFINITY,
+                f64::INFINITY,
+                f64::NEG_INFINITY,
+                f64::NEG_INFINITY,
+            ],
+            |b, p| {
+                [
+                    b[0].min(p[0]),
+                    b[1].min(p[1]),
+                    b[2].max(p[0]),
+                    b[3].max(p[1]),
+                ]
+            },
+        )
+    }
+
+    /// Closest point on the polyline to `p` (pixel coordinates). `None` for an empty polyline.
+    #[must_use]
+    pub fn project(&self, p: [f64; 2]) -> Option<Projection> {
+        let first = *self.pts.first()?;
+        if self.pts.len() == 1 {
+            let d = (p[0] - first[0]).hypot(p[1] - first[1]);
+            return Some(Projection {
+                dist_px: d,
+                closest: first,
+                arclength_px: 0.0,
+                tangent: [1.0, 0.0],
+                interior: false,
+                side: 0.0,
+            });
+        }
+        let mut best: Option<(f64, usize, f64)> = None;
+        for i in 0..self.pts.len() - 1 {
+            let (a, b) = (self.pts[i], self.pts[i + 1]);
+            let (dx, dy) = (b[0] - a[0], b[1] - a[1]);
+            let l2 = dx * dx + dy * dy;
+            let t = (((p[0] - a[0]) * dx + (p[1] - a[1]) * dy) / l2).clamp(0.0, 1.0);
+            let (cx, cy) = (a[0] + t * dx, a[1] + t * dy);
+            let d2 = (p[0] - cx).powi(2) + (p[1] - cy).powi(2);
+            if best.is_none_or(|(bd, _, _)| d2 < bd) {
+                best = Some((d2, i, t));
+            }
+        }
+        let (d2, i, t) = best?;
+        let (a, b) = (self.pts[i], self.pts[i + 1]);
+        let len = self.cum[i + 1] - self.cum[i];
+        let tangent = [(b[0] - a[0]) / len, (b[1] - a[1]) / len];
+        let closest = [a[0] + t * (b[0] - a[0]), a[1] + t * (b[1] - a[1])];
+        // y-up: tangent (tx, −trow), offset (ox, −orow); cross = tx·(−orow) − (−trow)·ox.
+        let (ox, orow) = (p[0] - closest[0], p[1] - closest[1]);
+        let side = -tangent[0] * orow + tangent[1] * ox;
+        Some(Projection {
+            dist_px: d2.sqrt(),
+            closest,
+            arclength_px: self.cum[i] + t * len,
+            tangent,
+            interior: t > 0.0 && t < 1.0,
+            side,
+        })
+    }
+
+    /// Even–odd inside test (closed polylines only; `false` when open).
+    #[must_use]
+    pub fn contains(&self, p: [f64; 2]) -> bool {
+        if !self.closed {
+            return false;
+        }
+        let mut inside = false;
+        for i in 0..self.pts.len() - 1 {
+            let (a, b) = (self.pts[i], self.pts[i + 1]);
+            if (a[1] > p[1]) != (b[1] > p[1]) {
+                let x = a[0] + (p[1] - a[1]) / (b[1] - a[1]) * (b[0] - a[0]);
+                if p[0] < x {
+                    inside = !inside;
+                }
+            }
+        }
+        inside
+    }
+
+    /// Points spaced at most `step_px` apart along the polyline (for rasterising).
+    #[must_use]
+    pub fn densify(&self, step_px: f64) -> Vec<[f64; 2]> {
+        let mut out = Vec::new();
+        if let Some(&f) = self.pts.first() {
+            out.push(f);
+        }
+        for i in 0..self.pts.len().saturating_sub(1) {
+            let (a, b) = (self.pts[i], self.pts[i + 1]);
+            let len = (b[0] - a[0]).hypot(b[1] - a[1]);
+            let n = (len / step_px).ceil().max(1.0) as usize;
+            for k in 1..=n {
+                let t = k as f64 / n as f64;
+                out.push([a[0] + t * (b[0] - a[0]), a[1] + t * (b[1] - a[1])]);
+            }
+        }
+        out
+    }
+}
+
+/// Bilinear sample of a plane at continuous pixel coordinates `(x, row)` (pixel centres at
+/// integers); `None` outside `[0, w−1] × [0, h−1]`.
+#[inline]
+#[must_use]
+pub fn bilinear(plane: &[f32], w: usize, h: usize, x: f64, row: f64) -> Option<f32> {
+    if w == 0 || h == 0 || plane.len() < w * h {
+        return None;
+    }
+    if !(x >= 0.0 && row >= 0.0 && x <= (w - 1) as f64 && row <= (h - 1) as f64) {
+        return None;
+    }
+    let (x0, r0) = (x.floor() as usize, row.floor() as usize);
+    let (x1, r1) = ((x0 + 1).min(w - 1), (r0 + 1).min(h - 1));
+    let (fx, fr) = ((x - x0 as f64) as f32, (row - r0 as f64) as f32);
+    let a = plane[r0 * w + x0] * (1.0 - fx) + plane[r0 * w + x1] * fx;
+    let b = plane[r1 * w + x0] * (1.0 - fx) + plane[r1 * w + x1] * fx;
+    Some(a * (1.0 - fr) + b * fr)
+}
+
+/// Samples an analytic gradient `f(x, row) → (∂z/∂x, ∂z/∂y)` (y up) at the staggered points of
+/// the module docs: `p` at `(x + ½, row)`, `q` at `(x, row − ½)`.
+#[must_use]
+pub fn sample_gradient_staggered(
+    width: usize,
+    height: usize,
+    f: impl Fn(f64, f64) -> [f64; 2] + Sync,
+) -> GradientField {
+    let mut g = GradientField::zeros(width, height);
+    g.p.par_chunks_mut(width.max(1))
+        .zip(g.q.par_chunks_mut(width.max(1)))
+        .enumerate()
+        .for_each(|(r, (pr, qr))| {
+            for x in 0..width {
+                pr[x] = f(x as f64 + 0.5, r as f64)[0] as f32;
+                qr[x] = f(x as f64, r as f64 - 0.5)[1] as f32;
+            }
+        });
+    g
+}
+
+/// Stand-in for "no seed" in the 1-D transform (keeps the parabola maths finite).
+const EDT_FAR: f64 = 1e20;
+
+/// One-dimensional squared-distance transform of Felzenszwalb & Huttenlocher: `d[i] =
+/// min_j ((i − j)² + f[j])`, in `O(n)` with the lower envelope of parabolas.
+fn edt_1d(f: &[f64], d: &mut [f64], v: &mut [usize], z: &mut [f64]) {
+    let n = f.len();
+    if n == 0 {
+        return;
+    }
+    let mut k = 0usize;
+    v[0] = 0;
+    z[0] = f64::NEG_INFINITY;
+    z[1] = f64::INFINITY;
+    let sq = |i: usize| (i * i) as f64;
+    for q in 1..n {
+        let mut s;
+        loop {
+            let p = v[k];
+            s = ((f[q] + sq(q)) - (f[p] + sq(p))) / (2.0 * (q - p) as f64);
+            if s <= z[k] && k > 0 {
+                k -= 1;
+            } else {
+                break;
+            }
+        }
+        if s <= z[k] {
+            // k == 0 and the new parabola is below the old one everywhere.
+            v[0] = q;
+            z[0] = f64::NEG_INFINITY;
+            z[1] = f64::INFINITY;
+            continue;
+        }
+        k += 1;
+        v[k] = q;
+        z[k] = s;
+        z[k + 1] = f64::INFINITY;
+    }
+    k = 0;
+    for (q, out) in d.iter_mut().enumerate() {
+        while z[k + 1] < q as f64 {
+            k += 1;
+        }
+        let p = v[k];
+        *out = (q as f64 - p as f64).powi(2) + f[p];
+    }
+}
+
+/// Exact Euclidean distance (pixels) from every pixel to the nearest `true` seed (Felzenszwalb
+/// & Huttenlocher 2012: 1-D transform along columns, then rows). `+∞` when there is no seed.
+#[must_use]
+pub fn distance_transform(seeds: &[bool], width: usize, height: usize) -> Plane {
+    let mut f: Vec<f64> = seeds
+        .iter()
+        .map(|&s| if s { 0.0 } else { EDT_FAR })
+        .collect();
+    // Columns.
+    let cols: Vec<Vec<f64>> = (0..width)
+        .into_par_iter()
+        .map(|x| {
+            let col: Vec<f64> = (0..height).map(|r| f[r * width + x]).collect();
+            let mut d = vec![0.0; height];
+            let (mut v, mut z) = (vec![0usize; height], vec![0.0; height + 1]);
+            edt_1d(&col, &mut d, &mut v, &mut z);
+            d
+        })
+        .collect();
+    for (x, col) in cols.iter().enumerate() {
+        for (r, val) in col.iter().enumerate() {
+            f[r * width + x] = *val;
+        }
+    }
+    // Rows.
+    let mut out = vec![0.0f32; width * height];
+    out.par_chunks_mut(width.max(1))
+        .zip(f.par_chunks(width.max(1)))
+        .for_each(|(o, row)| {
+            let mut d = vec![0.0; width];
+            let (mut v, mut z) = (vec![0usize; width], vec![0.0; width + 1]);
+            edt_1d(row, &mut d, &mut v, &mut z);
+            for (o, d) in o.iter_mut().zip(&d) {
+                *o = if *d >= EDT_FAR * 0.5 {
+                    f32::INFINITY
+                } else {
+                    d.sqrt() as f32
+                };
+            }
+        });
+    Plane::from_vec(width, height, out).expect("sizes match by construction")
+}
+
+/// Least-squares height of a gradient field: minimises `Σ (z(x+1,r) − z(x,r) − p)² +
+/// (z(r−1,x) − z(r,x) − q)²` over the differences inside the image (the forward-difference
+/// convention of [`GradientField::from_height`]), by conjugate gradients on the normal equations
+/// `DᵀD z = Dᵀg` (the discrete Neumann Poisson problem). The result has zero mean. For an
+/// integrable field it recovers the height exactly (to the tolerance); meant for small fields
+/// (stamps): unpreconditioned CG needs `O(side)` iterations, so the cost is `O(side³)`
+/// (rows in parallel).
+#[must_use]
+pub fn integrate_least_squares(g: &GradientField, rel_tol: f64, max_iter: usize) -> Plane {
+    let (w, h) = (g.width, g.height);
+    let n = w * h;
+    // DᵀD z in gather form: Σ over the 4-neighbours inside the image of (z_i − z_j)
+    // (the Neumann Laplacian), rows in parallel.
+    let apply_dtd = |z: &[f64], out: &mut [f64]| {
+        out.par_chunks_mut(w.max(1))
+            .enumerate()
+            .for_each(|(r, orow)| {
+                for (x, o) in orow.iter_mut().enumerate() {
+                    let i = r * w + x;
+                    let zi = z[i];
+                    let mut acc = 0.0;
+                    if x >= 1 {
+                        acc += zi - z[i - 1];
+                    }
+                    if x + 1 < w {
+                        acc += zi - z[i + 1];
+                    }
+                    if r >= 1 {
+                        acc += zi - z[i - w];
+                    }
+                    if r + 1 < h {
+                        acc += zi - z[i + w];
+                    }
+                    *o = acc;
+                }
+            });
+    };
+    let pdot = |a: &[f64], b: &[f64]| -> f64 { a.par_iter().zip(b).map(|(x, y)| x * y).sum() };
+    let mut b = vec![0.0f64; n];
+    for r in 0..h {
+        for x in 0..w {
+            let i = r * w + x;
+            if x + 1 < w {
+                let p = f64::from(g.p[i]);
+                b[i + 1] += p;
+                b[i] -= p;
+            }
+            if r >= 1 {
+                let q = f64::from(g.q[i]);
+                b[i - w] += q;
+                b[i] -= q;
+            }
+        }
+    }
+    let mut z = vec![0.0f64; n];
+    let mut res = b.clone();
+    let mut dir = res.clone();
+    let mut ad = vec![0.0f64; n];
+    let b_norm = pdot(&b, &b).sqrt();
+    let mut rr: f64 = pdot(&res, &res);
+    if b_norm > 0.0 {
+        for _ in 0..max_iter {
+            if rr.sqrt() <= rel_tol * b_norm {
+                break;
+            }
+            apply_dtd(&dir, &mut ad);
+            let dad: f64 = pdot(&dir, &ad);
+            if dad <= 0.0 {
+                break;
+            }
+            let alpha = rr / dad;
+            z.par_iter_mut()
+                .zip(dir.par_iter())
+                .for_each(|(z, d)| *z += alpha * d);
+            res.par_iter_mut()
+                .zip(ad.par_iter())
+                .for_each(|(r, a)| *r -= alpha * a);
+            let rr_new: f64 = pdot(&res, &res);
+            let beta = rr_new / rr;
+            rr = rr_new;
+            dir.par_iter_mut()
+                .zip(res.par_iter())
+                .for_each(|(d, r)| *d = r + beta * *d);
+        }
+    }
+    // Constants are the null space of DᵀD: remove the mean.
+    let mean = z.iter().sum::<f64>() / n.max(1) as f64;
+    Plane::from_vec(w, h, z.iter().map(|v| (v - mean) as f32).collect())
+        .expect("sizes match by construction")
+}
+
+/// Test fixture: a `size × size` crop (top-left) of the Poly Haven rosewood veneer (colour +
+/// GL normal map) from `$RGBN_DATA` or `../shared/data`; `None` (with a message saying the test
+/// skips) when the data is absent.
+#[cfg(test)]
+pub(crate) fn rosewood_crop(size: usize) -> Option<crate::raster::RgbnImage> {
+    use crate::raster::io::{load, InputSpec, LoadOptions};
+    let root = std::env::var_os("RGBN_DATA")
+        .map(std::path::PathBuf::from)
+        .unwrap_or_else(|| std::path::PathBuf::from("../shared/data"));
+    let dir = root.join("polyhaven-rosewood-veneer");
+    let (color, normal) = (
+        dir.join("rosewood_veneer1_diff_1k.jpg"),
+        dir.join("rosewood_veneer1_nor_gl_1k.png"),
+    );
+    if !(color.exists() && normal.exists()) {
+        eprintln!(
+            "SKIP: real data not found in {} (set RGBN_DATA)",
+            dir.display()
+        );
+        return None;
+    }
+    let spec = InputSpec {
+        color: Some(color),
+        normal: Some(normal),
+        ..InputSpec::default()
+    };
+    let img = load(&spec, &LoadOptions::default()).ok()?.image;
+    super::stamp::extract_stamp(
+        &img,
+        0,
+        0,
+        size.min(img.width()),
+        size.min(img.height()),
+        None,
+    )
+    .ok()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn edt_matches_brute_force() {
+        let (w, h) = (23, 17);
+        let seeds: Vec<bool> = (0..w * h).map(|i| (i * 7919) % 37 == 3).collect();
+        let d = distance_transform(&seeds, w, h);
+        for r in 0..h {
+            for x in 0..w {
+                let mut best = f64::INFINITY;
+                for (j, s) in seeds.iter().enumerate() {
+                    if *s {
+                        let (sx, sr) = ((j % w) as f64, (j / w) as f64);
+                        best = best.min((x as f64 - sx).hypot(r as f64 - sr));
+                    }
+                }
+                assert!((f64::from(d.at(x, r)) - best).abs() < 1e-5, "({x},{r})");
+            }
+        }
+        assert!(distance_transform(&[false; 6], 3, 2)
+            .data()
+            .iter()
+            .all(|v| v.is_infinite()));
+    }
+
+    #[test]
+    fn projection_side_and_arclength() {
+        // Path going right along row 10; a point above it on screen (smaller row) is on the
+        // left of the direction of travel.
+        let pl = Polyline::new(&[[0.0, 10.0], [20.0, 10.0]], false);
+        let pr = pl.project([5.0, 7.0]).unwrap();
+        assert!((pr.dist_px - 3.0).abs() < 1e-12 && pr.side > 0.0 && pr.interior);
+        assert!((pr.arclength_px - 5.0).abs() < 1e-12);
+        assert!(pl.project([5.0, 12.0]).unwrap().side < 0.0);
+        let sq = Polyline::new(&[[0.0, 0.0], [10.0, 0.0], [10.0, 10.0], [0.0, 10.0]], true);
+        assert!(sq.contains([5.0, 5.0]) && !sq.contains([15.0, 5.0]));
+        assert!((sq.length_px() - 40.0).abs() < 1e-12);
+    }
+
+    #[test]
+    fn least_squares_integration_recovers_a_height() {
+        let z = Plane::from_fn(31, 24, |x, r| {
+            ((x as f32) * 0.3).sin() * 4.0 + (r as f32 * 0.2).cos() * 3.0 + 0.01 * (x * r) as f32
+        });
+        let g = GradientField::from_height(&z);
+        let zi = integrate_least_squares(&g, 1e-10, 5000);
+        let mean = z.data().iter().sum::<f32>() / z.data().len() as f32;
+        let err = z
+            .data()
+            .iter()
+            .zip(zi.data())
+            .map(|(a, b)| (a - mean - b).abs())
+            .fold(0.0f32, f32::max);
+        assert!(err < 1e-3, "{err}");
+    }
+}

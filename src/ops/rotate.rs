@@ -1,0 +1,670 @@
+//! Rotation combine of normals (Pereira & Velho §VII): a *detail* normal is expressed in a
+//! tangent frame attached to a *base* normal, so that detail keeps its look on a tilted base.
+//!
+//! # Frames
+//!
+//! A frame is a rotation `F = [t b n]` (columns) whose third axis is the base normal `n`.
+//! - **Minimal rotation** ([`Frame::MinimalRotation`]): the shortest-arc rotation taking
+//!   `e_z = (0,0,1)` to `n`. With `v = e_z × n = (−n_y, n_x, 0)` and `c = n_z`
+//!   (Rodrigues): `F d = c·d + v × d + v (v·d)/(1 + c)`. For `n = −e_z` (no unique shortest
+//!   arc) the rotation by π about `x` is used.
+//! - **Oriented** ([`Frame::Oriented`]): `t = normalize(o − (o·n) n)` for an orientation vector
+//!   `o` (e.g. the image's `x` axis or a brush direction), `b = n × t`; falls back to the
+//!   minimal frame where `o ∥ n`.
+//!
+//! # Modes (per pixel; base `n`, detail `d` expressed in the base's frame, weight `w ∈ [0,1]`)
+//!
+//! The weight first *attenuates* the detail along its great arc to the pole:
+//! `d_w = slerp(e_z, d, w)` (so `w = 0` means "no detail").
+//! - [`CombineMode::Replace`]: `F d` where `w ≥ ½`, else `n` (a hard region).
+//! - [`CombineMode::Blend`]: `F d_w` = `slerp(n, F d, w)` (rotations preserve great arcs): a
+//!   smooth falloff to the base.
+//! - [`CombineMode::Rotate`]: apply the rotation `R_d` that takes `e_z` to `d_w`, expressed in
+//!   the base's frame, to a third *existing* normal `e`: `F R_d Fᵀ e`. When `e = n` this equals
+//!   Blend.
+//! - Industry blends of Barré-Brisebois & Hill (2012) on `(n, d_w)` in the image frame:
+//!   [`CombineMode::Rnm`] (reoriented normal mapping: equals Blend in the minimal frame),
+//!   [`CombineMode::Udn`] `normalize(n_xy + d_xy, n_z)`, [`CombineMode::Whiteout`]
+//!   `normalize(n_xy + d_xy, n_z d_z)`, and [`CombineMode::PartialDerivative`]
+//!   `normalize(n_xy d_z + d_xy n_z, n_z d_z)`, i.e. the sum of the gradients (= the linear
+//!   combine of [`super::combine`]).
+//!
+//! # Saturation
+//!
+//! Rotating a tilted base by a tilted detail can push a normal over the horizon (RNM gives
+//! `z < 0` for a base at 80° and a 30° detail in the same direction). With saturation on,
+//! a result with `z < min_z` is moved back along the great arc from the base normal `n` (the
+//! existing normal `e` in Rotate mode) to the result, to the first point where `z = min_z` (the rotation "stops" at the threshold);
+//! if the base itself is below `min_z`, along the meridian (keeping the azimuth).
+//!
+//! # References
+//! - T. Pereira, L. Velho, "RGBN image editing", SIBGRAPI 2011, §VII.
+//! - C. Barré-Brisebois, S. Hill, "Blending in Detail", 2012
+//!   (<https://blog.selfshadow.com/publications/blending-in-detail/>).
+//! - C. Toler-Franklin et al., "Illustration of complex real-world objects using images with
+//!   normals", NPAR 2007 (detail as a rotation of the base).
+
+use crate::error::RgbnError;
+use crate::raster::gradient::{CurlStats, GradientField};
+use crate::raster::{Plane, RgbnImage};
+use rayon::prelude::*;
+
+/// 3-vector helpers (f64 internally for accuracy).
+pub type V3 = [f64; 3];
+
+#[inline]
+fn dot(a: V3, b: V3) -> f64 {
+    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+}
+#[inline]
+fn cross(a: V3, b: V3) -> V3 {
+    [
+        a[1] * b[2] - a[2] * b[1],
+        a[2] * b[0] - a[0] * b[2],
+        a[0] * b[1] - a[1] * b[0],
+    ]
+}
+#[inline]
+fn scale(a: V3, s: f64) -> V3 {
+    [a[0] * s, a[1] * s, a[2] * s]
+}
+#[inline]
+fn add(a: V3, b: V3) -> V3 {
+    [a[0] + b[0], a[1] + b[1], a[2] + b[2]]
+}
+
+/// `a / |a|`, or `(0, 0, 1)` for a zero or non-finite vector.
+#[inline]
+#[must_use]
+pub fn normalize3(a: V3) -> V3 {
+    let l = dot(a, a).sqrt();
+    if l.is_finite() && l > 1e-12 {
+        scale(a, 1.0 / l)
+    } else {
+        [0.0, 0.0, 1.0]
+    }
+}
+
+fn to64(n: [f32; 3]) -> V3 {
+    [f64::from(n[0]), f64::from(n[1]), f64::from(n[2])]
+}
+fn to32(n: V3) -> [f32; 3] {
+    [n[0] as f32, n[1] as f32, n[2] as f32]
+}
+
+/// `1 + c` below this is treated as the antipodal case of the minimal rotation.
+const ANTIPODAL_EPS: f64 = 1e-9;
+
+/// The shortest-arc rotation taking `e_z` to unit `n`, applied to `d` (module docs).
+#[inline]
+#[must_use]
+pub fn min_rotation_apply(n: V3, d: V3) -> V3 {
+    let c = n[2];
+    if 1.0 + c < ANTIPODAL_EPS {
+        return [d[0], -d[1], -d[2]];
+    }
+    let v = [-n[1], n[0], 0.0];
+    add(
+        add(scale(d, c), cross(v, d)),
+        scale(v, dot(v, d) / (1.0 + c)),
+    )
+}
+
+/// The inverse of [`min_rotation_apply`]: the rotation taking unit `n` to `e_z`, applied to `x`.
+#[inline]
+#[must_use]
+pub fn min_rotation_inverse(n: V3, x: V3) -> V3 {
+    let c = n[2];
+    if 1.0 + c < ANTIPODAL_EPS {
+        return [x[0], -x[1], -x[2]];
+    }
+    let v = [-n[1], n[0], 0.0];
+    add(
+        add(scale(x, c), cross(x, v)),
+        scale(v, dot(v, x) / (1.0 + c)),
+    )
+}
+
+/// How the tangent frame of a base normal is built.
+#[derive(Clone, Debug, Default, PartialEq, serde::Serialize, serde::Deserialize)]
+pub enum Frame {
+    /// Shortest-arc rotation from `e_z` to the base normal (makes Blend equal RNM).
+    #[default]
+    MinimalRotation,
+    /// Tangent = the orientation vector projected onto the base's tangent plane.
+    Oriented {
+        /// Orientation vector in the image frame (x right, y up, z to the viewer).
+        orientation: [f32; 3],
+    },
+}
+
+impl Frame {
+    /// The frame `[t, b, n]` of unit base normal `n`, as columns.
+    #[must_use]
+    pub fn axes(&self, n: V3) -> [V3; 3] {
+        match self {
+            Frame::MinimalRotation => [
+                min_rotation_apply(n, [1.0, 0.0, 0.0]),
+                min_rotation_apply(n, [0.0, 1.0, 0.0]),
+                n,
+            ],
+            Frame::Oriented { orientation } => {
+                let o = to64(*orientation);
+                let t = add(o, scale(n, -dot(o, n)));
+                let l = dot(t, t).sqrt();
+                if l.is_nan() || l <= 1e-6 {
+                    return Frame::MinimalRotation.axes(n);
+                }
+                let t = scale(t, 1.0 / l);
+                [t, cross(n, t), n]
+            }
+        }
+    }
+
+    /// Tangent-frame coordinates → image frame: `F d`.
+    #[must_use]
+    pub fn to_world(&self, n: V3, d: V3) -> V3 {
+        if let Frame::MinimalRotation = self {
+            return min_rotation_apply(n, d);
+        }
+        let [t, b, n] = self.axes(n);
+        add(add(scale(t, d[0]), scale(b, d[1])), scale(n, d[2]))
+    }
+
+    /// Image frame → tangent-frame coordinates: `Fᵀ x`.
+    #[must_use]
+    pub fn to_tangent(&self, n: V3, x: V3) -> V3 {
+        if let Frame::MinimalRotation = self {
+            return min_rotation_inverse(n, x);
+        }
+        let [t, b, n] = self.axes(n);
+        [dot(x, t), dot(x, b), dot(x, n)]
+    }
+
+    /// Checks the orientation vector (finite, non-zero).
+    pub fn validate(&self) -> Result<(), RgbnError> {
+        if let Frame::Oriented { orientation } = self {
+            let o = to64(*orientation);
+            if !(o.iter().all(|v| v.is_finite()) && dot(o, o) > 1e-12) {
+                return Err(RgbnError::param(
+                    "orientation",
+                    format!("{orientation:?} must be a finite, non-zero vector"),
+                ));
+            }
+        }
+        Ok(())
+    }
+}
+
+/// How base and detail combine (module docs).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+pub enum CombineMode {
+    /// `F d` inside the region (`w ≥ ½`), the base elsewhere.
+    Replace,
+    /// `F slerp(e_z, d, w)`: detail with a smooth falloff weight.
+    #[default]
+    Blend,
+    /// `F R_d Fᵀ e`: rotate an existing normal by the detail's rotation in the base frame.
+    Rotate,
+    /// Reoriented normal mapping (Barré-Brisebois & Hill), in the image frame.
+    Rnm,
+    /// Unreal Developer Network blend `normalize(n_xy + d_xy, n_z)`.
+    Udn,
+    /// Whiteout blend `normalize(n_xy + d_xy, n_z d_z)`.
+    Whiteout,
+    /// Partial-derivative blend = sum of gradients.
+    PartialDerivative,
+}
+
+/// Parameters of [`rotation_combine`].
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct RotateParams {
+    pub mode: CombineMode,
+    /// Frame used by Replace / Blend / Rotate (the industry modes ignore it).
+    pub frame: Frame,
+    /// Global weight multiplying the per-pixel weight, in `[0, 1]`.
+    pub strength: f32,
+    /// Move results below `min_z` back to `z = min_z` along the great arc (module docs).
+    pub saturate: bool,
+    /// Saturation threshold on `n_z`, in `[0, 1)`. Default 0.05 (≈ 87° from the viewer).
+    pub min_z: f32,
+}
+
+impl Default for RotateParams {
+    fn default() -> Self {
+        Self {
+            mode: CombineMode::Blend,
+            frame: Frame::MinimalRotation,
+            strength: 1.0,
+            saturate: true,
+            min_z: 0.05,
+        }
+    }
+}
+
+impl RotateParams {
+    /// Checks every parameter.
+    pub fn validate(&self) -> Result<(), RgbnError> {
+        if !(self.strength.is_finite() && (0.0..=1.0).contains(&self.strength)) {
+            return Err(RgbnError::param(
+                "strength",
+                format!("{} must be in [0, 1]", self.strength),
+            ));
+        }
+        if !(self.min_z.is_finite() && (0.0..1.0).contains(&self.min_z)) {
+            return Err(RgbnError::param(
+                "min_z",
+                format!("{} must be in [0, 1)", self.min_z),
+            ));
+        }
+        self.frame.validate()
+    }
+}
+
+/// `slerp(e_z, d, w)` for unit `d`.
+#[must_use]
+pub fn attenuate(d: V3, w: f64) -> V3 {
+    if w >= 1.0 {
+        return d;
+    }
+    if w <= 0.0 {
+        return [0.0, 0.0, 1.0];
+    }
+    let theta = d[2].clamp(-1.0, 1.0).acos();
+    let s = theta.sin();
+    if s < 1e-9 {
+        if theta < 1.0 {
+            return normalize3(add(scale([0.0, 0.0, 1.0], 1.0 - w), scale(d, w)));
+        }
+        // d = −e_z: rotate through x.
+        let a = w * std::f64::consts::PI;
+        return [a.sin(), 0.0, a.cos()];
+    }
+    let a = ((1.0 - w) * theta).sin() / s;
+    let b = (w * theta).sin() / s;
+    normalize3(add(scale([0.0, 0.0, 1.0], a), scale(d, b)))
+}
+
+/// Saturation of the module docs: returns `r` unchanged if `r_z ≥ min_z`, else the first point
+/// with `z = min_z` on the great arc from `from` to `r` (or on the meridian of `r`).
+#[must_use]
+pub fn saturate(from: V3, r: V3, min_z: f64) -> V3 {
+    if r[2] >= min_z {
+        return r;
+    }
+    let meridian = |r: V3| {
+        let h = (r[0] * r[0] + r[1] * r[1]).sqrt();
+        let (ux, uy) = if h > 1e-12 {
+            (r[0] / h, r[1] / h)
+        } else {
+            (1.0, 0.0)
+        };
+        let s = (1.0 - min_z * min_z).sqrt();
+        [ux * s, uy * s, min_z]
+    };
+    if from[2] < min_z {
+        return meridian(r);
+    }
+    let c = dot(from, r).clamp(-1.0, 1.0);
+    let e = add(r, scale(from, -c));
+    let el = dot(e, e).sqrt();
+    if el < 1e-9 {
+        return meridian(r);
+    }
+    let e = scale(e, 1.0 / el);
+    // z(φ) = cos φ · a_z + sin φ · e_z = R cos(φ − φ0)
+    let rr = (from[2] * from[2] + e[2] * e[2]).sqrt();
+    if rr < min_z {
+        return meridian(r);
+    }
+    let phi0 = e[2].atan2(from[2]);
+    let phi = phi0 + (min_z / rr).clamp(-1.0, 1.0).acos();
+    normalize3(add(scale(from, phi.cos()), scale(e, phi.sin())))
+}
+
+/// Combines one base normal `n`, detail `d` (in the base's frame for Replace/Blend/Rotate,
+/// in the image frame for the industry blends), existing normal `e` (Rotate only) with weight
+/// `w`. Inputs need not be normalised; the output is unit. Returns `(normal, saturated)`.
+#[must_use]
+pub fn combine_one(
+    n: [f32; 3],
+    d: [f32; 3],
+    e: [f32; 3],
+    w: f32,
+    params: &RotateParams,
+) -> ([f32; 3], bool) {
+    let n = normalize3(to64(n));
+    let d = normalize3(to64(d));
+    let w = f64::from((w * params.strength).clamp(0.0, 1.0));
+    let dw = attenuate(d, w);
+    let r = match params.mode {
+        CombineMode::Replace => {
+            if w >= 0.5 {
+                params.frame.to_world(n, d)
+            } else {
+                n
+            }
+        }
+        CombineMode::Blend => params.frame.to_world(n, dw),
+        CombineMode::Rotate => {
+            let e = normalize3(to64(e));
+            let local = params.frame.to_tangent(n, e);
+            params.frame.to_world(n, min_rotation_apply(dw, local))
+        }
+        CombineMode::Rnm => {
+            let t = [n[0], n[1], n[2] + 1.0];
+            let u = [-dw[0], -dw[1], dw[2]];
+            if t[2] < ANTIPODAL_EPS {
+                min_rotation_apply(n, dw)
+            } else {
+                normalize3(add(scale(t, dot(t, u) / t[2]), scale(u, -1.0)))
+            }
+        }
+        CombineMode::Udn => normalize3([n[0] + dw[0], n[1] + dw[1], n[2]]),
+        CombineMode::Whiteout => normalize3([n[0] + dw[0], n[1] + dw[1], n[2] * dw[2]]),
+        CombineMode::PartialDerivative => normalize3([
+            n[0] * dw[2] + dw[0] * n[2],
+            n[1] * dw[2] + dw[1] * n[2],
+            n[2] * dw[2],
+        ]),
+    };
+    let r = normalize3(r);
+    if params.saturate && r[2] < f64::from(params.min_z) {
+        // The arc starts where the rotation starts: the existing normal for Rotate.
+        let from = if params.mode == CombineMode::Rotate {
+            normalize3(to64(e))
+        } else {
+            n
+        };
+        (to32(saturate(from, r, f64::from(params.min_z))), true)
+    } else {
+        (to32(r), false)
+    }
+}
+
+/// What [`rotation_combine`] measured.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct RotateReport {
+    /// Pixels moved back to `min_z` by saturation.
+    pub saturated: usize,
+    /// Curl of the result's gradients (a nonlinear op: reported, not guaranteed small).
+    pub curl_after: CurlStats,
+}
+
+fn check_size(
+    what: &'static str,
+    w: usize,
+    h: usize,
+    gw: usize,
+    gh: usize,
+) -> Result<(), RgbnError> {
+    if (w, h) != (gw, gh) {
+        return Err(RgbnError::SizeMismatch {
+            what,
+            want_w: w,
+            want_h: h,
+            got_w: gw,
+            got_h: gh,
+            path: "".into(),
+        });
+    }
+    Ok(())
+}
+
+/// Rotation combine of two images (module docs): colour and mask come from `base`; `existing`
+/// (Rotate mode; default = `base`) is the normal being rotated; `weight` (default 1) is the
+/// per-pixel region/falloff weight in `[0, 1]`.
+pub fn rotation_combine(
+    base: &RgbnImage,
+    detail: &RgbnImage,
+    existing: Option<&RgbnImage>,
+    weight: Option<&Plane>,
+    params: &RotateParams,
+) -> Result<(RgbnImage, RotateReport), RgbnError> {
+    params.validate()?;
+    let (w, h) = (base.width(), base.height());
+    check_size("detail", w, h, detail.width(), detail.height())?;
+    if let Some(e) = existing {
+        check_size("existing", w, h, e.width(), e.height())?;
+    }
+    if let Some(m) = weight {
+        check_size("weight", w, h, m.width(), m.height())?;
+    }
+    let ex = existing.unwrap_or(base);
+    let (bn, dn, en) = (base.normal(), detail.normal(), ex.normal());
+    let mut out = [
+        vec![0.0f32; w * h],
+        vec![0.0f32; w * h],
+        vec![0.0f32; w * h],
+    ];
+    let [ox, oy, oz] = &mut out;
+    let saturated: usize = ox
+        .par_iter_mut()
+        .zip(oy.par_iter_mut())
+        .zip(oz.par_iter_mut())
+        .enumerate()
+        .map(|(i, ((x, y), z))| {
+            let wt = weight.map_or(1.0, |m| m.data()[i]);
+            let wt = if wt.is_finite() { wt } else { 0.0 };
+            let (r, s) = combine_one(
+                [bn[0][i], bn[1][i], bn[2][i]],
+                [dn[0][i], dn[1][i], dn[2][i]],
+                [en[0][i], en[1][i], en[2][i]],
+                wt,
+                params,
+            );
+            [*x, *y, *z] = r;
+            usize::from(s)
+        })
+        .sum();
+    let img = base.with_normals(out)?;
+    let curl_after = GradientField::from_normals(&img).curl_stats(img.mask());
+    Ok((
+        img,
+        RotateReport {
+            saturated,
+            curl_after,
+        },
+    ))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use proptest::prelude::*;
+
+    fn n2() -> [f32; 3] {
+        let l = (0.04f32 + 0.01 + 0.97 * 0.97).sqrt();
+        [-0.2 / l, 0.1 / l, 0.97 / l]
+    }
+    const N1: [f32; 3] = [0.3, 0.4, 0.866];
+
+    fn close(a: [f32; 3], b: [f32; 3], tol: f32) -> bool {
+        (0..3).all(|k| (a[k] - b[k]).abs() <= tol)
+    }
+
+    #[test]
+    fn blend_in_minimal_frame_equals_rnm_test_vector() {
+        let want = [0.0947f32, 0.4946, 0.8640];
+        let p = RotateParams::default();
+        let (a, _) = combine_one(N1, n2(), N1, 1.0, &p);
+        assert!(close(a, want, 1e-4), "{a:?}");
+        let (b, _) = combine_one(
+            N1,
+            n2(),
+            N1,
+            1.0,
+            &RotateParams {
+                mode: CombineMode::Rnm,
+                ..p.clone()
+            },
+        );
+        assert!(close(b, want, 1e-4), "{b:?}");
+        assert!(close(a, b, 1e-5), "{a:?} {b:?}");
+        // Rotate mode with existing = base equals Blend.
+        let (c, _) = combine_one(
+            N1,
+            n2(),
+            N1,
+            1.0,
+            &RotateParams {
+                mode: CombineMode::Rotate,
+                ..p
+            },
+        );
+        assert!(close(a, c, 1e-5), "{a:?} {c:?}");
+    }
+
+    #[test]
+    fn partial_derivative_mode_equals_gradient_sum() {
+        let p = RotateParams {
+            mode: CombineMode::PartialDerivative,
+            ..RotateParams::default()
+        };
+        let (a, _) = combine_one(N1, n2(), N1, 1.0, &p);
+        assert!(close(a, [0.1212, 0.4883, 0.8642], 1e-4), "{a:?}");
+        // UDN and whiteout agree in spirit: tilt towards both.
+        for mode in [CombineMode::Udn, CombineMode::Whiteout] {
+            let (u, _) = combine_one(N1, n2(), N1, 1.0, &RotateParams { mode, ..p.clone() });
+            assert!(u[1] > N1[1] && u[0] < N1[0], "{mode:?} {u:?}");
+        }
+    }
+
+    #[test]
+    fn steep_base_saturates_at_the_threshold_instead_of_the_horizon() {
+        let b = 80f64.to_radians();
+        let d = 30f64.to_radians();
+        let n = [b.sin() as f32, 0.0, b.cos() as f32];
+        let det = [d.sin() as f32, 0.0, d.cos() as f32];
+        let raw = RotateParams {
+            saturate: false,
+            ..RotateParams::default()
+        };
+        let (r, s) = combine_one(n, det, n, 1.0, &raw);
+        assert!(r[2] < 0.0 && !s, "RNM goes under the horizon: {r:?}");
+        let rnm = combine_one(
+            n,
+            det,
+            n,
+            1.0,
+            &RotateParams {
+                mode: CombineMode::Rnm,
+                ..raw
+            },
+        )
+        .0;
+        assert!(rnm[2] < 0.0 && close(rnm, r, 1e-5), "{rnm:?}");
+        let p = RotateParams::default();
+        let (r, s) = combine_one(n, det, n, 1.0, &p);
+        assert!(s && (r[2] - p.min_z).abs() < 1e-5, "{r:?}");
+        assert!(r[0] > 0.99 && r[1].abs() < 1e-6, "on the arc: {r:?}");
+        // Off-plane: the saturated result lies on the great circle through base and raw result.
+        let det = [0.3f32, 0.4, 0.866];
+        let (raw_r, _) = combine_one(
+            n,
+            det,
+            n,
+            1.0,
+            &RotateParams {
+                saturate: false,
+                ..p.clone()
+            },
+        );
+        let (sat, s) = combine_one(n, det, n, 1.0, &p);
+        assert!(s && (sat[2] - p.min_z).abs() < 1e-5);
+        let c = cross(to64(n), to64(raw_r));
+        assert!(dot(c, to64(sat)).abs() < 1e-5, "coplanar");
+    }
+
+    #[test]
+    fn oriented_frame_is_orthonormal_and_round_trips() {
+        let f = Frame::Oriented {
+            orientation: [1.0, 0.2, 0.0],
+        };
+        let n = normalize3([0.2, -0.5, 0.8]);
+        let [t, b, nn] = f.axes(n);
+        for (a, bb) in [(t, b), (t, nn), (b, nn)] {
+            assert!(dot(a, bb).abs() < 1e-12);
+        }
+        assert!((dot(cross(t, b), nn) - 1.0).abs() < 1e-12, "right-handed");
+        let x = normalize3([0.1, 0.7, 0.3]);
+        let y = f.to_world(n, f.to_tangent(n, x));
+        assert!((0..3).all(|k| (x[k] - y[k]).abs() < 1e-12));
+        assert!(f.validate().is_ok());
+        let bad = Frame::Oriented {
+            orientation: [0.0; 3],
+        };
+        assert!(bad
+            .validate()
+            .unwrap_err()
+            .to_string()
+            .contains("orientation"));
+    }
+
+    #[test]
+    fn bad_params_are_refused_with_the_range() {
+        for (p, needle) in [
+            (
+                RotateParams {
+                    strength: f32::NAN,
+                    ..RotateParams::default()
+                },
+                "strength",
+            ),
+            (
+                RotateParams {
+                    min_z: 1.0,
+                    ..RotateParams::default()
+                },
+                "[0, 1)",
+            ),
+        ] {
+            let e = p.validate().unwrap_err().to_string();
+            assert!(e.contains(needle), "{e}");
+        }
+        let img = RgbnImage::flat(4, 4, [0.5; 3]);
+        let other = RgbnImage::flat(5, 4, [0.5; 3]);
+        assert!(rotation_combine(&img, &other, None, None, &RotateParams::default()).is_err());
+    }
+
+    fn unit() -> impl Strategy<Value = [f32; 3]> {
+        (-1.0f32..1.0, -1.0f32..1.0, 0.05f32..1.0).prop_map(|(x, y, z)| {
+            let v = normalize3([f64::from(x), f64::from(y), f64::from(z)]);
+            to32(v)
+        })
+    }
+
+    proptest! {
+        #[test]
+        fn minimal_rotation_round_trips_and_is_unit(n in unit(), x in unit()) {
+            let (n, x) = (normalize3(to64(n)), normalize3(to64(x)));
+            let d = min_rotation_inverse(n, x);
+            let y = min_rotation_apply(n, d);
+            prop_assert!((0..3).all(|k| (x[k] - y[k]).abs() < 1e-9));
+            prop_assert!((dot(d, d) - 1.0).abs() < 1e-9);
+            let ez = min_rotation_apply(n, [0.0, 0.0, 1.0]);
+            prop_assert!((0..3).all(|k| (ez[k] - n[k]).abs() < 1e-9));
+        }
+
+        #[test]
+        fn every_mode_gives_finite_unit_normals_above_the_threshold(
+            n in unit(), d in unit(), e in unit(), w in 0.0f32..1.0, m in 0usize..7
+        ) {
+            let mode = [CombineMode::Replace, CombineMode::Blend, CombineMode::Rotate,
+                CombineMode::Rnm, CombineMode::Udn, CombineMode::Whiteout,
+                CombineMode::PartialDerivative][m];
+            let p = RotateParams { mode, ..RotateParams::default() };
+            let (r, _) = combine_one(n, d, e, w, &p);
+            let l = r.iter().map(|v| v * v).sum::<f32>().sqrt();
+            prop_assert!((l - 1.0).abs() < 1e-5);
+            prop_assert!(r[2] >= p.min_z - 1e-5, "{:?}", r);
+            // w = 0: the base (or the existing normal, for Rotate) is returned.
+            let (r0, _) = combine_one(n, d, e, 0.0, &p);
+            let want = if mode == CombineMode::Rotate { to32(normalize3(to64(e))) }
+                else { to32(normalize3(to64(n))) };
+            if want[2] >= p.min_z {
+                prop_assert!((0..3).all(|k| (r0[k] - want[k]).abs() < 1e-5), "{:?} {:?}", r0, want);
+            }
+        }
+    }
+}

@@ -1,0 +1,755 @@
+//! Stamp: place a small RGBN (its relief and optionally its colour) at one or more positions
+//! with an affine map (Pereira & Velho §IV, Fig. 4).
+//!
+//! # Maths (y-up frame of [`crate::raster::gradient`])
+//!
+//! Stamp coordinates `s = (u, v)` are centred on the stamp (`u = i − (w_s−1)/2`,
+//! `v = (h_s−1)/2 − j` for stamp pixel column `i`, row `j`), image offsets `P − t = (x − t_x,
+//! −(row − t_row))`. The stamp is placed by `P = A s + t` with
+//!
+//! `A = R(angle_rad) · [[1, shear], [0, 1]] · diag(scale_x, scale_y)`
+//!
+//! (`R` counter-clockwise as seen on screen, because `y` is up). The stamped height is
+//! `H(P) = h(A⁻¹(P − t))`, so by the chain rule
+//!
+//! `∇_P H = (∂s/∂P)ᵀ ∇_s h = A⁻ᵀ ∇_s h`
+//!
+//! — gradients transform by the inverse transpose ([`transform_gradient`]); a pure rotation
+//! rotates them with the stamp, a scale by `s` divides them by `s` (heights are not scaled; use
+//! `height_scale`). Mirrors (`det A < 0`) are allowed; a (near) singular `A` is refused.
+//!
+//! # Integrability by construction
+//!
+//! To fade the stamp out at its border without breaking integrability, the window `W` (a
+//! product of quintic smoothsteps over `falloff_px` stamp pixels from each edge) multiplies
+//! the stamp's **height**: the stamped relief is `∇(W·(h − h̄))`, not `W·∇h` (whose curl is
+//! `∇W × ∇h ≠ 0`); `h̄` is the mean height on the falloff ring, so the stamp meets the
+//! surroundings at level 0. A stamp given as normals is therefore integrated once: a
+//! least-squares (Poisson, conjugate-gradient) solve on the small stamp
+//! ([`super::geom::integrate_least_squares`]), which also projects away any curl the stamp
+//! had. The heights of all placements are summed on the target grid by bilinear sampling of
+//! `W·(h − h̄)` at `A⁻¹(P − t)`, and the stamp gradient is the forward difference of that
+//! height: its discrete curl is exactly zero (to rounding), whatever `A`.
+//!
+//! Colour (optional) is composited "over" with `α = opacity · W · mask` sampled the same way.
+//!
+//! # References
+//! - T. Pereira, L. Velho, "RGBN image editing", SIBGRAPI 2011, §IV, Fig. 4.
+//! - R. Frankot, R. Chellappa, "A method for enforcing integrability in shape from shading
+//!   algorithms", PAMI 10(4), 1988 (least-squares integration).
+
+use super::filter::{filter_gradients, FilterOptions, Kernel, MAX_SIGMA_PX};
+use super::geom::{bilinear, integrate_least_squares, smoothstep};
+use crate::error::RgbnError;
+use crate::raster::gradient::{CurlStats, GradientField};
+use crate::raster::{Plane, RgbnImage};
+use rayon::prelude::*;
+
+/// Largest stamp side (pixels): the stamp is integrated with an iterative solver whose cost
+/// grows as `side³`.
+pub const MAX_STAMP_SIDE: usize = 512;
+/// Smallest `|det A|` accepted (area scale of the map).
+pub const MIN_AFFINE_DET: f64 = 1e-4;
+/// Most placements per call.
+pub const MAX_POSITIONS: usize = 100_000;
+
+/// How the stamp's colour is used.
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+pub enum StampColor {
+    /// Relief only; the target's colour is kept.
+    None,
+    /// Composite the stamp's colour over the target with `α = opacity · window · mask`.
+    Over { opacity: f32 },
+}
+
+impl Default for StampColor {
+    fn default() -> Self {
+        StampColor::Over { opacity: 1.0 }
+    }
+}
+
+/// Parameters of the stamp operator (module docs).
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct StampParams {
+    /// Where the stamp's centre goes, pixel coordinates `(x, row)`.
+    pub positions: Vec<[f32; 2]>,
+    /// Scale along the stamp's own `u`, `v` axes (may be negative: a mirror).
+    pub scale: [f32; 2],
+    /// Rotation, counter-clockwise on screen, radians.
+    pub angle_rad: f32,
+    /// Shear `u += shear · v` in the stamp frame (before rotation).
+    pub shear: f32,
+    /// Multiplies the relief (1 = as is, −1 = engraved instead of embossed).
+    pub height_scale: f32,
+    /// Width of the window's fade at each stamp edge, in stamp pixels (0 = hard edge).
+    pub falloff_px: f32,
+    pub color: StampColor,
+}
+
+impl Default for StampParams {
+    fn default() -> Self {
+        Self {
+            positions: vec![[64.0, 64.0]],
+            scale: [1.0, 1.0],
+            angle_rad: 0.0,
+            shear: 0.0,
+            height_scale: 1.0,
+            falloff_px: 4.0,
+            color: StampColor::default(),
+        }
+    }
+}
+
+fn finite_in(name: &str, v: f32, lo: f32, hi: f32) -> Result<(), RgbnError> {
+    if !(v.is_finite() && v >= lo && v <= hi) {
+        return Err(RgbnError::param(
+            name,
+            format!("{v} must be finite, in [{lo}, {hi}]"),
+        ));
+    }
+    Ok(())
+}
+
+impl StampParams {
+    /// The map `A` (y-up, `[[a, b], [c, d]]` row-major) of the module docs.
+    #[must_use]
+    pub fn affine(&self) -> [[f64; 2]; 2] {
+        let (c, s) = (
+            f64::from(self.angle_rad).cos(),
+            f64::from(self.angle_rad).sin(),
+        );
+        let (sx, sy, k) = (
+            f64::from(self.scale[0]),
+            f64::from(self.scale[1]),
+            f64::from(self.shear),
+        );
+        // Sh · S = [[sx, k·sy], [0, sy]]; then R.
+        let m = [[sx, k * sy], [0.0, sy]];
+        [
+            [c * m[0][0] - s * m[1][0], c * m[0][1] - s * m[1][1]],
+            [s * m[0][0] + c * m[1][0], s * m[0][1] + c * m[1][1]],
+        ]
+    }
+
+    /// Checks every parameter (finite values, `|det A| ≥ 1e-4`, positions present).
+    pub fn validate(&self) -> Result<(), RgbnError> {
+        if self.positions.is_empty() || self.positions.len() > MAX_POSITIONS {
+            return Err(RgbnError::param(
+                "positions",
+                format!(
+                    "needs 1..={MAX_POSITIONS} positions, got {}",
+                    self.positions.len()
+                ),
+            ));
+        }
+        super::geom::check_points("positions", &self.positions, 1)?;
+        finite_in("scale", self.scale[0], -1e4, 1e4)?;
+        finite_in("scale", self.scale[1], -1e4, 1e4)?;
+        finite_in("angle_rad", self.angle_rad, -1e4, 1e4)?;
+        finite_in("shear", self.shear, -1e4, 1e4)?;
+        finite_in("height_scale", self.height_scale, -1e4, 1e4)?;
+        finite_in("falloff_px", self.falloff_px, 0.0, 1e4)?;
+        if let StampColor::Over { opacity } = self.color {
+            finite_in("opacity", opacity, 0.0, 1.0)?;
+        }
+        let a = self.affine();
+        let det = a[0][0] * a[1][1] - a[0][1] * a[1][0];
+        if det.is_nan() || det.abs() < MIN_AFFINE_DET {
+            return Err(RgbnError::param(
+                "scale",
+                format!(
+                    "the affine map has zero area (det = {det:e}); |scale_x·scale_y| must be ≥ {MIN_AFFINE_DET}"
+                ),
+            ));
+        }
+        Ok(())
+    }
+}
+
+/// `A⁻ᵀ g`: how a gradient of the stamp transforms when the stamp is mapped by `A` (module
+/// docs). `None` for a singular `A`.
+#[must_use]
+pub fn transform_gradient(a: [[f64; 2]; 2], g: [f64; 2]) -> Option<[f64; 2]> {
+    let det = a[0][0] * a[1][1] - a[0][1] * a[1][0];
+    if det == 0.0 || !det.is_finite() {
+        return None;
+    }
+    // A⁻¹ = [[d, −b], [−c, a]]/det; A⁻ᵀ = [[d, −c], [−b, a]]/det.
+    Some([
+        (a[1][1] * g[0] - a[1][0] * g[1]) / det,
+        (-a[0][1] * g[0] + a[0][0] * g[1]) / det,
+    ])
+}
+
+/// The stamp window `W(i, j)` (module docs): 1 inside, 0 on the edge pixels.
+#[must_use]
+pub fn stamp_window(width: usize, height: usize, falloff_px: f32) -> Plane {
+    let f = f64::from(falloff_px);
+    let ramp = |d: f64| if f <= 0.0 { 1.0 } else { smoothstep(0.0, f, d) };
+    Plane::from_fn(width, height, |i, j| {
+        let (i, j) = (i as f64, j as f64);
+        let (w1, h1) = ((width - 1) as f64, (height - 1) as f64);
+        (ramp(i) * ramp(w1 - i) * ramp(j) * ramp(h1 - j)) as f32
+    })
+}
+
+/// `W·(h − h̄)` (module docs): the stamp height ready to be placed. `h̄` is the mean of `h`
+/// weighted by `1 − W` (the falloff ring; the edge pixels when `falloff_px = 0`).
+#[must_use]
+pub fn prepare_stamp_height(h: &Plane, falloff_px: f32) -> Plane {
+    let (w, hh) = (h.width(), h.height());
+    let win = stamp_window(w, hh, falloff_px);
+    let (mut num, mut den) = (0.0f64, 0.0f64);
+    for j in 0..hh {
+        for i in 0..w {
+            let edge = i == 0 || j == 0 || i + 1 == w || j + 1 == hh;
+            let ring = if falloff_px > 0.0 {
+                1.0 - f64::from(win.at(i, j))
+            } else {
+                f64::from(u8::from(edge))
+            };
+            num += ring * f64::from(h.at(i, j));
+            den += ring;
+        }
+    }
+    let mean = if den > 0.0 { (num / den) as f32 } else { 0.0 };
+    Plane::from_fn(w, hh, |i, j| win.at(i, j) * (h.at(i, j) - mean))
+}
+
+fn check_stamp_size(w: usize, h: usize) -> Result<(), RgbnError> {
+    if w < 2 || h < 2 || w > MAX_STAMP_SIDE || h > MAX_STAMP_SIDE {
+        return Err(RgbnError::param(
+            "stamp",
+            format!("size {w}×{h} must be between 2×2 and {MAX_STAMP_SIDE}×{MAX_STAMP_SIDE}"),
+        ));
+    }
+    Ok(())
+}
+
+/// Inverse placement: target pixel `(x, row)` → stamp pixel `(i, j)` for placement `t`.
+fn to_stamp(ainv: &[[f64; 2]; 2], t: [f32; 2], sw: usize, sh: usize, x: f64, row: f64) -> [f64; 2] {
+    let (dx, dy) = (x - f64::from(t[0]), -(row - f64::from(t[1])));
+    let u = ainv[0][0] * dx + ainv[0][1] * dy;
+    let v = ainv[1][0] * dx + ainv[1][1] * dy;
+    [u + (sw - 1) as f64 / 2.0, (sh - 1) as f64 / 2.0 - v]
+}
+
+fn inverse(a: [[f64; 2]; 2]) -> [[f64; 2]; 2] {
+    let det = a[0][0] * a[1][1] - a[0][1] * a[1][0];
+    [
+        [a[1][1] / det, -a[0][1] / det],
+        [-a[1][0] / det, a[0][0] / det],
+    ]
+}
+
+/// Target-pixel bounding box `[x0, x1) × [r0, r1)` of a placement.
+fn placement_box(
+    a: &[[f64; 2]; 2],
+    t: [f32; 2],
+    sw: usize,
+    sh: usize,
+    width: usize,
+    height: usize,
+) -> (usize, usize, usize, usize) {
+    let (hw, hh) = ((sw - 1) as f64 / 2.0, (sh - 1) as f64 / 2.0);
+    let (mut x0, mut x1, mut r0, mut r1) = (f64::MAX, f64::MIN, f64::MAX, f64::MIN);
+    for (u, v) in [(-hw, -hh), (hw, -hh), (-hw, hh), (hw, hh)] {
+        let x = f64::from(t[0]) + a[0][0] * u + a[0][1] * v;
+        let r = f64::from(t[1]) - (a[1][0] * u + a[1][1] * v);
+        (x0, x1, r0, r1) = (x0.min(x), x1.max(x), r0.min(r), r1.max(r));
+    }
+    let clampi = |v: f64, n: usize| v.clamp(0.0, n as f64) as usize;
+    (
+        clampi(x0.floor() - 1.0, width),
+        clampi(x1.ceil() + 2.0, width),
+        clampi(r0.floor() - 1.0, height),
+        clampi(r1.ceil() + 2.0, height),
+    )
+}
+
+/// The summed stamped height `Σ H(P)` on a `width × height` grid, from a *prepared* stamp
+/// height (see [`prepare_stamp_height`]), times `height_scale`.
+pub fn stamp_height_field(
+    width: usize,
+    height: usize,
+    prepared: &Plane,
+    params: &StampParams,
+) -> Result<Plane, RgbnError> {
+    params.validate()?;
+    crate::raster::check_size(width, height, "stamp target")?;
+    let (sw, sh) = (prepared.width(), prepared.height());
+    check_stamp_size(sw, sh)?;
+    let a = params.affine();
+    let ainv = inverse(a);
+    let hs = params.height_scale;
+    let boxes: Vec<_> = params
+        .positions
+        .iter()
+        .map(|&t| (t, placement_box(&a, t, sw, sh, width, height)))
+        .collect();
+    Ok(Plane::from_fn_rows(width, height, |r, out| {
+        out.fill(0.0);
+        for &(t, (x0, x1, r0, r1)) in &boxes {
+            if r < r0 || r >= r1 {
+                continue;
+            }
+            for (x, o) in out.iter_mut().enumerate().take(x1).skip(x0) {
+                let [i, j] = to_stamp(&ainv, t, sw, sh, x as f64, r as f64);
+                if let Some(v) = bilinear(prepared.data(), sw, sh, i, j) {
+                    *o += hs * v;
+                }
+            }
+        }
+    }))
+}
+
+/// The stamp's gradient field on the target grid: forward differences of
+/// [`stamp_height_field`] (curl-free by construction).
+pub fn stamp_gradients(
+    width: usize,
+    height: usize,
+    prepared: &Plane,
+    params: &StampParams,
+) -> Result<GradientField, RgbnError> {
+    Ok(GradientField::from_height(&stamp_height_field(
+        width, height, prepared, params,
+    )?))
+}
+
+/// Integrates a stamp's normals once (least squares, module docs) and prepares its height.
+pub fn stamp_height_from_normals(stamp: &RgbnImage, falloff_px: f32) -> Result<Plane, RgbnError> {
+    check_stamp_size(stamp.width(), stamp.height())?;
+    let g = GradientField::from_normals(stamp);
+    let h = integrate_least_squares(&g, 1e-7, 4 * (stamp.width() + stamp.height()) + 500);
+    Ok(prepare_stamp_height(&h, falloff_px))
+}
+
+/// What [`stamp_image`] measured.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct StampReport {
+    /// Curl of the stamp's own gradients (0 to rounding by construction).
+    pub curl_stamp: CurlStats,
+    /// Curl of the result's gradients.
+    pub curl_after: CurlStats,
+}
+
+/// Stamps `stamp` (relief from its normals, colour optionally) onto `target` at every position.
+pub fn stamp_image(
+    target: &RgbnImage,
+    stamp: &RgbnImage,
+    params: &StampParams,
+) -> Result<(RgbnImage, StampReport), RgbnError> {
+    params.validate()?;
+    let (w, h) = (target.width(), target.height());
+    let prepared = stamp_height_from_normals(stamp, params.falloff_px)?;
+    let sg = stamp_gradients(w, h, &prepared, params)?;
+    let mut g = GradientField::from_normals(target);
+    g.p.par_iter_mut()
+        .zip(sg.p.par_iter())
+        .for_each(|(a, b)| *a += b);
+    g.q.par_iter_mut()
+        .zip(sg.q.par_iter())
+        .for_each(|(a, b)| *a += b);
+    let mut out = target.clone();
+    g.write_normals(&mut out);
+    if let StampColor::Over { opacity } = params.color {
+        let (sw, sh) = (stamp.width(), stamp.height());
+        let win = stamp_window(sw, sh, params.falloff_px);
+        let alpha_src: Vec<f32> = match stamp.mask() {
+            Some(m) => win.data().iter().zip(m).map(|(a, b)| a * b).collect(),
+            None => win.into_vec(),
+        };
+        let a = params.affine();
+        let ainv = inverse(a);
+        let sc = stamp.color();
+        let boxes: Vec<_> = params
+            .positions
+            .iter()
+            .map(|&t| (t, placement_box(&a, t, sw, sh, w, h)))
+            .collect();
+        let color = out.color_mut();
+        let [cr, cg, cb] = color;
+        cr.par_chunks_mut(w)
+            .zip(cg.par_chunks_mut(w))
+            .zip(cb.par_chunks_mut(w))
+            .enumerate()
+            .for_each(|(r, ((cr, cg), cb))| {
+                for &(t, (x0, x1, r0, r1)) in &boxes {
+                    if r < r0 || r >= r1 {
+                        continue;
+                    }
+                    for x in x0..x1 {
+                        let [i, j] = to_stamp(&ainv, t, sw, sh, x as f64, r as f64);
+                        let Some(al) = bilinear(&alpha_src, sw, sh, i, j) else {
+                            continue;
+                        };
+                        let al = (al * opacity).clamp(0.0, 1.0);
+                        for (dst, src) in [
+                            (&mut cr[x], &sc[0]),
+                            (&mut cg[x], &sc[1]),
+                            (&mut cb[x], &sc[2]),
+                        ] {
+                            if let Some(s) = bilinear(src, sw, sh, i, j) {
+                                *dst = (1.0 - al) * *dst + al * s;
+                            }
+                        }
+                    }
+                }
+            });
+    }
+    Ok((
+        out,
+        StampReport {
+            curl_stamp: sg.curl_stats(None),
+            curl_after: g.curl_stats(target.mask()),
+        },
+    ))
+}
+
+/// Cuts a stamp out of an image: the `width × height` region whose top-left pixel is
+/// `(x0, row0)`, with its low frequencies removed by a high-pass of `highpass_sigma_px` on the
+/// gradients (`None` = keep everything). Colour and mask are cropped.
+pub fn extract_stamp(
+    img: &RgbnImage,
+    x0: usize,
+    row0: usize,
+    width: usize,
+    height: usize,
+    highpass_sigma_px: Option<f32>,
+) -> Result<RgbnImage, RgbnError> {
+    check_stamp_size(width, height)?;
+    if x0.checked_add(width).is_none_or(|e| e > img.width())
+        || row0.checked_add(height).is_none_or(|e| e > img.height())
+    {
+        return Err(RgbnError::param(
+            "region",
+            format!(
+                "{width}×{height} at ({x0}, {row0}) must lie inside the {}×{} image",
+                img.width(),
+                img.height()
+            ),
+        ));
+    }
+    if let Some(s) = highpass_sigma_px {
+        if !(s.is_finite() && s > 0.0 && s <= MAX_SIGMA_PX) {
+            return Err(RgbnError::param(
+                "highpass_sigma_px",
+                format!("{s} must be in (0, {MAX_SIGMA_PX}] pixels"),
+            ));
+        }
+    }
+    let crop = |plane: &[f32]| -> Vec<f32> {
+        (0..height)
+            .flat_map(|r| {
+                let o = (row0 + r) * img.width() + x0;
+                plane[o..o + width].iter().copied()
+            })
+            .collect()
+    };
+    let color = img.color().clone().map(|c| crop(&c));
+    let normal = img.normal().clone().map(|c| crop(&c));
+    let mask = img.mask().map(crop);
+    let mut out = RgbnImage::new(width, height, color, normal, mask)?;
+    if let Some(s) = highpass_sigma_px {
+        let mut g = GradientField::from_normals(&out);
+        filter_gradients(
+            &mut g,
+            &[Kernel::HighPass { sigma_px: s }],
+            &FilterOptions::default(),
+            None,
+        )?;
+        g.write_normals(&mut out);
+    }
+    Ok(out)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::raster::sample::Surface;
+
+    fn two_bumps() -> Surface {
+        Surface::Gaussians {
+            bumps: vec![[6.0, 3.0, 4.0, 5.0], [-7.0, -5.0, -2.0, 3.5]],
+        }
+    }
+
+    fn stamp_plane(s: &Surface, n: usize) -> Plane {
+        let c = (n - 1) as f64 / 2.0;
+        Plane::from_fn(n, n, |i, j| s.height(i as f64 - c, c - j as f64) as f32)
+    }
+
+    #[test]
+    fn transform_gradient_is_the_inverse_transpose() {
+        let p = StampParams {
+            angle_rad: 0.7,
+            scale: [1.5, 0.6],
+            shear: 0.3,
+            ..StampParams::default()
+        };
+        let a = p.affine();
+        // Linear height h(s) = g·s; H(P) = g·A⁻¹P, whose gradient we check by differencing.
+        let g = [0.4, -1.3];
+        let ainv = inverse(a);
+        let hh = |x: f64, y: f64| {
+            let s = [
+                ainv[0][0] * x + ainv[0][1] * y,
+                ainv[1][0] * x + ainv[1][1] * y,
+            ];
+            g[0] * s[0] + g[1] * s[1]
+        };
+        let want = [hh(1.0, 0.0) - hh(0.0, 0.0), hh(0.0, 1.0) - hh(0.0, 0.0)];
+        let got = transform_gradient(a, g).unwrap();
+        assert!((got[0] - want[0]).abs() < 1e-12 && (got[1] - want[1]).abs() < 1e-12);
+        assert!(transform_gradient([[1.0, 2.0], [2.0, 4.0]], g).is_none());
+    }
+
+    #[test]
+    fn rotation_by_90_degrees_equals_differentiating_the_rotated_height() {
+        let n = 33;
+        let prepared = prepare_stamp_height(&stamp_plane(&two_bumps(), n), 4.0);
+        let p = StampParams {
+            positions: vec![[40.0, 40.0]],
+            angle_rad: std::f32::consts::FRAC_PI_2,
+            ..StampParams::default()
+        };
+        let got = stamp_gradients(80, 80, &prepared, &p).unwrap();
+        // Rotated height by index permutation: P − t = (dx, dy) = R90 (u, v) = (−v, u), so
+        // u = dy = 40 − row, v = −dx = 40 − x; i = u + 16, j = 16 − v.
+        let rotated = Plane::from_fn(80, 80, |x, r| {
+            let (i, j) = (56 - r as isize, x as isize - 24);
+            if (0..33).contains(&i) && (0..33).contains(&j) {
+                prepared.at(i as usize, j as usize)
+            } else {
+                0.0
+            }
+        });
+        let want = GradientField::from_height(&rotated);
+        let err = got
+            .p
+            .iter()
+            .zip(&want.p)
+            .chain(got.q.iter().zip(&want.q))
+            .map(|(a, b)| (a - b).abs())
+            .fold(0.0f32, f32::max);
+        assert!(err < 1e-5, "{err}");
+        // Counter-clockwise on screen: the positive bump at stamp (u, v) = (6, 3) lands at
+        // P − t = (−3, 6), i.e. x = 37, row = 34.
+        assert!(rotated.at(37, 34) > 3.5, "{}", rotated.at(37, 34));
+        assert!(got.relative_rms_curl(None) < 1e-6);
+    }
+
+    #[test]
+    fn affine_stamp_gradient_is_a_inverse_transpose_of_the_stamp_gradient() {
+        let surf = two_bumps();
+        let n = 65;
+        let prepared = prepare_stamp_height(&stamp_plane(&surf, n), 6.0);
+        let size = 160;
+        // Tolerances: bilinear sampling of the stamp height; magnified stamps show its facets.
+        for (angle_rad, scale, shear, tol) in [
+            (0.5f32, [1.5f32, 0.8f32], 0.2f32, 0.04),
+            (0.0, [2.0, 2.0], 0.0, 0.08),
+            (-1.2, [1.0, -1.0], 0.0, 0.03),
+            (0.3, [0.7, 0.7], 0.0, 0.03),
+        ] {
+            let p = StampParams {
+                positions: vec![[80.0, 80.0]],
+                angle_rad,
+                scale,
+                shear,
+                ..StampParams::default()
+            };
+            let got = stamp_gradients(size, size, &prepared, &p).unwrap();
+            let a = p.affine();
+            let ainv = inverse(a);
+            let analytic = |x: f64, r: f64| {
+                let (dx, dy) = (x - 80.0, 80.0 - r);
+                let s = [
+                    ainv[0][0] * dx + ainv[0][1] * dy,
+                    ainv[1][0] * dx + ainv[1][1] * dy,
+                ];
+                let g = surf.gradient(s[0], s[1]).unwrap_or([0.0, 0.0]);
+                transform_gradient(a, g).unwrap_or([0.0, 0.0])
+            };
+            let want = crate::ops::geom::sample_gradient_staggered(size, size, analytic);
+            let (mut e2, mut g2) = (0.0f64, 0.0f64);
+            for i in 0..size * size {
+                e2 += f64::from(got.p[i] - want.p[i]).powi(2)
+                    + f64::from(got.q[i] - want.q[i]).powi(2);
+                g2 += f64::from(want.p[i]).powi(2) + f64::from(want.q[i]).powi(2);
+            }
+            let rel = (e2 / g2).sqrt();
+            println!("stamp A⁻ᵀ check angle {angle_rad} scale {scale:?} shear {shear}: relative RMS error {rel:.3e}");
+            assert!(rel < tol, "{rel}");
+            assert!(got.relative_rms_curl(None) < 1e-6);
+        }
+        // Scaling by s divides gradients by s.
+        let g1 = stamp_gradients(
+            size,
+            size,
+            &prepared,
+            &StampParams {
+                positions: vec![[80.0, 80.0]],
+                ..StampParams::default()
+            },
+        )
+        .unwrap();
+        let g2 = stamp_gradients(
+            size,
+            size,
+            &prepared,
+            &StampParams {
+                positions: vec![[80.0, 80.0]],
+                scale: [2.0, 2.0],
+                ..StampParams::default()
+            },
+        )
+        .unwrap();
+        let max = |g: &GradientField| g.p.iter().fold(0.0f32, |m, v| m.max(v.abs()));
+        let ratio = max(&g2) / max(&g1);
+        println!("stamp scale 2: max |p| ratio {ratio:.4}");
+        assert!((ratio - 0.5).abs() < 0.02, "{ratio}");
+    }
+
+    #[test]
+    fn stamp_image_from_normals_is_integrable_and_composites_colour() {
+        let (stamp, _) = two_bumps().render(40, 40);
+        let mut stamp = stamp;
+        stamp
+            .set_color([vec![1.0; 1600], vec![0.0; 1600], vec![0.0; 1600]])
+            .unwrap();
+        // Integrable target.
+        let (target, _) = Surface::gaussians_for(128).render(128, 128);
+        let p = StampParams {
+            positions: vec![[40.0, 40.0], [90.0, 80.0]],
+            angle_rad: 0.4,
+            scale: [1.3, 1.3],
+            ..StampParams::default()
+        };
+        let (out, rep) = stamp_image(&target, &stamp, &p).unwrap();
+        println!("stamp_image: {rep:?}");
+        assert!(rep.curl_stamp.relative < 1e-6, "{rep:?}");
+        let before = GradientField::from_normals(&target).relative_rms_curl(None);
+        assert!(
+            rep.curl_after.relative <= before + 1e-3,
+            "{rep:?} vs {before}"
+        );
+        assert!((out.color_at(40, 40)[0] - 1.0).abs() < 1e-5 && out.color_at(40, 40)[1] < 1e-5);
+        assert_eq!(out.color_at(5, 120), target.color_at(5, 120));
+        // The stamped relief appears: normals differ near the placements, not far away.
+        assert_ne!(out.normal_at(44, 40), target.normal_at(44, 40));
+        assert_eq!(out.normal_at(5, 120), target.normal_at(5, 120));
+    }
+
+    #[test]
+    fn extract_stamp_crops_and_high_passes() {
+        let (img, _) = Surface::Paraboloid { curvature: 0.01 }.render(64, 64);
+        let s = extract_stamp(&img, 10, 20, 16, 12, Some(2.0)).unwrap();
+        assert_eq!((s.width(), s.height()), (16, 12));
+        // A paraboloid's gradient is linear: the high-pass removes it (except near the border).
+        let g = GradientField::from_normals(&s);
+        assert!(g.p[6 * 16 + 8].abs() < 1e-3 && g.q[6 * 16 + 8].abs() < 1e-3);
+        let raw = extract_stamp(&img, 10, 20, 16, 12, None).unwrap();
+        assert_eq!(raw.normal_at(0, 0), img.normal_at(10, 20));
+        assert!(extract_stamp(&img, 60, 0, 16, 12, None)
+            .unwrap_err()
+            .to_string()
+            .contains("inside"));
+    }
+
+    #[test]
+    fn real_data_stamp_from_rosewood_is_integrable() {
+        let Some(img) = crate::ops::geom::rosewood_crop(256) else {
+            return;
+        };
+        let stamp = extract_stamp(&img, 40, 60, 48, 48, Some(6.0)).unwrap();
+        let target = RgbnImage::flat(160, 160, [0.5; 3]);
+        let p = StampParams {
+            positions: vec![[50.0, 50.0], [110.0, 100.0]],
+            angle_rad: 0.8,
+            scale: [1.2, 0.9],
+            falloff_px: 6.0,
+            ..StampParams::default()
+        };
+        let (out, rep) = stamp_image(&target, &stamp, &p).unwrap();
+        let raw = GradientField::from_normals(&stamp).curl_stats(None);
+        println!(
+            "rosewood stamp: stamp's own curl {:.3e} (rms slope {:.3e}) → stamped {:.3e} (rms slope {:.3e})",
+            raw.relative, raw.rms_gradient, rep.curl_after.relative, rep.curl_after.rms_gradient
+        );
+        assert!(rep.curl_after.relative < 1e-5, "{rep:?}");
+        assert!(rep.curl_after.rms_gradient > 0.05 * raw.rms_gradient);
+        assert!(out.validate().is_clean());
+    }
+
+    proptest::proptest! {
+        #![proptest_config(proptest::prelude::ProptestConfig::with_cases(24))]
+        #[test]
+        fn any_valid_affine_gives_a_curl_free_stamp(
+            angle in -4.0f32..4.0, sx in 0.3f32..3.0, sy in -3.0f32..-0.3, shear in -1.0f32..1.0,
+            x in 0.0f32..96.0, r in 0.0f32..96.0
+        ) {
+            let prepared = prepare_stamp_height(&stamp_plane(&two_bumps(), 25), 3.0);
+            let p = StampParams {
+                positions: vec![[x, r]],
+                angle_rad: angle,
+                scale: [sx, sy],
+                shear,
+                ..StampParams::default()
+            };
+            let g = stamp_gradients(96, 96, &prepared, &p).unwrap();
+            proptest::prop_assert!(g.relative_rms_curl(None) < 1e-5);
+            proptest::prop_assert!(g.p.iter().chain(&g.q).all(|v| v.is_finite()));
+        }
+    }
+
+    #[test]
+    fn bad_params_are_refused() {
+        let ok = StampParams::default();
+        for (p, needle) in [
+            (
+                StampParams {
+                    scale: [0.0, 1.0],
+                    ..ok.clone()
+                },
+                "zero area",
+            ),
+            (
+                StampParams {
+                    scale: [f32::NAN, 1.0],
+                    ..ok.clone()
+                },
+                "scale",
+            ),
+            (
+                StampParams {
+                    positions: vec![],
+                    ..ok.clone()
+                },
+                "positions",
+            ),
+            (
+                StampParams {
+                    falloff_px: -1.0,
+                    ..ok.clone()
+                },
+                "falloff_px",
+            ),
+            (
+                StampParams {
+                    color: StampColor::Over { opacity: 2.0 },
+                    ..ok.clone()
+                },
+                "[0, 1]",
+            ),
+        ] {
+            let e = p.validate().unwrap_err().to_string();
+            assert!(e.contains(needle), "{needle}: {e}");
+        }
+        let tiny = RgbnImage::flat(1, 1, [0.0; 3]);
+        let e = stamp_image(&RgbnImage::flat(8, 8, [0.0; 3]), &tiny, &ok)
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("stamp"), "{e}");
+    }
+}
