@@ -418,6 +418,24 @@ pub fn load_color(path: &Path) -> Result<(usize, usize, [Vec<f32>; 3]), RgbnErro
     Ok((r.width, r.height, [a, b, c]))
 }
 
+/// Loads a colour image whose integer samples are already **linear** (raw camera data such as
+/// the DiLiGenT photos): 8/16-bit values are divided by `2^bits − 1`, no transfer curve. Float
+/// files (EXR, float TIFF) are returned as stored. Greyscale files repeat their channel.
+pub fn load_color_linear(path: &Path) -> Result<(usize, usize, [Vec<f32>; 3]), RgbnError> {
+    if Format::of(path)? == Format::Exr {
+        return load_color(path);
+    }
+    let r = decode_raster(path)?;
+    let mut planes = vec![Vec::new(), Vec::new(), Vec::new()];
+    match &r.samples {
+        Samples::U8(s) => deinterleave(s, r.channels, &mut planes, |v| f32::from(v) / 255.0),
+        Samples::U16(s) => deinterleave(s, r.channels, &mut planes, |v| f32::from(v) / 65535.0),
+        Samples::F32(s) => deinterleave(s, r.channels, &mut planes, |v| v),
+    }
+    let [a, b, c]: [Vec<f32>; 3] = planes.try_into().expect("three planes");
+    Ok((r.width, r.height, [a, b, c]))
+}
+
 /// Loads a greyscale (or first-channel) mask in [0, 1]; EXR: `A`, else `Y`, else `R`.
 pub fn load_mask(path: &Path) -> Result<(usize, usize, Vec<f32>), RgbnError> {
     if Format::of(path)? == Format::Exr {

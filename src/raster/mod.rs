@@ -8,6 +8,8 @@
 
 pub mod convolve;
 pub mod gradient;
+pub mod integrate;
+pub mod mesh;
 pub mod io;
 pub mod sample;
 
