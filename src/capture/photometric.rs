@@ -840,3 +840,508 @@ fn trimmed_solve(
         }
     }
 }
+
+/// Parameters of [`calibrate_chrome`].
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct ChromeParams {
+    /// Pixels inside the mask at least this fraction of the photo's brightest (inside) value
+    /// form the highlight, in (0, 1].
+    pub highlight_fraction: f32,
+}
+
+impl Default for ChromeParams {
+    fn default() -> Self {
+        Self {
+            highlight_fraction: 0.9,
+        }
+    }
+}
+
+impl ChromeParams {
+    /// Checks the range documented on the field.
+    pub fn validate(&self) -> Result<(), RgbnError> {
+        if !(self.highlight_fraction > 0.0 && self.highlight_fraction <= 1.0) {
+            return Err(RgbnError::param("highlight_fraction", "must be in (0, 1]"));
+        }
+        Ok(())
+    }
+}
+
+/// Result of [`calibrate_chrome`].
+#[derive(Clone, Debug, Default, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct ChromeCalibration {
+    /// Sphere centre `(x, row)` in pixels (pixel indices, not corners).
+    pub centre_px: [f64; 2],
+    pub radius_px: f64,
+    /// Highlight centroid `(x, row)` per photo.
+    pub highlights_px: Vec<[f64; 2]>,
+    /// Unit light direction per photo (`x` right, `y` up, `z` towards the camera).
+    pub directions: Vec<[f32; 3]>,
+}
+
+/// Estimates light directions from photos of a mirror sphere and its mask (module docs).
+///
+/// # Errors
+/// Invalid parameters, a mask of the wrong length or empty, a photo without any light inside
+/// the mask.
+pub fn calibrate_chrome(
+    stack: &PhotoStack,
+    mask: &[f32],
+    params: &ChromeParams,
+) -> Result<ChromeCalibration, RgbnError> {
+    params.validate()?;
+    let (w, h) = (stack.width, stack.height);
+    if mask.len() != w * h {
+        return Err(RgbnError::SizeMismatch {
+            what: "chrome mask",
+            want_w: w,
+            want_h: h,
+            got_w: mask.len(),
+            got_h: 1,
+            path: PathBuf::new(),
+        });
+    }
+    let (mut sx, mut sy, mut area) = (0.0f64, 0.0f64, 0usize);
+    for (i, &m) in mask.iter().enumerate() {
+        if m >= 0.5 {
+            sx += (i % w) as f64;
+            sy += (i / w) as f64;
+            area += 1;
+        }
+    }
+    if area == 0 {
+        return Err(RgbnError::EmptyMask {
+            what: "the chrome-sphere mask",
+        });
+    }
+    let (cx, cy) = (sx / area as f64, sy / area as f64);
+    let radius = (area as f64 / std::f64::consts::PI).sqrt();
+    let mut highlights = Vec::with_capacity(stack.photos.len());
+    let mut directions = Vec::with_capacity(stack.photos.len());
+    for (j, photo) in stack.photos.iter().enumerate() {
+        let grey = |i: usize| (photo[0][i] + photo[1][i] + photo[2][i]) / 3.0;
+        let peak = (0..w * h)
+            .filter(|&i| mask[i] >= 0.5)
+            .map(grey)
+            .fold(0.0f32, f32::max);
+        if !(peak > 0.0) {
+            return Err(RgbnError::param(
+                "chrome photos",
+                format!("photo {j} is black inside the sphere mask"),
+            ));
+        }
+        let t = peak * params.highlight_fraction;
+        let (mut wx, mut wy, mut ws) = (0.0f64, 0.0f64, 0.0f64);
+        for i in (0..w * h).filter(|&i| mask[i] >= 0.5) {
+            let v = grey(i);
+            if v >= t {
+                let wt = f64::from(v);
+                wx += wt * (i % w) as f64;
+                wy += wt * (i / w) as f64;
+                ws += wt;
+            }
+        }
+        let (hx, hy) = (wx / ws, wy / ws);
+        let (nx, ny) = ((hx - cx) / radius, (cy - hy) / radius);
+        let nz = (1.0 - nx * nx - ny * ny).max(0.0).sqrt();
+        // l = 2 (n·v) n − v with v = (0, 0, 1).
+        let l = [2.0 * nz * nx, 2.0 * nz * ny, 2.0 * nz * nz - 1.0];
+        let len = (l[0] * l[0] + l[1] * l[1] + l[2] * l[2]).sqrt();
+        highlights.push([hx, hy]);
+        directions.push(l.map(|c| (c / len) as f32));
+    }
+    Ok(ChromeCalibration {
+        centre_px: [cx, cy],
+        radius_px: radius,
+        highlights_px: highlights,
+        directions,
+    })
+}
+
+/// Angle between two directions in degrees (not necessarily unit; 0 for a zero vector).
+#[must_use]
+pub fn angle_deg(a: [f32; 3], b: [f32; 3]) -> f64 {
+    let a = a.map(f64::from);
+    let b = b.map(f64::from);
+    let d = a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+    let la = (a[0] * a[0] + a[1] * a[1] + a[2] * a[2]).sqrt();
+    let lb = (b[0] * b[0] + b[1] * b[1] + b[2] * b[2]).sqrt();
+    if la == 0.0 || lb == 0.0 {
+        return 0.0;
+    }
+    (d / (la * lb)).clamp(-1.0, 1.0).acos().to_degrees()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::raster::sample::Surface;
+
+    /// Renders Lambertian photos of an RGBN (albedo × intensity × max(0, n·l)).
+    fn render(img: &RgbnImage, lights: &Lights) -> PhotoStack {
+        let n = img.len();
+        let photos = lights
+            .directions
+            .iter()
+            .enumerate()
+            .map(|(j, d)| {
+                let len = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
+                let l = d.map(|c| c / len);
+                let e = lights.intensities.as_ref().map_or([1.0; 3], |i| i[j]);
+                std::array::from_fn(|c| {
+                    (0..n)
+                        .map(|i| {
+                            let nn = [img.normal()[0][i], img.normal()[1][i], img.normal()[2][i]];
+                            let s = (nn[0] * l[0] + nn[1] * l[1] + nn[2] * l[2]).max(0.0);
+                            img.color()[c][i] * e[c] * s
+                        })
+                        .collect()
+                })
+            })
+            .collect();
+        PhotoStack::new(img.width(), img.height(), photos).unwrap()
+    }
+
+    fn ring_lights(m: usize, tilt_deg: f32) -> Vec<[f32; 3]> {
+        let t = tilt_deg.to_radians();
+        (0..m)
+            .map(|j| {
+                let a = std::f32::consts::TAU * j as f32 / m as f32;
+                [t.sin() * a.cos(), t.sin() * a.sin(), t.cos()]
+            })
+            .collect()
+    }
+
+    fn coloured(mut img: RgbnImage) -> RgbnImage {
+        let (w, h) = (img.width(), img.height());
+        let col = [0.7f32, 0.4, 0.2].map(|base| {
+            (0..w * h)
+                .map(|i| base * (0.5 + 0.5 * ((i % w) as f32 / w as f32)) + 0.05 * ((i / w) % 3) as f32)
+                .collect()
+        });
+        img.set_color(col).unwrap();
+        img
+    }
+
+    fn max_angle_deg(a: &RgbnImage, b: &RgbnImage, sel: &[f32]) -> f64 {
+        (0..a.len())
+            .filter(|&i| sel[i] >= 0.5)
+            .map(|i| {
+                let x = a.normal_at(i % a.width(), i / a.width());
+                let y = b.normal_at(i % b.width(), i / b.width());
+                angle_deg(x, y)
+            })
+            .fold(0.0, f64::max)
+    }
+
+    #[test]
+    fn least_squares_is_exact_on_lambertian_renders_without_shadows() {
+        // Mild dome + near-frontal lights: every pixel is lit by every light.
+        let (img, _) = Surface::Paraboloid { curvature: 0.004 }.render(48, 40);
+        let img = coloured(img);
+        let lights = Lights {
+            directions: ring_lights(6, 25.0),
+            intensities: Some(vec![
+                [1.0, 0.9, 0.8],
+                [1.2, 1.1, 1.0],
+                [0.7, 0.8, 0.9],
+                [1.0, 1.0, 1.0],
+                [0.9, 1.3, 1.1],
+                [1.1, 1.0, 0.6],
+            ]),
+        };
+        let stack = render(&img, &lights);
+        for method in [PsMethod::LeastSquares, PsMethod::Trimmed] {
+            let params = PhotometricParams {
+                method,
+                ..Default::default()
+            };
+            let (out, rep) = photometric_stereo(&stack, &lights, None, &params).unwrap();
+            assert_eq!(rep.solved, 48 * 40, "{rep:?}");
+            let all = vec![1.0; 48 * 40];
+            let e = max_angle_deg(&out, &img, &all);
+            assert!(e < 0.01, "{method:?}: {e}°");
+            for c in 0..3 {
+                for (a, b) in out.color()[c].iter().zip(&img.color()[c]) {
+                    assert!((a - b).abs() < 1e-4, "{method:?} albedo {a} vs {b}");
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn trimming_removes_attached_shadows_and_highlights() {
+        // A sphere lit from steep directions: many pixels see some lights from behind, and one
+        // light per pixel gets a fake specular spike.
+        let (img, _) = Surface::Sphere { radius_px: 30.0 }.render(64, 64);
+        let img = coloured(img);
+        let lights = Lights {
+            directions: ring_lights(12, 50.0)
+                .into_iter()
+                .chain([[0.0, 0.0, 1.0]])
+                .collect(),
+            intensities: None,
+        };
+        let mut stack = render(&img, &lights);
+        // Specular spike: add 0.6 to the light closest to the mirror direction of the view.
+        for i in 0..64 * 64 {
+            let nn = img.normal_at(i % 64, i / 64);
+            let h = [2.0 * nn[2] * nn[0], 2.0 * nn[2] * nn[1], 2.0 * nn[2] * nn[2] - 1.0];
+            let j = (0..13)
+                .min_by(|&a, &b| {
+                    angle_deg(h, lights.directions[a]).total_cmp(&angle_deg(h, lights.directions[b]))
+                })
+                .unwrap();
+            if angle_deg(h, lights.directions[j]) < 20.0 {
+                for c in 0..3 {
+                    stack.photos[j][c][i] += 0.3;
+                }
+            }
+        }
+        // Only pixels seen by enough lights: n_z ≥ 0.5.
+        let sel: Vec<f32> = (0..64 * 64)
+            .map(|i| f32::from(u8::from(img.normal()[2][i] >= 0.5 && img.mask().unwrap()[i] > 0.5)))
+            .collect();
+        let mean = |out: &RgbnImage| {
+            let idx: Vec<usize> = (0..64 * 64).filter(|&i| sel[i] > 0.5).collect();
+            idx.iter()
+                .map(|&i| angle_deg(out.normal_at(i % 64, i / 64), img.normal_at(i % 64, i / 64)))
+                .sum::<f64>()
+                / idx.len() as f64
+        };
+        let mask = img.mask().map(<[f32]>::to_vec);
+        let ls = PhotometricParams {
+            method: PsMethod::LeastSquares,
+            ..Default::default()
+        };
+        let (out_ls, _) = photometric_stereo(&stack, &lights, mask.as_deref(), &ls).unwrap();
+        let (out_tr, rep) =
+            photometric_stereo(&stack, &lights, mask.as_deref(), &PhotometricParams::default())
+                .unwrap();
+        let (e_ls, e_tr) = (mean(&out_ls), mean(&out_tr));
+        eprintln!("synthetic sphere, shadows + highlights: LS {e_ls:.2}°, trimmed {e_tr:.2}° ({rep:?})");
+        assert!(e_tr < 0.5 * e_ls && e_tr < 1.0, "{e_ls} {e_tr}");
+        assert!(out_tr.validate().is_clean());
+    }
+
+    #[test]
+    fn bad_inputs_are_clear_errors() {
+        let (img, _) = Surface::Paraboloid { curvature: 0.004 }.render(16, 12);
+        let lights = Lights {
+            directions: ring_lights(4, 30.0),
+            intensities: None,
+        };
+        let stack = render(&img, &lights);
+        let p = PhotometricParams::default();
+        // Too few lights.
+        let two = PhotoStack::new(16, 12, stack.photos[..2].to_vec()).unwrap();
+        let l2 = Lights {
+            directions: lights.directions[..2].to_vec(),
+            intensities: None,
+        };
+        assert!(matches!(
+            photometric_stereo(&two, &l2, None, &p),
+            Err(RgbnError::TooFewLights { count: 2 })
+        ));
+        // Rows ≠ photos.
+        let l3 = Lights {
+            directions: lights.directions[..3].to_vec(),
+            intensities: None,
+        };
+        assert!(matches!(
+            photometric_stereo(&stack, &l3, None, &p),
+            Err(RgbnError::LightCountMismatch { got: 3, photos: 4, .. })
+        ));
+        let li = Lights {
+            intensities: Some(vec![[1.0; 3]; 3]),
+            ..lights.clone()
+        };
+        assert!(matches!(
+            photometric_stereo(&stack, &li, None, &p),
+            Err(RgbnError::LightCountMismatch { .. })
+        ));
+        // Coplanar (all in the x–z plane) and zero lights.
+        let flat = Lights {
+            directions: vec![[0.5, 0.0, 0.8], [-0.5, 0.0, 0.8], [0.0, 0.0, 1.0], [0.3, 0.0, 0.9]],
+            intensities: None,
+        };
+        let e = photometric_stereo(&stack, &flat, None, &p).unwrap_err();
+        assert!(matches!(e, RgbnError::DegenerateLights { .. }), "{e}");
+        let mut zero = lights.clone();
+        zero.directions[1] = [0.0; 3];
+        assert!(matches!(
+            photometric_stereo(&stack, &zero, None, &p),
+            Err(RgbnError::DegenerateLights { .. })
+        ));
+        // Mask of the wrong size; planes of the wrong size.
+        assert!(matches!(
+            photometric_stereo(&stack, &lights, Some(&[1.0; 5]), &p),
+            Err(RgbnError::SizeMismatch { .. })
+        ));
+        assert!(PhotoStack::new(16, 12, vec![[vec![0.0; 5], vec![], vec![]]]).is_err());
+        // Bad parameters.
+        let bad = PhotometricParams {
+            dark_fraction: 0.6,
+            bright_fraction: 0.5,
+            ..Default::default()
+        };
+        assert!(bad.validate().is_err());
+        // Dark and saturated pixels are counted, not NaN.
+        let mut s2 = stack.clone();
+        for ph in &mut s2.photos {
+            for c in 0..3 {
+                ph[c][0] = 0.0; // all dark
+                ph[c][1] = 1.0; // saturated in every photo → unsolvable
+            }
+        }
+        s2.photos[0][1][2] = 1.0; // one saturated observation → still solved from 3
+        let (out, rep) = photometric_stereo(&s2, &lights, None, &p).unwrap();
+        assert_eq!(rep.dark, 1, "{rep:?}");
+        assert_eq!(rep.unsolvable, 1, "{rep:?}");
+        assert_eq!(rep.with_saturated, 2, "{rep:?}");
+        assert_eq!(rep.solved, 16 * 12 - 2);
+        assert_eq!(out.normal_at(0, 0), [0.0, 0.0, 1.0]);
+        assert_eq!(out.mask().unwrap()[0], 0.0);
+        assert_eq!(out.mask().unwrap()[2], 1.0);
+        assert!(out.validate().is_clean());
+    }
+
+    #[test]
+    fn light_files_in_both_layouts_parse() {
+        let p = Path::new("lights.txt");
+        let dil = "-0.0635 -0.4317 0.8998\n-0.0629 -0.3178 0.9461\n\n0.1 0.2 0.97\n";
+        assert_eq!(parse_rows3(dil, p).unwrap().len(), 3);
+        let uw = "3\n0.49 0.46 0.73\n0.24,0.13,0.96\n# comment\n-0.03 0.17 0.98 # tail\n";
+        let rows = parse_rows3(uw, p).unwrap();
+        assert_eq!(rows.len(), 3);
+        assert!((rows[1][2] - 0.96).abs() < 1e-6);
+        let e = parse_rows3("4\n1 0 0\n0 1 0\n0 0 1\n", p).unwrap_err();
+        assert!(matches!(e, RgbnError::Parse { line: 1, .. }), "{e}");
+        let e = parse_rows3("1 0 0\n0 1\n", p).unwrap_err();
+        assert!(matches!(e, RgbnError::Parse { line: 2, .. }), "{e}");
+        let e = parse_rows3("1 0 nan\n", p).unwrap_err();
+        assert!(e.to_string().ends_with("lights.txt"), "{e}");
+    }
+
+    #[test]
+    fn photos_of_different_sizes_are_refused_on_load() {
+        let dir = tempfile::tempdir().unwrap();
+        let mut paths = Vec::new();
+        for (k, (w, h)) in [(8u32, 6u32), (8, 6), (7, 6)].into_iter().enumerate() {
+            let p = dir.path().join(format!("{k}.png"));
+            image::RgbImage::from_pixel(w, h, image::Rgb([100, 100, 100]))
+                .save(&p)
+                .unwrap();
+            paths.push(p);
+        }
+        let lights = dir.path().join("l.txt");
+        std::fs::write(&lights, "3\n0 0 1\n0.5 0 0.8\n0 0.5 0.8\n").unwrap();
+        let spec = PsInputSpec {
+            photos: paths.clone(),
+            lights: lights.clone(),
+            ..Default::default()
+        };
+        let e = load_inputs(&spec).unwrap_err();
+        assert!(matches!(e, RgbnError::SizeMismatch { got_w: 7, .. }), "{e}");
+        let spec = PsInputSpec {
+            photos: paths[..2].to_vec(),
+            lights,
+            ..Default::default()
+        };
+        assert!(matches!(
+            load_inputs(&spec),
+            Err(RgbnError::TooFewLights { count: 2 })
+        ));
+    }
+
+    // ---------------------------------------------------------------------------------------
+    // Real data (never committed): $RGBN_DATA or ../shared/data.
+    // ---------------------------------------------------------------------------------------
+
+    fn data_dir(sub: &str) -> Option<PathBuf> {
+        let base = std::env::var_os("RGBN_DATA").map_or_else(
+            || Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/data"),
+            PathBuf::from,
+        );
+        let d = base.join(sub);
+        if d.is_dir() {
+            Some(d)
+        } else {
+            eprintln!("SKIPPED: real data {} not found (set RGBN_DATA)", d.display());
+            None
+        }
+    }
+
+    /// Reads a MATLAB `h × w × 3` double array (column-major) into normal planes.
+    fn read_mat_normals(path: &Path, name: &str, w: usize, h: usize) -> [Vec<f32>; 3] {
+        let file = std::fs::File::open(path).unwrap();
+        let mat = matfile::MatFile::parse(file).unwrap();
+        let arr = mat.find_by_name(name).unwrap();
+        assert_eq!(arr.size(), &vec![h, w, 3]);
+        let matfile::NumericData::Double { real, .. } = arr.data() else {
+            panic!("expected doubles");
+        };
+        std::array::from_fn(|k| {
+            (0..w * h)
+                .map(|i| real[(i / w) + h * ((i % w) + w * k)] as f32)
+                .collect()
+        })
+    }
+
+    fn mean_angle_deg(out: &RgbnImage, gt: &[Vec<f32>; 3], mask: &[f32]) -> f64 {
+        let (s, n) = (0..out.len())
+            .filter(|&i| mask[i] >= 0.5 && gt[2][i] != 0.0)
+            .map(|i| {
+                angle_deg(
+                    out.normal_at(i % out.width(), i / out.width()),
+                    [gt[0][i], gt[1][i], gt[2][i]],
+                )
+            })
+            .fold((0.0, 0usize), |(s, n), a| (s + a, n + 1));
+        s / n as f64
+    }
+
+    #[test]
+    fn diligent_ball_angular_error() {
+        let Some(d) = data_dir("diligent-ball-subset") else {
+            return;
+        };
+        let names = [
+            "001", "008", "019", "023", "041", "045", "048", "052", "068", "071", "089", "093",
+            "096",
+        ];
+        let spec = PsInputSpec {
+            photos: names.iter().map(|n| d.join(format!("{n}.png"))).collect(),
+            lights: d.join("light_directions.txt"),
+            intensities: Some(d.join("light_intensities.txt")),
+            names: Some(d.join("filenames.txt")),
+            mask: Some(d.join("mask.png")),
+            transfer: Transfer::Linear,
+        };
+        let inputs = load_inputs(&spec).unwrap();
+        let (w, h) = (inputs.stack.width, inputs.stack.height);
+        let gt = read_mat_normals(&d.join("Normal_gt.mat"), "Normal_gt", w, h);
+        let mask = inputs.mask.as_deref().unwrap();
+        let baseline = read_mat_normals(&d.join("ballPNG_Normal_l2.mat"), "Normal_L2", w, h);
+        let base_img =
+            RgbnImage::new(w, h, [vec![0.0; w * h], vec![0.0; w * h], vec![0.0; w * h]], baseline, None)
+                .unwrap();
+        let e_base = mean_angle_deg(&base_img, &gt, mask);
+        let mut errs = Vec::new();
+        for method in [PsMethod::LeastSquares, PsMethod::Trimmed] {
+            let params = PhotometricParams {
+                method,
+                ..Default::default()
+            };
+            let (out, rep) =
+                photometric_stereo(&inputs.stack, &inputs.lights, Some(mask), &params).unwrap();
+            let e = mean_angle_deg(&out, &gt, mask);
+            eprintln!("DiLiGenT ball, 13 lights, {method:?}: mean angular error {e:.3}° ({rep:?})");
+            assert!(out.validate().is_clean());
+            errs.push(e);
+        }
+        eprintln!("DiLiGenT ball, benchmark's own 96-light L2 map: {e_base:.3}°");
+        assert!(errs[0] <= 4.5, "least squares {}", errs[0]);
+        assert!(errs[1] <= 2.7, "trimmed {}", errs[1]);
+    }
+}
