@@ -20,17 +20,35 @@
 //!
 //! # Robust: trimmed least squares ([`PsMethod::Trimmed`])
 //!
-//! Lambertian least squares is biased by *attached and cast shadows* (observed 0 where the model
-//! predicts `n·l < 0` or a blocked light) and by *specular highlights* (far brighter than the
-//! model). Both are extreme in the ranking of a pixel's observations: shadows are the darkest,
-//! highlights the brightest. Per pixel the observations are ranked by `g_j`; the darkest
-//! [`dark_fraction`](PhotometricParams::dark_fraction) and the brightest
-//! [`bright_fraction`](PhotometricParams::bright_fraction) are dropped and least squares is
-//! solved on the rest (if the rest is ill-conditioned, all unsaturated observations are used).
-//! Then one re-selection pass drops the observations whose light is (nearly) behind the
-//! estimated normal (`n · l_j < min_shading`), since they are shadowed by the model itself, and
-//! re-solves. The numbers on DiLiGenT "ball" (13 lights) are in the tests: least squares
-//! 4.1°, trimmed 1.7° mean angular error (the benchmark's 96-light least squares: 4.10°).
+//! Lambertian least squares is biased by *attached shadows* (observed ≈ 0 where the model
+//! predicts `n·l < 0`, i.e. the `max(0, ·)` is active) and by *specular highlights* (far
+//! brighter than the model). Both are extreme in the ranking of a pixel's observations:
+//! shadows are the darkest, highlights the brightest. Per pixel:
+//!
+//! 1. rank the usable observations by `g_j`; solve least squares on the middle part, without
+//!    the darkest [`dark_fraction`](PhotometricParams::dark_fraction) and the brightest
+//!    [`bright_fraction`](PhotometricParams::bright_fraction) (if that part is
+//!    ill-conditioned, all usable observations are used and the pixel is done);
+//! 2. re-select: all observations except the bright trim whose light is in front of that
+//!    estimate, `n₀ · l_j ≥ min_shading` (the model itself says the others are shadowed), and
+//!    solve again (keeping step 1 if this set is ill-conditioned).
+//!
+//! So the dark trim only protects the first estimate; the final set is "not among the
+//! brightest, and lit according to the model". Measured on DiLiGenT "ball" with 13 of its
+//! lights (mean angular error inside the mask; test `diligent_ball_angular_error`):
+//!
+//! | estimator | error |
+//! |---|---|
+//! | least squares (Woodham) | 4.16° |
+//! | drop brightest 10 % only | 3.80° |
+//! | **default**: dark 0.25, bright 0.10, min_shading 0.05 | **2.29°** |
+//! | dark 0.40 / bright 0.20 / min_shading 0.20 variants | 2.22–2.27° |
+//! | dark 0.15 | 2.41° |
+//! | the benchmark's own 96-light least squares (`Normal_L2`) | 4.02° (4.10° published) |
+//!
+//! The shading re-selection (attached shadows) is worth ~1.5°, the bright trim ~0.4°; the
+//! result is flat around the defaults, so they are not tuned to this one object.
+//! The per-pixel cost is a sort of `m` values and two `3 × 3` solves.
 //!
 //! # Failures are counted, never NaN
 //!
@@ -1254,23 +1272,7 @@ mod tests {
         ));
     }
 
-    // ---------------------------------------------------------------------------------------
-    // Real data (never committed): $RGBN_DATA or ../shared/data.
-    // ---------------------------------------------------------------------------------------
-
-    fn data_dir(sub: &str) -> Option<PathBuf> {
-        let base = std::env::var_os("RGBN_DATA").map_or_else(
-            || Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/data"),
-            PathBuf::from,
-        );
-        let d = base.join(sub);
-        if d.is_dir() {
-            Some(d)
-        } else {
-            eprintln!("SKIPPED: real data {} not found (set RGBN_DATA)", d.display());
-            None
-        }
-    }
+    use super::tests_support::*;
 
     /// Reads a MATLAB `h × w × 3` double array (column-major) into normal planes.
     fn read_mat_normals(path: &Path, name: &str, w: usize, h: usize) -> [Vec<f32>; 3] {
@@ -1341,7 +1343,141 @@ mod tests {
             errs.push(e);
         }
         eprintln!("DiLiGenT ball, benchmark's own 96-light L2 map: {e_base:.3}°");
+        // The sweep behind the defaults (printed, not asserted).
+        for (dark, bright, shade) in [
+            (0.0, 0.0, -1.0),
+            (0.25, 0.0, -1.0),
+            (0.0, 0.1, -1.0),
+            (0.25, 0.1, -1.0),
+            (0.25, 0.1, 0.05),
+            (0.25, 0.2, 0.05),
+            (0.4, 0.1, 0.05),
+            (0.15, 0.1, 0.05),
+            (0.25, 0.1, 0.2),
+        ] {
+            let params = PhotometricParams {
+                dark_fraction: dark,
+                bright_fraction: bright,
+                min_shading: shade,
+                ..Default::default()
+            };
+            let (out, _) =
+                photometric_stereo(&inputs.stack, &inputs.lights, Some(mask), &params).unwrap();
+            let e = mean_angle_deg(&out, &gt, mask);
+            eprintln!(
+                "  trimmed sweep: dark {dark:.2} bright {bright:.2} min_shading {shade:+.2} → {e:.3}°"
+            );
+        }
         assert!(errs[0] <= 4.5, "least squares {}", errs[0]);
         assert!(errs[1] <= 2.7, "trimmed {}", errs[1]);
     }
+}
+
+#[cfg(test)]
+mod uw_tests {
+    use super::tests_support::*;
+    use super::*;
+
+    const OBJECTS: [&str; 6] = ["buddha", "cat", "gray", "horse", "owl", "rock"];
+
+    fn uw_spec(d: &Path, obj: &str) -> PsInputSpec {
+        PsInputSpec {
+            photos: (0..12)
+                .map(|i| d.join(obj).join(format!("{obj}.{i}.png")))
+                .collect(),
+            lights: d.join("lights.txt"),
+            intensities: None,
+            names: None,
+            mask: Some(d.join(obj).join(format!("{obj}.mask.png"))),
+            transfer: Transfer::Linear,
+        }
+    }
+
+    #[test]
+    fn uw_objects_give_plausible_rgbn() {
+        let Some(d) = data_dir("uw-psm-images") else {
+            return;
+        };
+        for obj in OBJECTS {
+            let inputs = load_inputs(&uw_spec(&d, obj)).unwrap();
+            let mask = inputs.mask.as_deref().unwrap();
+            let (out, rep) = photometric_stereo(
+                &inputs.stack,
+                &inputs.lights,
+                Some(mask),
+                &PhotometricParams::default(),
+            )
+            .unwrap();
+            let v = out.validate();
+            let inside: Vec<usize> = (0..out.len()).filter(|&i| mask[i] >= 0.5).collect();
+            let facing = inside
+                .iter()
+                .filter(|&&i| out.normal()[2][i] > 0.0)
+                .count();
+            let frac = facing as f64 / inside.len() as f64;
+            eprintln!(
+                "UW {obj}: {} mask px, n_z > 0 for {:.2}%, {rep:?}",
+                inside.len(),
+                100.0 * frac
+            );
+            assert!(v.is_clean() && v.non_finite_color == 0, "{obj}: {v:?}");
+            assert!(frac >= 0.99, "{obj}: {frac}");
+            assert!(rep.solved as f64 >= 0.95 * inside.len() as f64, "{obj}: {rep:?}");
+        }
+    }
+
+    #[test]
+    fn chrome_calibration_matches_lights_txt() {
+        let Some(d) = data_dir("uw-psm-images") else {
+            return;
+        };
+        let spec = uw_spec(&d, "chrome");
+        let inputs = load_inputs(&spec).unwrap();
+        let cal = calibrate_chrome(
+            &inputs.stack,
+            inputs.mask.as_deref().unwrap(),
+            &ChromeParams::default(),
+        )
+        .unwrap();
+        let angles: Vec<f64> = cal
+            .directions
+            .iter()
+            .zip(&inputs.lights.directions)
+            .map(|(a, b)| angle_deg(*a, *b))
+            .collect();
+        eprintln!(
+            "chrome sphere: centre ({:.1}, {:.1}) px, radius {:.1} px; per-light angle to              lights.txt (°): {}",
+            cal.centre_px[0],
+            cal.centre_px[1],
+            cal.radius_px,
+            angles
+                .iter()
+                .map(|a| format!("{a:.2}"))
+                .collect::<Vec<_>>()
+                .join(" ")
+        );
+        let max = angles.iter().copied().fold(0.0, f64::max);
+        assert!(max < 3.0, "max {max}°");
+    }
+}
+
+/// Real data for tests (never committed): `$RGBN_DATA` or `../shared/data`.
+#[cfg(test)]
+mod tests_support {
+    use std::path::{Path, PathBuf};
+
+    pub fn data_dir(sub: &str) -> Option<PathBuf> {
+        let base = std::env::var_os("RGBN_DATA").map_or_else(
+            || Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/data"),
+            PathBuf::from,
+        );
+        let d = base.join(sub);
+        if d.is_dir() {
+            Some(d)
+        } else {
+            eprintln!("SKIPPED: real data {} not found (set RGBN_DATA)", d.display());
+            None
+        }
+    }
+
 }
