@@ -81,7 +81,9 @@ use rayon::prelude::*;
 use std::path::{Path, PathBuf};
 
 /// How photo files encode light.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, serde::Serialize, serde::Deserialize)]
+#[derive(
+    Clone, Copy, Debug, Default, PartialEq, Eq, Hash, serde::Serialize, serde::Deserialize,
+)]
 pub enum Transfer {
     /// Integer samples are proportional to light (raw / linear data, e.g. DiLiGenT).
     #[default]
@@ -104,11 +106,7 @@ impl PhotoStack {
     ///
     /// # Errors
     /// [`RgbnError::InvalidImage`] on a plane of the wrong length.
-    pub fn new(
-        width: usize,
-        height: usize,
-        photos: Vec<[Vec<f32>; 3]>,
-    ) -> Result<Self, RgbnError> {
+    pub fn new(width: usize, height: usize, photos: Vec<[Vec<f32>; 3]>) -> Result<Self, RgbnError> {
         let n = width * height;
         if let Some(j) = photos.iter().position(|p| p.iter().any(|c| c.len() != n)) {
             return Err(RgbnError::InvalidImage(format!(
@@ -378,7 +376,9 @@ pub fn load_inputs(spec: &PsInputSpec) -> Result<PsInputs, RgbnError> {
 }
 
 /// The photometric-stereo estimator.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, serde::Serialize, serde::Deserialize)]
+#[derive(
+    Clone, Copy, Debug, Default, PartialEq, Eq, Hash, serde::Serialize, serde::Deserialize,
+)]
 pub enum PsMethod {
     /// Woodham's least squares on all unsaturated observations.
     LeastSquares,
@@ -427,7 +427,10 @@ impl PhotometricParams {
             if (0.0..=0.8).contains(&v) {
                 Ok(())
             } else {
-                Err(RgbnError::param(name, format!("must be in [0, 0.8], got {v}")))
+                Err(RgbnError::param(
+                    name,
+                    format!("must be in [0, 0.8], got {v}"),
+                ))
             }
         };
         frac("dark_fraction", self.dark_fraction)?;
@@ -502,7 +505,8 @@ fn gram(dirs: impl Iterator<Item = [f64; 3]>) -> M3 {
 }
 
 fn det3(a: &M3) -> f64 {
-    a[0][0] * (a[1][1] * a[2][2] - a[1][2] * a[2][1]) - a[0][1] * (a[1][0] * a[2][2] - a[1][2] * a[2][0])
+    a[0][0] * (a[1][1] * a[2][2] - a[1][2] * a[2][1])
+        - a[0][1] * (a[1][0] * a[2][2] - a[1][2] * a[2][0])
         + a[0][2] * (a[1][0] * a[2][1] - a[1][1] * a[2][0])
 }
 
@@ -564,7 +568,10 @@ fn checked_directions(lights: &Lights, photos: usize) -> Result<Vec<[f64; 3]>, R
                 path: PathBuf::new(),
             });
         }
-        if let Some(j) = i.iter().position(|e| e.iter().any(|&v| !(v > 0.0 && v.is_finite()))) {
+        if let Some(j) = i
+            .iter()
+            .position(|e| e.iter().any(|&v| !(v > 0.0 && v.is_finite())))
+        {
             return Err(RgbnError::param(
                 "intensities",
                 format!("light {j} has a non-positive intensity {:?}", i[j]),
@@ -750,11 +757,18 @@ fn solve_pixel(
     let mut brightest = 0.0f32;
     for j in 0..m {
         let raw = [photos[j][0][i], photos[j][1][i], photos[j][2][i]];
-        let v = [raw[0] * inv_e[j][0], raw[1] * inv_e[j][1], raw[2] * inv_e[j][2]];
+        let v = [
+            raw[0] * inv_e[j][0],
+            raw[1] * inv_e[j][1],
+            raw[2] * inv_e[j][2],
+        ];
         let g = (v[0] + v[1] + v[2]) / 3.0;
         s.obs[j] = [v[0], v[1], v[2], if g.is_finite() { g } else { 0.0 }];
         brightest = brightest.max(s.obs[j][3]);
-        if raw.iter().all(|&c| c < params.saturation_level && c.is_finite()) {
+        if raw
+            .iter()
+            .all(|&c| c < params.saturation_level && c.is_finite())
+        {
             s.usable.push(j);
         }
     }
@@ -821,7 +835,8 @@ fn trimmed_solve(
     let obs = &s.obs;
     s.sel.clear();
     s.sel.extend_from_slice(&s.usable);
-    s.sel.sort_unstable_by(|&a, &b| obs[a][3].total_cmp(&obs[b][3]));
+    s.sel
+        .sort_unstable_by(|&a, &b| obs[a][3].total_cmp(&obs[b][3]));
     let k = s.sel.len();
     let lo = ((params.dark_fraction * k as f32).floor() as usize).min(k);
     let hi = (k - ((params.bright_fraction * k as f32).floor() as usize).min(k)).max(lo);
@@ -1034,7 +1049,9 @@ mod tests {
         let (w, h) = (img.width(), img.height());
         let col = [0.7f32, 0.4, 0.2].map(|base| {
             (0..w * h)
-                .map(|i| base * (0.5 + 0.5 * ((i % w) as f32 / w as f32)) + 0.05 * ((i / w) % 3) as f32)
+                .map(|i| {
+                    base * (0.5 + 0.5 * ((i % w) as f32 / w as f32)) + 0.05 * ((i / w) % 3) as f32
+                })
                 .collect()
         });
         img.set_color(col).unwrap();
@@ -1104,10 +1121,15 @@ mod tests {
         // Specular spike: add 0.6 to the light closest to the mirror direction of the view.
         for i in 0..64 * 64 {
             let nn = img.normal_at(i % 64, i / 64);
-            let h = [2.0 * nn[2] * nn[0], 2.0 * nn[2] * nn[1], 2.0 * nn[2] * nn[2] - 1.0];
+            let h = [
+                2.0 * nn[2] * nn[0],
+                2.0 * nn[2] * nn[1],
+                2.0 * nn[2] * nn[2] - 1.0,
+            ];
             let j = (0..13)
                 .min_by(|&a, &b| {
-                    angle_deg(h, lights.directions[a]).total_cmp(&angle_deg(h, lights.directions[b]))
+                    angle_deg(h, lights.directions[a])
+                        .total_cmp(&angle_deg(h, lights.directions[b]))
                 })
                 .unwrap();
             if angle_deg(h, lights.directions[j]) < 20.0 {
@@ -1118,7 +1140,11 @@ mod tests {
         }
         // Only pixels seen by enough lights: n_z ≥ 0.5.
         let sel: Vec<f32> = (0..64 * 64)
-            .map(|i| f32::from(u8::from(img.normal()[2][i] >= 0.5 && img.mask().unwrap()[i] > 0.5)))
+            .map(|i| {
+                f32::from(u8::from(
+                    img.normal()[2][i] >= 0.5 && img.mask().unwrap()[i] > 0.5,
+                ))
+            })
             .collect();
         let mean = |out: &RgbnImage| {
             let idx: Vec<usize> = (0..64 * 64).filter(|&i| sel[i] > 0.5).collect();
@@ -1133,11 +1159,17 @@ mod tests {
             ..Default::default()
         };
         let (out_ls, _) = photometric_stereo(&stack, &lights, mask.as_deref(), &ls).unwrap();
-        let (out_tr, rep) =
-            photometric_stereo(&stack, &lights, mask.as_deref(), &PhotometricParams::default())
-                .unwrap();
+        let (out_tr, rep) = photometric_stereo(
+            &stack,
+            &lights,
+            mask.as_deref(),
+            &PhotometricParams::default(),
+        )
+        .unwrap();
         let (e_ls, e_tr) = (mean(&out_ls), mean(&out_tr));
-        eprintln!("synthetic sphere, shadows + highlights: LS {e_ls:.2}°, trimmed {e_tr:.2}° ({rep:?})");
+        eprintln!(
+            "synthetic sphere, shadows + highlights: LS {e_ls:.2}°, trimmed {e_tr:.2}° ({rep:?})"
+        );
         assert!(e_tr < 0.5 * e_ls && e_tr < 1.0, "{e_ls} {e_tr}");
         assert!(out_tr.validate().is_clean());
     }
@@ -1168,7 +1200,11 @@ mod tests {
         };
         assert!(matches!(
             photometric_stereo(&stack, &l3, None, &p),
-            Err(RgbnError::LightCountMismatch { got: 3, photos: 4, .. })
+            Err(RgbnError::LightCountMismatch {
+                got: 3,
+                photos: 4,
+                ..
+            })
         ));
         let li = Lights {
             intensities: Some(vec![[1.0; 3]; 3]),
@@ -1180,7 +1216,12 @@ mod tests {
         ));
         // Coplanar (all in the x–z plane) and zero lights.
         let flat = Lights {
-            directions: vec![[0.5, 0.0, 0.8], [-0.5, 0.0, 0.8], [0.0, 0.0, 1.0], [0.3, 0.0, 0.9]],
+            directions: vec![
+                [0.5, 0.0, 0.8],
+                [-0.5, 0.0, 0.8],
+                [0.0, 0.0, 1.0],
+                [0.3, 0.0, 0.9],
+            ],
             intensities: None,
         };
         let e = photometric_stereo(&stack, &flat, None, &p).unwrap_err();
@@ -1325,9 +1366,14 @@ mod tests {
         let gt = read_mat_normals(&d.join("Normal_gt.mat"), "Normal_gt", w, h);
         let mask = inputs.mask.as_deref().unwrap();
         let baseline = read_mat_normals(&d.join("ballPNG_Normal_l2.mat"), "Normal_L2", w, h);
-        let base_img =
-            RgbnImage::new(w, h, [vec![0.0; w * h], vec![0.0; w * h], vec![0.0; w * h]], baseline, None)
-                .unwrap();
+        let base_img = RgbnImage::new(
+            w,
+            h,
+            [vec![0.0; w * h], vec![0.0; w * h], vec![0.0; w * h]],
+            baseline,
+            None,
+        )
+        .unwrap();
         let e_base = mean_angle_deg(&base_img, &gt, mask);
         let mut errs = Vec::new();
         for method in [PsMethod::LeastSquares, PsMethod::Trimmed] {
@@ -1410,10 +1456,7 @@ mod uw_tests {
             .unwrap();
             let v = out.validate();
             let inside: Vec<usize> = (0..out.len()).filter(|&i| mask[i] >= 0.5).collect();
-            let facing = inside
-                .iter()
-                .filter(|&&i| out.normal()[2][i] > 0.0)
-                .count();
+            let facing = inside.iter().filter(|&&i| out.normal()[2][i] > 0.0).count();
             let frac = facing as f64 / inside.len() as f64;
             eprintln!(
                 "UW {obj}: {} mask px, n_z > 0 for {:.2}%, {rep:?}",
@@ -1422,7 +1465,10 @@ mod uw_tests {
             );
             assert!(v.is_clean() && v.non_finite_color == 0, "{obj}: {v:?}");
             assert!(frac >= 0.99, "{obj}: {frac}");
-            assert!(rep.solved as f64 >= 0.95 * inside.len() as f64, "{obj}: {rep:?}");
+            assert!(
+                rep.solved as f64 >= 0.95 * inside.len() as f64,
+                "{obj}: {rep:?}"
+            );
         }
     }
 
@@ -1475,9 +1521,11 @@ mod tests_support {
         if d.is_dir() {
             Some(d)
         } else {
-            eprintln!("SKIPPED: real data {} not found (set RGBN_DATA)", d.display());
+            eprintln!(
+                "SKIPPED: real data {} not found (set RGBN_DATA)",
+                d.display()
+            );
             None
         }
     }
-
 }

@@ -770,6 +770,26 @@ fn write_exr_channels(
     })
 }
 
+/// Writes one plane (e.g. an integrated height, in pixels) as a single-channel 32-bit EXR
+/// channel `channel` (use `"Z"` for heights), atomically.
+///
+/// # Errors
+/// [`RgbnError::UnsupportedFormat`] unless `path` ends in `.exr`; write errors.
+pub fn save_plane_exr(plane: &super::Plane, channel: &str, path: &Path) -> Result<(), RgbnError> {
+    if Format::of(path)? != Format::Exr {
+        return Err(RgbnError::UnsupportedFormat {
+            format: "a single plane is written as .exr only".into(),
+            path: path.into(),
+        });
+    }
+    use exr::prelude::*;
+    let list = vec![AnyChannel::new(
+        channel,
+        FlatSamples::F32(plane.data().to_vec()),
+    )];
+    write_exr_channels(plane.width(), plane.height(), list, path)
+}
+
 /// Writes only the colour: EXR (linear `R,G,B`) or PNG/TIFF (sRGB, 8 or 16 bit).
 pub fn save_color(img: &RgbnImage, path: &Path, bits: u8) -> Result<(), RgbnError> {
     match Format::of(path)? {

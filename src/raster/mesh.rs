@@ -25,7 +25,9 @@ use std::io::Write;
 use std::path::Path;
 
 /// Mesh file format.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, serde::Serialize, serde::Deserialize)]
+#[derive(
+    Clone, Copy, Debug, Default, PartialEq, Eq, Hash, serde::Serialize, serde::Deserialize,
+)]
 pub enum MeshFormat {
     /// PLY, binary little-endian (27 bytes per vertex, 13 per triangle).
     #[default]
@@ -124,18 +126,15 @@ pub fn build_mesh(
         acc += c;
     }
     let mut index = vec![u32::MAX; w * h];
-    index
-        .par_chunks_mut(w)
-        .enumerate()
-        .for_each(|(r, out)| {
-            let mut k = row_start[r] as u32;
-            for (x, o) in out.iter_mut().enumerate() {
-                if inside(r * w + x) {
-                    *o = k;
-                    k += 1;
-                }
+    index.par_chunks_mut(w).enumerate().for_each(|(r, out)| {
+        let mut k = row_start[r] as u32;
+        for (x, o) in out.iter_mut().enumerate() {
+            if inside(r * w + x) {
+                *o = k;
+                k += 1;
             }
-        });
+        }
+    });
     let s = params.z_scale / params.pixel_size;
     let mut positions = vec![[0.0f32; 3]; total];
     let mut normals = vec![[0.0f32; 3]; total];
@@ -395,8 +394,10 @@ mod tests {
         assert!(mesh
             .normals
             .iter()
-            .all(|n| ((n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt() - 1.0).abs() < 1e-5
-                && n[2] > 0.0));
+            .all(
+                |n| ((n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt() - 1.0).abs() < 1e-5
+                    && n[2] > 0.0
+            ));
 
         let p = dir.path().join("m_ascii.ply");
         let params = MeshParams {

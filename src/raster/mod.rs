@@ -9,8 +9,8 @@
 pub mod convolve;
 pub mod gradient;
 pub mod integrate;
-pub mod mesh;
 pub mod io;
+pub mod mesh;
 pub mod sample;
 
 use crate::error::RgbnError;
