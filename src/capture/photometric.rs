@@ -590,7 +590,7 @@ fn checked_directions(lights: &Lights, photos: usize) -> Result<Vec<[f64; 3]>, R
         dirs.push(v.map(|c| c / len));
     }
     let cond = condition(&gram(dirs.iter().copied()));
-    if !(cond >= MIN_LIGHT_CONDITION) {
+    if cond.is_nan() || cond < MIN_LIGHT_CONDITION {
         return Err(RgbnError::DegenerateLights {
             detail: format!(
                 "the {m} directions are (nearly) coplanar: det(LᵀL)/(tr/3)³ = {cond:.2e} < \
@@ -728,7 +728,8 @@ fn solve_subset(sel: &[usize], dirs: &[[f64; 3]], obs: &[[f32; 4]]) -> Option<[f
         return None;
     }
     let a = gram(sel.iter().map(|&j| dirs[j]));
-    if !(condition(&a) >= MIN_LIGHT_CONDITION) {
+    let cond = condition(&a);
+    if cond.is_nan() || cond < MIN_LIGHT_CONDITION {
         return None;
     }
     let mut y = [0.0f64; 3];
@@ -772,7 +773,7 @@ fn solve_pixel(
             s.usable.push(j);
         }
     }
-    if !(brightest >= params.dark_level) || brightest <= 0.0 {
+    if brightest.is_nan() || brightest < params.dark_level || brightest <= 0.0 {
         rep.dark += 1;
         return None;
     }
@@ -783,10 +784,10 @@ fn solve_pixel(
     let b = match params.method {
         PsMethod::LeastSquares if s.usable.len() == m => {
             let mut b = [0.0f64; 3];
-            for j in 0..m {
-                let g = f64::from(s.obs[j][3]);
-                for k in 0..3 {
-                    b[k] += pinv[j][k] * g;
+            for (pj, o) in pinv.iter().zip(&s.obs) {
+                let g = f64::from(o[3]);
+                for (bk, pk) in b.iter_mut().zip(pj) {
+                    *bk += pk * g;
                 }
             }
             s.chosen.extend_from_slice(&s.usable);
@@ -813,8 +814,8 @@ fn solve_pixel(
     for &j in &s.chosen {
         let d = dirs[j];
         let sh = (nn[0] * d[0] + nn[1] * d[1] + nn[2] * d[2]).max(0.0);
-        for c in 0..3 {
-            num[c] += f64::from(s.obs[j][c]) * sh;
+        for (nc, &o) in num.iter_mut().zip(&s.obs[j][..3]) {
+            *nc += f64::from(o) * sh;
         }
         den += sh * sh;
     }
@@ -957,7 +958,7 @@ pub fn calibrate_chrome(
             .filter(|&i| mask[i] >= 0.5)
             .map(grey)
             .fold(0.0f32, f32::max);
-        if !(peak > 0.0) {
+        if peak.is_nan() || peak <= 0.0 {
             return Err(RgbnError::param(
                 "chrome photos",
                 format!("photo {j} is black inside the sphere mask"),
@@ -1248,9 +1249,9 @@ mod tests {
         // Dark and saturated pixels are counted, not NaN.
         let mut s2 = stack.clone();
         for ph in &mut s2.photos {
-            for c in 0..3 {
-                ph[c][0] = 0.0; // all dark
-                ph[c][1] = 1.0; // saturated in every photo → unsolvable
+            for plane in ph.iter_mut() {
+                plane[0] = 0.0; // all dark
+                plane[1] = 1.0; // saturated in every photo → unsolvable
             }
         }
         s2.photos[0][1][2] = 1.0; // one saturated observation → still solved from 3

@@ -802,8 +802,8 @@ mod tests {
             if u * u + v * v < a * a {
                 let [p, q] = sphere.gradient(u, v).unwrap();
                 let nn = crate::raster::gradient::normal_of_gradient(p as f32, q as f32);
-                for k in 0..3 {
-                    normal[k][i] = nn[k];
+                for (plane, v) in normal.iter_mut().zip(nn) {
+                    plane[i] = v;
                 }
             }
         }
