@@ -69,6 +69,36 @@ pub enum RgbnError {
     #[error("invalid parameter {name}: {detail}")]
     InvalidParam { name: String, detail: String },
 
+    /// A text input (e.g. a light-direction file) has a malformed line.
+    #[error("cannot parse line {line} ({detail}): {}", .path.display())]
+    Parse {
+        line: usize,
+        detail: String,
+        path: PathBuf,
+    },
+
+    /// Photometric stereo needs at least three lights (three unknowns per pixel).
+    #[error("photometric stereo needs at least 3 photos and lights, got {count}")]
+    TooFewLights { count: usize },
+
+    /// The light file (or intensity list) and the photos do not pair up one to one.
+    #[error("{what}: {got} rows for {photos} photos (row i belongs to photo i): {}", .path.display())]
+    LightCountMismatch {
+        what: &'static str,
+        got: usize,
+        photos: usize,
+        path: PathBuf,
+    },
+
+    /// The light directions do not span 3-D (coplanar, collinear, repeated or zero vectors), so
+    /// normals cannot be recovered.
+    #[error("degenerate light directions: {detail}")]
+    DegenerateLights { detail: String },
+
+    /// An operation that needs at least one pixel inside the mask got an empty mask.
+    #[error("empty mask: {what} has no pixel with coverage ≥ 0.5")]
+    EmptyMask { what: &'static str },
+
     /// Planes that do not form a valid image (wrong lengths); a programming or data error.
     #[error("invalid image: {0}")]
     InvalidImage(String),

@@ -8,12 +8,14 @@
 //! Modules:
 //! - [`raster`]: the image model ([`RgbnImage`]), file I/O, gradient maths and curl,
 //!   convolution kernels, built-in sample and analytic surfaces.
+//! - [`capture`]: photometric stereo and light calibration (photos → RGBN).
 //! - [`ops`]: operators (filters, …).
 //! - [`render`]: relighting and the diagnostic views.
 //! - [`cli`]: the command line (used by the `rgbn` binary).
 //!
 //! The library never depends on the GUI: build with `--no-default-features` for the core.
 
+pub mod capture;
 pub mod cli;
 pub mod error;
 pub mod ops;

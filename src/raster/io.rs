@@ -418,6 +418,24 @@ pub fn load_color(path: &Path) -> Result<(usize, usize, [Vec<f32>; 3]), RgbnErro
     Ok((r.width, r.height, [a, b, c]))
 }
 
+/// Loads a colour image whose integer samples are already **linear** (raw camera data such as
+/// the DiLiGenT photos): 8/16-bit values are divided by `2^bits − 1`, no transfer curve. Float
+/// files (EXR, float TIFF) are returned as stored. Greyscale files repeat their channel.
+pub fn load_color_linear(path: &Path) -> Result<(usize, usize, [Vec<f32>; 3]), RgbnError> {
+    if Format::of(path)? == Format::Exr {
+        return load_color(path);
+    }
+    let r = decode_raster(path)?;
+    let mut planes = vec![Vec::new(), Vec::new(), Vec::new()];
+    match &r.samples {
+        Samples::U8(s) => deinterleave(s, r.channels, &mut planes, |v| f32::from(v) / 255.0),
+        Samples::U16(s) => deinterleave(s, r.channels, &mut planes, |v| f32::from(v) / 65535.0),
+        Samples::F32(s) => deinterleave(s, r.channels, &mut planes, |v| v),
+    }
+    let [a, b, c]: [Vec<f32>; 3] = planes.try_into().expect("three planes");
+    Ok((r.width, r.height, [a, b, c]))
+}
+
 /// Loads a greyscale (or first-channel) mask in [0, 1]; EXR: `A`, else `Y`, else `R`.
 pub fn load_mask(path: &Path) -> Result<(usize, usize, Vec<f32>), RgbnError> {
     if Format::of(path)? == Format::Exr {
@@ -750,6 +768,26 @@ fn write_exr_channels(
     write_atomic(path, |out| {
         image.write().to_buffered(out).map_err(|e| e.to_string())
     })
+}
+
+/// Writes one plane (e.g. an integrated height, in pixels) as a single-channel 32-bit EXR
+/// channel `channel` (use `"Z"` for heights), atomically.
+///
+/// # Errors
+/// [`RgbnError::UnsupportedFormat`] unless `path` ends in `.exr`; write errors.
+pub fn save_plane_exr(plane: &super::Plane, channel: &str, path: &Path) -> Result<(), RgbnError> {
+    if Format::of(path)? != Format::Exr {
+        return Err(RgbnError::UnsupportedFormat {
+            format: "a single plane is written as .exr only".into(),
+            path: path.into(),
+        });
+    }
+    use exr::prelude::*;
+    let list = vec![AnyChannel::new(
+        channel,
+        FlatSamples::F32(plane.data().to_vec()),
+    )];
+    write_exr_channels(plane.width(), plane.height(), list, path)
 }
 
 /// Writes only the colour: EXR (linear `R,G,B`) or PNG/TIFF (sRGB, 8 or 16 bit).

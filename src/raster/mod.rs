@@ -8,7 +8,9 @@
 
 pub mod convolve;
 pub mod gradient;
+pub mod integrate;
 pub mod io;
+pub mod mesh;
 pub mod sample;
 
 use crate::error::RgbnError;

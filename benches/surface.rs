@@ -1,0 +1,89 @@
+//! Surface benchmarks: DCT Poisson / Frankot–Chellappa integration and photometric stereo at
+//! 4K (3840 × 2160). Goals (BENCHMARKS.md): DCT integration ≤ 50 ms on 2 threads, photometric
+//! stereo from 12 photos ≤ 1 s excluding decoding.
+//!
+//! Run: `CARGO_TARGET_DIR=… cargo bench --no-default-features --bench surface`.
+
+use criterion::{criterion_group, criterion_main, Criterion};
+use rgbn::capture::photometric::{
+    photometric_stereo, Lights, PhotoStack, PhotometricParams, PsMethod,
+};
+use rgbn::raster::gradient::GradientField;
+use rgbn::raster::integrate::{
+    integrate_gradients, project_integrable, IntegrateParams, IntegrationMethod, ProjectParams,
+};
+use rgbn::raster::sample::Surface;
+use std::hint::black_box;
+
+const W: usize = 3840;
+const H: usize = 2160;
+
+fn integration(c: &mut Criterion) {
+    let (img, _) = Surface::gaussians_for(H).render(W, H);
+    let g = GradientField::from_normals(&img);
+    let mut group = c.benchmark_group("integrate_4k");
+    group.sample_size(10);
+    for method in [
+        IntegrationMethod::PoissonDct,
+        IntegrationMethod::FrankotChellappa,
+    ] {
+        let params = IntegrateParams {
+            method,
+            ..Default::default()
+        };
+        group.bench_function(format!("{method:?}"), |b| {
+            b.iter(|| integrate_gradients(black_box(&g), None, &params).unwrap())
+        });
+    }
+    group.bench_function("project_integrable_dct", |b| {
+        b.iter(|| project_integrable(black_box(&img), &ProjectParams::default()).unwrap())
+    });
+    group.finish();
+}
+
+fn photometric(c: &mut Criterion) {
+    let (img, _) = Surface::Sphere {
+        radius_px: 0.45 * H as f64,
+    }
+    .render(W, H);
+    let dirs: Vec<[f32; 3]> = (0..12)
+        .map(|j| {
+            let a = std::f32::consts::TAU * j as f32 / 12.0;
+            let t = 0.5f32;
+            [t.sin() * a.cos(), t.sin() * a.sin(), t.cos()]
+        })
+        .collect();
+    let n = W * H;
+    let photos = dirs
+        .iter()
+        .map(|l| {
+            let plane: Vec<f32> = (0..n)
+                .map(|i| {
+                    let nn = [img.normal()[0][i], img.normal()[1][i], img.normal()[2][i]];
+                    0.8 * (nn[0] * l[0] + nn[1] * l[1] + nn[2] * l[2]).max(0.0)
+                })
+                .collect();
+            [plane.clone(), plane.clone(), plane]
+        })
+        .collect();
+    let stack = PhotoStack::new(W, H, photos).unwrap();
+    let lights = Lights {
+        directions: dirs,
+        intensities: None,
+    };
+    let mut group = c.benchmark_group("photometric_4k_12_lights");
+    group.sample_size(10);
+    for method in [PsMethod::LeastSquares, PsMethod::Trimmed] {
+        let params = PhotometricParams {
+            method,
+            ..Default::default()
+        };
+        group.bench_function(format!("{method:?}"), |b| {
+            b.iter(|| photometric_stereo(black_box(&stack), &lights, None, &params).unwrap())
+        });
+    }
+    group.finish();
+}
+
+criterion_group!(benches, integration, photometric);
+criterion_main!(benches);
