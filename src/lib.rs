@@ -8,7 +8,10 @@
 //! Modules:
 //! - [`raster`]: the image model ([`RgbnImage`]), file I/O, gradient maths and curl,
 //!   convolution kernels, built-in sample and analytic surfaces.
-//! - [`ops`]: operators (filters, …).
+//! - [`ops`]: operators (filters, …) and their node form: [`ops::Operator`], [`ops::OpSpec`],
+//!   typed ports, parameters declared once ([`ops::params`]), the registry.
+//! - [`graph`]: graphs of nodes, the versioned RON file format, validation.
+//! - [`eval`]: the lazy, content-keyed, cached evaluator.
 //! - [`render`]: relighting and the diagnostic views.
 //! - [`cli`]: the command line (used by the `rgbn` binary).
 //!
@@ -16,6 +19,8 @@
 
 pub mod cli;
 pub mod error;
+pub mod eval;
+pub mod graph;
 pub mod ops;
 pub mod raster;
 pub mod render;
