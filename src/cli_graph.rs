@@ -36,7 +36,12 @@ pub struct EvalArgs {
     pub inputs: Vec<String>,
     /// Set a parameter: NODE.PARAM=VALUE, NODE a node id or name (repeatable). Lists are
     /// comma separated, points x:y,x:y.
-    #[arg(long = "set", short = 's', value_name = "NODE.PARAM=VALUE", allow_hyphen_values = true)]
+    #[arg(
+        long = "set",
+        short = 's',
+        value_name = "NODE.PARAM=VALUE",
+        allow_hyphen_values = true
+    )]
     pub sets: Vec<String>,
     /// Write a graph output: NAME=PATH (repeatable). Without -o every output is evaluated and
     /// summarised, nothing written.
@@ -60,7 +65,12 @@ pub struct BatchArgs {
     #[arg(long = "input", short = 'i', value_name = "NAME=GLOB", required = true)]
     pub inputs: Vec<String>,
     /// Set a parameter for every run: NODE.PARAM=VALUE.
-    #[arg(long = "set", short = 's', value_name = "NODE.PARAM=VALUE", allow_hyphen_values = true)]
+    #[arg(
+        long = "set",
+        short = 's',
+        value_name = "NODE.PARAM=VALUE",
+        allow_hyphen_values = true
+    )]
     pub sets: Vec<String>,
     /// Folder for the results: STEM.OUTPUT.EXT per input file and graph output (.exr for
     /// images and fields, .png for pictures and masks, .txt for numbers).
@@ -158,7 +168,11 @@ fn describe_value(v: &Value) -> String {
                 .fold((f32::INFINITY, f32::NEG_INFINITY), |(a, b), v| {
                     (a.min(*v), b.max(*v))
                 });
-            format!("scalar {}×{} in [{lo:.4e}, {hi:.4e}]", p.width(), p.height())
+            format!(
+                "scalar {}×{} in [{lo:.4e}, {hi:.4e}]",
+                p.width(),
+                p.height()
+            )
         }
         Value::Picture(p) => format!("picture {}×{}", p.width, p.height),
         Value::Number(x) => format!("{x:.6e}"),
@@ -200,7 +214,12 @@ fn print_stats(out: &mut impl Write, r: &EvalResult) -> Result<(), Failure> {
     }
     line(
         out,
-        &format!("{} nodes: {} hits, {} misses", r.stats.len(), r.hits(), r.misses()),
+        &format!(
+            "{} nodes: {} hits, {} misses",
+            r.stats.len(),
+            r.hits(),
+            r.misses()
+        ),
     )
 }
 
@@ -390,20 +409,23 @@ pub fn check_cmd(a: &CheckArgs, out: &mut impl Write) -> Result<(), Failure> {
         .graph
         .outputs
         .keys()
-        .map(|n| {
-            format!(
-                "{n} ({})",
-                lg.output_type(n).map_or("?", PortType::name)
-            )
-        })
+        .map(|n| format!("{n} ({})", lg.output_type(n).map_or("?", PortType::name)))
         .collect();
     line(
         out,
         &format!(
             "ok: {} nodes; inputs: {}; outputs: {}: {}",
             lg.graph.nodes.len(),
-            if ins.is_empty() { "none".into() } else { ins.join(", ") },
-            if outs.is_empty() { "none".into() } else { outs.join(", ") },
+            if ins.is_empty() {
+                "none".into()
+            } else {
+                ins.join(", ")
+            },
+            if outs.is_empty() {
+                "none".into()
+            } else {
+                outs.join(", ")
+            },
             a.graph.display()
         ),
     )

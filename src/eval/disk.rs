@@ -237,7 +237,8 @@ mod tests {
         let dir = tempfile::tempdir().unwrap();
         let c = DiskCache::new(dir.path()).unwrap();
         let mut img = RgbnImage::flat(3, 2, [0.1, 0.2, 0.3]);
-        img.set_mask(Some(vec![1.0, 0.5, 0.0, 1.0, 1.0, 1.0])).unwrap();
+        img.set_mask(Some(vec![1.0, 0.5, 0.0, 1.0, 1.0, 1.0]))
+            .unwrap();
         let e = CacheEntry {
             values: vec![
                 Value::Rgbn(img),

@@ -162,10 +162,13 @@ impl Plan {
                         outs.get(&(*n, p.clone())).cloned().unwrap_or(Conn::None)
                     }
                     Some(Source::Input(name)) => {
-                        bindings.get(name).cloned().unwrap_or_else(|| Conn::Unbound {
-                            name: name.clone(),
-                            at: at.clone(),
-                        })
+                        bindings
+                            .get(name)
+                            .cloned()
+                            .unwrap_or_else(|| Conn::Unbound {
+                                name: name.clone(),
+                                at: at.clone(),
+                            })
                     }
                 }
             };
@@ -304,7 +307,10 @@ impl EvalResult {
     /// Nodes computed because their key was not cached.
     #[must_use]
     pub fn misses(&self) -> usize {
-        self.stats.iter().filter(|s| s.status == Status::Miss).count()
+        self.stats
+            .iter()
+            .filter(|s| s.status == Status::Miss)
+            .count()
     }
     /// Nodes served from a cache.
     #[must_use]
@@ -345,7 +351,9 @@ pub struct Evaluator {
 
 impl std::fmt::Debug for Evaluator {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.debug_struct("Evaluator").field("disk", &self.disk).finish()
+        f.debug_struct("Evaluator")
+            .field("disk", &self.disk)
+            .finish()
     }
 }
 
@@ -549,7 +557,11 @@ impl Evaluator {
             let ran: Vec<Result<(usize, Arc<CacheEntry>, NodeStats), GraphError>> = batch
                 .par_iter()
                 .map(|&i| {
-                    if opts.cancel.as_ref().is_some_and(|c| c.load(Ordering::Relaxed)) {
+                    if opts
+                        .cancel
+                        .as_ref()
+                        .is_some_and(|c| c.load(Ordering::Relaxed))
+                    {
                         return Err(GraphError::Cancelled);
                     }
                     let r = self.run_one(plan, i, keys[&i], &results, &ctx, opts)?;
@@ -679,14 +691,14 @@ impl Evaluator {
             })
             .collect();
         let t0 = Instant::now();
-        let values = inst
-            .op
-            .run(&inst.params, &inputs, ctx)
-            .map_err(|source| GraphError::Node {
-                op: spec.id.to_string(),
-                source,
-                at: inst.at.clone(),
-            })?;
+        let values =
+            inst.op
+                .run(&inst.params, &inputs, ctx)
+                .map_err(|source| GraphError::Node {
+                    op: spec.id.to_string(),
+                    source,
+                    at: inst.at.clone(),
+                })?;
         let curl = if opts.curl_stats {
             curl_of(&values)
         } else {
@@ -721,9 +733,7 @@ impl Evaluator {
 
 fn curl_of(values: &[Value]) -> Option<f64> {
     values.iter().find_map(|v| match v {
-        Value::Rgbn(img) => {
-            Some(GradientField::from_normals(img).relative_rms_curl(img.mask()))
-        }
+        Value::Rgbn(img) => Some(GradientField::from_normals(img).relative_rms_curl(img.mask())),
         _ => None,
     })
 }

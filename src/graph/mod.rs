@@ -333,8 +333,7 @@ impl LoadedGraph {
             None => {
                 return Err(GraphError::Param {
                     param: "path".into(),
-                    detail: "a graph node needs parameter \"path\" (the graph file it uses)"
-                        .into(),
+                    detail: "a graph node needs parameter \"path\" (the graph file it uses)".into(),
                     at,
                 })
             }
@@ -362,12 +361,7 @@ impl LoadedGraph {
         if !overrides.is_empty() {
             for (name, value) in overrides {
                 let Some(ex) = sub.graph.exposed.get(name).cloned() else {
-                    let names = sub
-                        .graph
-                        .exposed
-                        .keys()
-                        .map(String::as_str)
-                        .chain(["path"]);
+                    let names = sub.graph.exposed.keys().map(String::as_str).chain(["path"]);
                     return Err(GraphError::Param {
                         param: name.clone(),
                         detail: format!(
@@ -417,7 +411,11 @@ impl LoadedGraph {
     }
 
     fn output_port(&self, r: &PortRef) -> Option<&PortSpec> {
-        self.ports.get(&r.node)?.outputs.iter().find(|p| p.name == r.port)
+        self.ports
+            .get(&r.node)?
+            .outputs
+            .iter()
+            .find(|p| p.name == r.port)
     }
 
     fn check_edges(&self) -> Result<(), GraphError> {
@@ -553,8 +551,11 @@ impl LoadedGraph {
                 }
             }
         }
-        let mut ready: BTreeSet<NodeId> =
-            indeg.iter().filter(|(_, d)| **d == 0).map(|(k, _)| *k).collect();
+        let mut ready: BTreeSet<NodeId> = indeg
+            .iter()
+            .filter(|(_, d)| **d == 0)
+            .map(|(k, _)| *k)
+            .collect();
         let mut order = Vec::with_capacity(indeg.len());
         while let Some(id) = ready.pop_first() {
             order.push(id);
@@ -617,7 +618,12 @@ impl LoadedGraph {
 
     /// Sets parameter `param` of the node named by `node_ref` (id or name) from command-line
     /// text, then re-validates the graph.
-    pub fn set_param(&mut self, node_ref: &str, param: &str, value: &str) -> Result<(), GraphError> {
+    pub fn set_param(
+        &mut self,
+        node_ref: &str,
+        param: &str,
+        value: &str,
+    ) -> Result<(), GraphError> {
         let Some(id) = self.graph.find_node(node_ref) else {
             let names: Vec<String> = self
                 .graph

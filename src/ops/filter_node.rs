@@ -92,11 +92,7 @@ impl<K: KernelNode> Operator for FilterOp<K> {
     fn check(p: &FilterParams<K>) -> Result<(), RgbnError> {
         p.kernel.kernel().validate()
     }
-    fn run(
-        p: &FilterParams<K>,
-        i: &Inputs<'_>,
-        _: &RunContext,
-    ) -> Result<Vec<Value>, RgbnError> {
+    fn run(p: &FilterParams<K>, i: &Inputs<'_>, _: &RunContext) -> Result<Vec<Value>, RgbnError> {
         let (out, _) = filter_normals(i.rgbn("image")?, &[p.kernel.kernel()], &p.options())?;
         Ok(vec![Value::Rgbn(out)])
     }

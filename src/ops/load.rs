@@ -355,11 +355,7 @@ impl Operator for ApplyMask {
         .input(PortSpec::new("mask", PortType::Mask, "The new mask (same size).").optional())
         .output(PortSpec::new("image", PortType::Rgbn, "The image with the mask."))
     }
-    fn run(
-        p: &ApplyMaskParams,
-        i: &Inputs<'_>,
-        _: &RunContext,
-    ) -> Result<Vec<Value>, RgbnError> {
+    fn run(p: &ApplyMaskParams, i: &Inputs<'_>, _: &RunContext) -> Result<Vec<Value>, RgbnError> {
         let mut img = i.rgbn("image")?.clone();
         match i.mask("mask")? {
             None => img.set_mask(None)?,

@@ -271,7 +271,9 @@ impl<'a> Inputs<'a> {
         self.values.get(i)?.as_ref()
     }
     fn missing(name: &str) -> RgbnError {
-        RgbnError::InvalidImage(format!("input {name:?} is not connected or has the wrong type"))
+        RgbnError::InvalidImage(format!(
+            "input {name:?} is not connected or has the wrong type"
+        ))
     }
     /// The RGBN image on port `name`.
     pub fn rgbn(&self, name: &str) -> Result<&'a RgbnImage, RgbnError> {

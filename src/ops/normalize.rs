@@ -17,7 +17,11 @@ impl Operator for Normalize {
             "Rescales every normal to unit length; colour and mask are unchanged.",
         )
         .input(PortSpec::new("image", PortType::Rgbn, "Image."))
-        .output(PortSpec::new("image", PortType::Rgbn, "Image with unit normals."))
+        .output(PortSpec::new(
+            "image",
+            PortType::Rgbn,
+            "Image with unit normals.",
+        ))
     }
     fn run(_: &NoParams, i: &Inputs<'_>, _: &RunContext) -> Result<Vec<Value>, RgbnError> {
         let mut img = i.rgbn("image")?.clone();

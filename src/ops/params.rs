@@ -346,7 +346,12 @@ impl<F: FnMut(&'static str, ParamKind, &Meta, ParamValue)> ParamVisitor for Coll
         (self.0)(name, ParamKind::Vec3, meta, ParamValue::Vec3(*value));
     }
     fn floats(&mut self, name: &'static str, value: &mut Vec<f64>, meta: &Meta) {
-        (self.0)(name, ParamKind::Floats, meta, ParamValue::Floats(value.clone()));
+        (self.0)(
+            name,
+            ParamKind::Floats,
+            meta,
+            ParamValue::Floats(value.clone()),
+        );
     }
     fn profile(&mut self, name: &'static str, value: &mut Vec<f64>, meta: &Meta) {
         (self.0)(
@@ -357,7 +362,12 @@ impl<F: FnMut(&'static str, ParamKind, &Meta, ParamValue)> ParamVisitor for Coll
         );
     }
     fn points(&mut self, name: &'static str, value: &mut Vec<[f64; 2]>, meta: &Meta) {
-        (self.0)(name, ParamKind::Points, meta, ParamValue::Points(value.clone()));
+        (self.0)(
+            name,
+            ParamKind::Points,
+            meta,
+            ParamValue::Points(value.clone()),
+        );
     }
 }
 
@@ -430,7 +440,10 @@ impl fmt::Display for ParamError {
                 name,
                 expected,
                 found,
-            } => write!(f, "parameter {name:?} needs a {expected} value, got a {found}"),
+            } => write!(
+                f,
+                "parameter {name:?} needs a {expected} value, got a {found}"
+            ),
             ParamError::Range { name, detail } => write!(f, "parameter {name:?}: {detail}"),
         }
     }
@@ -711,9 +724,15 @@ mod tests {
         }
         bad.clear();
         bad.insert("n".into(), ParamValue::Int(9));
-        assert!(matches!(from_values::<P>(&bad), Err(ParamError::Range { .. })));
+        assert!(matches!(
+            from_values::<P>(&bad),
+            Err(ParamError::Range { .. })
+        ));
         bad.insert("n".into(), ParamValue::Bool(true));
-        assert!(matches!(from_values::<P>(&bad), Err(ParamError::Kind { .. })));
+        assert!(matches!(
+            from_values::<P>(&bad),
+            Err(ParamError::Kind { .. })
+        ));
         bad.clear();
         bad.insert("mode".into(), ParamValue::Choice("be".into()));
         let e = from_values::<P>(&bad).unwrap_err().to_string();
@@ -730,7 +749,10 @@ mod tests {
             Ok(ParamValue::Points(vec![[1.0, 2.0], [3.0, 4.0]]))
         );
         assert_eq!(edit_distance("kitten", "sitting"), 3);
-        assert_eq!(nearest("gausian", ["gaussian", "box"]).as_deref(), Some("gaussian"));
+        assert_eq!(
+            nearest("gausian", ["gaussian", "box"]).as_deref(),
+            Some("gaussian")
+        );
         assert_eq!(nearest("zzzzzz", ["gaussian", "box"]), None);
     }
 }

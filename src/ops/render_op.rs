@@ -2,7 +2,7 @@
 //! normals as colour, curl map), producing display pictures.
 
 use super::params::{Meta, ParamVisitor, Params};
-use super::{Inputs, OpSpec, Operator, PortSpec, PortType, Picture, RunContext, Value};
+use super::{Inputs, OpSpec, Operator, Picture, PortSpec, PortType, RunContext, Value};
 use crate::error::RgbnError;
 use crate::render::{self, Light, Shading, View};
 use std::sync::Arc;
@@ -153,7 +153,10 @@ impl Operator for ViewOp {
     }
     fn run(p: &ViewParams, i: &Inputs<'_>, _: &RunContext) -> Result<Vec<Value>, RgbnError> {
         let img = i.rgbn("image")?;
-        let view = p.view.parse::<View>().map_err(|e| RgbnError::param("view", e))?;
+        let view = p
+            .view
+            .parse::<View>()
+            .map_err(|e| RgbnError::param("view", e))?;
         let rgba = render::render(img, view, &Shading::default())?;
         Ok(vec![picture(img.width(), img.height(), rgba)])
     }

@@ -1,0 +1,16 @@
+//! The integration tests: one binary, one module per area (add yours with another `#[path]`).
+
+#[path = "it/common.rs"]
+mod common;
+
+#[path = "it/graphs.rs"]
+mod graphs;
+
+#[path = "it/graph_errors.rs"]
+mod graph_errors;
+
+#[path = "it/cache.rs"]
+mod cache;
+
+#[path = "it/cli.rs"]
+mod cli;
