@@ -1,5 +1,8 @@
 //! The graph commands of the CLI: `eval`, `batch`, `check`, `ops` (a part of [`crate::cli`]).
 
+// Graph errors carry their location (file, node, names) by value; they are cold paths.
+#![allow(clippy::result_large_err)]
+
 use super::{Failure, RgbnError};
 use crate::eval::{EvalOptions, EvalResult, Evaluator, Plan, Status};
 use crate::graph::{GraphError, LoadedGraph};

@@ -14,6 +14,9 @@
 //! - **Cancellation and progress**: [`EvalOptions::cancel`] is checked before each node;
 //!   [`EvalOptions::progress`] is called after each node that ran.
 
+// Graph errors carry their location (file, node, names) by value; they are cold paths.
+#![allow(clippy::result_large_err)]
+
 pub mod cache;
 pub mod disk;
 
@@ -335,6 +338,9 @@ impl EvalResult {
     }
 }
 
+/// A node that ran: its index, outputs and stats.
+type Ran = (usize, Arc<CacheEntry>, NodeStats);
+
 #[derive(Clone, Copy)]
 struct FileStamp {
     mtime: Option<SystemTime>,
@@ -554,7 +560,7 @@ impl Evaluator {
         };
         for l in 0..depth {
             let batch: Vec<usize> = to_run.iter().copied().filter(|i| level[i] == l).collect();
-            let ran: Vec<Result<(usize, Arc<CacheEntry>, NodeStats), GraphError>> = batch
+            let ran: Vec<Result<Ran, GraphError>> = batch
                 .par_iter()
                 .map(|&i| {
                     if opts

@@ -267,11 +267,11 @@ impl GraphError {
     #[must_use]
     pub fn exit_code(&self) -> u8 {
         match self {
-            GraphError::Node { source, .. } => match source {
-                RgbnError::InvalidImage(_) | RgbnError::Write { .. } => 1,
-                _ => 2,
-            },
-            GraphError::Cancelled => 1,
+            GraphError::Node {
+                source: RgbnError::InvalidImage(_) | RgbnError::Write { .. },
+                ..
+            }
+            | GraphError::Cancelled => 1,
             _ => 2,
         }
     }

@@ -23,6 +23,9 @@
 //! [`GraphError::UnsupportedVersion`]; older versions are read with their own schema and
 //! migrated one version at a time by functions ([`migrate_v0`]).
 
+// Graph errors carry their location (file, node, names) by value; they are cold paths.
+#![allow(clippy::result_large_err)]
+
 use super::error::GraphError;
 use crate::ops::params::ParamValue;
 use crate::ops::PortType;

@@ -6,6 +6,9 @@
 //! The graph is the truth: an editor mirrors it and asks it before changing anything. Node ids
 //! are stable `u64`s handed out from `next_id` and never reused.
 
+// Graph errors carry their location (file, node, names) by value; they are cold paths.
+#![allow(clippy::result_large_err)]
+
 pub mod error;
 pub mod file;
 

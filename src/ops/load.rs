@@ -317,16 +317,10 @@ impl Operator for LoadMask {
 }
 
 /// Parameters of [`ApplyMask`].
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Debug, Default, PartialEq)]
 pub struct ApplyMaskParams {
     /// Use `1 − mask`.
     pub invert: bool,
-}
-
-impl Default for ApplyMaskParams {
-    fn default() -> Self {
-        Self { invert: false }
-    }
 }
 
 impl Params for ApplyMaskParams {

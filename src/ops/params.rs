@@ -449,6 +449,12 @@ impl fmt::Display for ParamError {
     }
 }
 
+fn set_if<T>(ok: bool, dst: &mut T, v: T) {
+    if ok {
+        *dst = v;
+    }
+}
+
 /// Applies values onto a struct, checking kinds and ranges.
 struct Apply<'a> {
     values: &'a BTreeMap<String, ParamValue>,
@@ -501,9 +507,8 @@ impl ParamVisitor for Apply<'_> {
         match self.get(name).cloned() {
             None => {}
             Some(ParamValue::Int(i)) => {
-                if self.check_range(name, &[i as f64], meta) {
-                    *value = i;
-                }
+                let ok = self.check_range(name, &[i as f64], meta);
+                set_if(ok, value, i);
             }
             Some(v) => self.kind_err(name, "int", &v),
         }
@@ -515,9 +520,8 @@ impl ParamVisitor for Apply<'_> {
             Some(ParamValue::Int(i)) => i as f64,
             Some(v) => return self.kind_err(name, "float", &v),
         };
-        if self.check_range(name, &[x], meta) {
-            *value = x;
-        }
+        let ok = self.check_range(name, &[x], meta);
+        set_if(ok, value, x);
     }
     fn choice(
         &mut self,
@@ -573,9 +577,8 @@ impl ParamVisitor for Apply<'_> {
         match self.get(name).cloned() {
             None => {}
             Some(ParamValue::Vec3(v)) => {
-                if self.check_range(name, &v, meta) {
-                    *value = v;
-                }
+                let ok = self.check_range(name, &v, meta);
+                set_if(ok, value, v);
             }
             Some(v) => self.kind_err(name, "vec3", &v),
         }
@@ -584,9 +587,8 @@ impl ParamVisitor for Apply<'_> {
         match self.get(name).cloned() {
             None => {}
             Some(ParamValue::Floats(v)) => {
-                if self.check_range(name, &v, meta) {
-                    *value = v;
-                }
+                let ok = self.check_range(name, &v, meta);
+                set_if(ok, value, v);
             }
             Some(v) => self.kind_err(name, "floats", &v),
         }
@@ -595,9 +597,8 @@ impl ParamVisitor for Apply<'_> {
         match self.get(name).cloned() {
             None => {}
             Some(ParamValue::Profile(v) | ParamValue::Floats(v)) => {
-                if self.check_range(name, &v, meta) {
-                    *value = v;
-                }
+                let ok = self.check_range(name, &v, meta);
+                set_if(ok, value, v);
             }
             Some(v) => self.kind_err(name, "profile", &v),
         }
@@ -607,9 +608,8 @@ impl ParamVisitor for Apply<'_> {
             None => {}
             Some(ParamValue::Points(v)) => {
                 let flat: Vec<f64> = v.iter().flatten().copied().collect();
-                if self.check_range(name, &flat, meta) {
-                    *value = v;
-                }
+                let ok = self.check_range(name, &flat, meta);
+                set_if(ok, value, v);
             }
             Some(v) => self.kind_err(name, "points", &v),
         }
@@ -707,10 +707,12 @@ mod tests {
 
     #[test]
     fn round_trip_and_errors() {
-        let mut p = P::default();
-        p.sigma_px = 4.5;
-        p.mode = "bee";
-        p.pts = vec![[1.0, 2.0]];
+        let p = P {
+            sigma_px: 4.5,
+            mode: "bee",
+            pts: vec![[1.0, 2.0]],
+            ..P::default()
+        };
         let v = to_values(&p);
         assert_eq!(v.len(), 4);
         assert_eq!(from_values::<P>(&v), Ok(p));

@@ -105,14 +105,14 @@ fn compare(golden: &str, got: &str, file: &str) {
         let ow: Vec<&str> = ol.split_whitespace().collect();
         assert_eq!(gw[0], ow[0], "{file}: channel differs");
         assert_eq!(gw.len(), ow.len(), "{file}: {}", gw[0]);
-        // 8-bit pictures: ½ level; floats: 1e-4 absolute + 1e-4 relative.
+        // 8-bit pictures: ½ level; floats: 1e-5 absolute + 1e-4 relative.
         let picture = gw[0].ends_with(".r")
             || gw[0].ends_with(".g")
             || gw[0].ends_with(".b")
             || gw[0].ends_with(".a");
         for (a, b) in gw[1..].iter().zip(&ow[1..]) {
             let (a, b): (f64, f64) = (a.parse().unwrap(), b.parse().unwrap());
-            let tol = if picture { 0.5 } else { 1e-4 + 1e-4 * a.abs() };
+            let tol = if picture { 0.5 } else { 1e-5 + 1e-4 * a.abs() };
             assert!(
                 (a - b).abs() <= tol,
                 "{file}: {} golden {a} got {b} (tolerance {tol})",
