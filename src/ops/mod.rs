@@ -12,9 +12,25 @@
 //!
 //! ## Wrapping a pure function as a node
 //!
-//! Given `pub fn emboss(img: &RgbnImage, strength: f32) -> Result<RgbnImage, RgbnError>`:
+//! Given a pure function such as `emboss` below, the node is a params struct, a spec and a
+//! one-line `run`:
 //!
-//! ```ignore
+//! ```
+//! use rgbn::error::RgbnError;
+//! use rgbn::ops::params::{Meta, ParamVisitor, Params};
+//! use rgbn::ops::{Inputs, OpSpec, Operator, PortSpec, PortType, RunContext, Value};
+//! use rgbn::RgbnImage;
+//!
+//! /// The pure function (normally in its own file, with tests).
+//! pub fn emboss(img: &RgbnImage, strength: f32) -> Result<RgbnImage, RgbnError> {
+//!     let mut out = img.clone();
+//!     for v in &mut out.normal_mut()[0] {
+//!         *v *= strength;
+//!     }
+//!     out.normalize();
+//!     Ok(out)
+//! }
+//!
 //! #[derive(Clone, Debug, PartialEq)]
 //! pub struct EmbossParams { pub strength: f64 }
 //! impl Default for EmbossParams { fn default() -> Self { Self { strength: 1.0 } } }
@@ -23,11 +39,12 @@
 //!         v.float("strength", &mut self.strength, &Meta::new("How much.").range(0.0, 10.0));
 //!     }
 //! }
+//!
 //! pub struct EmbossOp;
 //! impl Operator for EmbossOp {
 //!     type Params = EmbossParams;
 //!     fn spec() -> OpSpec {
-//!         OpSpec::new("emboss", "Emboss", "edit", "Embosses the relief.")
+//!         OpSpec::new("emboss", "Emboss", "filter", "Embosses the relief.")
 //!             .input(PortSpec::new("image", PortType::Rgbn, "Input."))
 //!             .output(PortSpec::new("image", PortType::Rgbn, "Embossed."))
 //!     }
@@ -35,6 +52,11 @@
 //!         Ok(vec![Value::Rgbn(emboss(i.rgbn("image")?, p.strength as f32)?)])
 //!     }
 //! }
+//! # let img = RgbnImage::flat(4, 4, [0.5; 3]);
+//! # let spec = EmbossOp::spec();
+//! # let v = [Some(Value::Rgbn(img.clone()))];
+//! # let out = EmbossOp::run(&EmbossParams::default(), &Inputs::new(&spec.inputs, &v), &RunContext::default()).unwrap();
+//! # assert_eq!(out, vec![Value::Rgbn(img)]);
 //! ```
 //!
 //! then add `EmbossOp` to [`registry`] and an example `graphs/emboss.ron`. Bump
