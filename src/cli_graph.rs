@@ -182,7 +182,7 @@ fn describe_value(v: &Value) -> String {
     }
 }
 
-fn print_stats(out: &mut impl Write, r: &EvalResult) -> Result<(), Failure> {
+fn print_stats(out: &mut impl Write, r: &EvalResult, top: &str) -> Result<(), Failure> {
     line(
         out,
         &format!(
@@ -191,11 +191,18 @@ fn print_stats(out: &mut impl Write, r: &EvalResult) -> Result<(), Failure> {
         ),
     )?;
     for s in &r.stats {
-        let node = match (s.at.node, &s.at.name) {
+        let mut node = match (s.at.node, &s.at.name) {
             (Some(id), Some(n)) => format!("{id} {n}"),
             (Some(id), None) => id.to_string(),
             _ => s.at.file.clone(),
         };
+        if s.at.node.is_some() && s.at.file != top {
+            // A node inside a graph file used as a node: name the file.
+            let file = Path::new(&s.at.file)
+                .file_name()
+                .map_or_else(String::new, |f| f.to_string_lossy().into_owned());
+            node = format!("{file}:{node}");
+        }
         let status = match s.status {
             Status::Hit => "hit",
             Status::DiskHit => "disk",
@@ -288,7 +295,7 @@ pub fn eval_cmd(a: &EvalArgs, out: &mut impl Write) -> Result<(), Failure> {
         }
     }
     if a.stats {
-        print_stats(out, &r)?;
+        print_stats(out, &r, &plan.at.file)?;
     }
     Ok(())
 }

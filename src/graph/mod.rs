@@ -671,6 +671,33 @@ impl LoadedGraph {
         Ok(())
     }
 
+    /// Connects `source` to input `port` of node `to`, replacing any edge into that port. The
+    /// graph is changed only if the result is valid (ports exist, types match, no cycle); an
+    /// editor asks this first and mirrors the change in its view on success.
+    pub fn connect(&mut self, to: NodeId, port: &str, source: Source) -> Result<(), GraphError> {
+        let mut graph = self.graph.clone();
+        let Some(n) = graph.nodes.get_mut(&to) else {
+            return Err(GraphError::MissingNode {
+                what: "connection".into(),
+                missing: to,
+                at: self.at(),
+            });
+        };
+        n.inputs.insert(port.to_string(), source);
+        *self = Self::from_graph(graph, self.path.clone(), self.base_dir.clone())?;
+        Ok(())
+    }
+
+    /// Removes the edge into input `port` of node `to` (refused if that input is required).
+    pub fn disconnect(&mut self, to: NodeId, port: &str) -> Result<(), GraphError> {
+        let mut graph = self.graph.clone();
+        if let Some(n) = graph.nodes.get_mut(&to) {
+            n.inputs.remove(port);
+        }
+        *self = Self::from_graph(graph, self.path.clone(), self.base_dir.clone())?;
+        Ok(())
+    }
+
     /// The type of graph output `name`.
     #[must_use]
     pub fn output_type(&self, name: &str) -> Option<PortType> {
@@ -687,5 +714,51 @@ fn param_error(e: &ops::params::ParamError, at: At) -> GraphError {
         param,
         detail: e.to_string(),
         at,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const G: &str = r#"(version: 1, next_id: 4, outputs: { "o": (node: 3, port: "image") }, nodes: [
+        (id: 1, op: "surface", params: { "width": Int(8), "height": Int(8) }),
+        (id: 2, op: "normalize", inputs: { "image": Node(1, "image") }),
+        (id: 3, op: "normalize", inputs: { "image": Node(2, "image") }),
+    ])"#;
+
+    #[test]
+    fn connect_checks_types_and_cycles_before_changing_the_graph() {
+        let mut lg = LoadedGraph::from_text(G, "g.ron", PathBuf::from(".")).unwrap();
+        let before = lg.graph.clone();
+        let e = lg
+            .connect(2, "image", Source::Node(1, "height".into()))
+            .unwrap_err();
+        assert!(matches!(e, GraphError::TypeMismatch { .. }), "{e}");
+        let e = lg
+            .connect(2, "image", Source::Node(3, "image".into()))
+            .unwrap_err();
+        assert!(matches!(e, GraphError::Cycle { .. }), "{e}");
+        let e = lg.disconnect(2, "image").unwrap_err();
+        assert!(matches!(e, GraphError::MissingInput { .. }), "{e}");
+        assert_eq!(lg.graph, before);
+        lg.connect(3, "image", Source::Node(1, "image".into()))
+            .unwrap();
+        assert_eq!(lg.order.last(), Some(&3));
+        assert_eq!(
+            lg.graph.nodes[&3].inputs["image"],
+            Source::Node(1, "image".into())
+        );
+    }
+
+    #[test]
+    fn added_nodes_get_fresh_ids() {
+        let mut g = LoadedGraph::from_text(G, "g.ron", PathBuf::from("."))
+            .unwrap()
+            .graph;
+        g.nodes.remove(&3);
+        let id = g.add_node("demo", [0.0, 0.0]);
+        assert_eq!(id, 4, "ids are never reused");
+        assert_eq!(g.next_id, 5);
     }
 }
