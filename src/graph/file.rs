@@ -44,13 +44,13 @@ pub struct GraphFile {
     /// The next node id to hand out (above every id ever used).
     pub next_id: u64,
     /// Named graph inputs (ports of the graph when used as a node).
-    #[serde(default)]
+    #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
     pub inputs: BTreeMap<String, InputDef>,
     /// Named graph outputs.
     #[serde(default)]
     pub outputs: BTreeMap<String, PortRef>,
     /// Parameters exposed to a graph using this one as a node.
-    #[serde(default)]
+    #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
     pub exposed: BTreeMap<String, ExposedDef>,
     /// The nodes, in id order.
     pub nodes: Vec<NodeDef>,

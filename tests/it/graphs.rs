@@ -29,7 +29,10 @@ fn every_graph_loads_saves_and_reloads_identically() {
         assert_eq!(again.graph, lg.graph, "{}", path.display());
         assert_eq!(again.to_text(), saved, "{}", path.display());
         if update() {
-            std::fs::write(&path, &saved).unwrap();
+            // Atomically: other tests read these files concurrently.
+            let tmp = path.with_extension("ron.tmp");
+            std::fs::write(&tmp, &saved).unwrap();
+            std::fs::rename(&tmp, &path).unwrap();
         } else {
             assert_eq!(
                 text,
