@@ -15,6 +15,10 @@ use clap::{Args, Parser, Subcommand};
 use std::io::Write;
 use std::path::{Path, PathBuf};
 
+#[path = "cli_graph.rs"]
+mod graph_cmds;
+pub use graph_cmds::{BatchArgs, CheckArgs, EvalArgs};
+
 /// Edit RGBN images (colour + normals) without breaking integrability.
 #[derive(Parser, Debug)]
 #[command(name = "rgbn", version, about, long_about = None, arg_required_else_help = true)]
@@ -31,6 +35,14 @@ pub enum Command {
     Render(RenderArgs),
     /// Filter the normals through their gradients with linear kernels.
     Filter(FilterArgs),
+    /// Evaluate a graph file: bind inputs, set parameters, write outputs.
+    Eval(EvalArgs),
+    /// Run a graph over many files (a glob), continuing past failures.
+    Batch(BatchArgs),
+    /// Validate a graph file without evaluating it.
+    Check(CheckArgs),
+    /// List every operator with its doc, ports and parameters.
+    Ops,
 }
 
 /// Where the input comes from.
@@ -161,7 +173,9 @@ fn parse_bits(s: &str) -> Result<u8, String> {
 /// A failure and the exit code it maps to.
 #[derive(Debug)]
 pub struct Failure {
+    /// Process exit code (1 evaluation failure, 2 usage or input error).
     pub code: u8,
+    /// One line: what is wrong, then where.
     pub message: String,
 }
 
@@ -203,6 +217,10 @@ where
         Command::Info(a) => info(&a, &mut out),
         Command::Render(a) => render_cmd(&a, &mut out),
         Command::Filter(a) => filter_cmd(&a, &mut out),
+        Command::Eval(a) => graph_cmds::eval_cmd(&a, &mut out),
+        Command::Batch(a) => graph_cmds::batch_cmd(&a, &mut out),
+        Command::Check(a) => graph_cmds::check_cmd(&a, &mut out),
+        Command::Ops => graph_cmds::ops_cmd(&mut out),
     };
     match result {
         Ok(()) => 0,

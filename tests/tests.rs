@@ -1,4 +1,4 @@
-//! The one integration-test binary (modules under `tests/it/`).
+//! The integration tests: one binary, one module per area (add yours with another `#[path]`).
 
 #[path = "it/common.rs"]
 mod common;
@@ -7,3 +7,15 @@ mod common;
 mod cli_core;
 #[path = "it/real_data.rs"]
 mod real_data;
+
+#[path = "it/graphs.rs"]
+mod graphs;
+
+#[path = "it/graph_errors.rs"]
+mod graph_errors;
+
+#[path = "it/cache.rs"]
+mod cache;
+
+#[path = "it/cli.rs"]
+mod cli;

@@ -1,9 +1,79 @@
-//! Shared helpers of the integration tests.
+//! Helpers shared by the integration test modules.
 
 #![allow(dead_code)]
 
-use std::path::PathBuf;
+use rgbn::eval::{EvalOptions, EvalResult, Evaluator, Plan};
+use rgbn::graph::LoadedGraph;
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
+
+/// The repository root.
+pub fn root() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+}
+
+/// `graphs/NAME`.
+pub fn graph_path(name: &str) -> PathBuf {
+    root().join("graphs").join(name)
+}
+
+/// Every `graphs/*.ron` (top level only, sorted).
+pub fn top_graphs() -> Vec<PathBuf> {
+    let mut v: Vec<PathBuf> = std::fs::read_dir(root().join("graphs"))
+        .expect("graphs/ exists")
+        .filter_map(|e| e.ok().map(|e| e.path()))
+        .filter(|p| p.extension().is_some_and(|e| e == "ron"))
+        .collect();
+    v.sort();
+    v
+}
+
+/// Every `.ron` under `graphs/`, recursively.
+pub fn all_graphs() -> Vec<PathBuf> {
+    fn walk(d: &Path, out: &mut Vec<PathBuf>) {
+        for e in std::fs::read_dir(d).expect("readable").flatten() {
+            let p = e.path();
+            if p.is_dir() {
+                walk(&p, out);
+            } else if p.extension().is_some_and(|e| e == "ron") {
+                out.push(p);
+            }
+        }
+    }
+    let mut v = Vec::new();
+    walk(&root().join("graphs"), &mut v);
+    v.sort();
+    v
+}
+
+/// Graph inputs of the example graphs are bound to `graphs/data/NAME.exr`.
+pub fn example_bindings(lg: &LoadedGraph) -> BTreeMap<String, PathBuf> {
+    lg.graph
+        .inputs
+        .keys()
+        .map(|n| {
+            (
+                n.clone(),
+                root().join("graphs/data").join(format!("{n}.exr")),
+            )
+        })
+        .collect()
+}
+
+/// Evaluates every output of `lg` with a fresh plan.
+pub fn eval_all(ev: &Evaluator, lg: &LoadedGraph, out_dir: &Path) -> EvalResult {
+    let plan = Plan::new(lg, &example_bindings(lg), out_dir).expect("plan");
+    ev.eval(&plan, &[], &EvalOptions::default())
+        .unwrap_or_else(|e| panic!("{e}"))
+}
+
+/// Writes `text` as `name` in `dir` and returns the path.
+pub fn write(dir: &Path, name: &str, text: &str) -> PathBuf {
+    let p = dir.join(name);
+    std::fs::write(&p, text).expect("write");
+    p
+}
 
 /// The third-party test data (`$RGBN_DATA`, else `../shared/data` beside the checkout), or
 /// `None` with a note on stderr so a skipped test says so.

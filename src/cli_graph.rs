@@ -1,0 +1,513 @@
+//! The graph commands of the CLI: `eval`, `batch`, `check`, `ops` (a part of [`crate::cli`]).
+
+// Graph errors carry their location (file, node, names) by value; they are cold paths.
+#![allow(clippy::result_large_err)]
+
+use super::{Failure, RgbnError};
+use crate::eval::{EvalOptions, EvalResult, Evaluator, Plan, Status};
+use crate::graph::{GraphError, LoadedGraph};
+use crate::ops::params::{ParamKind, ParamValue};
+use crate::ops::save::write_value;
+use crate::ops::{registry, PortType, Value};
+use crate::raster::io::{self, SaveOptions};
+use clap::Args;
+use std::collections::BTreeMap;
+use std::io::Write;
+use std::path::{Path, PathBuf};
+use std::sync::{Arc, Mutex};
+
+impl From<GraphError> for Failure {
+    fn from(e: GraphError) -> Self {
+        Failure {
+            code: e.exit_code(),
+            message: e.to_string(),
+        }
+    }
+}
+
+fn usage(message: String) -> Failure {
+    Failure { code: 2, message }
+}
+
+/// `rgbn eval`.
+#[derive(Args, Debug)]
+pub struct EvalArgs {
+    /// Graph file (.ron).
+    pub graph: PathBuf,
+    /// Bind a graph input to a file: NAME=PATH (repeatable).
+    #[arg(long = "input", short = 'i', value_name = "NAME=PATH")]
+    pub inputs: Vec<String>,
+    /// Set a parameter: NODE.PARAM=VALUE, NODE a node id or name (repeatable). Lists are
+    /// comma separated, points x:y,x:y.
+    #[arg(
+        long = "set",
+        short = 's',
+        value_name = "NODE.PARAM=VALUE",
+        allow_hyphen_values = true
+    )]
+    pub sets: Vec<String>,
+    /// Write a graph output: NAME=PATH (repeatable). Without -o every output is evaluated and
+    /// summarised, nothing written.
+    #[arg(short = 'o', long = "output", value_name = "NAME=PATH")]
+    pub outputs: Vec<String>,
+    /// Print per-node statistics (time, cache hit/miss, bytes, curl).
+    #[arg(long)]
+    pub stats: bool,
+    /// Keep node results in this folder and reuse them across runs.
+    #[arg(long, value_name = "DIR")]
+    pub cache_dir: Option<PathBuf>,
+}
+
+/// `rgbn batch`.
+#[derive(Args, Debug)]
+pub struct BatchArgs {
+    /// Graph file (.ron).
+    pub graph: PathBuf,
+    /// NAME=GLOB: the graph input fed with each matching file; further NAME=PATH inputs are
+    /// the same for every file.
+    #[arg(long = "input", short = 'i', value_name = "NAME=GLOB", required = true)]
+    pub inputs: Vec<String>,
+    /// Set a parameter for every run: NODE.PARAM=VALUE.
+    #[arg(
+        long = "set",
+        short = 's',
+        value_name = "NODE.PARAM=VALUE",
+        allow_hyphen_values = true
+    )]
+    pub sets: Vec<String>,
+    /// Folder for the results: STEM.OUTPUT.EXT per input file and graph output (.exr for
+    /// images and fields, .png for pictures and masks, .txt for numbers).
+    #[arg(long)]
+    pub out_dir: PathBuf,
+    /// Files processed at once.
+    #[arg(short = 'j', long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..=256))]
+    pub jobs: u32,
+    /// Keep node results in this folder and reuse them across runs.
+    #[arg(long, value_name = "DIR")]
+    pub cache_dir: Option<PathBuf>,
+}
+
+/// `rgbn check`.
+#[derive(Args, Debug)]
+pub struct CheckArgs {
+    /// Graph file (.ron).
+    pub graph: PathBuf,
+}
+
+fn split_pair<'a>(s: &'a str, what: &str) -> Result<(&'a str, &'a str), Failure> {
+    match s.split_once('=') {
+        Some((a, b)) if !a.is_empty() && !b.is_empty() => Ok((a, b)),
+        _ => Err(usage(format!("{what} {s:?} is not of the form NAME=VALUE"))),
+    }
+}
+
+fn load_graph(path: &Path, sets: &[String]) -> Result<LoadedGraph, Failure> {
+    let mut lg = LoadedGraph::load(path)?;
+    for s in sets {
+        let (lhs, value) = s
+            .split_once('=')
+            .ok_or_else(|| usage(format!("--set {s:?} is not of the form NODE.PARAM=VALUE")))?;
+        let (node, param) = lhs
+            .rsplit_once('.')
+            .filter(|(n, p)| !n.is_empty() && !p.is_empty())
+            .ok_or_else(|| usage(format!("--set {s:?} is not of the form NODE.PARAM=VALUE")))?;
+        lg.set_param(node, param, value)?;
+    }
+    Ok(lg)
+}
+
+fn parse_inputs(list: &[String]) -> Result<BTreeMap<String, PathBuf>, Failure> {
+    let mut m = BTreeMap::new();
+    for s in list {
+        let (name, path) = split_pair(s, "--input")?;
+        m.insert(name.to_string(), PathBuf::from(path));
+    }
+    Ok(m)
+}
+
+fn evaluator(cache_dir: Option<&Path>) -> Result<Evaluator, Failure> {
+    let ev = Evaluator::default();
+    Ok(match cache_dir {
+        Some(d) => ev.with_disk_cache(d)?,
+        None => ev,
+    })
+}
+
+fn progress_bar(total_hint: u64) -> indicatif::ProgressBar {
+    let pb = indicatif::ProgressBar::new(total_hint);
+    pb.set_style(
+        indicatif::ProgressStyle::with_template("{spinner} [{bar:30}] {pos}/{len} {msg}")
+            .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar())
+            .progress_chars("=> "),
+    );
+    pb
+}
+
+/// Writes one line; a closed pipe ends output quietly.
+fn line(out: &mut impl Write, s: &str) -> Result<(), Failure> {
+    match writeln!(out, "{s}") {
+        Err(e) if e.kind() == std::io::ErrorKind::BrokenPipe => Ok(()),
+        Err(e) => Err(Failure {
+            code: 1,
+            message: format!("cannot write to stdout: {e}"),
+        }),
+        Ok(()) => Ok(()),
+    }
+}
+
+fn describe_value(v: &Value) -> String {
+    match v {
+        Value::Rgbn(i) => format!(
+            "rgbn {}×{}{}",
+            i.width(),
+            i.height(),
+            if i.mask().is_some() { " masked" } else { "" }
+        ),
+        Value::Mask(p) => format!("mask {}×{}", p.width(), p.height()),
+        Value::Scalar(p) => {
+            let (lo, hi) = p
+                .data()
+                .iter()
+                .fold((f32::INFINITY, f32::NEG_INFINITY), |(a, b), v| {
+                    (a.min(*v), b.max(*v))
+                });
+            format!(
+                "scalar {}×{} in [{lo:.4e}, {hi:.4e}]",
+                p.width(),
+                p.height()
+            )
+        }
+        Value::Picture(p) => format!("picture {}×{}", p.width, p.height),
+        Value::Number(x) => format!("{x:.6e}"),
+    }
+}
+
+fn print_stats(out: &mut impl Write, r: &EvalResult, top: &str) -> Result<(), Failure> {
+    line(
+        out,
+        &format!(
+            "{:<28} {:<18} {:<8} {:>10} {:>10} {:>11}",
+            "node", "op", "cache", "time ms", "MB", "curl rel."
+        ),
+    )?;
+    for s in &r.stats {
+        let mut node = match (s.at.node, &s.at.name) {
+            (Some(id), Some(n)) => format!("{id} {n}"),
+            (Some(id), None) => id.to_string(),
+            _ => s.at.file.clone(),
+        };
+        if s.at.node.is_some() && s.at.file != top {
+            // A node inside a graph file used as a node: name the file.
+            let file = Path::new(&s.at.file)
+                .file_name()
+                .map_or_else(String::new, |f| f.to_string_lossy().into_owned());
+            node = format!("{file}:{node}");
+        }
+        let status = match s.status {
+            Status::Hit => "hit",
+            Status::DiskHit => "disk",
+            Status::Miss => "miss",
+            Status::Effect => "effect",
+        };
+        line(
+            out,
+            &format!(
+                "{:<28} {:<18} {:<8} {:>10.1} {:>10.2} {:>11}",
+                node,
+                s.op,
+                status,
+                s.time.as_secs_f64() * 1e3,
+                s.bytes as f64 / 1e6,
+                s.curl.map_or_else(|| "-".into(), |c| format!("{c:.3e}"))
+            ),
+        )?;
+    }
+    line(
+        out,
+        &format!(
+            "{} nodes: {} hits, {} misses",
+            r.stats.len(),
+            r.hits(),
+            r.misses()
+        ),
+    )
+}
+
+/// `rgbn eval`.
+pub fn eval_cmd(a: &EvalArgs, out: &mut impl Write) -> Result<(), Failure> {
+    let lg = load_graph(&a.graph, &a.sets)?;
+    let inputs = parse_inputs(&a.inputs)?;
+    let cwd = PathBuf::from(".");
+    let plan = Plan::new(&lg, &inputs, &cwd)?;
+    let mut requested: Vec<(String, PathBuf)> = Vec::new();
+    for s in &a.outputs {
+        let (name, path) = split_pair(s, "-o")?;
+        if !plan.outputs.contains_key(name) {
+            return Err(GraphError::Unknown {
+                what: "graph output",
+                name: name.to_string(),
+                suggestion: crate::ops::params::nearest(
+                    name,
+                    plan.outputs.keys().map(String::as_str),
+                ),
+                at: lg.at(),
+            }
+            .into());
+        }
+        let path = PathBuf::from(path);
+        let protected: Vec<&Path> = plan.protected.iter().map(PathBuf::as_path).collect();
+        io::check_output(&path, &protected)?;
+        if requested.iter().any(|(_, p)| p == &path) {
+            return Err(usage(format!(
+                "two outputs are written to the same file: {}",
+                path.display()
+            )));
+        }
+        requested.push((name.to_string(), path));
+    }
+    let names: Vec<&str> = requested.iter().map(|(n, _)| n.as_str()).collect();
+    let ev = evaluator(a.cache_dir.as_deref())?;
+    let pb = progress_bar(0);
+    let pb2 = pb.clone();
+    let opts = EvalOptions {
+        cancel: None,
+        progress: Some(Arc::new(move |p| {
+            pb2.set_length(p.total as u64);
+            pb2.set_position(p.done as u64);
+            pb2.set_message(p.op);
+        })),
+        curl_stats: a.stats,
+    };
+    let r = ev.eval(&plan, &names, &opts);
+    pb.finish_and_clear();
+    let r = r?;
+    for (name, path) in &requested {
+        let v = &r.outputs[name];
+        write_value(v, path, &SaveOptions::default()).map_err(Failure::from)?;
+        line(
+            out,
+            &format!("wrote {name} ({}): {}", describe_value(v), path.display()),
+        )?;
+    }
+    if requested.is_empty() {
+        for (name, v) in &r.outputs {
+            line(out, &format!("{name}: {}", describe_value(v)))?;
+        }
+    }
+    if a.stats {
+        print_stats(out, &r, &plan.at.file)?;
+    }
+    Ok(())
+}
+
+fn extension(ty: PortType) -> &'static str {
+    match ty {
+        PortType::Rgbn | PortType::Scalar => "exr",
+        PortType::Picture | PortType::Mask => "png",
+        PortType::Number => "txt",
+    }
+}
+
+/// `rgbn batch`.
+pub fn batch_cmd(a: &BatchArgs, out: &mut impl Write) -> Result<(), Failure> {
+    let lg = load_graph(&a.graph, &a.sets)?;
+    let (first, rest) = a
+        .inputs
+        .split_first()
+        .ok_or_else(|| usage("batch needs --input NAME=GLOB".into()))?;
+    let (name, pattern) = split_pair(first, "--input")?;
+    let fixed = parse_inputs(rest)?;
+    if !a.out_dir.is_dir() {
+        return Err(RgbnError::MissingDir {
+            path: a.out_dir.clone(),
+        }
+        .into());
+    }
+    let files: Vec<PathBuf> = glob::glob(pattern)
+        .map_err(|e| usage(format!("bad glob pattern {pattern:?}: {e}")))?
+        .filter_map(Result::ok)
+        .filter(|p| p.is_file())
+        .collect();
+    if files.is_empty() {
+        return Err(usage(format!("no files match {pattern:?}")));
+    }
+    let ev = evaluator(a.cache_dir.as_deref())?;
+    let pb = progress_bar(files.len() as u64);
+    let failures: Mutex<Vec<(PathBuf, String)>> = Mutex::new(Vec::new());
+    let written = std::sync::atomic::AtomicUsize::new(0);
+    let run_one = |file: &PathBuf| -> Result<(), Failure> {
+        let mut inputs = fixed.clone();
+        inputs.insert(name.to_string(), file.clone());
+        let plan = Plan::new(&lg, &inputs, Path::new("."))?;
+        let r = ev.eval(&plan, &[], &EvalOptions::default())?;
+        let stem = file
+            .file_stem()
+            .map_or_else(|| "out".into(), |s| s.to_string_lossy().into_owned());
+        for (oname, v) in &r.outputs {
+            let ty = plan.output_types[oname];
+            let path = a.out_dir.join(format!("{stem}.{oname}.{}", extension(ty)));
+            let protected: Vec<&Path> = plan.protected.iter().map(PathBuf::as_path).collect();
+            io::check_output(&path, &protected)?;
+            write_value(v, &path, &SaveOptions::default())?;
+            written.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+        }
+        Ok(())
+    };
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(a.jobs as usize)
+        .build()
+        .map_err(|e| usage(format!("cannot start {} jobs: {e}", a.jobs)))?;
+    pool.scope(|s| {
+        for file in &files {
+            let (pb, failures, run_one) = (&pb, &failures, &run_one);
+            s.spawn(move |_| {
+                pb.set_message(file.display().to_string());
+                if let Err(f) = run_one(file) {
+                    pb.suspend(|| eprintln!("rgbn: {}", f.message));
+                    failures
+                        .lock()
+                        .unwrap_or_else(std::sync::PoisonError::into_inner)
+                        .push((file.clone(), f.message));
+                }
+                pb.inc(1);
+            });
+        }
+    });
+    pb.finish_and_clear();
+    let mut failures = failures
+        .into_inner()
+        .unwrap_or_else(std::sync::PoisonError::into_inner);
+    failures.sort();
+    line(
+        out,
+        &format!(
+            "processed {} files, wrote {} outputs to {}, {} failed",
+            files.len(),
+            written.load(std::sync::atomic::Ordering::Relaxed),
+            a.out_dir.display(),
+            failures.len()
+        ),
+    )?;
+    if failures.is_empty() {
+        return Ok(());
+    }
+    let list: Vec<String> = failures
+        .iter()
+        .map(|(f, _)| f.display().to_string())
+        .collect();
+    Err(Failure {
+        code: 1,
+        message: format!(
+            "{} of {} files failed: {}",
+            failures.len(),
+            files.len(),
+            list.join(", ")
+        ),
+    })
+}
+
+/// `rgbn check`.
+pub fn check_cmd(a: &CheckArgs, out: &mut impl Write) -> Result<(), Failure> {
+    let lg = LoadedGraph::load(&a.graph)?;
+    let ins: Vec<String> = lg
+        .graph
+        .inputs
+        .iter()
+        .map(|(n, d)| format!("{n} ({})", d.ty.name()))
+        .collect();
+    let outs: Vec<String> = lg
+        .graph
+        .outputs
+        .keys()
+        .map(|n| format!("{n} ({})", lg.output_type(n).map_or("?", PortType::name)))
+        .collect();
+    line(
+        out,
+        &format!(
+            "ok: {} nodes; inputs: {}; outputs: {}: {}",
+            lg.graph.nodes.len(),
+            if ins.is_empty() {
+                "none".into()
+            } else {
+                ins.join(", ")
+            },
+            if outs.is_empty() {
+                "none".into()
+            } else {
+                outs.join(", ")
+            },
+            a.graph.display()
+        ),
+    )
+}
+
+fn kind_name(k: &ParamKind) -> String {
+    match k {
+        ParamKind::Bool => "bool".into(),
+        ParamKind::Int => "int".into(),
+        ParamKind::Float => "float".into(),
+        ParamKind::Choice(o) => format!("one of {}", o.join("|")),
+        ParamKind::Text => "text".into(),
+        ParamKind::Path => "path".into(),
+        ParamKind::Vec3 => "x,y,z".into(),
+        ParamKind::Floats => "numbers a,b,…".into(),
+        ParamKind::Profile => "profile a,b,…".into(),
+        ParamKind::Points => "points x:y,…".into(),
+    }
+}
+
+/// `rgbn ops`: every operator with its doc, ports and parameters, from the specs.
+pub fn ops_cmd(out: &mut impl Write) -> Result<(), Failure> {
+    for op in registry() {
+        let s = op.spec();
+        line(out, &format!("{} — {} [{}]", s.id, s.title, s.category))?;
+        line(out, &format!("    {}", s.doc))?;
+        for (dir, ports) in [("in ", &s.inputs), ("out", &s.outputs)] {
+            for p in ports {
+                line(
+                    out,
+                    &format!(
+                        "    {dir} {}: {}{} — {}",
+                        p.name,
+                        p.ty.name(),
+                        if p.optional { " (optional)" } else { "" },
+                        p.doc
+                    ),
+                )?;
+            }
+        }
+        for p in op.params() {
+            let range = p
+                .meta
+                .range
+                .map(|(a, b)| format!(" in [{a}, {b}]"))
+                .unwrap_or_default();
+            let default = match &p.default {
+                ParamValue::Path(s) | ParamValue::Text(s) if s.is_empty() => "none".into(),
+                v => v.to_string(),
+            };
+            line(
+                out,
+                &format!(
+                    "    param {}: {}{}{range}, default {default} — {}",
+                    p.name,
+                    kind_name(&p.kind),
+                    if p.meta.unit.is_empty() {
+                        String::new()
+                    } else {
+                        format!(" ({})", p.meta.unit)
+                    },
+                    p.meta.doc
+                ),
+            )?;
+        }
+        line(out, "")?;
+    }
+    line(
+        out,
+        &format!(
+            "{} — Graph file as a node [graph]\n    Uses another graph file (param path, relative to this file): its inputs, outputs and exposed parameters become the node's ports and parameters.",
+            crate::ops::GRAPH_NODE_OP
+        ),
+    )
+}

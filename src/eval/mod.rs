@@ -1,0 +1,745 @@
+//! Evaluation: a validated graph is flattened into a [`Plan`] (graph files used as nodes are
+//! inlined, graph inputs bound, relative paths resolved), then the [`Evaluator`] pulls the
+//! requested outputs.
+//!
+//! - **Lazy**: only nodes the requested outputs need are considered, and a node whose key is
+//!   cached is not descended into.
+//! - **Content keys** ([`CacheKey`]): op id + op version + canonical params (floats by bits;
+//!   input files by the hash of their bytes, memoised by path + mtime + size) + the keys of the
+//!   inputs. Node ids, names and positions are not in the key: moving or renaming a node costs
+//!   nothing.
+//! - **Caches**: a byte-budgeted LRU in memory ([`cache`]) and optionally a folder on disk
+//!   ([`disk`]) that survives the process.
+//! - **Parallel**: nodes to run are grouped in dependency levels; each level runs on rayon.
+//! - **Cancellation and progress**: [`EvalOptions::cancel`] is checked before each node;
+//!   [`EvalOptions::progress`] is called after each node that ran.
+
+// Graph errors carry their location (file, node, names) by value; they are cold paths.
+#![allow(clippy::result_large_err)]
+
+pub mod cache;
+pub mod disk;
+
+pub use cache::{CacheEntry, CacheKey, MemCache};
+pub use disk::DiskCache;
+
+use crate::graph::{At, GraphError, LoadedGraph, NodeId, NodeKind, PortRef, Source};
+use crate::ops::params::{nearest, ParamKind, ParamValue};
+use crate::ops::{self, DynOp, PortType, RunContext, Value};
+use crate::raster::gradient::GradientField;
+use rayon::prelude::*;
+use std::collections::{BTreeMap, HashMap, HashSet};
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
+use std::sync::{Arc, Mutex};
+use std::time::{Duration, Instant, SystemTime};
+
+/// Where an instance's input comes from.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Conn {
+    /// Unconnected (optional input).
+    None,
+    /// Output `port` of instance `index`.
+    Slot(usize, usize),
+    /// A graph input that was not bound (an error only if it is needed).
+    Unbound {
+        /// The input's name.
+        name: String,
+        /// Where it is used.
+        at: At,
+    },
+}
+
+/// One operator application in a flattened graph.
+#[derive(Clone)]
+pub struct Instance {
+    /// The operator.
+    pub op: &'static dyn DynOp,
+    /// Canonical parameters with resolved paths.
+    pub params: BTreeMap<String, ParamValue>,
+    /// Inputs in port order.
+    pub inputs: Vec<Conn>,
+    /// The node it comes from (file, id, name).
+    pub at: At,
+}
+
+/// A flattened graph ready to evaluate.
+#[derive(Clone)]
+pub struct Plan {
+    /// Instances in topological order.
+    pub instances: Vec<Instance>,
+    /// Graph outputs by name.
+    pub outputs: BTreeMap<String, Conn>,
+    /// Types of the graph outputs.
+    pub output_types: BTreeMap<String, PortType>,
+    /// Files the graph reads (never overwritten).
+    pub protected: Vec<PathBuf>,
+    /// The top-level graph's location.
+    pub at: At,
+}
+
+impl Plan {
+    /// Flattens `lg`, binding graph inputs to files (`--input NAME=PATH`: RGBN inputs are
+    /// loaded with `load`, masks with `load_mask`). Relative output paths of `save` nodes are
+    /// resolved against `out_dir`, relative input paths against each graph file's folder.
+    pub fn new(
+        lg: &LoadedGraph,
+        inputs: &BTreeMap<String, PathBuf>,
+        out_dir: &Path,
+    ) -> Result<Self, GraphError> {
+        let mut plan = Plan {
+            instances: Vec::new(),
+            outputs: BTreeMap::new(),
+            output_types: BTreeMap::new(),
+            protected: Vec::new(),
+            at: lg.at(),
+        };
+        let mut bindings = BTreeMap::new();
+        for (name, path) in inputs {
+            let Some(def) = lg.graph.inputs.get(name) else {
+                return Err(GraphError::Unknown {
+                    what: "graph input",
+                    name: name.clone(),
+                    suggestion: nearest(name, lg.graph.inputs.keys().map(String::as_str)),
+                    at: lg.at(),
+                });
+            };
+            let (op_id, param) = match def.ty {
+                PortType::Rgbn => ("load", "path"),
+                PortType::Mask => ("load_mask", "path"),
+                other => {
+                    return Err(GraphError::Param {
+                        param: name.clone(),
+                        detail: format!(
+                            "graph input {name:?} has type {} and cannot be read from a file",
+                            other.name()
+                        ),
+                        at: lg.at(),
+                    })
+                }
+            };
+            let op = ops::find(op_id).expect("registered");
+            let mut params = BTreeMap::new();
+            params.insert(param.to_string(), ParamValue::Path(display(path)));
+            let params = op.canonical(&params).map_err(|e| GraphError::Param {
+                param: name.clone(),
+                detail: e.to_string(),
+                at: lg.at(),
+            })?;
+            plan.protected.push(path.clone());
+            plan.instances.push(Instance {
+                op,
+                params,
+                inputs: Vec::new(),
+                at: At::file(format!("--input {name}={}", display(path))),
+            });
+            bindings.insert(name.clone(), Conn::Slot(plan.instances.len() - 1, 0));
+        }
+        let outs = plan.flatten(lg, &bindings, out_dir);
+        for (name, r) in &lg.graph.outputs {
+            if let (Some(c), Some(ty)) = (outs.get(&(r.node, r.port.clone())), lg.output_type(name))
+            {
+                plan.outputs.insert(name.clone(), c.clone());
+                plan.output_types.insert(name.clone(), ty);
+            }
+        }
+        Ok(plan)
+    }
+
+    /// Inlines `lg`; returns every node output as a connection, keyed by (node, port).
+    fn flatten(
+        &mut self,
+        lg: &LoadedGraph,
+        bindings: &BTreeMap<String, Conn>,
+        out_dir: &Path,
+    ) -> HashMap<(NodeId, String), Conn> {
+        let mut outs: HashMap<(NodeId, String), Conn> = HashMap::new();
+        for id in &lg.order {
+            let node = &lg.graph.nodes[id];
+            let ports = &lg.ports[id];
+            let at = lg.at_node(*id);
+            let conn_of = |src: Option<&Source>| -> Conn {
+                match src {
+                    None => Conn::None,
+                    Some(Source::Node(n, p)) => {
+                        outs.get(&(*n, p.clone())).cloned().unwrap_or(Conn::None)
+                    }
+                    Some(Source::Input(name)) => {
+                        bindings
+                            .get(name)
+                            .cloned()
+                            .unwrap_or_else(|| Conn::Unbound {
+                                name: name.clone(),
+                                at: at.clone(),
+                            })
+                    }
+                }
+            };
+            let inputs: Vec<Conn> = ports
+                .inputs
+                .iter()
+                .map(|p| conn_of(node.inputs.get(&p.name)))
+                .collect();
+            match &lg.kinds[id] {
+                NodeKind::Op { op, params } => {
+                    let mut params = params.clone();
+                    for info in op.params() {
+                        if info.kind != ParamKind::Path {
+                            continue;
+                        }
+                        if let Some(ParamValue::Path(p)) = params.get_mut(info.name) {
+                            if p.is_empty() {
+                                continue;
+                            }
+                            let base = if info.meta.output {
+                                out_dir
+                            } else {
+                                &lg.base_dir
+                            };
+                            let resolved = base.join(&*p);
+                            if !info.meta.output {
+                                self.protected.push(resolved.clone());
+                            }
+                            *p = display(&resolved);
+                        }
+                    }
+                    self.instances.push(Instance {
+                        op: *op,
+                        params,
+                        inputs,
+                        at,
+                    });
+                    let idx = self.instances.len() - 1;
+                    for (k, p) in ports.outputs.iter().enumerate() {
+                        outs.insert((*id, p.name.clone()), Conn::Slot(idx, k));
+                    }
+                }
+                NodeKind::Graph(sub) => {
+                    let sub_bindings: BTreeMap<String, Conn> = ports
+                        .inputs
+                        .iter()
+                        .zip(inputs)
+                        .map(|(p, c)| (p.name.clone(), c))
+                        .collect();
+                    let sub_outs = self.flatten(sub, &sub_bindings, out_dir);
+                    for (name, PortRef { node, port }) in &sub.graph.outputs {
+                        if let Some(c) = sub_outs.get(&(*node, port.clone())) {
+                            outs.insert((*id, name.clone()), c.clone());
+                        }
+                    }
+                }
+            }
+        }
+        outs
+    }
+}
+
+fn display(p: &Path) -> String {
+    p.display().to_string()
+}
+
+/// A progress report, sent after each node that ran.
+#[derive(Clone, Debug)]
+pub struct Progress {
+    /// Nodes finished so far in this evaluation.
+    pub done: usize,
+    /// Nodes that must run in this evaluation.
+    pub total: usize,
+    /// The node that just finished.
+    pub at: At,
+    /// Its operator.
+    pub op: &'static str,
+}
+
+/// Progress callback type.
+pub type ProgressFn = Arc<dyn Fn(&Progress) + Send + Sync>;
+
+/// Options of one evaluation.
+#[derive(Clone, Default)]
+pub struct EvalOptions {
+    /// Set to `true` (from any thread) to stop before the next node.
+    pub cancel: Option<Arc<AtomicBool>>,
+    /// Called after each node that ran.
+    pub progress: Option<ProgressFn>,
+    /// Measure the relative RMS curl of each node's RGBN output.
+    pub curl_stats: bool,
+}
+
+/// How a node's value was obtained.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Status {
+    /// From the memory cache.
+    Hit,
+    /// From the disk cache.
+    DiskHit,
+    /// Computed (its key was not cached).
+    Miss,
+    /// Ran because it writes outside the graph (never cached).
+    Effect,
+}
+
+/// What happened at one node.
+#[derive(Clone, Debug)]
+pub struct NodeStats {
+    /// The node.
+    pub at: At,
+    /// Operator id.
+    pub op: &'static str,
+    /// Hit, miss, …
+    pub status: Status,
+    /// Time spent computing (zero for hits).
+    pub time: Duration,
+    /// Bytes of output.
+    pub bytes: usize,
+    /// Relative RMS curl of the RGBN output, when measured.
+    pub curl: Option<f64>,
+    /// The node's content key.
+    pub key: CacheKey,
+}
+
+/// The result of an evaluation.
+#[derive(Clone, Debug)]
+pub struct EvalResult {
+    /// The requested graph outputs.
+    pub outputs: BTreeMap<String, Value>,
+    /// One entry per node that was needed, in evaluation order.
+    pub stats: Vec<NodeStats>,
+}
+
+impl EvalResult {
+    /// Nodes computed because their key was not cached.
+    #[must_use]
+    pub fn misses(&self) -> usize {
+        self.stats
+            .iter()
+            .filter(|s| s.status == Status::Miss)
+            .count()
+    }
+    /// Nodes served from a cache.
+    #[must_use]
+    pub fn hits(&self) -> usize {
+        self.stats
+            .iter()
+            .filter(|s| matches!(s.status, Status::Hit | Status::DiskHit))
+            .count()
+    }
+    /// Ids of the top-level nodes that missed (sorted, deduplicated).
+    #[must_use]
+    pub fn missed_nodes(&self) -> Vec<NodeId> {
+        let mut v: Vec<NodeId> = self
+            .stats
+            .iter()
+            .filter(|s| s.status == Status::Miss)
+            .filter_map(|s| s.at.node)
+            .collect();
+        v.sort_unstable();
+        v.dedup();
+        v
+    }
+}
+
+/// A node that ran: its index, outputs and stats.
+type Ran = (usize, Arc<CacheEntry>, NodeStats);
+
+#[derive(Clone, Copy)]
+struct FileStamp {
+    mtime: Option<SystemTime>,
+    len: u64,
+    hash: u128,
+}
+
+/// Evaluates plans, keeping results in its caches between evaluations.
+pub struct Evaluator {
+    mem: Mutex<MemCache>,
+    disk: Option<DiskCache>,
+    files: Mutex<HashMap<PathBuf, FileStamp>>,
+}
+
+impl std::fmt::Debug for Evaluator {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Evaluator")
+            .field("disk", &self.disk)
+            .finish()
+    }
+}
+
+/// Default memory budget: 1 GiB.
+pub const DEFAULT_BUDGET: usize = 1 << 30;
+
+impl Default for Evaluator {
+    fn default() -> Self {
+        Self::new(DEFAULT_BUDGET)
+    }
+}
+
+fn lock<T>(m: &Mutex<T>) -> std::sync::MutexGuard<'_, T> {
+    m.lock().unwrap_or_else(std::sync::PoisonError::into_inner)
+}
+
+impl Evaluator {
+    /// An evaluator whose memory cache holds at most `budget_bytes`.
+    #[must_use]
+    pub fn new(budget_bytes: usize) -> Self {
+        Self {
+            mem: Mutex::new(MemCache::new(budget_bytes)),
+            disk: None,
+            files: Mutex::new(HashMap::new()),
+        }
+    }
+
+    /// Also keeps results in `dir` (created if missing).
+    pub fn with_disk_cache(mut self, dir: &Path) -> Result<Self, GraphError> {
+        self.disk = Some(DiskCache::new(dir).map_err(|e| GraphError::Io {
+            file: display(dir),
+            source: e,
+        })?);
+        Ok(self)
+    }
+
+    /// Entries and bytes in the memory cache.
+    #[must_use]
+    pub fn mem_usage(&self) -> (usize, usize) {
+        let m = lock(&self.mem);
+        (m.len(), m.bytes())
+    }
+
+    /// Empties the memory cache (the disk cache is kept).
+    pub fn clear_memory(&self) {
+        lock(&self.mem).clear();
+    }
+
+    fn file_hash(&self, path: &Path, at: &At) -> Result<u128, GraphError> {
+        let err = |detail: String| GraphError::InputFile {
+            path: display(path),
+            detail,
+            at: at.clone(),
+        };
+        let meta = std::fs::metadata(path).map_err(|e| {
+            err(if e.kind() == std::io::ErrorKind::NotFound {
+                "file not found".into()
+            } else {
+                e.to_string()
+            })
+        })?;
+        let (mtime, len) = (meta.modified().ok(), meta.len());
+        if let Some(s) = lock(&self.files).get(path) {
+            if s.mtime.is_some() && s.mtime == mtime && s.len == len {
+                return Ok(s.hash);
+            }
+        }
+        let bytes = std::fs::read(path).map_err(|e| err(e.to_string()))?;
+        let hash = xxhash_rust::xxh3::xxh3_128(&bytes);
+        lock(&self.files).insert(path.to_path_buf(), FileStamp { mtime, len, hash });
+        Ok(hash)
+    }
+
+    fn key(
+        &self,
+        plan: &Plan,
+        i: usize,
+        keys: &mut HashMap<usize, CacheKey>,
+    ) -> Result<CacheKey, GraphError> {
+        if let Some(k) = keys.get(&i) {
+            return Ok(*k);
+        }
+        let inst = &plan.instances[i];
+        let spec = inst.op.spec();
+        let mut h = xxhash_rust::xxh3::Xxh3::new();
+        h.update(b"rgbn-node-key-1\0");
+        h.update(spec.id.as_bytes());
+        h.update(&spec.version.to_le_bytes());
+        for (name, value) in &inst.params {
+            h.update(&(name.len() as u64).to_le_bytes());
+            h.update(name.as_bytes());
+            let is_input_file = inst
+                .op
+                .params()
+                .iter()
+                .any(|p| p.name == name && p.kind == ParamKind::Path && !p.meta.output);
+            match value {
+                ParamValue::Path(p) if is_input_file && !p.is_empty() => {
+                    h.update(b"file-content");
+                    h.update(&self.file_hash(Path::new(p), &inst.at)?.to_le_bytes());
+                }
+                v => v.hash_into(&mut h),
+            }
+        }
+        for c in &inst.inputs {
+            match c {
+                Conn::None => h.update(b"none"),
+                Conn::Slot(j, port) => {
+                    let k = self.key(plan, *j, keys)?;
+                    h.update(&k.to_le_bytes());
+                    h.update(&(*port as u64).to_le_bytes());
+                }
+                Conn::Unbound { name, at } => {
+                    return Err(GraphError::UnboundInput {
+                        name: name.clone(),
+                        at: at.clone(),
+                    })
+                }
+            }
+        }
+        let k = h.digest128();
+        keys.insert(i, k);
+        Ok(k)
+    }
+
+    /// Evaluates the graph outputs named in `outputs` (all of them when empty).
+    pub fn eval(
+        &self,
+        plan: &Plan,
+        outputs: &[&str],
+        opts: &EvalOptions,
+    ) -> Result<EvalResult, GraphError> {
+        let names: Vec<String> = if outputs.is_empty() {
+            plan.outputs.keys().cloned().collect()
+        } else {
+            outputs.iter().map(|s| s.to_string()).collect()
+        };
+        let mut roots = Vec::new();
+        for name in &names {
+            match plan.outputs.get(name) {
+                Some(c) => roots.push(c.clone()),
+                None => {
+                    return Err(GraphError::Unknown {
+                        what: "graph output",
+                        name: name.clone(),
+                        suggestion: nearest(name, plan.outputs.keys().map(String::as_str)),
+                        at: plan.at.clone(),
+                    })
+                }
+            }
+        }
+        let mut keys = HashMap::new();
+        let mut results: HashMap<usize, Arc<CacheEntry>> = HashMap::new();
+        let mut visited = HashSet::new();
+        let mut to_run = Vec::new();
+        let mut stats: HashMap<usize, NodeStats> = HashMap::new();
+        for c in &roots {
+            match c {
+                Conn::Slot(i, _) => self.pull(
+                    plan,
+                    *i,
+                    opts,
+                    &mut keys,
+                    &mut visited,
+                    &mut results,
+                    &mut to_run,
+                    &mut stats,
+                )?,
+                Conn::Unbound { name, at } => {
+                    return Err(GraphError::UnboundInput {
+                        name: name.clone(),
+                        at: at.clone(),
+                    })
+                }
+                Conn::None => {}
+            }
+        }
+        // Dependency levels among the nodes to run (to_run is in post-order).
+        let run_set: HashSet<usize> = to_run.iter().copied().collect();
+        let mut level: HashMap<usize, usize> = HashMap::new();
+        for &i in &to_run {
+            let l = plan.instances[i]
+                .inputs
+                .iter()
+                .filter_map(|c| match c {
+                    Conn::Slot(j, _) if run_set.contains(j) => level.get(j).map(|l| l + 1),
+                    _ => None,
+                })
+                .max()
+                .unwrap_or(0);
+            level.insert(i, l);
+        }
+        let depth = level.values().max().map_or(0, |m| m + 1);
+        let total = to_run.len();
+        let done = AtomicUsize::new(0);
+        let ctx = RunContext {
+            protected: plan.protected.clone(),
+        };
+        for l in 0..depth {
+            let batch: Vec<usize> = to_run.iter().copied().filter(|i| level[i] == l).collect();
+            let ran: Vec<Result<Ran, GraphError>> = batch
+                .par_iter()
+                .map(|&i| {
+                    if opts
+                        .cancel
+                        .as_ref()
+                        .is_some_and(|c| c.load(Ordering::Relaxed))
+                    {
+                        return Err(GraphError::Cancelled);
+                    }
+                    let r = self.run_one(plan, i, keys[&i], &results, &ctx, opts)?;
+                    if let Some(p) = &opts.progress {
+                        p(&Progress {
+                            done: done.fetch_add(1, Ordering::Relaxed) + 1,
+                            total,
+                            at: plan.instances[i].at.clone(),
+                            op: plan.instances[i].op.spec().id,
+                        });
+                    }
+                    Ok((i, r.0, r.1))
+                })
+                .collect();
+            for r in ran {
+                let (i, entry, st) = r?;
+                results.insert(i, entry);
+                stats.insert(i, st);
+            }
+        }
+        let mut out = BTreeMap::new();
+        for (name, c) in names.iter().zip(&roots) {
+            if let Conn::Slot(i, p) = c {
+                if let Some(v) = results.get(i).and_then(|e| e.values.get(*p)) {
+                    out.insert(name.clone(), v.clone());
+                }
+            }
+        }
+        let mut order: Vec<usize> = stats.keys().copied().collect();
+        order.sort_unstable();
+        Ok(EvalResult {
+            outputs: out,
+            stats: order.into_iter().filter_map(|i| stats.remove(&i)).collect(),
+        })
+    }
+
+    #[allow(clippy::too_many_arguments)]
+    fn pull(
+        &self,
+        plan: &Plan,
+        i: usize,
+        opts: &EvalOptions,
+        keys: &mut HashMap<usize, CacheKey>,
+        visited: &mut HashSet<usize>,
+        results: &mut HashMap<usize, Arc<CacheEntry>>,
+        to_run: &mut Vec<usize>,
+        stats: &mut HashMap<usize, NodeStats>,
+    ) -> Result<(), GraphError> {
+        if !visited.insert(i) {
+            return Ok(());
+        }
+        let key = self.key(plan, i, keys)?;
+        let inst = &plan.instances[i];
+        let spec = inst.op.spec();
+        if !spec.side_effect {
+            let mut status = None;
+            let mut entry = lock(&self.mem).get(key);
+            if entry.is_some() {
+                status = Some(Status::Hit);
+            } else if let Some(e) = self.disk.as_ref().and_then(|d| d.get(key)) {
+                let e = Arc::new(e);
+                lock(&self.mem).insert(key, e.clone());
+                entry = Some(e);
+                status = Some(Status::DiskHit);
+            }
+            if let (Some(mut e), Some(status)) = (entry, status) {
+                if opts.curl_stats && e.curl.is_none() {
+                    let curl = curl_of(&e.values);
+                    if curl.is_some() {
+                        let mut c = (*e).clone();
+                        c.curl = curl;
+                        e = Arc::new(c);
+                        lock(&self.mem).insert(key, e.clone());
+                    }
+                }
+                stats.insert(
+                    i,
+                    NodeStats {
+                        at: inst.at.clone(),
+                        op: spec.id,
+                        status,
+                        time: Duration::ZERO,
+                        bytes: e.byte_size(),
+                        curl: e.curl,
+                        key,
+                    },
+                );
+                results.insert(i, e);
+                return Ok(());
+            }
+        }
+        for c in &inst.inputs {
+            match c {
+                Conn::Slot(j, _) => {
+                    self.pull(plan, *j, opts, keys, visited, results, to_run, stats)?;
+                }
+                Conn::Unbound { name, at } => {
+                    return Err(GraphError::UnboundInput {
+                        name: name.clone(),
+                        at: at.clone(),
+                    })
+                }
+                Conn::None => {}
+            }
+        }
+        to_run.push(i);
+        Ok(())
+    }
+
+    fn run_one(
+        &self,
+        plan: &Plan,
+        i: usize,
+        key: CacheKey,
+        results: &HashMap<usize, Arc<CacheEntry>>,
+        ctx: &RunContext,
+        opts: &EvalOptions,
+    ) -> Result<(Arc<CacheEntry>, NodeStats), GraphError> {
+        let inst = &plan.instances[i];
+        let spec = inst.op.spec();
+        let inputs: Vec<Option<Value>> = inst
+            .inputs
+            .iter()
+            .map(|c| match c {
+                Conn::Slot(j, p) => results.get(j).and_then(|e| e.values.get(*p)).cloned(),
+                _ => None,
+            })
+            .collect();
+        let t0 = Instant::now();
+        let values =
+            inst.op
+                .run(&inst.params, &inputs, ctx)
+                .map_err(|source| GraphError::Node {
+                    op: spec.id.to_string(),
+                    source,
+                    at: inst.at.clone(),
+                })?;
+        let curl = if opts.curl_stats {
+            curl_of(&values)
+        } else {
+            None
+        };
+        let time = t0.elapsed();
+        let entry = Arc::new(CacheEntry { values, curl });
+        if !spec.side_effect {
+            lock(&self.mem).insert(key, entry.clone());
+            if let Some(d) = &self.disk {
+                if let Err(e) = d.put(key, &entry) {
+                    tracing::warn!("disk cache write failed ({e}): {}", d.dir().display());
+                }
+            }
+        }
+        let st = NodeStats {
+            at: inst.at.clone(),
+            op: spec.id,
+            status: if spec.side_effect {
+                Status::Effect
+            } else {
+                Status::Miss
+            },
+            time,
+            bytes: entry.byte_size(),
+            curl,
+            key,
+        };
+        Ok((entry, st))
+    }
+}
+
+fn curl_of(values: &[Value]) -> Option<f64> {
+    values.iter().find_map(|v| match v {
+        Value::Rgbn(img) => Some(GradientField::from_normals(img).relative_rms_curl(img.mask())),
+        _ => None,
+    })
+}

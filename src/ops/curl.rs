@@ -1,0 +1,39 @@
+//! Integrability readout: the discrete curl `c = ∂p/∂y − ∂q/∂x` of an image's gradient field
+//! (see [`crate::raster::gradient`]) as a scalar field, and its relative RMS.
+
+use super::params::NoParams;
+use super::{Inputs, OpSpec, Operator, PortSpec, PortType, RunContext, Value};
+use crate::error::RgbnError;
+use crate::raster::gradient::GradientField;
+use std::sync::Arc;
+
+/// The curl map and relative RMS curl of an image.
+pub struct CurlOp;
+
+impl Operator for CurlOp {
+    type Params = NoParams;
+    fn spec() -> OpSpec {
+        OpSpec::new(
+            "curl",
+            "Curl readout",
+            "analysis",
+            "Integrability readout: the curl map of the gradient field and RMS(curl)/RMS(|g|) inside the mask (zero for the normals of a height).",
+        )
+        .input(PortSpec::new("image", PortType::Rgbn, "Image."))
+        .output(PortSpec::new("curl", PortType::Scalar, "Curl per pixel (forward differences)."))
+        .output(PortSpec::new(
+            "relative_rms",
+            PortType::Number,
+            "RMS(curl) / RMS(|g|) inside the mask.",
+        ))
+    }
+    fn run(_: &NoParams, i: &Inputs<'_>, _: &RunContext) -> Result<Vec<Value>, RgbnError> {
+        let img = i.rgbn("image")?;
+        let g = GradientField::from_normals(img);
+        let stats = g.curl_stats(img.mask());
+        Ok(vec![
+            Value::Scalar(Arc::new(g.curl())),
+            Value::Number(stats.relative),
+        ])
+    }
+}

@@ -1,0 +1,760 @@
+//! Operator parameters declared once.
+//!
+//! A params struct implements [`Params::visit`], calling one [`ParamVisitor`] method per field
+//! with its name, metadata (doc, unit, range) and a `&mut` reference to the value. Every consumer
+//! is a visitor over that single declaration:
+//!
+//! - [`describe`] lists names, kinds, docs, ranges and defaults (`rgbn ops`, the editor's widgets);
+//! - [`to_values`] turns a struct into the file schema (`BTreeMap<String, ParamValue>`), which is
+//!   also the canonical form hashed into cache keys;
+//! - [`from_values`] applies a map from a graph file or `--set`, refusing unknown names (with a
+//!   suggestion), wrong kinds and out-of-range values.
+//!
+//! The core never depends on egui: an editor implements [`ParamVisitor`] to draw widgets.
+//!
+//! ```
+//! use rgbn::ops::params::{Params, ParamVisitor, Meta, describe};
+//! #[derive(Clone, Debug, PartialEq)]
+//! struct Blur { sigma_px: f64 }
+//! impl Default for Blur { fn default() -> Self { Self { sigma_px: 2.0 } } }
+//! impl Params for Blur {
+//!     fn visit(&mut self, v: &mut dyn ParamVisitor) {
+//!         v.float("sigma_px", &mut self.sigma_px, &Meta::new("Gaussian σ.").unit("px").range(0.01, 4096.0));
+//!     }
+//! }
+//! assert_eq!(describe::<Blur>()[0].name, "sigma_px");
+//! ```
+
+use std::collections::BTreeMap;
+use std::fmt;
+
+/// A parameter value as stored in graph files. This is the file schema, independent of the
+/// runtime params structs; floats are `f64` and compared/hashed by bits.
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+pub enum ParamValue {
+    /// A boolean switch.
+    Bool(bool),
+    /// An integer (sizes, radii, counts).
+    Int(i64),
+    /// A real number.
+    Float(f64),
+    /// One of a fixed set of names (see [`ParamKind::Choice`]).
+    Choice(String),
+    /// Free text.
+    Text(String),
+    /// A file path; relative paths are relative to the graph file's folder.
+    Path(String),
+    /// A 3-vector (directions, colours).
+    Vec3([f64; 3]),
+    /// A list of numbers (kernel taps).
+    Floats(Vec<f64>),
+    /// A sampled 1-D profile (values at equally spaced positions over [0, 1]).
+    Profile(Vec<f64>),
+    /// A list of 2-D points in pixels (pen paths, brush strokes).
+    Points(Vec<[f64; 2]>),
+}
+
+impl ParamValue {
+    /// The kind name used in messages.
+    #[must_use]
+    pub fn kind_name(&self) -> &'static str {
+        match self {
+            ParamValue::Bool(_) => "bool",
+            ParamValue::Int(_) => "int",
+            ParamValue::Float(_) => "float",
+            ParamValue::Choice(_) => "choice",
+            ParamValue::Text(_) => "text",
+            ParamValue::Path(_) => "path",
+            ParamValue::Vec3(_) => "vec3",
+            ParamValue::Floats(_) => "floats",
+            ParamValue::Profile(_) => "profile",
+            ParamValue::Points(_) => "points",
+        }
+    }
+
+    /// Feeds a canonical byte form into `h` (floats by bits, tagged by kind).
+    pub fn hash_into(&self, h: &mut xxhash_rust::xxh3::Xxh3) {
+        fn floats(h: &mut xxhash_rust::xxh3::Xxh3, v: &[f64]) {
+            h.update(&(v.len() as u64).to_le_bytes());
+            for x in v {
+                h.update(&x.to_bits().to_le_bytes());
+            }
+        }
+        h.update(self.kind_name().as_bytes());
+        match self {
+            ParamValue::Bool(b) => h.update(&[u8::from(*b)]),
+            ParamValue::Int(i) => h.update(&i.to_le_bytes()),
+            ParamValue::Float(f) => h.update(&f.to_bits().to_le_bytes()),
+            ParamValue::Choice(s) | ParamValue::Text(s) | ParamValue::Path(s) => {
+                h.update(&(s.len() as u64).to_le_bytes());
+                h.update(s.as_bytes());
+            }
+            ParamValue::Vec3(v) => floats(h, v),
+            ParamValue::Floats(v) | ParamValue::Profile(v) => floats(h, v),
+            ParamValue::Points(p) => {
+                let flat: Vec<f64> = p.iter().flatten().copied().collect();
+                floats(h, &flat);
+            }
+        }
+    }
+}
+
+impl fmt::Display for ParamValue {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let list = |f: &mut fmt::Formatter<'_>, v: &[f64]| {
+            let s: Vec<String> = v.iter().map(ToString::to_string).collect();
+            write!(f, "{}", s.join(","))
+        };
+        match self {
+            ParamValue::Bool(b) => write!(f, "{b}"),
+            ParamValue::Int(i) => write!(f, "{i}"),
+            ParamValue::Float(x) => write!(f, "{x}"),
+            ParamValue::Choice(s) | ParamValue::Text(s) | ParamValue::Path(s) => {
+                write!(f, "{s}")
+            }
+            ParamValue::Vec3(v) => list(f, v),
+            ParamValue::Floats(v) | ParamValue::Profile(v) => list(f, v),
+            ParamValue::Points(p) => {
+                let s: Vec<String> = p.iter().map(|[x, y]| format!("{x}:{y}")).collect();
+                write!(f, "{}", s.join(","))
+            }
+        }
+    }
+}
+
+/// Metadata of one parameter: documentation, unit and (for numbers) the accepted range.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Meta {
+    /// One-sentence documentation.
+    pub doc: &'static str,
+    /// Unit shown after the value (e.g. `px`, `rad`, `EV`); empty when unitless.
+    pub unit: &'static str,
+    /// Inclusive range for numbers (each element for vectors and lists).
+    pub range: Option<(f64, f64)>,
+    /// For paths: true when the file is written (an output), false when it is read.
+    pub output: bool,
+    /// For paths and texts: an empty value is allowed (meaning "none").
+    pub optional: bool,
+}
+
+impl Meta {
+    /// Metadata with a doc line.
+    #[must_use]
+    pub const fn new(doc: &'static str) -> Self {
+        Self {
+            doc,
+            unit: "",
+            range: None,
+            output: false,
+            optional: false,
+        }
+    }
+    /// Sets the unit.
+    #[must_use]
+    pub const fn unit(mut self, unit: &'static str) -> Self {
+        self.unit = unit;
+        self
+    }
+    /// Sets the inclusive range.
+    #[must_use]
+    pub const fn range(mut self, min: f64, max: f64) -> Self {
+        self.range = Some((min, max));
+        self
+    }
+    /// Marks a path as written rather than read.
+    #[must_use]
+    pub const fn output(mut self) -> Self {
+        self.output = true;
+        self
+    }
+    /// Allows an empty path or text.
+    #[must_use]
+    pub const fn optional(mut self) -> Self {
+        self.optional = true;
+        self
+    }
+}
+
+/// The kind of a parameter, with what a widget or parser needs to know.
+#[derive(Clone, Debug, PartialEq)]
+pub enum ParamKind {
+    /// `true`/`false`.
+    Bool,
+    /// An integer.
+    Int,
+    /// A real number.
+    Float,
+    /// One name out of `options`.
+    Choice(Vec<&'static str>),
+    /// Free text.
+    Text,
+    /// A file path.
+    Path,
+    /// Three numbers.
+    Vec3,
+    /// A list of numbers.
+    Floats,
+    /// A sampled 1-D profile.
+    Profile,
+    /// A list of 2-D points.
+    Points,
+}
+
+/// Everything known about one parameter (from [`describe`]).
+#[derive(Clone, Debug, PartialEq)]
+pub struct ParamInfo {
+    /// Name as used in files and `--set`.
+    pub name: &'static str,
+    /// Kind.
+    pub kind: ParamKind,
+    /// Doc, unit, range.
+    pub meta: Meta,
+    /// The default value.
+    pub default: ParamValue,
+}
+
+impl ParamInfo {
+    /// Parses a command-line string (`--set NODE.PARAM=VALUE`) into a value of this kind.
+    /// Lists are comma separated; points are `x:y,x:y`.
+    pub fn parse_str(&self, s: &str) -> Result<ParamValue, String> {
+        let num = |t: &str| -> Result<f64, String> {
+            t.trim()
+                .parse::<f64>()
+                .map_err(|_| format!("{t:?} is not a number"))
+        };
+        let nums = |t: &str| -> Result<Vec<f64>, String> {
+            if t.trim().is_empty() {
+                return Ok(Vec::new());
+            }
+            t.split(',').map(num).collect()
+        };
+        Ok(match &self.kind {
+            ParamKind::Bool => match s {
+                "true" | "1" | "yes" | "on" => ParamValue::Bool(true),
+                "false" | "0" | "no" | "off" => ParamValue::Bool(false),
+                _ => return Err(format!("{s:?} is not true or false")),
+            },
+            ParamKind::Int => ParamValue::Int(
+                s.trim()
+                    .parse()
+                    .map_err(|_| format!("{s:?} is not an integer"))?,
+            ),
+            ParamKind::Float => ParamValue::Float(num(s)?),
+            ParamKind::Choice(_) => ParamValue::Choice(s.to_string()),
+            ParamKind::Text => ParamValue::Text(s.to_string()),
+            ParamKind::Path => ParamValue::Path(s.to_string()),
+            ParamKind::Vec3 => match nums(s)?.as_slice() {
+                [x, y, z] => ParamValue::Vec3([*x, *y, *z]),
+                _ => return Err(format!("{s:?} is not x,y,z")),
+            },
+            ParamKind::Floats => ParamValue::Floats(nums(s)?),
+            ParamKind::Profile => ParamValue::Profile(nums(s)?),
+            ParamKind::Points => {
+                let mut pts = Vec::new();
+                for p in s.split(',').filter(|t| !t.trim().is_empty()) {
+                    let (x, y) = p
+                        .split_once(':')
+                        .ok_or_else(|| format!("point {p:?} is not x:y"))?;
+                    pts.push([num(x)?, num(y)?]);
+                }
+                ParamValue::Points(pts)
+            }
+        })
+    }
+}
+
+/// Visits each parameter of a params struct. One method per kind; `value` may be read and
+/// written. Implemented by [`describe`], [`to_values`], [`from_values`] and by the editor.
+pub trait ParamVisitor {
+    /// A boolean switch.
+    fn bool(&mut self, name: &'static str, value: &mut bool, meta: &Meta);
+    /// An integer, range in `meta.range`.
+    fn int(&mut self, name: &'static str, value: &mut i64, meta: &Meta);
+    /// A real number, range in `meta.range`.
+    fn float(&mut self, name: &'static str, value: &mut f64, meta: &Meta);
+    /// An enum given by its option names; `value` is one of `options`.
+    fn choice(
+        &mut self,
+        name: &'static str,
+        value: &mut &'static str,
+        options: &[&'static str],
+        meta: &Meta,
+    );
+    /// Free text.
+    fn text(&mut self, name: &'static str, value: &mut String, meta: &Meta);
+    /// A file path (read, or written when `meta.output`).
+    fn path(&mut self, name: &'static str, value: &mut String, meta: &Meta);
+    /// Three numbers (each within `meta.range` if given).
+    fn vec3(&mut self, name: &'static str, value: &mut [f64; 3], meta: &Meta);
+    /// A list of numbers.
+    fn floats(&mut self, name: &'static str, value: &mut Vec<f64>, meta: &Meta);
+    /// A sampled 1-D profile over [0, 1].
+    fn profile(&mut self, name: &'static str, value: &mut Vec<f64>, meta: &Meta);
+    /// A list of 2-D points in pixels (paths, strokes).
+    fn points(&mut self, name: &'static str, value: &mut Vec<[f64; 2]>, meta: &Meta);
+}
+
+/// A params struct: default values from [`Default`], fields declared in [`Params::visit`].
+pub trait Params: Default + Clone + Send + Sync + 'static {
+    /// Calls `v` once per field, in a fixed order.
+    fn visit(&mut self, v: &mut dyn ParamVisitor);
+}
+
+/// No parameters.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct NoParams;
+
+impl Params for NoParams {
+    fn visit(&mut self, _: &mut dyn ParamVisitor) {}
+}
+
+/// A visitor implemented by a closure over `(name, kind, meta, value-as-ParamValue)`, for
+/// read-only consumers.
+struct Collect<F: FnMut(&'static str, ParamKind, &Meta, ParamValue)>(F);
+
+impl<F: FnMut(&'static str, ParamKind, &Meta, ParamValue)> ParamVisitor for Collect<F> {
+    fn bool(&mut self, name: &'static str, value: &mut bool, meta: &Meta) {
+        (self.0)(name, ParamKind::Bool, meta, ParamValue::Bool(*value));
+    }
+    fn int(&mut self, name: &'static str, value: &mut i64, meta: &Meta) {
+        (self.0)(name, ParamKind::Int, meta, ParamValue::Int(*value));
+    }
+    fn float(&mut self, name: &'static str, value: &mut f64, meta: &Meta) {
+        (self.0)(name, ParamKind::Float, meta, ParamValue::Float(*value));
+    }
+    fn choice(
+        &mut self,
+        name: &'static str,
+        value: &mut &'static str,
+        options: &[&'static str],
+        meta: &Meta,
+    ) {
+        (self.0)(
+            name,
+            ParamKind::Choice(options.to_vec()),
+            meta,
+            ParamValue::Choice((*value).to_string()),
+        );
+    }
+    fn text(&mut self, name: &'static str, value: &mut String, meta: &Meta) {
+        (self.0)(name, ParamKind::Text, meta, ParamValue::Text(value.clone()));
+    }
+    fn path(&mut self, name: &'static str, value: &mut String, meta: &Meta) {
+        (self.0)(name, ParamKind::Path, meta, ParamValue::Path(value.clone()));
+    }
+    fn vec3(&mut self, name: &'static str, value: &mut [f64; 3], meta: &Meta) {
+        (self.0)(name, ParamKind::Vec3, meta, ParamValue::Vec3(*value));
+    }
+    fn floats(&mut self, name: &'static str, value: &mut Vec<f64>, meta: &Meta) {
+        (self.0)(
+            name,
+            ParamKind::Floats,
+            meta,
+            ParamValue::Floats(value.clone()),
+        );
+    }
+    fn profile(&mut self, name: &'static str, value: &mut Vec<f64>, meta: &Meta) {
+        (self.0)(
+            name,
+            ParamKind::Profile,
+            meta,
+            ParamValue::Profile(value.clone()),
+        );
+    }
+    fn points(&mut self, name: &'static str, value: &mut Vec<[f64; 2]>, meta: &Meta) {
+        (self.0)(
+            name,
+            ParamKind::Points,
+            meta,
+            ParamValue::Points(value.clone()),
+        );
+    }
+}
+
+/// Describes every parameter of `P` with its default.
+#[must_use]
+pub fn describe<P: Params>() -> Vec<ParamInfo> {
+    let mut out = Vec::new();
+    let mut p = P::default();
+    p.visit(&mut Collect(|name, kind, meta: &Meta, default| {
+        out.push(ParamInfo {
+            name,
+            kind,
+            meta: meta.clone(),
+            default,
+        });
+    }));
+    out
+}
+
+/// The file form of `p`: every parameter, including those at their default.
+#[must_use]
+pub fn to_values<P: Params>(p: &P) -> BTreeMap<String, ParamValue> {
+    let mut out = BTreeMap::new();
+    let mut p = p.clone();
+    p.visit(&mut Collect(|name: &'static str, _, _: &Meta, v| {
+        out.insert(name.to_string(), v);
+    }));
+    out
+}
+
+/// Why a parameter map could not be applied.
+#[derive(Clone, Debug, PartialEq)]
+pub enum ParamError {
+    /// No parameter of that name; `suggestion` is the nearest known name.
+    Unknown {
+        /// The name given.
+        name: String,
+        /// The closest parameter name, if any is close.
+        suggestion: Option<String>,
+    },
+    /// The value has the wrong kind.
+    Kind {
+        /// Parameter name.
+        name: String,
+        /// The kind the parameter has.
+        expected: &'static str,
+        /// The kind given.
+        found: &'static str,
+    },
+    /// The value is of the right kind but not acceptable.
+    Range {
+        /// Parameter name.
+        name: String,
+        /// What is wrong.
+        detail: String,
+    },
+}
+
+impl fmt::Display for ParamError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            ParamError::Unknown { name, suggestion } => {
+                write!(f, "unknown parameter {name:?}")?;
+                if let Some(s) = suggestion {
+                    write!(f, " (did you mean {s:?}?)")?;
+                }
+                Ok(())
+            }
+            ParamError::Kind {
+                name,
+                expected,
+                found,
+            } => write!(
+                f,
+                "parameter {name:?} needs a {expected} value, got a {found}"
+            ),
+            ParamError::Range { name, detail } => write!(f, "parameter {name:?}: {detail}"),
+        }
+    }
+}
+
+fn set_if<T>(ok: bool, dst: &mut T, v: T) {
+    if ok {
+        *dst = v;
+    }
+}
+
+/// Applies values onto a struct, checking kinds and ranges.
+struct Apply<'a> {
+    values: &'a BTreeMap<String, ParamValue>,
+    errors: Vec<ParamError>,
+}
+
+impl Apply<'_> {
+    fn get(&self, name: &str) -> Option<&ParamValue> {
+        self.values.get(name)
+    }
+    fn kind_err(&mut self, name: &str, expected: &'static str, found: &ParamValue) {
+        self.errors.push(ParamError::Kind {
+            name: name.to_string(),
+            expected,
+            found: found.kind_name(),
+        });
+    }
+    fn check_range(&mut self, name: &str, values: &[f64], meta: &Meta) -> bool {
+        for v in values {
+            if !v.is_finite() {
+                self.errors.push(ParamError::Range {
+                    name: name.into(),
+                    detail: format!("{v} is not a finite number"),
+                });
+                return false;
+            }
+            if let Some((lo, hi)) = meta.range {
+                if *v < lo || *v > hi {
+                    self.errors.push(ParamError::Range {
+                        name: name.into(),
+                        detail: format!("{v} is out of range [{lo}, {hi}]"),
+                    });
+                    return false;
+                }
+            }
+        }
+        true
+    }
+}
+
+impl ParamVisitor for Apply<'_> {
+    fn bool(&mut self, name: &'static str, value: &mut bool, _: &Meta) {
+        match self.get(name).cloned() {
+            None => {}
+            Some(ParamValue::Bool(b)) => *value = b,
+            Some(v) => self.kind_err(name, "bool", &v),
+        }
+    }
+    fn int(&mut self, name: &'static str, value: &mut i64, meta: &Meta) {
+        match self.get(name).cloned() {
+            None => {}
+            Some(ParamValue::Int(i)) => {
+                let ok = self.check_range(name, &[i as f64], meta);
+                set_if(ok, value, i);
+            }
+            Some(v) => self.kind_err(name, "int", &v),
+        }
+    }
+    fn float(&mut self, name: &'static str, value: &mut f64, meta: &Meta) {
+        let x = match self.get(name).cloned() {
+            None => return,
+            Some(ParamValue::Float(x)) => x,
+            Some(ParamValue::Int(i)) => i as f64,
+            Some(v) => return self.kind_err(name, "float", &v),
+        };
+        let ok = self.check_range(name, &[x], meta);
+        set_if(ok, value, x);
+    }
+    fn choice(
+        &mut self,
+        name: &'static str,
+        value: &mut &'static str,
+        options: &[&'static str],
+        _: &Meta,
+    ) {
+        match self.get(name).cloned() {
+            None => {}
+            Some(ParamValue::Choice(s) | ParamValue::Text(s)) => {
+                match options.iter().find(|o| **o == s) {
+                    Some(o) => *value = o,
+                    None => self.errors.push(ParamError::Range {
+                        name: name.into(),
+                        detail: format!(
+                            "{s:?} is not one of {}{}",
+                            options.join(", "),
+                            nearest(&s, options.iter().copied())
+                                .map(|n| format!(" (did you mean {n:?}?)"))
+                                .unwrap_or_default()
+                        ),
+                    }),
+                }
+            }
+            Some(v) => self.kind_err(name, "choice", &v),
+        }
+    }
+    fn text(&mut self, name: &'static str, value: &mut String, _: &Meta) {
+        match self.get(name).cloned() {
+            None => {}
+            Some(ParamValue::Text(s)) => *value = s,
+            Some(v) => self.kind_err(name, "text", &v),
+        }
+    }
+    fn path(&mut self, name: &'static str, value: &mut String, meta: &Meta) {
+        match self.get(name).cloned() {
+            None => {}
+            Some(ParamValue::Path(s) | ParamValue::Text(s)) => {
+                if s.is_empty() && !meta.optional {
+                    self.errors.push(ParamError::Range {
+                        name: name.into(),
+                        detail: "a file path is required".into(),
+                    });
+                } else {
+                    *value = s;
+                }
+            }
+            Some(v) => self.kind_err(name, "path", &v),
+        }
+    }
+    fn vec3(&mut self, name: &'static str, value: &mut [f64; 3], meta: &Meta) {
+        match self.get(name).cloned() {
+            None => {}
+            Some(ParamValue::Vec3(v)) => {
+                let ok = self.check_range(name, &v, meta);
+                set_if(ok, value, v);
+            }
+            Some(v) => self.kind_err(name, "vec3", &v),
+        }
+    }
+    fn floats(&mut self, name: &'static str, value: &mut Vec<f64>, meta: &Meta) {
+        match self.get(name).cloned() {
+            None => {}
+            Some(ParamValue::Floats(v)) => {
+                let ok = self.check_range(name, &v, meta);
+                set_if(ok, value, v);
+            }
+            Some(v) => self.kind_err(name, "floats", &v),
+        }
+    }
+    fn profile(&mut self, name: &'static str, value: &mut Vec<f64>, meta: &Meta) {
+        match self.get(name).cloned() {
+            None => {}
+            Some(ParamValue::Profile(v) | ParamValue::Floats(v)) => {
+                let ok = self.check_range(name, &v, meta);
+                set_if(ok, value, v);
+            }
+            Some(v) => self.kind_err(name, "profile", &v),
+        }
+    }
+    fn points(&mut self, name: &'static str, value: &mut Vec<[f64; 2]>, meta: &Meta) {
+        match self.get(name).cloned() {
+            None => {}
+            Some(ParamValue::Points(v)) => {
+                let flat: Vec<f64> = v.iter().flatten().copied().collect();
+                let ok = self.check_range(name, &flat, meta);
+                set_if(ok, value, v);
+            }
+            Some(v) => self.kind_err(name, "points", &v),
+        }
+    }
+}
+
+/// Builds `P` from defaults overridden by `values`. Unknown names, wrong kinds and values out of
+/// range are errors (the first one found is returned).
+pub fn from_values<P: Params>(values: &BTreeMap<String, ParamValue>) -> Result<P, ParamError> {
+    let known: Vec<&'static str> = describe::<P>().iter().map(|i| i.name).collect();
+    if let Some(name) = values.keys().find(|k| !known.contains(&k.as_str())) {
+        return Err(ParamError::Unknown {
+            name: name.clone(),
+            suggestion: nearest(name, known.iter().copied()),
+        });
+    }
+    let mut p = P::default();
+    let mut apply = Apply {
+        values,
+        errors: Vec::new(),
+    };
+    p.visit(&mut apply);
+    match apply.errors.into_iter().next() {
+        Some(e) => Err(e),
+        None => Ok(p),
+    }
+}
+
+/// Levenshtein distance (for "did you mean" suggestions).
+#[must_use]
+pub fn edit_distance(a: &str, b: &str) -> usize {
+    let a: Vec<char> = a.chars().collect();
+    let b: Vec<char> = b.chars().collect();
+    let mut prev: Vec<usize> = (0..=b.len()).collect();
+    for (i, ca) in a.iter().enumerate() {
+        let mut cur = vec![i + 1; b.len() + 1];
+        for (j, cb) in b.iter().enumerate() {
+            cur[j + 1] = (prev[j] + usize::from(ca != cb))
+                .min(prev[j + 1] + 1)
+                .min(cur[j] + 1);
+        }
+        prev = cur;
+    }
+    prev[b.len()]
+}
+
+/// The candidate nearest to `word` by edit distance, if it is close enough to be a likely typo
+/// (distance ≤ max(2, len/3)) or contains / is contained in `word`.
+pub fn nearest<'a>(word: &str, candidates: impl IntoIterator<Item = &'a str>) -> Option<String> {
+    let w = word.to_lowercase();
+    candidates
+        .into_iter()
+        .map(|c| (edit_distance(&w, &c.to_lowercase()), c))
+        .filter(|(d, c)| {
+            *d <= (w.chars().count() / 3).max(2)
+                || (!w.is_empty() && (c.contains(w.as_str()) || w.contains(*c)))
+        })
+        .min_by_key(|(d, _)| *d)
+        .map(|(_, c)| c.to_string())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[derive(Clone, Debug, PartialEq)]
+    struct P {
+        sigma_px: f64,
+        n: i64,
+        mode: &'static str,
+        pts: Vec<[f64; 2]>,
+    }
+    impl Default for P {
+        fn default() -> Self {
+            Self {
+                sigma_px: 2.0,
+                n: 3,
+                mode: "a",
+                pts: vec![],
+            }
+        }
+    }
+    impl Params for P {
+        fn visit(&mut self, v: &mut dyn ParamVisitor) {
+            v.float(
+                "sigma_px",
+                &mut self.sigma_px,
+                &Meta::new("σ").range(0.1, 10.0),
+            );
+            v.int("n", &mut self.n, &Meta::new("n").range(1.0, 5.0));
+            v.choice("mode", &mut self.mode, &["a", "bee"], &Meta::new("m"));
+            v.points("pts", &mut self.pts, &Meta::new("p"));
+        }
+    }
+
+    #[test]
+    fn round_trip_and_errors() {
+        let p = P {
+            sigma_px: 4.5,
+            mode: "bee",
+            pts: vec![[1.0, 2.0]],
+            ..P::default()
+        };
+        let v = to_values(&p);
+        assert_eq!(v.len(), 4);
+        assert_eq!(from_values::<P>(&v), Ok(p));
+        let mut bad = BTreeMap::new();
+        bad.insert("sigma".to_string(), ParamValue::Float(1.0));
+        match from_values::<P>(&bad) {
+            Err(ParamError::Unknown { suggestion, .. }) => {
+                assert_eq!(suggestion.as_deref(), Some("sigma_px"))
+            }
+            other => panic!("{other:?}"),
+        }
+        bad.clear();
+        bad.insert("n".into(), ParamValue::Int(9));
+        assert!(matches!(
+            from_values::<P>(&bad),
+            Err(ParamError::Range { .. })
+        ));
+        bad.insert("n".into(), ParamValue::Bool(true));
+        assert!(matches!(
+            from_values::<P>(&bad),
+            Err(ParamError::Kind { .. })
+        ));
+        bad.clear();
+        bad.insert("mode".into(), ParamValue::Choice("be".into()));
+        let e = from_values::<P>(&bad).unwrap_err().to_string();
+        assert!(e.contains("did you mean \"bee\""), "{e}");
+    }
+
+    #[test]
+    fn parse_strings_by_kind() {
+        let info = describe::<P>();
+        assert_eq!(info[0].parse_str("2.5"), Ok(ParamValue::Float(2.5)));
+        assert!(info[1].parse_str("2.5").is_err());
+        assert_eq!(
+            info[3].parse_str("1:2,3:4"),
+            Ok(ParamValue::Points(vec![[1.0, 2.0], [3.0, 4.0]]))
+        );
+        assert_eq!(edit_distance("kitten", "sitting"), 3);
+        assert_eq!(
+            nearest("gausian", ["gaussian", "box"]).as_deref(),
+            Some("gaussian")
+        );
+        assert_eq!(nearest("zzzzzz", ["gaussian", "box"]), None);
+    }
+}

@@ -1,0 +1,285 @@
+//! Cache behaviour, counted: what hits, what misses, and why.
+
+use crate::common::*;
+use rgbn::eval::{EvalOptions, EvalResult, Evaluator, Plan, Status};
+use rgbn::graph::{LoadedGraph, NodeDef};
+use rgbn::ops::params::ParamValue;
+use std::collections::BTreeMap;
+use std::path::Path;
+use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
+use std::sync::Arc;
+
+/// surface(1) → gaussian(2) → sharpen(3) → relight(4); gaussian(2) → curl(5); a second branch
+/// view(6) from the surface.
+const CHAIN: &str = r#"(
+    version: 1,
+    next_id: 7,
+    outputs: {
+        "relit": (node: 4, port: "picture"),
+        "curl": (node: 5, port: "relative_rms"),
+        "albedo": (node: 6, port: "picture"),
+    },
+    nodes: [
+        (id: 1, op: "surface", params: { "shape": Choice("gaussians"), "width": Int(64), "height": Int(64) }),
+        (id: 2, op: "filter.gaussian", name: Some("blur"), params: { "sigma_px": Float(1.5) }, inputs: { "image": Node(1, "image") }),
+        (id: 3, op: "filter.sharpen", inputs: { "image": Node(2, "image") }),
+        (id: 4, op: "relight", inputs: { "image": Node(3, "image") }),
+        (id: 5, op: "curl", inputs: { "image": Node(2, "image") }),
+        (id: 6, op: "view", params: { "view": Choice("albedo") }, inputs: { "image": Node(1, "image") }),
+    ],
+)"#;
+
+fn chain() -> LoadedGraph {
+    LoadedGraph::from_text(CHAIN, "chain.ron", root().join("graphs")).unwrap()
+}
+
+fn run(ev: &Evaluator, lg: &LoadedGraph, outputs: &[&str]) -> EvalResult {
+    let plan = Plan::new(lg, &BTreeMap::new(), Path::new(".")).unwrap();
+    ev.eval(&plan, outputs, &EvalOptions::default()).unwrap()
+}
+
+fn edit(lg: &LoadedGraph, f: impl FnOnce(&mut BTreeMap<u64, NodeDef>)) -> LoadedGraph {
+    let mut g = lg.graph.clone();
+    f(&mut g.nodes);
+    LoadedGraph::from_graph(g, lg.path.clone(), lg.base_dir.clone()).unwrap()
+}
+
+#[test]
+fn unchanged_moved_renamed_graphs_do_not_recompute() {
+    let ev = Evaluator::default();
+    let lg = chain();
+    let first = run(&ev, &lg, &[]);
+    assert_eq!(first.missed_nodes(), vec![1, 2, 3, 4, 5, 6]);
+    assert_eq!(first.hits(), 0);
+
+    let again = run(&ev, &lg, &[]);
+    assert_eq!(again.misses(), 0);
+    assert_eq!(again.outputs, first.outputs);
+
+    let moved = edit(&lg, |n| {
+        for node in n.values_mut() {
+            node.pos = [node.pos[0] + 100.0, -50.0];
+        }
+        n.get_mut(&3).unwrap().name = Some("crisp".into());
+        n.get_mut(&2).unwrap().name = None;
+    });
+    let r = run(&ev, &moved, &[]);
+    assert_eq!(r.misses(), 0);
+    assert_eq!(r.outputs, first.outputs);
+    // A restated default is the same canonical parameter set.
+    let restated = edit(&lg, |n| {
+        n.get_mut(&3)
+            .unwrap()
+            .params
+            .insert("amount".into(), ParamValue::Float(1.0));
+    });
+    assert_eq!(run(&ev, &restated, &[]).misses(), 0);
+}
+
+#[test]
+fn a_parameter_change_misses_exactly_that_node_and_its_descendants() {
+    let ev = Evaluator::default();
+    let lg = chain();
+    run(&ev, &lg, &[]);
+    let edited = edit(&lg, |n| {
+        n.get_mut(&2)
+            .unwrap()
+            .params
+            .insert("sigma_px".into(), ParamValue::Float(2.5));
+    });
+    let r = run(&ev, &edited, &[]);
+    assert_eq!(r.missed_nodes(), vec![2, 3, 4, 5]);
+    // Upstream of the edit, the surface was a hit; the other branch (view) too.
+    let hit: Vec<u64> = r
+        .stats
+        .iter()
+        .filter(|s| s.status == Status::Hit)
+        .filter_map(|s| s.at.node)
+        .collect();
+    assert!(hit.contains(&6) || hit.contains(&1), "{hit:?}");
+    // Downstream of a hit nothing is pulled: node 1 need not be visited when 6 hits.
+    let mut ids: Vec<u64> = r.stats.iter().filter_map(|s| s.at.node).collect();
+    ids.sort_unstable();
+    assert_eq!(ids, vec![1, 2, 3, 4, 5, 6]);
+
+    let edited2 = edit(&edited, |n| {
+        n.get_mut(&3)
+            .unwrap()
+            .params
+            .insert("amount".into(), ParamValue::Float(0.5));
+    });
+    assert_eq!(run(&ev, &edited2, &[]).missed_nodes(), vec![3, 4]);
+}
+
+#[test]
+fn evaluation_is_lazy() {
+    let ev = Evaluator::default();
+    let lg = chain();
+    let r = run(&ev, &lg, &["albedo"]);
+    let mut ids: Vec<u64> = r.stats.iter().filter_map(|s| s.at.node).collect();
+    ids.sort_unstable();
+    assert_eq!(ids, vec![1, 6]);
+    assert_eq!(r.outputs.len(), 1);
+    // Then only what is new for `curl` runs; a cached output needs nothing upstream.
+    let r = run(&ev, &lg, &["curl"]);
+    assert_eq!(r.missed_nodes(), vec![2, 5]);
+    let r = run(&ev, &lg, &["curl"]);
+    assert_eq!(
+        r.stats.len(),
+        1,
+        "a hit on the output node pulls nothing upstream"
+    );
+}
+
+#[test]
+fn changing_an_input_files_bytes_invalidates_its_dependants() {
+    let d = tempfile::tempdir().unwrap();
+    std::fs::copy(
+        root().join("graphs/data/image.exr"),
+        d.path().join("in.exr"),
+    )
+    .unwrap();
+    let text = std::fs::read_to_string(graph_path("load.ron"))
+        .unwrap()
+        .replace("data/image.exr", "in.exr");
+    let p = write(d.path(), "load.ron", &text);
+    let lg = LoadedGraph::load(&p).unwrap();
+    let ev = Evaluator::default();
+    let plan = Plan::new(&lg, &BTreeMap::new(), d.path()).unwrap();
+    let opts = EvalOptions::default();
+    let a = ev.eval(&plan, &[], &opts).unwrap();
+    assert_eq!(a.missed_nodes(), vec![1, 2]);
+    assert_eq!(ev.eval(&plan, &[], &opts).unwrap().misses(), 0);
+    // Same path, new bytes: a sphere instead of the demo.
+    let (sphere, _) = rgbn::raster::sample::Surface::Sphere { radius_px: 20.0 }.render(48, 48);
+    rgbn::raster::io::save_exr(
+        &sphere,
+        &d.path().join("in.exr"),
+        rgbn::raster::io::ExrPrecision::Full,
+    )
+    .unwrap();
+    let b = ev.eval(&plan, &[], &opts).unwrap();
+    assert_eq!(b.missed_nodes(), vec![1, 2]);
+    assert_ne!(a.outputs, b.outputs);
+    // The same bytes under another name hit: keys are by content, not path.
+    std::fs::copy(d.path().join("in.exr"), d.path().join("copy.exr")).unwrap();
+    let p2 = write(d.path(), "load2.ron", &text.replace("in.exr", "copy.exr"));
+    let lg2 = LoadedGraph::load(&p2).unwrap();
+    let plan2 = Plan::new(&lg2, &BTreeMap::new(), d.path()).unwrap();
+    assert_eq!(ev.eval(&plan2, &[], &opts).unwrap().misses(), 0);
+}
+
+#[test]
+fn disk_cache_survives_a_new_evaluator_and_ignores_corrupt_entries() {
+    let d = tempfile::tempdir().unwrap();
+    let lg = chain();
+    let first = run(
+        &Evaluator::default().with_disk_cache(d.path()).unwrap(),
+        &lg,
+        &[],
+    );
+    let fresh = Evaluator::default().with_disk_cache(d.path()).unwrap();
+    let r = run(&fresh, &lg, &[]);
+    assert_eq!(r.misses(), 0);
+    assert!(r.stats.iter().all(|s| s.status == Status::DiskHit));
+    assert_eq!(r.outputs, first.outputs);
+    // Edit downstream: upstream results come from disk.
+    let edited = edit(&lg, |n| {
+        n.get_mut(&3)
+            .unwrap()
+            .params
+            .insert("amount".into(), ParamValue::Float(3.0));
+    });
+    let r = run(
+        &Evaluator::default().with_disk_cache(d.path()).unwrap(),
+        &edited,
+        &["relit"],
+    );
+    assert_eq!(r.missed_nodes(), vec![3, 4]);
+    assert_eq!(
+        r.stats
+            .iter()
+            .filter(|s| s.status == Status::DiskHit)
+            .count(),
+        1
+    );
+    // Corrupt every entry: all recomputed, same results, no panic.
+    for e in std::fs::read_dir(d.path()).unwrap().flatten() {
+        let mut b = std::fs::read(e.path()).unwrap();
+        let n = b.len();
+        b.truncate(n / 2);
+        std::fs::write(e.path(), b).unwrap();
+    }
+    let r = run(
+        &Evaluator::default().with_disk_cache(d.path()).unwrap(),
+        &lg,
+        &[],
+    );
+    assert_eq!(r.misses(), 6);
+    assert_eq!(r.outputs, first.outputs);
+}
+
+#[test]
+fn memory_budget_evicts() {
+    let lg = chain();
+    let ev = Evaluator::new(0);
+    run(&ev, &lg, &[]);
+    assert_eq!(ev.mem_usage(), (0, 0));
+    assert_eq!(run(&ev, &lg, &[]).misses(), 6);
+}
+
+#[test]
+fn progress_is_reported_and_cancellation_stops() {
+    let lg = chain();
+    let plan = Plan::new(&lg, &BTreeMap::new(), Path::new(".")).unwrap();
+    let count = Arc::new(AtomicUsize::new(0));
+    let c2 = count.clone();
+    let totals = Arc::new(AtomicUsize::new(0));
+    let t2 = totals.clone();
+    let opts = EvalOptions {
+        progress: Some(Arc::new(move |p| {
+            c2.fetch_add(1, Ordering::SeqCst);
+            t2.store(p.total, Ordering::SeqCst);
+            assert!(p.done <= p.total);
+        })),
+        ..EvalOptions::default()
+    };
+    let ev = Evaluator::default();
+    ev.eval(&plan, &[], &opts).unwrap();
+    assert_eq!(count.load(Ordering::SeqCst), 6);
+    assert_eq!(totals.load(Ordering::SeqCst), 6);
+
+    let cancel = Arc::new(AtomicBool::new(true));
+    let opts = EvalOptions {
+        cancel: Some(cancel),
+        ..EvalOptions::default()
+    };
+    let e = Evaluator::default().eval(&plan, &[], &opts).unwrap_err();
+    assert!(matches!(e, rgbn::graph::GraphError::Cancelled), "{e}");
+    assert_eq!(e.exit_code(), 1);
+}
+
+#[test]
+fn curl_stats_are_measured_per_node() {
+    let lg = chain();
+    let plan = Plan::new(&lg, &BTreeMap::new(), Path::new(".")).unwrap();
+    let opts = EvalOptions {
+        curl_stats: true,
+        ..EvalOptions::default()
+    };
+    let r = Evaluator::default().eval(&plan, &["curl"], &opts).unwrap();
+    let by_node: BTreeMap<u64, Option<f64>> = r
+        .stats
+        .iter()
+        .map(|s| (s.at.node.unwrap(), s.curl))
+        .collect();
+    // Exact normals of a height: curl at rounding level; the curl node's own output too.
+    let c1 = by_node[&1].unwrap();
+    let c2 = by_node[&2].unwrap();
+    let rgbn::ops::Value::Number(out) = r.outputs["curl"] else {
+        panic!()
+    };
+    assert!((c2 - out).abs() < 1e-12, "{c2} vs {out}");
+    assert!(c1 < 0.05 && c2 < 0.05, "{c1} {c2}");
+    assert_eq!(by_node[&5], None);
+}
