@@ -1,4 +1,3 @@
-<<<<<<< HEAD
 //! Renormalise / repair normals, and the curl readout every operator's output can be checked
 //! with.
 //!
@@ -15,7 +14,9 @@
 //! - A. Agrawal, R. Chellappa, R. Raskar, "An algebraic approach to surface reconstruction from
 //!   gradient fields", ICCV 2005.
 
+use super::params::NoParams;
 use super::rotate::saturate;
+use super::{Inputs, OpSpec, Operator, PortSpec, PortType, RunContext, Value};
 use crate::error::RgbnError;
 use crate::raster::gradient::{CurlStats, GradientField};
 use crate::raster::{Plane, RgbnImage, Validation};
@@ -128,6 +129,34 @@ pub fn curl_readout(img: &RgbnImage, with_map: bool) -> CurlReadout {
     curl_readout_gradients(&GradientField::from_normals(img), img.mask(), with_map)
 }
 
+// ---- the node ----
+
+/// Renormalises the normals ([`crate::RgbnImage::normalize`]).
+pub struct Normalize;
+
+impl Operator for Normalize {
+    type Params = NoParams;
+    fn spec() -> OpSpec {
+        OpSpec::new(
+            "normalize",
+            "Normalize",
+            "filter",
+            "Rescales every normal to unit length; colour and mask are unchanged.",
+        )
+        .input(PortSpec::new("image", PortType::Rgbn, "Image."))
+        .output(PortSpec::new(
+            "image",
+            PortType::Rgbn,
+            "Image with unit normals.",
+        ))
+    }
+    fn run(_: &NoParams, i: &Inputs<'_>, _: &RunContext) -> Result<Vec<Value>, RgbnError> {
+        let mut img = i.rgbn("image")?.clone();
+        img.normalize();
+        Ok(vec![Value::Rgbn(img)])
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -172,36 +201,5 @@ mod tests {
         let r = curl_readout(&img, true);
         assert!(r.stats.relative < 0.05 && r.map.as_ref().is_some_and(|m| m.width() == 64));
         assert!(curl_readout(&img, false).map.is_none());
-=======
-//! Renormalises every normal to unit length (idempotent).
-
-use super::params::NoParams;
-use super::{Inputs, OpSpec, Operator, PortSpec, PortType, RunContext, Value};
-use crate::error::RgbnError;
-
-/// Renormalises the normals ([`crate::RgbnImage::normalize`]).
-pub struct Normalize;
-
-impl Operator for Normalize {
-    type Params = NoParams;
-    fn spec() -> OpSpec {
-        OpSpec::new(
-            "normalize",
-            "Normalize",
-            "filter",
-            "Rescales every normal to unit length; colour and mask are unchanged.",
-        )
-        .input(PortSpec::new("image", PortType::Rgbn, "Image."))
-        .output(PortSpec::new(
-            "image",
-            PortType::Rgbn,
-            "Image with unit normals.",
-        ))
-    }
-    fn run(_: &NoParams, i: &Inputs<'_>, _: &RunContext) -> Result<Vec<Value>, RgbnError> {
-        let mut img = i.rgbn("image")?.clone();
-        img.normalize();
-        Ok(vec![Value::Rgbn(img)])
->>>>>>> graph
     }
 }
