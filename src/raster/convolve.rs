@@ -303,7 +303,11 @@ fn steady_state(x: &Lane, g0: f32, g1: f32) -> [Lane; 4] {
 impl Section {
     /// DC gain of the causal (`fwd`) or anticausal part.
     fn gain(&self, fwd: bool) -> f32 {
-        let num = if fwd { self.n0 + self.n1 } else { self.m1 + self.m2 };
+        let num = if fwd {
+            self.n0 + self.n1
+        } else {
+            self.m1 + self.m2
+        };
         num / (1.0 + self.d1 + self.d2)
     }
 }
@@ -317,135 +321,46 @@ impl Deriche {
             BorderMode::Clamp | BorderMode::Zero => 0,
         }
     }
-
-    /// Filters every column of `data` (`width × height`, row-major) in place.
-    ///
-    /// Same arithmetic, per column and in the same order, as [`LineFilter::run`] on gathered
-    /// columns (results are bit-identical), but memory is walked in *strips*: each task owns
-    /// [`STRIP`] adjacent columns and runs the recursions down (then up) the rows, reading
-    /// `STRIP` contiguous floats per row instead of gathering one cache line per row across
-    /// the whole height. The causal result of the strip lives in a per-task buffer.
-    pub fn filter_columns(&self, data: &mut [f32], width: usize, height: usize, border: BorderMode) {
-        assert_eq!(data.len(), width * height);
-        if width == 0 || height == 0 {
-            return;
-        }
-        let pad = self.pad_for(border);
-        let [s0, s1] = self.sec;
-        let (gc0, gc1) = (s0.gain(true), s1.gain(true));
-        let (ga0, ga1) = (s0.gain(false), s1.gain(false));
-        let h_i = height as isize;
-        let strips = width.div_ceil(STRIP);
-        let ptr = SharedMut(data.as_mut_ptr());
-        (0..strips).into_par_iter().for_each_init(
-            Vec::<Lane>::new,
-            |causal, s| {
-                let c0 = s * STRIP;
-                let cols = STRIP.min(width - c0);
-                // Row `r` (possibly virtual, mapped by `border`) of this strip as lanes.
-                let load = |r: isize| -> [Lane; STRIP_LANES] {
-                    let mut v = [lane_splat(0.0); STRIP_LANES];
-                    if let Some(rr) = border.map(r, height) {
-                        // SAFETY: columns c0..c0+cols of row rr lie inside `data`; only this
-                        // task writes them (strips are disjoint), and not concurrently with
-                        // this read (the task is sequential).
-                        let src = unsafe {
-                            std::slice::from_raw_parts(ptr.get().add(rr * width + c0), cols)
-                        };
-                        for (k, x) in src.iter().enumerate() {
-                            v_set(&mut v, k, *x);
-                        }
-                    }
-                    v
-                };
-                causal.clear();
-                causal.resize(height * STRIP_LANES, lane_splat(0.0));
-                // ---- causal pass, top to bottom ----
-                let x0 = load(-(pad as isize) - 1);
-                let mut xp = x0;
-                let mut st: [[Lane; 4]; STRIP_LANES] =
-                    std::array::from_fn(|k| steady_state(&x0[k], gc0, gc1));
-                for i in -(pad as isize)..h_i {
-                    let x = load(i);
-                    for k in 0..STRIP_LANES {
-                        let y = causal_step(&x[k], &xp[k], &mut st[k], &s0, &s1);
-                        if i >= 0 {
-                            causal[i as usize * STRIP_LANES + k] = y;
-                        }
-                    }
-                    xp = x;
-                }
-                // ---- anticausal pass, bottom to top, output = causal + anticausal ----
-                let xe = load(h_i + pad as isize);
-                let (mut x1, mut x2) = (xe, xe);
-                let mut st: [[Lane; 4]; STRIP_LANES] =
-                    std::array::from_fn(|k| steady_state(&xe[k], ga0, ga1));
-                for i in (0..h_i + pad as isize).rev() {
-                    let mut out = [lane_splat(0.0); STRIP_LANES];
-                    for k in 0..STRIP_LANES {
-                        out[k] = anti_step(&x1[k], &x2[k], &mut st[k], &s0, &s1);
-                    }
-                    x2 = x1;
-                    x1 = load(i);
-                    if i < h_i {
-                        let r = i as usize;
-                        let c = &causal[r * STRIP_LANES..(r + 1) * STRIP_LANES];
-                        // SAFETY: as in `load`; row r of this strip, written by this task only.
-                        let dst = unsafe {
-                            std::slice::from_raw_parts_mut(ptr.get().add(r * width + c0), cols)
-                        };
-                        for (j, d) in dst.iter_mut().enumerate() {
-                            let (k, l) = (j / LANES, j % LANES);
-                            *d = c[k][l] + out[k][l];
-                        }
-                    }
-                }
-            },
-        );
-    }
-}
-
-/// Lanes per strip of the strip-wise column pass ([`Deriche::filter_columns`]).
-const STRIP_LANES: usize = 4;
-/// Columns per strip: 64 floats = 256 contiguous bytes per row.
-const STRIP: usize = STRIP_LANES * LANES;
-
-#[inline(always)]
-fn v_set(v: &mut [Lane; STRIP_LANES], k: usize, x: f32) {
-    v[k / LANES][k % LANES] = x;
 }
 
 impl LineFilter for Deriche {
     fn run(&self, line: &mut [Lane], scratch: &mut Vec<Lane>, border: BorderMode) {
+        #[cfg(target_arch = "x86_64")]
+        if std::arch::is_x86_feature_detected!("avx2") {
+            // SAFETY: `run_avx2` only requires AVX2, whose presence was just checked.
+            return unsafe { self.run_avx2(line, scratch, border) };
+        }
+        self.run_portable(line, scratch, border);
+    }
+}
+
+impl Deriche {
+    /// [`Self::run_portable`] compiled with 256-bit AVX2 vectors: the recursion is
+    /// compute-bound and the baseline x86-64 target only has 128-bit SSE2. FMA is *not*
+    /// enabled (and Rust never contracts `a*b+c` by itself), so results are bit-identical to
+    /// the portable path (`tests::avx2_path_is_bit_identical`).
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    fn run_avx2(&self, line: &mut [Lane], scratch: &mut Vec<Lane>, border: BorderMode) {
+        self.run_portable(line, scratch, border);
+    }
+
+    #[inline(always)]
+    fn run_portable(&self, line: &mut [Lane], scratch: &mut Vec<Lane>, border: BorderMode) {
         let n = line.len();
         if n == 0 {
             return;
         }
-        let pad = match border {
-            BorderMode::Mirror | BorderMode::Wrap => self.pad,
-            // Clamp and zero are exactly represented by a steady-state start.
-            BorderMode::Clamp | BorderMode::Zero => 0,
-        };
+        let pad = self.pad_for(border);
         let [s0, s1] = self.sec;
-        let gain = |s: &Section, fwd: bool| {
-            let num = if fwd { s.n0 + s.n1 } else { s.m1 + s.m2 };
-            num / (1.0 + s.d1 + s.d2)
-        };
 
         // ---- causal pass into scratch ----
         scratch.clear();
         scratch.resize(n, lane_splat(0.0));
         let x0 = fetch(line, -(pad as isize) - 1, border);
         let mut xp = x0; // x[i-1]
-        let (g0, g1) = (gain(&s0, true), gain(&s1, true));
-        // Recursion state of the two second-order sections: [a1, a2, b1, b2] (y[i-1], y[i-2]).
-        let mut st = [lane_splat(0.0); 4];
-        for l in 0..LANES {
-            st[0][l] = x0[l] * g0;
-            st[1][l] = st[0][l];
-            st[2][l] = x0[l] * g1;
-            st[3][l] = st[2][l];
-        }
+                         // Recursion state of the two second-order sections: [a1, a2, b1, b2] (y[i-1], y[i-2]).
+        let mut st = steady_state(&x0, s0.gain(true), s1.gain(true));
         for i in -(pad as isize)..0 {
             let x = fetch(line, i, border);
             causal_step(&x, &xp, &mut st, &s0, &s1);
@@ -459,14 +374,8 @@ impl LineFilter for Deriche {
 
         // ---- anticausal pass, adding into line (in place: x[i+1], x[i+2] kept in registers) ----
         let xe = fetch(line, (n + pad) as isize, border);
-        let (g0, g1) = (gain(&s0, false), gain(&s1, false));
         let (mut x1, mut x2) = (xe, xe); // x[i+1], x[i+2]
-        for l in 0..LANES {
-            st[0][l] = xe[l] * g0;
-            st[1][l] = st[0][l];
-            st[2][l] = xe[l] * g1;
-            st[3][l] = st[2][l];
-        }
+        let mut st = steady_state(&xe, s0.gain(false), s1.gain(false));
         for i in (n as isize..(n + pad) as isize).rev() {
             anti_step(&x1, &x2, &mut st, &s0, &s1);
             x2 = x1;
@@ -595,9 +504,7 @@ pub fn gaussian(data: &mut [f32], width: usize, height: usize, sigma_px: f32, bo
     if sigma_px < IIR_MIN_SIGMA {
         separable(data, width, height, &Fir::gaussian(sigma_px), border);
     } else {
-        let d = Deriche::new(sigma_px);
-        filter_rows(data, width, height, &d, border);
-        d.filter_columns(data, width, height, border);
+        separable(data, width, height, &Deriche::new(sigma_px), border);
     }
 }
 
@@ -809,26 +716,28 @@ mod tests {
         }
     }
 
+    #[cfg(target_arch = "x86_64")]
     #[test]
-    fn strip_column_pass_is_bit_identical_to_gathered_columns() {
-        // Widths around the strip size (partial strips), heights shorter than the padding
-        // (virtual rows mapped several times), every border mode.
-        for (w, h) in [(37, 21), (64, 5), (130, 40), (1, 9)] {
-            let img: Vec<f32> = (0..w * h)
-                .map(|i| ((i * 7919) % 101) as f32 * 0.1 - 3.0)
-                .collect();
-            for border in BorderMode::ALL {
-                for sigma in [3.0f32, 8.0] {
-                    let d = Deriche::new(sigma);
-                    let mut a = img.clone();
-                    filter_columns(&mut a, w, h, &d, border);
-                    let mut b = img.clone();
-                    d.filter_columns(&mut b, w, h, border);
-                    assert!(
-                        a.iter().zip(&b).all(|(x, y)| x.to_bits() == y.to_bits()),
-                        "{w}x{h} {border:?} σ={sigma}"
-                    );
-                }
+    fn avx2_path_is_bit_identical() {
+        if !std::arch::is_x86_feature_detected!("avx2") {
+            return;
+        }
+        let x: Vec<f32> = (0..300)
+            .map(|i| ((i * 7919) % 101) as f32 * 0.1 - 3.0)
+            .collect();
+        for border in BorderMode::ALL {
+            for sigma in [3.0f32, 8.0, 32.0] {
+                let d = Deriche::new(sigma);
+                let mut a: Vec<Lane> = x.iter().map(|&v| lane_splat(v)).collect();
+                let mut b = a.clone();
+                // SAFETY: AVX2 presence checked above.
+                unsafe { d.run_avx2(&mut a, &mut Vec::new(), border) };
+                d.run_portable(&mut b, &mut Vec::new(), border);
+                assert!(a
+                    .iter()
+                    .flatten()
+                    .zip(b.iter().flatten())
+                    .all(|(p, q)| p.to_bits() == q.to_bits()));
             }
         }
     }
