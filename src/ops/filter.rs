@@ -311,6 +311,18 @@ impl Kernel {
         let smooth = |s: Smoother<'_>, src: &[f32]| -> Vec<f32> {
             smooth_plane(&s, src, w, h, border, mask)
         };
+        if mask.is_none() {
+            // Plain smoothers run in place: no copy of the plane in or out.
+            match self {
+                Kernel::Gaussian { sigma_px } => {
+                    return convolve::gaussian(x, w, h, *sigma_px, border);
+                }
+                Kernel::Box { radius_px } => {
+                    return convolve::box_blur(x, w, h, *radius_px as usize, border);
+                }
+                _ => {}
+            }
+        }
         match self {
             Kernel::Gaussian { sigma_px } => {
                 let y = smooth(Smoother::Gaussian(*sigma_px), x);
@@ -507,8 +519,9 @@ pub fn filter_normals(
     let curl_before = g.curl_stats(img.mask());
     filter_gradients(&mut g, kernels, opts, img.mask())?;
     let curl_after = g.curl_stats(img.mask());
-    let mut out = img.clone();
-    g.write_normals(&mut out);
+    // New normal planes; colour and mask stay shared with `img` (no copy of planes that are
+    // about to be overwritten).
+    let out = img.with_normals(g.to_normals())?;
     Ok((
         out,
         FilterReport {

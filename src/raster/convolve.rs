@@ -254,57 +254,113 @@ impl Deriche {
     }
 }
 
+/// One causal step of both second-order sections for `LANES` lines: input `x` = x[i],
+/// `xp` = x[i-1], `st` = [a1, a2, b1, b2] (y[i-1], y[i-2] of each section); returns y[i].
+#[inline(always)]
+fn causal_step(x: &Lane, xp: &Lane, st: &mut [Lane; 4], s0: &Section, s1: &Section) -> Lane {
+    let mut out = [0.0; LANES];
+    for l in 0..LANES {
+        let ya = s0.n0 * x[l] + s0.n1 * xp[l] - s0.d1 * st[0][l] - s0.d2 * st[1][l];
+        let yb = s1.n0 * x[l] + s1.n1 * xp[l] - s1.d1 * st[2][l] - s1.d2 * st[3][l];
+        st[1][l] = st[0][l];
+        st[0][l] = ya;
+        st[3][l] = st[2][l];
+        st[2][l] = yb;
+        out[l] = ya + yb;
+    }
+    out
+}
+
+/// One anticausal step: `x1` = x[i+1], `x2` = x[i+2]; returns the anticausal y[i].
+#[inline(always)]
+fn anti_step(x1: &Lane, x2: &Lane, st: &mut [Lane; 4], s0: &Section, s1: &Section) -> Lane {
+    let mut out = [0.0; LANES];
+    for l in 0..LANES {
+        let ya = s0.m1 * x1[l] + s0.m2 * x2[l] - s0.d1 * st[0][l] - s0.d2 * st[1][l];
+        let yb = s1.m1 * x1[l] + s1.m2 * x2[l] - s1.d1 * st[2][l] - s1.d2 * st[3][l];
+        st[1][l] = st[0][l];
+        st[0][l] = ya;
+        st[3][l] = st[2][l];
+        st[2][l] = yb;
+        out[l] = ya + yb;
+    }
+    out
+}
+
+/// Steady-state recursion state for a constant input `x` (gains `g0`, `g1` of the sections).
+#[inline(always)]
+fn steady_state(x: &Lane, g0: f32, g1: f32) -> [Lane; 4] {
+    let mut st = [lane_splat(0.0); 4];
+    for l in 0..LANES {
+        st[0][l] = x[l] * g0;
+        st[1][l] = st[0][l];
+        st[2][l] = x[l] * g1;
+        st[3][l] = st[2][l];
+    }
+    st
+}
+
+impl Section {
+    /// DC gain of the causal (`fwd`) or anticausal part.
+    fn gain(&self, fwd: bool) -> f32 {
+        let num = if fwd {
+            self.n0 + self.n1
+        } else {
+            self.m1 + self.m2
+        };
+        num / (1.0 + self.d1 + self.d2)
+    }
+}
+
+impl Deriche {
+    /// Virtual border samples run before/after the line for `border`.
+    fn pad_for(&self, border: BorderMode) -> usize {
+        match border {
+            BorderMode::Mirror | BorderMode::Wrap => self.pad,
+            // Clamp and zero are exactly represented by a steady-state start.
+            BorderMode::Clamp | BorderMode::Zero => 0,
+        }
+    }
+}
+
 impl LineFilter for Deriche {
     fn run(&self, line: &mut [Lane], scratch: &mut Vec<Lane>, border: BorderMode) {
+        #[cfg(target_arch = "x86_64")]
+        if std::arch::is_x86_feature_detected!("avx2") {
+            // SAFETY: `run_avx2` only requires AVX2, whose presence was just checked.
+            return unsafe { self.run_avx2(line, scratch, border) };
+        }
+        self.run_portable(line, scratch, border);
+    }
+}
+
+impl Deriche {
+    /// [`Self::run_portable`] compiled with 256-bit AVX2 vectors: the recursion is
+    /// compute-bound and the baseline x86-64 target only has 128-bit SSE2. FMA is *not*
+    /// enabled (and Rust never contracts `a*b+c` by itself), so results are bit-identical to
+    /// the portable path (`tests::avx2_path_is_bit_identical`).
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    fn run_avx2(&self, line: &mut [Lane], scratch: &mut Vec<Lane>, border: BorderMode) {
+        self.run_portable(line, scratch, border);
+    }
+
+    #[inline(always)]
+    fn run_portable(&self, line: &mut [Lane], scratch: &mut Vec<Lane>, border: BorderMode) {
         let n = line.len();
         if n == 0 {
             return;
         }
-        let pad = match border {
-            BorderMode::Mirror | BorderMode::Wrap => self.pad,
-            // Clamp and zero are exactly represented by a steady-state start.
-            BorderMode::Clamp | BorderMode::Zero => 0,
-        };
+        let pad = self.pad_for(border);
         let [s0, s1] = self.sec;
-        let gain = |s: &Section, fwd: bool| {
-            let num = if fwd { s.n0 + s.n1 } else { s.m1 + s.m2 };
-            num / (1.0 + s.d1 + s.d2)
-        };
 
         // ---- causal pass into scratch ----
         scratch.clear();
         scratch.resize(n, lane_splat(0.0));
         let x0 = fetch(line, -(pad as isize) - 1, border);
         let mut xp = x0; // x[i-1]
-        let (g0, g1) = (gain(&s0, true), gain(&s1, true));
-        // Recursion state of the two second-order sections: [a1, a2, b1, b2] (y[i-1], y[i-2]).
-        let mut st = [lane_splat(0.0); 4];
-        for l in 0..LANES {
-            st[0][l] = x0[l] * g0;
-            st[1][l] = st[0][l];
-            st[2][l] = x0[l] * g1;
-            st[3][l] = st[2][l];
-        }
-        #[inline(always)]
-        fn causal_step(
-            x: &Lane,
-            xp: &Lane,
-            st: &mut [Lane; 4],
-            s0: &Section,
-            s1: &Section,
-        ) -> Lane {
-            let mut out = [0.0; LANES];
-            for l in 0..LANES {
-                let ya = s0.n0 * x[l] + s0.n1 * xp[l] - s0.d1 * st[0][l] - s0.d2 * st[1][l];
-                let yb = s1.n0 * x[l] + s1.n1 * xp[l] - s1.d1 * st[2][l] - s1.d2 * st[3][l];
-                st[1][l] = st[0][l];
-                st[0][l] = ya;
-                st[3][l] = st[2][l];
-                st[2][l] = yb;
-                out[l] = ya + yb;
-            }
-            out
-        }
+                         // Recursion state of the two second-order sections: [a1, a2, b1, b2] (y[i-1], y[i-2]).
+        let mut st = steady_state(&x0, s0.gain(true), s1.gain(true));
         for i in -(pad as isize)..0 {
             let x = fetch(line, i, border);
             causal_step(&x, &xp, &mut st, &s0, &s1);
@@ -318,28 +374,8 @@ impl LineFilter for Deriche {
 
         // ---- anticausal pass, adding into line (in place: x[i+1], x[i+2] kept in registers) ----
         let xe = fetch(line, (n + pad) as isize, border);
-        let (g0, g1) = (gain(&s0, false), gain(&s1, false));
         let (mut x1, mut x2) = (xe, xe); // x[i+1], x[i+2]
-        for l in 0..LANES {
-            st[0][l] = xe[l] * g0;
-            st[1][l] = st[0][l];
-            st[2][l] = xe[l] * g1;
-            st[3][l] = st[2][l];
-        }
-        #[inline(always)]
-        fn anti_step(x1: &Lane, x2: &Lane, st: &mut [Lane; 4], s0: &Section, s1: &Section) -> Lane {
-            let mut out = [0.0; LANES];
-            for l in 0..LANES {
-                let ya = s0.m1 * x1[l] + s0.m2 * x2[l] - s0.d1 * st[0][l] - s0.d2 * st[1][l];
-                let yb = s1.m1 * x1[l] + s1.m2 * x2[l] - s1.d1 * st[2][l] - s1.d2 * st[3][l];
-                st[1][l] = st[0][l];
-                st[0][l] = ya;
-                st[3][l] = st[2][l];
-                st[2][l] = yb;
-                out[l] = ya + yb;
-            }
-            out
-        }
+        let mut st = steady_state(&xe, s0.gain(false), s1.gain(false));
         for i in (n as isize..(n + pad) as isize).rev() {
             anti_step(&x1, &x2, &mut st, &s0, &s1);
             x2 = x1;
@@ -676,6 +712,32 @@ mod tests {
         for r in 0..h {
             for x in 0..w {
                 assert!((cols[r * w + x] - t[x * h + r]).abs() < 1e-4);
+            }
+        }
+    }
+
+    #[cfg(target_arch = "x86_64")]
+    #[test]
+    fn avx2_path_is_bit_identical() {
+        if !std::arch::is_x86_feature_detected!("avx2") {
+            return;
+        }
+        let x: Vec<f32> = (0..300)
+            .map(|i| ((i * 7919) % 101) as f32 * 0.1 - 3.0)
+            .collect();
+        for border in BorderMode::ALL {
+            for sigma in [3.0f32, 8.0, 32.0] {
+                let d = Deriche::new(sigma);
+                let mut a: Vec<Lane> = x.iter().map(|&v| lane_splat(v)).collect();
+                let mut b = a.clone();
+                // SAFETY: AVX2 presence checked above.
+                unsafe { d.run_avx2(&mut a, &mut Vec::new(), border) };
+                d.run_portable(&mut b, &mut Vec::new(), border);
+                assert!(a
+                    .iter()
+                    .flatten()
+                    .zip(b.iter().flatten())
+                    .all(|(p, q)| p.to_bits() == q.to_bits()));
             }
         }
     }

@@ -152,6 +152,25 @@ impl GradientField {
             });
     }
 
+    /// `normalize(−p, −q, 1)` as three new planes (x, y, z).
+    #[must_use]
+    pub fn to_normals(&self) -> [Vec<f32>; 3] {
+        let n = self.width * self.height;
+        let mut out = [vec![0.0f32; n], vec![0.0f32; n], vec![0.0f32; n]];
+        let w = self.width.max(1);
+        let [nx, ny, nz] = &mut out;
+        nx.par_chunks_mut(w)
+            .zip(ny.par_chunks_mut(w))
+            .zip(nz.par_chunks_mut(w))
+            .zip(self.p.par_chunks(w).zip(self.q.par_chunks(w)))
+            .for_each(|(((x, y), z), (p, q))| {
+                for ((((x, y), z), p), q) in x.iter_mut().zip(y).zip(z).zip(p).zip(q) {
+                    [*x, *y, *z] = normal_of_gradient(*p, *q);
+                }
+            });
+        out
+    }
+
     /// The curl map (module docs), 0 where undefined.
     #[must_use]
     pub fn curl(&self) -> Plane {

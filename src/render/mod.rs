@@ -4,7 +4,7 @@
 
 use crate::error::RgbnError;
 use crate::raster::gradient::GradientField;
-use crate::raster::io::{srgb8_index, srgb8_lut_encode};
+use crate::raster::io::{srgb8_index, srgb8_lut_encode, SRGB8_LUT_SIZE};
 use crate::raster::RgbnImage;
 use rayon::prelude::*;
 
@@ -171,48 +171,107 @@ pub fn relight(img: &RgbnImage, shading: &Shading) -> Result<Vec<u8>, RgbnError>
     let [cr, cg, cb] = img.color();
     let [nx, ny, nz] = img.normal();
     let mask = img.mask();
+    let k = RelightKernel {
+        lights: &lights,
+        ambient: shading.ambient,
+        gain,
+        ks,
+        pow_lut: &pow_lut,
+        srgb,
+    };
     let mut out = vec![0u8; w * h * 4];
     out.par_chunks_mut(w.max(1) * 4)
         .enumerate()
         .for_each(|(row, orow)| {
-            let o = row * w;
-            for x in 0..w {
-                let i = o + x;
-                let px = &mut orow[x * 4..x * 4 + 4];
-                let cov = mask.map_or(1.0, |m| m[i]);
-                if cov <= 0.0 {
-                    px.copy_from_slice(&[0, 0, 0, 0]);
-                    continue;
-                }
-                let n = [nx[i], ny[i], nz[i]];
-                let mut diff = [shading.ambient; 3];
-                let mut spec = [0.0f32; 3];
-                for (d, hv, c) in &lights {
-                    let ndl = n[0] * d[0] + n[1] * d[1] + n[2] * d[2];
-                    if ndl > 0.0 {
-                        let ndh = (n[0] * hv[0] + n[1] * hv[1] + n[2] * hv[2]).clamp(0.0, 1.0);
-                        let t = ndh * POW_LUT as f32;
-                        let k = (t as usize).min(POW_LUT - 1);
-                        let f = t - k as f32;
-                        let s = pow_lut[k] + (pow_lut[k + 1] - pow_lut[k]) * f;
-                        for j in 0..3 {
-                            diff[j] += c[j] * ndl;
-                            spec[j] += c[j] * s;
-                        }
-                    }
-                }
-                let v = [
-                    gain * (cr[i] * diff[0] + ks * spec[0]),
-                    gain * (cg[i] * diff[1] + ks * spec[1]),
-                    gain * (cb[i] * diff[2] + ks * spec[2]),
-                ];
-                px[0] = srgb[srgb8_index(v[0])];
-                px[1] = srgb[srgb8_index(v[1])];
-                px[2] = srgb[srgb8_index(v[2])];
-                px[3] = (cov.min(1.0) * 255.0 + 0.5) as u8;
-            }
+            let r = row * w..(row + 1) * w;
+            let rows = RelightRow {
+                c: [&cr[r.clone()], &cg[r.clone()], &cb[r.clone()]],
+                n: [&nx[r.clone()], &ny[r.clone()], &nz[r.clone()]],
+                mask: mask.map(|m| &m[r]),
+            };
+            k.row(&rows, orow);
         });
     Ok(out)
+}
+
+/// Per-image constants of [`relight`].
+struct RelightKernel<'a> {
+    lights: &'a [([f32; 3], [f32; 3], [f32; 3])],
+    ambient: f32,
+    gain: f32,
+    ks: f32,
+    pow_lut: &'a [f32],
+    srgb: &'a [u8],
+}
+
+/// One row of input planes.
+struct RelightRow<'a> {
+    c: [&'a [f32]; 3],
+    n: [&'a [f32]; 3],
+    mask: Option<&'a [f32]>,
+}
+
+impl RelightKernel<'_> {
+    fn row(&self, rows: &RelightRow<'_>, out: &mut [u8]) {
+        #[cfg(target_arch = "x86_64")]
+        if std::arch::is_x86_feature_detected!("avx2") {
+            // SAFETY: `row_avx2` only requires AVX2, whose presence was just checked.
+            return unsafe { self.row_avx2(rows, out) };
+        }
+        self.row_portable(rows, out);
+    }
+
+    /// [`Self::row_portable`] compiled for AVX2 (no FMA: bit-identical results).
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    fn row_avx2(&self, rows: &RelightRow<'_>, out: &mut [u8]) {
+        self.row_portable(rows, out);
+    }
+
+    #[inline(always)]
+    fn row_portable(&self, rows: &RelightRow<'_>, out: &mut [u8]) {
+        let [cr, cg, cb] = rows.c;
+        let [nx, ny, nz] = rows.n;
+        let w = out.len() / 4;
+        let (cr, cg, cb, nx, ny, nz) = (&cr[..w], &cg[..w], &cb[..w], &nx[..w], &ny[..w], &nz[..w]);
+        let pow_lut = &self.pow_lut[..=POW_LUT];
+        let srgb = &self.srgb[..SRGB8_LUT_SIZE];
+        // Table index of a linear value, as `srgb8_index` (i32 conversion vectorises; the
+        // clamped value lies in [0, 16383.5], so the result is the same).
+        let idx = |v: f32| -> usize {
+            ((v.clamp(0.0, 1.0) * (SRGB8_LUT_SIZE - 1) as f32 + 0.5) as i32 as usize)
+                .min(SRGB8_LUT_SIZE - 1)
+        };
+        for (x, px) in out.chunks_exact_mut(4).enumerate() {
+            let cov = rows.mask.map_or(1.0, |m| m[x]);
+            if cov <= 0.0 {
+                px.copy_from_slice(&[0, 0, 0, 0]);
+                continue;
+            }
+            let n = [nx[x], ny[x], nz[x]];
+            let mut diff = [self.ambient; 3];
+            let mut spec = [0.0f32; 3];
+            for (d, hv, c) in self.lights {
+                let ndl = n[0] * d[0] + n[1] * d[1] + n[2] * d[2];
+                if ndl > 0.0 {
+                    let ndh = (n[0] * hv[0] + n[1] * hv[1] + n[2] * hv[2]).clamp(0.0, 1.0);
+                    let t = ndh * POW_LUT as f32;
+                    let k = (t as i32 as usize).min(POW_LUT - 1);
+                    let f = t - k as f32;
+                    let s = pow_lut[k] + (pow_lut[k + 1] - pow_lut[k]) * f;
+                    for j in 0..3 {
+                        diff[j] += c[j] * ndl;
+                        spec[j] += c[j] * s;
+                    }
+                }
+            }
+            let g = self.gain;
+            px[0] = srgb[idx(g * (cr[x] * diff[0] + self.ks * spec[0]))];
+            px[1] = srgb[idx(g * (cg[x] * diff[1] + self.ks * spec[1]))];
+            px[2] = srgb[idx(g * (cb[x] * diff[2] + self.ks * spec[2]))];
+            px[3] = (cov.min(1.0) * 255.0 + 0.5) as u8;
+        }
+    }
 }
 
 fn normalize3(v: [f32; 3]) -> [f32; 3] {
