@@ -785,7 +785,7 @@ impl EditorApp {
         }
         ui.separator();
         ui.horizontal(|ui| {
-            if ui.button("View").clicked() {
+            if ui.button("View output").clicked() {
                 self.view_node(id);
             }
             if ui.button("Duplicate").clicked() {
@@ -871,8 +871,10 @@ impl EditorApp {
                         _ => ("Export the viewed output", "Export"),
                     };
                     ui.heading(title);
-                    ui.label("Path (relative to the working directory):");
-                    let r = ui.add(egui::TextEdit::singleline(&mut p).desired_width(360.0));
+                    let label = ui.label("Path (relative to the working directory)").id;
+                    let r = ui
+                        .add(egui::TextEdit::singleline(&mut p).desired_width(360.0))
+                        .labelled_by(label);
                     let enter = r.lost_focus() && ui.input(|i| i.key_pressed(Key::Enter));
                     if matches!(self.dialog, Some(Dialog::Export(_))) {
                         ui.weak("pictures → .png/.tif, RGBN images → .exr/.png, masks → .png/.exr");

@@ -24,10 +24,14 @@ pub fn param_ui(
         format!(" {}", meta.unit)
     };
     let mut changed = false;
-    ui.label(name).on_hover_text(meta.doc);
+    let label = ui.label(name).on_hover_text(meta.doc).id;
     match (&info.kind, value) {
         (ParamKind::Bool, ParamValue::Bool(b)) => {
-            changed |= ui.checkbox(b, "").on_hover_text(meta.doc).changed();
+            changed |= ui
+                .checkbox(b, "")
+                .labelled_by(label)
+                .on_hover_text(meta.doc)
+                .changed();
         }
         (ParamKind::Int, ParamValue::Int(i)) => {
             let r = match meta.range {
@@ -41,7 +45,7 @@ pub fn param_ui(
                 }
                 None => ui.add(egui::DragValue::new(i).suffix(&suffix)),
             };
-            changed |= r.on_hover_text(meta.doc).changed();
+            changed |= r.labelled_by(label).on_hover_text(meta.doc).changed();
         }
         (ParamKind::Float, ParamValue::Float(x)) => {
             let r = match meta.range {
@@ -56,7 +60,7 @@ pub fn param_ui(
                 }
                 None => ui.add(egui::DragValue::new(x).speed(0.01).suffix(&suffix)),
             };
-            changed |= r.on_hover_text(meta.doc).changed();
+            changed |= r.labelled_by(label).on_hover_text(meta.doc).changed();
         }
         (ParamKind::Choice(options), ParamValue::Choice(s)) => {
             egui::ComboBox::from_id_salt(name)
@@ -68,12 +72,13 @@ pub fn param_ui(
                 });
         }
         (ParamKind::Text, ParamValue::Text(s)) => {
-            changed |= ui.text_edit_singleline(s).changed();
+            changed |= ui.text_edit_singleline(s).labelled_by(label).changed();
         }
         (ParamKind::Path, ParamValue::Path(s) | ParamValue::Text(s)) => {
             ui.horizontal(|ui| {
                 changed |= ui
                     .add(egui::TextEdit::singleline(s).desired_width(170.0))
+                    .labelled_by(label)
                     .on_hover_text(meta.doc)
                     .changed();
                 ui.menu_button("…", |ui| {
