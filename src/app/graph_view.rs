@@ -85,6 +85,9 @@ pub struct GraphView {
     style: SnarlStyle,
     /// The text typed in the add-node menu's search field.
     pub search: String,
+    /// Frames left during which the view is fitted to the whole graph (panels settle in the
+    /// first frames, so fitting lasts a few).
+    pub frame_pending: u32,
 }
 
 impl Default for GraphView {
@@ -99,6 +102,7 @@ impl Default for GraphView {
             by_id: BTreeMap::new(),
             style,
             search: String::new(),
+            frame_pending: 3,
         }
     }
 }
@@ -202,10 +206,13 @@ impl GraphView {
 
     /// Draws the graph; returns the actions asked for.
     pub fn show_ui(&mut self, ui: &mut Ui, data: &ViewData<'_>) -> Vec<Action> {
+        let frame = (self.frame_pending > 0).then(|| ui.available_rect_before_wrap());
+        self.frame_pending = self.frame_pending.saturating_sub(1);
         let mut viewer = Viewer {
             data,
             search: &mut self.search,
             actions: Vec::new(),
+            frame,
         };
         SnarlWidget::new()
             .id(Id::new(SNARL_ID))
@@ -259,6 +266,8 @@ struct Viewer<'a, 'd> {
     data: &'a ViewData<'d>,
     search: &'a mut String,
     actions: Vec<Action>,
+    /// Fit the view to the graph in this screen rectangle.
+    frame: Option<egui::Rect>,
 }
 
 impl Viewer<'_, '_> {
@@ -440,6 +449,29 @@ impl SnarlViewer<NodeId> for Viewer<'_, '_> {
                 });
             }
         }
+    }
+
+    fn current_transform(
+        &mut self,
+        to_global: &mut egui::emath::TSTransform,
+        snarl: &mut Snarl<NodeId>,
+    ) {
+        let Some(view) = self.frame else { return };
+        let mut bb = egui::Rect::NOTHING;
+        for n in snarl.nodes_info() {
+            // Node sizes are not known here: a typical node with a thumbnail.
+            bb.extend_with(n.pos);
+            bb.extend_with(n.pos + egui::vec2(250.0, 150.0));
+        }
+        if !bb.is_finite() || !view.is_finite() || view.width() < 10.0 {
+            return;
+        }
+        let bb = bb.expand(30.0);
+        let scaling = (view.size() / bb.size()).min_elem().clamp(0.2, 1.0);
+        *to_global = egui::emath::TSTransform {
+            scaling,
+            translation: view.center().to_vec2() - bb.center().to_vec2() * scaling,
+        };
     }
 
     fn has_graph_menu(&mut self, _pos: Pos2, _snarl: &mut Snarl<NodeId>) -> bool {

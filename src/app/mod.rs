@@ -134,6 +134,9 @@ pub struct EditorApp {
     /// Time from start to the first preview texture.
     pub first_preview: Option<Duration>,
     frame_ms: f64,
+    /// Frame times (ms) while the current evaluation runs: count, sum, max.
+    eval_frames: (u32, f64, f64),
+    timing: bool,
     /// Evaluation requests sent (tests).
     pub requests: u64,
 }
@@ -176,6 +179,8 @@ impl EditorApp {
             started: Instant::now(),
             first_preview: None,
             frame_ms: 0.0,
+            eval_frames: (0, 0.0, 0.0),
+            timing: std::env::var_os("RGBN_EDITOR_TIMING").is_some(),
             requests: 0,
         }
     }
@@ -219,6 +224,18 @@ impl EditorApp {
                     if self.gens.accept(out.generation) {
                         self.in_flight = None;
                         self.progress = None;
+                        if self.timing {
+                            let (n, sum, max) = self.eval_frames;
+                            eprintln!(
+                                "rgbn editor: evaluation {} took {:.0} ms ({} computed); {n} UI frames meanwhile, mean {:.2} ms, max {:.2} ms",
+                                out.generation,
+                                out.elapsed.as_secs_f64() * 1e3,
+                                out.computed,
+                                if n > 0 { sum / f64::from(n) } else { 0.0 },
+                                max
+                            );
+                        }
+                        self.eval_frames = (0, 0.0, 0.0);
                         if out.cancelled {
                             self.say("evaluation cancelled");
                         } else {
@@ -409,6 +426,7 @@ impl EditorApp {
         self.thumbs.clear();
         self.last_sent = None;
         self.in_flight = None; // its result will be stale
+        self.view.frame_pending = 3;
     }
 
     /// Opens a graph file (no unsaved-changes check).
@@ -606,7 +624,12 @@ impl EditorApp {
         for a in actions {
             self.apply(a);
         }
-        self.frame_ms = 0.9 * self.frame_ms + 0.1 * t0.elapsed().as_secs_f64() * 1e3;
+        let ms = t0.elapsed().as_secs_f64() * 1e3;
+        self.frame_ms = 0.9 * self.frame_ms + 0.1 * ms;
+        if self.in_flight.is_some() {
+            let (n, sum, max) = self.eval_frames;
+            self.eval_frames = (n + 1, sum + ms, max.max(ms));
+        }
         let title = format!("rgbn — {}", self.doc.title());
         ctx.send_viewport_cmd(egui::ViewportCommand::Title(title));
     }
@@ -695,7 +718,11 @@ impl EditorApp {
                     }
                 }
                 ui.separator();
-                if ui.button("Frame all (preview)").clicked() {
+                if ui.button("Frame graph").clicked() {
+                    self.view.frame_pending = 2;
+                    ui.close();
+                }
+                if ui.button("Frame image (preview)").clicked() {
                     self.preview.zoom = None;
                     self.preview.pan = egui::Vec2::ZERO;
                     ui.close();
@@ -828,7 +855,14 @@ impl EditorApp {
                 let req = Preview::request(v, *k, &self.settings);
                 self.preview.update(&ctx, v, req);
                 if self.first_preview.is_none() {
-                    self.first_preview = Some(self.started.elapsed());
+                    let t = self.started.elapsed();
+                    self.first_preview = Some(t);
+                    if self.timing {
+                        eprintln!(
+                            "rgbn editor: first preview after {:.0} ms",
+                            t.as_secs_f64() * 1e3
+                        );
+                    }
                 }
             }
             None => self.preview.clear(),

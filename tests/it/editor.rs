@@ -28,7 +28,10 @@ fn small_demo() -> Document {
 fn harness(doc: Document) -> Harness<'static, EditorApp> {
     Harness::builder()
         .with_size([1500.0, 900.0])
-        .build_ui_state(|ui, app: &mut EditorApp| app.frame_ui(ui), EditorApp::new(doc))
+        .build_ui_state(
+            |ui, app: &mut EditorApp| app.frame_ui(ui),
+            EditorApp::new(doc),
+        )
 }
 
 /// Steps frames until the worker has evaluated the current graph.
@@ -51,7 +54,11 @@ fn editor_opens_the_demo_and_previews_it() {
     let mut h = harness(small_demo());
     settle(&mut h);
     let app = h.state();
-    assert!(app.outcome.node_errors.is_empty(), "{:?}", app.outcome.node_errors);
+    assert!(
+        app.outcome.node_errors.is_empty(),
+        "{:?}",
+        app.outcome.node_errors
+    );
     assert_eq!(app.viewed, Some((3, "image".to_string())));
     assert!(app.preview.renders >= 1, "the preview rendered");
     assert!(app.first_preview.is_some());
@@ -87,7 +94,11 @@ fn add_from_menu_connect_edit_undo_save_load() {
         Some(&Source::Node(3, "image".into()))
     );
     settle(&mut h);
-    assert!(h.state().outcome.values.contains_key(&(new, "image".into())));
+    assert!(h
+        .state()
+        .outcome
+        .values
+        .contains_key(&(new, "image".into())));
 
     // Connect (as the graph view asks): the core accepts a good edge ...
     h.state_mut().apply(Action::Connect {
@@ -131,9 +142,16 @@ fn add_from_menu_connect_edit_undo_save_load() {
     h.key_press(Key::Escape);
     h.step();
     let amount = h.state().doc.graph.nodes[&2].params["amount"].clone();
-    assert_ne!(amount, ParamValue::Float(1.0), "the slider changed the parameter");
+    assert_ne!(
+        amount,
+        ParamValue::Float(1.0),
+        "the slider changed the parameter"
+    );
     settle(&mut h);
-    assert!(h.state().requests > requests, "a re-evaluation was requested");
+    assert!(
+        h.state().requests > requests,
+        "a re-evaluation was requested"
+    );
     let key_after = h.state().outcome.values[&(2, "image".into())].key;
     assert_ne!(key_before, key_after, "the node's output changed");
     assert!(h.state().preview.renders > renders, "the preview changed");
