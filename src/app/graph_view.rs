@@ -393,6 +393,8 @@ impl SnarlViewer<NodeId> for Viewer<'_, '_> {
                 ui.add(egui::Image::new((t.id(), size * scale)));
             }
             if let Some(e) = self.data.errors.get(&id) {
+                ui.set_min_width(170.0);
+                ui.set_max_width(220.0);
                 ui.add(
                     egui::Label::new(RichText::new(e).color(Color32::from_rgb(255, 120, 120)))
                         .wrap_mode(egui::TextWrapMode::Wrap),

@@ -249,7 +249,7 @@ impl EditorApp {
         if self.in_flight.is_none() && self.last_sent.as_ref() != Some(&want) {
             let cancel = Arc::new(AtomicBool::new(false));
             self.worker.send(EvalRequest {
-                generation: self.gens.next(),
+                generation: self.gens.new_request(),
                 graph: self.doc.graph.clone(),
                 base_dir: self.doc.base_dir(),
                 cancel: cancel.clone(),
@@ -601,7 +601,7 @@ impl EditorApp {
             egui::Window::new("Operators")
                 .open(&mut open)
                 .default_size([520.0, 600.0])
-                .show(&ctx, |ui| ops_doc_ui(ui));
+                .show(&ctx, ops_doc_ui);
             self.show_ops = open;
         }
 

@@ -101,7 +101,7 @@ pub struct Generations {
 
 impl Generations {
     /// The number for a new request.
-    pub fn next(&mut self) -> u64 {
+    pub fn new_request(&mut self) -> u64 {
         self.sent += 1;
         self.sent
     }
@@ -334,7 +334,7 @@ pub fn evaluate(
         };
         match err {
             Some((id, msg)) => {
-                out.node_errors.insert(id, msg);
+                out.node_errors.insert(id, short_error(&msg));
                 for d in descendants(&g, id) {
                     g.nodes.remove(&d);
                 }
@@ -392,6 +392,16 @@ fn collect(out: &mut EvalOutcome, r: &crate::eval::EvalResult, plan: &Plan) {
                 key,
             },
         );
+    }
+}
+
+/// An error message without its trailing location (`: node 7 "name" in <memory>`), which the
+/// editor shows on the node itself.
+#[must_use]
+pub fn short_error(msg: &str) -> String {
+    match msg.rfind(": node ") {
+        Some(i) if msg[i..].ends_with(TOP_LABEL) => msg[..i].to_string(),
+        _ => msg.to_string(),
     }
 }
 
@@ -518,8 +528,8 @@ mod tests {
     fn generations_drop_stale_results() {
         let mut g = Generations::default();
         assert!(!g.in_flight());
-        let a = g.next();
-        let b = g.next();
+        let a = g.new_request();
+        let b = g.new_request();
         assert!(g.in_flight());
         assert!(!g.accept(a), "an older result is stale");
         assert!(g.in_flight());
@@ -538,7 +548,10 @@ mod tests {
         let out = evaluate(&ev, &request(&d.graph, 7), None);
         assert_eq!(out.generation, 7);
         assert!(out.error.is_none(), "{:?}", out.error);
-        assert!(out.node_errors[&lonely].contains("not connected"));
+        assert_eq!(
+            out.node_errors[&lonely],
+            "required input \"image\" is not connected"
+        );
         assert!(!out.values.contains_key(&(below, "relative_rms".into())));
         for id in 1..=6 {
             assert!(
@@ -586,9 +599,9 @@ mod tests {
         let d = small_demo();
         let w = Worker::spawn(Arc::new(|| {}));
         let mut gens = Generations::default();
-        let a = gens.next();
+        let a = gens.new_request();
         w.send(request(&d.graph, a));
-        let b = gens.next();
+        let b = gens.new_request();
         w.send(request(&d.graph, b));
         let mut got_current = false;
         let deadline = Instant::now() + Duration::from_secs(60);
