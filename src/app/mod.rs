@@ -137,6 +137,7 @@ pub struct EditorApp {
     /// Frame times (ms) while the current evaluation runs: count, sum, max.
     eval_frames: (u32, f64, f64),
     timing: bool,
+    last_autosave: Instant,
     /// Evaluation requests sent (tests).
     pub requests: u64,
 }
@@ -182,6 +183,7 @@ impl EditorApp {
             eval_frames: (0, 0.0, 0.0),
             timing: std::env::var_os("RGBN_EDITOR_TIMING").is_some(),
             requests: 0,
+            last_autosave: Instant::now(),
         }
     }
 
@@ -442,8 +444,11 @@ impl EditorApp {
 
     /// Saves to `path`.
     pub fn save_to(&mut self, path: &Path) -> bool {
+        let old_recovery = self.recovery_path();
         match self.doc.save_as(path) {
             Ok(()) => {
+                let _ = std::fs::remove_file(old_recovery);
+                let _ = std::fs::remove_file(self.recovery_path());
                 self.say(format!("saved {}", path.display()));
                 true
             }
@@ -498,6 +503,34 @@ impl EditorApp {
         match crate::ops::save::write_value(&v, path, &crate::raster::io::SaveOptions::default()) {
             Ok(()) => self.say(format!("exported {}", path.display())),
             Err(e) => self.fail(e.to_string()),
+        }
+    }
+
+    /// Where unsaved work is kept: beside the file (`.NAME.autosave.ron`), or in the temporary
+    /// folder for an untitled graph.
+    #[must_use]
+    pub fn recovery_path(&self) -> PathBuf {
+        match &self.doc.path {
+            Some(p) => {
+                let name = p
+                    .file_stem()
+                    .map_or_else(|| "graph".to_string(), |s| s.to_string_lossy().into_owned());
+                self.doc.base_dir().join(format!(".{name}.autosave.ron"))
+            }
+            None => std::env::temp_dir().join("rgbn-untitled.autosave.ron"),
+        }
+    }
+
+    /// Every 30 s with unsaved changes, writes the graph to the recovery file.
+    fn autosave(&mut self) {
+        if self.last_autosave.elapsed() < Duration::from_secs(30) {
+            return;
+        }
+        self.last_autosave = Instant::now();
+        if self.doc.is_dirty() {
+            if let Err(e) = self.doc.graph.save(&self.recovery_path()) {
+                self.fail(format!("autosave failed: {e}"));
+            }
         }
     }
 
@@ -624,6 +657,7 @@ impl EditorApp {
         for a in actions {
             self.apply(a);
         }
+        self.autosave();
         let ms = t0.elapsed().as_secs_f64() * 1e3;
         self.frame_ms = 0.9 * self.frame_ms + 0.1 * ms;
         if self.in_flight.is_some() {
