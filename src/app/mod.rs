@@ -138,6 +138,7 @@ pub struct EditorApp {
     eval_frames: (u32, f64, f64),
     timing: bool,
     last_autosave: Instant,
+    last_widget_selection: Vec<NodeId>,
     /// Evaluation requests sent (tests).
     pub requests: u64,
 }
@@ -184,6 +185,7 @@ impl EditorApp {
             timing: std::env::var_os("RGBN_EDITOR_TIMING").is_some(),
             requests: 0,
             last_autosave: Instant::now(),
+            last_widget_selection: Vec::new(),
         }
     }
 
@@ -639,11 +641,13 @@ impl EditorApp {
         }
 
         // Selection drives the inspector and the preview.
+        // (Only a change of the widget's selection counts: commands select nodes too.)
         let sel = self.view.selected(&ctx);
-        if let [one] = sel.as_slice() {
-            if self.selected != Some(*one) {
+        if sel != self.last_widget_selection {
+            if let [one] = sel.as_slice() {
                 self.view_node(*one);
             }
+            self.last_widget_selection = sel;
         }
 
         // Undo: continuous edits (drags, typing) become one step when the interaction ends.
@@ -1037,7 +1041,7 @@ fn eval_graph(g: &Graph) -> Graph {
     g
 }
 
-/// What to view first: the node feeding the `relit` output, else the last node.
+/// What to view first: the node behind the graph's `image` output, else its first output.
 fn default_view(g: &Graph) -> Option<(NodeId, String)> {
     let r = g
         .outputs
