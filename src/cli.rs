@@ -20,8 +20,11 @@ mod graph_cmds;
 pub use graph_cmds::{BatchArgs, CheckArgs, EvalArgs};
 
 /// Edit RGBN images (colour + normals) without breaking integrability.
+///
+/// With no command, the editor opens on the demo graph (when built with the `gui` feature).
 #[derive(Parser, Debug)]
-#[command(name = "rgbn", version, about, long_about = None, arg_required_else_help = true)]
+#[command(name = "rgbn", version, about, long_about = None)]
+#[cfg_attr(not(feature = "gui"), command(arg_required_else_help = true))]
 pub struct Cli {
     #[command(subcommand)]
     pub command: Option<Command>,
@@ -43,6 +46,17 @@ pub enum Command {
     Check(CheckArgs),
     /// List every operator with its doc, ports and parameters.
     Ops,
+    /// Open the editor on a graph file (the demo graph when none is given).
+    #[cfg(feature = "gui")]
+    Edit(EditArgs),
+}
+
+/// Arguments of `rgbn edit`.
+#[cfg(feature = "gui")]
+#[derive(Args, Debug)]
+pub struct EditArgs {
+    /// The graph file to open (default: `graphs/demo.ron`, or the built-in demo graph).
+    pub graph: Option<PathBuf>,
 }
 
 /// Where the input comes from.
@@ -207,9 +221,16 @@ where
         }
     };
     let Some(command) = cli.command else {
+        #[cfg(feature = "gui")]
+        {
+            return edit(None);
+        }
         // `arg_required_else_help` prints help; reached only with global flags and no command.
-        let _ = <Cli as clap::CommandFactory>::command().print_help();
-        return 2;
+        #[cfg(not(feature = "gui"))]
+        {
+            let _ = <Cli as clap::CommandFactory>::command().print_help();
+            return 2;
+        }
     };
     let stdout = std::io::stdout();
     let mut out = stdout.lock();
@@ -221,12 +242,29 @@ where
         Command::Batch(a) => graph_cmds::batch_cmd(&a, &mut out),
         Command::Check(a) => graph_cmds::check_cmd(&a, &mut out),
         Command::Ops => graph_cmds::ops_cmd(&mut out),
+        #[cfg(feature = "gui")]
+        Command::Edit(a) => {
+            drop(out);
+            return edit(a.graph);
+        }
     };
     match result {
         Ok(()) => 0,
         Err(f) => {
             eprintln!("rgbn: {}", f.message);
             f.code
+        }
+    }
+}
+
+/// Runs the editor; returns the exit code.
+#[cfg(feature = "gui")]
+fn edit(graph: Option<PathBuf>) -> u8 {
+    match crate::app::run(graph) {
+        Ok(()) => 0,
+        Err(e) => {
+            eprintln!("rgbn: {e}");
+            2
         }
     }
 }

@@ -15,9 +15,12 @@
 //! - [`eval`]: the lazy, content-keyed, cached evaluator.
 //! - [`render`]: relighting and the diagnostic views.
 //! - [`cli`]: the command line (used by the `rgbn` binary).
+//! - `app` (feature `gui`): the egui editor, the only module that uses egui.
 //!
 //! The library never depends on the GUI: build with `--no-default-features` for the core.
 
+#[cfg(feature = "gui")]
+pub mod app;
 pub mod capture;
 pub mod cli;
 pub mod error;

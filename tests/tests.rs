@@ -19,3 +19,7 @@ mod cache;
 
 #[path = "it/cli.rs"]
 mod cli;
+
+#[cfg(feature = "gui")]
+#[path = "it/editor.rs"]
+mod editor;

@@ -120,6 +120,151 @@ impl Graph {
         id
     }
 
+    /// The ports of node `id`, resolved without validating the rest of the graph (an editor's
+    /// graph is often unfinished: inputs not yet connected, paths not yet chosen). A graph node's
+    /// ports come from its file, relative to `base_dir`.
+    pub fn node_ports(&self, id: NodeId, base_dir: &Path) -> Result<NodePorts, GraphError> {
+        let at = At::file("<editor>");
+        let Some(node) = self.nodes.get(&id) else {
+            return Err(GraphError::MissingNode {
+                what: "port lookup".into(),
+                missing: id,
+                at,
+            });
+        };
+        let at = at.node(id, node.name.as_deref());
+        if node.op == GRAPH_NODE_OP {
+            let rel = match node.params.get("path") {
+                Some(ParamValue::Path(p) | ParamValue::Text(p)) if !p.is_empty() => p.clone(),
+                _ => {
+                    return Err(GraphError::Param {
+                        param: "path".into(),
+                        detail: "a graph node needs parameter \"path\" (the graph file it uses)"
+                            .into(),
+                        at,
+                    })
+                }
+            };
+            let sub = LoadedGraph::load(&base_dir.join(rel))?;
+            return Ok(NodePorts {
+                inputs: sub
+                    .graph
+                    .inputs
+                    .iter()
+                    .map(|(n, d)| PortSpec::new(n, d.ty, &d.doc))
+                    .collect(),
+                outputs: sub
+                    .graph
+                    .outputs
+                    .keys()
+                    .filter_map(|n| Some(PortSpec::new(n, sub.output_type(n)?, "")))
+                    .collect(),
+            });
+        }
+        let Some(op) = ops::find(&node.op) else {
+            let ids = ops::registry()
+                .iter()
+                .map(|o| o.spec().id)
+                .chain([GRAPH_NODE_OP]);
+            return Err(GraphError::UnknownOp {
+                op: node.op.clone(),
+                suggestion: nearest(&node.op, ids),
+                at,
+            });
+        };
+        Ok(NodePorts {
+            inputs: op.spec().inputs.clone(),
+            outputs: op.spec().outputs.clone(),
+        })
+    }
+
+    /// Connects output `from_port` of node `from` to input `port` of node `to` (replacing any
+    /// edge into that port) if the edge is valid on its own: both ports exist, the types match,
+    /// and no cycle results. Unlike [`LoadedGraph::connect`], the rest of the graph may be
+    /// unfinished. On error the graph is unchanged.
+    pub fn connect(
+        &mut self,
+        from: NodeId,
+        from_port: &str,
+        to: NodeId,
+        port: &str,
+        base_dir: &Path,
+    ) -> Result<(), GraphError> {
+        let src = self.node_ports(from, base_dir)?;
+        let dst = self.node_ports(to, base_dir)?;
+        let at = At::file("<editor>").node(to, self.nodes[&to].name.as_deref());
+        let Some(out) = src.outputs.iter().find(|p| p.name == from_port) else {
+            return Err(GraphError::UnknownPort {
+                dir: "output",
+                port: from_port.into(),
+                op: format!("node {from} ({})", self.nodes[&from].op),
+                suggestion: nearest(from_port, src.outputs.iter().map(|p| p.name.as_str())),
+                at,
+            });
+        };
+        let Some(inp) = dst.inputs.iter().find(|p| p.name == port) else {
+            return Err(GraphError::UnknownPort {
+                dir: "input",
+                port: port.into(),
+                op: self.nodes[&to].op.clone(),
+                suggestion: nearest(port, dst.inputs.iter().map(|p| p.name.as_str())),
+                at,
+            });
+        };
+        if out.ty != inp.ty {
+            return Err(GraphError::TypeMismatch {
+                port: port.into(),
+                expected: inp.ty.name(),
+                from: format!("node {from} output {from_port:?}"),
+                found: out.ty.name(),
+                at,
+            });
+        }
+        // A cycle appears if `to` is `from` or one of its ancestors.
+        let mut stack = vec![from];
+        let mut seen = BTreeSet::new();
+        while let Some(n) = stack.pop() {
+            if n == to {
+                let mut nodes: Vec<NodeId> = seen.into_iter().collect();
+                nodes.push(to);
+                nodes.sort_unstable();
+                nodes.dedup();
+                return Err(GraphError::Cycle { nodes, at });
+            }
+            if !seen.insert(n) {
+                continue;
+            }
+            for s in self
+                .nodes
+                .get(&n)
+                .into_iter()
+                .flat_map(|d| d.inputs.values())
+            {
+                if let Source::Node(sid, _) = s {
+                    stack.push(*sid);
+                }
+            }
+        }
+        if let Some(n) = self.nodes.get_mut(&to) {
+            n.inputs
+                .insert(port.to_string(), Source::Node(from, from_port.to_string()));
+        }
+        Ok(())
+    }
+
+    /// Writes the graph as pretty RON, atomically (a temporary file renamed into place).
+    pub fn save(&self, path: &Path) -> Result<(), GraphError> {
+        let text = self.to_text();
+        crate::raster::io::write_atomic(path, |w| {
+            use std::io::Write;
+            w.write_all(text.as_bytes()).map_err(|e| e.to_string())
+        })
+        .map_err(|e| GraphError::Io {
+            file: display(path),
+            source: std::io::Error::other(e.to_string()),
+        })
+    }
+
     /// The node named by `r`: a node id, or a node name.
     #[must_use]
     pub fn find_node(&self, r: &str) -> Option<NodeId> {
@@ -749,6 +894,38 @@ mod tests {
             lg.graph.nodes[&3].inputs["image"],
             Source::Node(1, "image".into())
         );
+    }
+
+    #[test]
+    fn editor_connect_on_an_unfinished_graph() {
+        let mut g = LoadedGraph::from_text(G, "g.ron", PathBuf::from("."))
+            .unwrap()
+            .graph;
+        let n = g.add_node("normalize", [0.0, 0.0]); // required input left unconnected
+        let before = g.clone();
+        let e = g
+            .connect(1, "height", n, "image", Path::new("."))
+            .unwrap_err();
+        assert!(matches!(e, GraphError::TypeMismatch { .. }), "{e}");
+        let e = g
+            .connect(3, "image", 2, "image", Path::new("."))
+            .unwrap_err();
+        assert!(matches!(e, GraphError::Cycle { .. }), "{e}");
+        let e = g
+            .connect(n, "image", n, "image", Path::new("."))
+            .unwrap_err();
+        assert!(matches!(e, GraphError::Cycle { .. }), "{e}");
+        let e = g
+            .connect(1, "imag", n, "image", Path::new("."))
+            .unwrap_err();
+        assert!(matches!(e, GraphError::UnknownPort { .. }), "{e}");
+        assert_eq!(g, before);
+        g.connect(3, "image", n, "image", Path::new(".")).unwrap();
+        assert_eq!(g.nodes[&n].inputs["image"], Source::Node(3, "image".into()));
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("g.ron");
+        g.save(&p).unwrap();
+        assert_eq!(LoadedGraph::load(&p).unwrap().graph, g);
     }
 
     #[test]

@@ -254,3 +254,28 @@ fn batch_continues_past_bad_files_and_lists_them() {
     }
     assert!(!outd.join("broken.relit.png").exists());
 }
+
+/// Without the editor (`--no-default-features`), no command prints the help; with it, no
+/// command opens the editor (not run here: it needs a display).
+#[cfg(not(feature = "gui"))]
+#[test]
+fn no_command_prints_help_without_the_editor() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = rgbn(dir.path(), &[]);
+    assert_eq!(out.status.code(), Some(2));
+    let all = text(&out.stdout) + &text(&out.stderr);
+    assert!(all.contains("Usage"), "{all}");
+    assert!(
+        !all.contains(" edit "),
+        "no edit command without the gui feature: {all}"
+    );
+}
+
+#[cfg(feature = "gui")]
+#[test]
+fn help_lists_the_edit_command() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = rgbn(dir.path(), &["--help"]);
+    assert_eq!(out.status.code(), Some(0));
+    assert!(text(&out.stdout).contains("edit"), "{}", text(&out.stdout));
+}

@@ -1,0 +1,519 @@
+//! The node graph view: a [`Snarl<NodeId>`] mirroring the document's [`Graph`].
+//!
+//! The graph is the truth, the widget a view. The viewer never edits the graph nor the snarl
+//! itself: connects, disconnects and menu commands become [`Action`]s that the app applies to
+//! the document (the core checks connections); then [`GraphView::sync`] mirrors the graph into
+//! the snarl (incrementally, so the widget keeps its selection). Egui-snarl's own node ids are
+//! reused slab indices: they are never persisted nor used as keys outside this module.
+
+use crate::graph::{Graph, NodeId, NodePorts};
+use crate::ops::{self, PortType};
+use egui::{Color32, Id, Pos2, RichText, TextureHandle, Ui};
+use egui_snarl::ui::{PinInfo, SnarlPin, SnarlStyle, SnarlViewer, SnarlWidget};
+use egui_snarl::{InPin, InPinId, OutPin, OutPinId, Snarl};
+use std::collections::{BTreeMap, BTreeSet};
+
+/// The snarl widget's id (selection is read back through it).
+pub const SNARL_ID: &str = "rgbn-graph";
+
+/// An edit asked for in the graph view, applied by the app after the frame's UI.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Action {
+    /// Add a node of this operator at this position.
+    AddNode {
+        /// Operator id.
+        op: String,
+        /// Graph position.
+        pos: [f32; 2],
+    },
+    /// Connect an output to an input.
+    Connect {
+        /// Source node.
+        from: NodeId,
+        /// Its output port.
+        from_port: String,
+        /// Target node.
+        to: NodeId,
+        /// Its input port.
+        port: String,
+    },
+    /// Remove the edge into an input.
+    Disconnect {
+        /// Target node.
+        to: NodeId,
+        /// Its input port.
+        port: String,
+    },
+    /// Delete nodes.
+    Delete(Vec<NodeId>),
+    /// Duplicate nodes.
+    Duplicate(Vec<NodeId>),
+    /// Show this node's output in the preview.
+    View(NodeId),
+}
+
+/// Colour of a port type (pins and wires).
+#[must_use]
+pub fn type_color(t: PortType) -> Color32 {
+    match t {
+        PortType::Rgbn => Color32::from_rgb(0x5b, 0x9b, 0xd5),
+        PortType::Mask => Color32::from_rgb(0xc0, 0xc0, 0xc0),
+        PortType::Scalar => Color32::from_rgb(0xe0, 0xa0, 0x40),
+        PortType::Picture => Color32::from_rgb(0x70, 0xc0, 0x70),
+        PortType::Number => Color32::from_rgb(0xc0, 0x70, 0xc0),
+    }
+}
+
+/// Per-frame data the viewer shows.
+pub struct ViewData<'a> {
+    /// The graph.
+    pub graph: &'a Graph,
+    /// Resolved ports of every node (missing: the node failed to resolve).
+    pub ports: &'a BTreeMap<NodeId, NodePorts>,
+    /// Thumbnails.
+    pub thumbs: &'a BTreeMap<NodeId, TextureHandle>,
+    /// Errors by node.
+    pub errors: &'a BTreeMap<NodeId, String>,
+    /// The node shown in the preview.
+    pub viewed: Option<NodeId>,
+}
+
+/// The mirror of the graph in egui-snarl.
+pub struct GraphView {
+    snarl: Snarl<NodeId>,
+    by_id: BTreeMap<NodeId, egui_snarl::NodeId>,
+    style: SnarlStyle,
+    /// The text typed in the add-node menu's search field.
+    pub search: String,
+    /// Frames left during which the view is fitted to the whole graph (panels settle in the
+    /// first frames, so fitting lasts a few).
+    pub frame_pending: u32,
+}
+
+impl Default for GraphView {
+    fn default() -> Self {
+        let style = SnarlStyle {
+            pin_size: Some(9.0),
+            collapsible: Some(false),
+            ..SnarlStyle::new()
+        };
+        Self {
+            snarl: Snarl::new(),
+            by_id: BTreeMap::new(),
+            style,
+            search: String::new(),
+            frame_pending: 3,
+        }
+    }
+}
+
+impl GraphView {
+    /// Mirrors `graph` into the snarl: adds and removes nodes, moves them, fixes wires.
+    pub fn sync(&mut self, graph: &Graph, ports: &BTreeMap<NodeId, NodePorts>) {
+        let gone: Vec<NodeId> = self
+            .by_id
+            .keys()
+            .filter(|id| !graph.nodes.contains_key(id))
+            .copied()
+            .collect();
+        for id in gone {
+            if let Some(sid) = self.by_id.remove(&id) {
+                self.snarl.remove_node(sid);
+            }
+        }
+        for (id, n) in &graph.nodes {
+            let pos = Pos2::new(n.pos[0], n.pos[1]);
+            match self.by_id.get(id) {
+                None => {
+                    let sid = self.snarl.insert_node(pos, *id);
+                    self.by_id.insert(*id, sid);
+                }
+                Some(sid) => {
+                    if let Some(info) = self.snarl.get_node_info_mut(*sid) {
+                        if info.pos != pos {
+                            info.pos = pos;
+                        }
+                    }
+                }
+            }
+        }
+        let mut want = BTreeSet::new();
+        for (id, n) in &graph.nodes {
+            let (Some(sid), Some(p)) = (self.by_id.get(id), ports.get(id)) else {
+                continue;
+            };
+            for (port, src) in &n.inputs {
+                let crate::graph::Source::Node(from, from_port) = src else {
+                    continue;
+                };
+                let (Some(fsid), Some(fp)) = (self.by_id.get(from), ports.get(from)) else {
+                    continue;
+                };
+                let (Some(i), Some(o)) = (
+                    p.inputs.iter().position(|x| &x.name == port),
+                    fp.outputs.iter().position(|x| &x.name == from_port),
+                ) else {
+                    continue;
+                };
+                want.insert((
+                    OutPinId {
+                        node: *fsid,
+                        output: o,
+                    },
+                    InPinId {
+                        node: *sid,
+                        input: i,
+                    },
+                ));
+            }
+        }
+        let have: BTreeSet<(OutPinId, InPinId)> = self.snarl.wires().collect();
+        for (o, i) in have.difference(&want) {
+            self.snarl.disconnect(*o, *i);
+        }
+        for (o, i) in want.difference(&have) {
+            self.snarl.connect(*o, *i);
+        }
+    }
+
+    /// Copies node positions moved in the widget back into the graph.
+    pub fn write_back_positions(&self, graph: &mut Graph) {
+        for (id, sid) in &self.by_id {
+            if let (Some(info), Some(n)) = (self.snarl.get_node_info(*sid), graph.nodes.get_mut(id))
+            {
+                let p = [info.pos.x, info.pos.y];
+                if n.pos != p {
+                    n.pos = p;
+                }
+            }
+        }
+    }
+
+    /// Graph ids of the nodes selected in the widget.
+    #[must_use]
+    pub fn selected(&self, ctx: &egui::Context) -> Vec<NodeId> {
+        egui_snarl::ui::get_selected_nodes(Id::new(SNARL_ID), ctx)
+            .into_iter()
+            .filter_map(|sid| self.snarl.get_node(sid).copied())
+            .collect()
+    }
+
+    /// Number of wires shown (tests).
+    #[must_use]
+    pub fn wire_count(&self) -> usize {
+        self.snarl.wires().count()
+    }
+
+    /// Draws the graph; returns the actions asked for.
+    pub fn show_ui(&mut self, ui: &mut Ui, data: &ViewData<'_>) -> Vec<Action> {
+        let frame = (self.frame_pending > 0).then(|| ui.available_rect_before_wrap());
+        self.frame_pending = self.frame_pending.saturating_sub(1);
+        let mut viewer = Viewer {
+            data,
+            search: &mut self.search,
+            actions: Vec::new(),
+            frame,
+        };
+        SnarlWidget::new()
+            .id(Id::new(SNARL_ID))
+            .style(self.style)
+            .show(&mut self.snarl, &mut viewer, ui);
+        viewer.actions
+    }
+}
+
+/// A menu of every operator by category, with a search field; returns the chosen op id.
+pub fn add_node_menu_ui(ui: &mut Ui, search: &mut String) -> Option<&'static str> {
+    let mut chosen = None;
+    ui.horizontal(|ui| {
+        ui.label("🔍");
+        ui.add(
+            egui::TextEdit::singleline(search)
+                .hint_text("search operators")
+                .desired_width(160.0),
+        );
+    });
+    let q = search.to_lowercase();
+    let mut cats: BTreeMap<&str, Vec<&'static dyn ops::DynOp>> = BTreeMap::new();
+    for op in ops::registry() {
+        let s = op.spec();
+        let hit = q.is_empty()
+            || s.id.to_lowercase().contains(&q)
+            || s.title.to_lowercase().contains(&q)
+            || s.category.contains(&q);
+        if hit {
+            cats.entry(s.category).or_default().push(op.as_ref());
+        }
+    }
+    if cats.is_empty() {
+        ui.weak("no operator matches");
+    }
+    for (cat, list) in cats {
+        ui.separator();
+        ui.label(RichText::new(cat).small().weak());
+        for op in list {
+            let s = op.spec();
+            if ui.button(s.title).on_hover_text(s.doc).clicked() {
+                chosen = Some(s.id);
+                ui.close();
+            }
+        }
+    }
+    chosen
+}
+
+struct Viewer<'a, 'd> {
+    data: &'a ViewData<'d>,
+    search: &'a mut String,
+    actions: Vec<Action>,
+    /// Fit the view to the graph in this screen rectangle.
+    frame: Option<egui::Rect>,
+}
+
+impl Viewer<'_, '_> {
+    fn ports(&self, id: NodeId) -> Option<&NodePorts> {
+        self.data.ports.get(&id)
+    }
+}
+
+/// A node's title: its name, or its operator's title.
+#[must_use]
+pub fn node_title(graph: &Graph, id: NodeId) -> String {
+    let Some(n) = graph.nodes.get(&id) else {
+        return format!("#{id}");
+    };
+    let op_title = ops::find(&n.op).map_or(n.op.as_str(), |o| o.spec().title);
+    match &n.name {
+        Some(name) => format!("{name} · {op_title}"),
+        None => op_title.to_string(),
+    }
+}
+
+impl SnarlViewer<NodeId> for Viewer<'_, '_> {
+    fn title(&mut self, node: &NodeId) -> String {
+        node_title(self.data.graph, *node)
+    }
+
+    fn header_frame(
+        &mut self,
+        default: egui::Frame,
+        node: egui_snarl::NodeId,
+        _inputs: &[InPin],
+        _outputs: &[OutPin],
+        snarl: &Snarl<NodeId>,
+    ) -> egui::Frame {
+        let id = snarl[node];
+        if self.data.errors.contains_key(&id) {
+            default.fill(Color32::from_rgb(0x8a, 0x20, 0x20))
+        } else if self.data.viewed == Some(id) {
+            default.fill(Color32::from_rgb(0x2a, 0x4a, 0x6a))
+        } else {
+            default
+        }
+    }
+
+    fn show_header(
+        &mut self,
+        node: egui_snarl::NodeId,
+        _inputs: &[InPin],
+        _outputs: &[OutPin],
+        ui: &mut Ui,
+        snarl: &mut Snarl<NodeId>,
+    ) {
+        let id = snarl[node];
+        let title = self.title(&id);
+        let r = ui.label(RichText::new(title).strong());
+        if let Some(n) = self.data.graph.nodes.get(&id) {
+            if let Some(op) = ops::find(&n.op) {
+                r.on_hover_text(op.spec().doc);
+            }
+        }
+    }
+
+    fn inputs(&mut self, node: &NodeId) -> usize {
+        self.ports(*node).map_or(0, |p| p.inputs.len())
+    }
+
+    fn outputs(&mut self, node: &NodeId) -> usize {
+        self.ports(*node).map_or(0, |p| p.outputs.len())
+    }
+
+    fn show_input(
+        &mut self,
+        pin: &InPin,
+        ui: &mut Ui,
+        snarl: &mut Snarl<NodeId>,
+    ) -> impl SnarlPin + 'static {
+        let id = snarl[pin.id.node];
+        let Some(p) = self.ports(id).and_then(|p| p.inputs.get(pin.id.input)) else {
+            return PinInfo::circle();
+        };
+        let text = if p.optional {
+            format!("{} (optional)", p.name)
+        } else {
+            p.name.clone()
+        };
+        ui.label(text)
+            .on_hover_text(format!("{} — {}", p.ty.name(), p.doc));
+        PinInfo::circle().with_fill(type_color(p.ty))
+    }
+
+    fn show_output(
+        &mut self,
+        pin: &OutPin,
+        ui: &mut Ui,
+        snarl: &mut Snarl<NodeId>,
+    ) -> impl SnarlPin + 'static {
+        let id = snarl[pin.id.node];
+        let Some(p) = self.ports(id).and_then(|p| p.outputs.get(pin.id.output)) else {
+            return PinInfo::circle();
+        };
+        ui.label(&p.name)
+            .on_hover_text(format!("{} — {}", p.ty.name(), p.doc));
+        PinInfo::square().with_fill(type_color(p.ty))
+    }
+
+    fn has_body(&mut self, node: &NodeId) -> bool {
+        self.data.thumbs.contains_key(node) || self.data.errors.contains_key(node)
+    }
+
+    fn show_body(
+        &mut self,
+        node: egui_snarl::NodeId,
+        _inputs: &[InPin],
+        _outputs: &[OutPin],
+        ui: &mut Ui,
+        snarl: &mut Snarl<NodeId>,
+    ) {
+        let id = snarl[node];
+        ui.vertical(|ui| {
+            if let Some(t) = self.data.thumbs.get(&id) {
+                let size = t.size_vec2();
+                let scale = (72.0 / size.x.max(size.y)).min(1.0);
+                ui.add(egui::Image::new((t.id(), size * scale)));
+            }
+            if let Some(e) = self.data.errors.get(&id) {
+                ui.set_min_width(170.0);
+                ui.set_max_width(220.0);
+                ui.add(
+                    egui::Label::new(RichText::new(e).color(Color32::from_rgb(255, 120, 120)))
+                        .wrap_mode(egui::TextWrapMode::Wrap),
+                );
+            }
+        });
+    }
+
+    fn connect(&mut self, from: &OutPin, to: &InPin, snarl: &mut Snarl<NodeId>) {
+        let (fid, tid) = (snarl[from.id.node], snarl[to.id.node]);
+        let (Some(fp), Some(tp)) = (
+            self.ports(fid).and_then(|p| p.outputs.get(from.id.output)),
+            self.ports(tid).and_then(|p| p.inputs.get(to.id.input)),
+        ) else {
+            return;
+        };
+        self.actions.push(Action::Connect {
+            from: fid,
+            from_port: fp.name.clone(),
+            to: tid,
+            port: tp.name.clone(),
+        });
+    }
+
+    fn disconnect(&mut self, _from: &OutPin, to: &InPin, snarl: &mut Snarl<NodeId>) {
+        let tid = snarl[to.id.node];
+        if let Some(tp) = self.ports(tid).and_then(|p| p.inputs.get(to.id.input)) {
+            self.actions.push(Action::Disconnect {
+                to: tid,
+                port: tp.name.clone(),
+            });
+        }
+    }
+
+    fn drop_inputs(&mut self, pin: &InPin, snarl: &mut Snarl<NodeId>) {
+        if !pin.remotes.is_empty() {
+            let tid = snarl[pin.id.node];
+            if let Some(tp) = self.ports(tid).and_then(|p| p.inputs.get(pin.id.input)) {
+                self.actions.push(Action::Disconnect {
+                    to: tid,
+                    port: tp.name.clone(),
+                });
+            }
+        }
+    }
+
+    fn drop_outputs(&mut self, pin: &OutPin, snarl: &mut Snarl<NodeId>) {
+        for r in &pin.remotes {
+            let tid = snarl[r.node];
+            if let Some(tp) = self.ports(tid).and_then(|p| p.inputs.get(r.input)) {
+                self.actions.push(Action::Disconnect {
+                    to: tid,
+                    port: tp.name.clone(),
+                });
+            }
+        }
+    }
+
+    fn current_transform(
+        &mut self,
+        to_global: &mut egui::emath::TSTransform,
+        snarl: &mut Snarl<NodeId>,
+    ) {
+        let Some(view) = self.frame else { return };
+        let mut bb = egui::Rect::NOTHING;
+        for n in snarl.nodes_info() {
+            // Node sizes are not known here: a typical node with a thumbnail.
+            bb.extend_with(n.pos);
+            bb.extend_with(n.pos + egui::vec2(250.0, 150.0));
+        }
+        if !bb.is_finite() || !view.is_finite() || view.width() < 10.0 {
+            return;
+        }
+        let bb = bb.expand(30.0);
+        let scaling = (view.size() / bb.size()).min_elem().clamp(0.2, 1.0);
+        *to_global = egui::emath::TSTransform {
+            scaling,
+            translation: view.center().to_vec2() - bb.center().to_vec2() * scaling,
+        };
+    }
+
+    fn has_graph_menu(&mut self, _pos: Pos2, _snarl: &mut Snarl<NodeId>) -> bool {
+        true
+    }
+
+    fn show_graph_menu(&mut self, pos: Pos2, ui: &mut Ui, _snarl: &mut Snarl<NodeId>) {
+        ui.label(RichText::new("Add node").strong());
+        if let Some(op) = add_node_menu_ui(ui, self.search) {
+            self.actions.push(Action::AddNode {
+                op: op.to_string(),
+                pos: [pos.x, pos.y],
+            });
+        }
+    }
+
+    fn has_node_menu(&mut self, _node: &NodeId) -> bool {
+        true
+    }
+
+    fn show_node_menu(
+        &mut self,
+        node: egui_snarl::NodeId,
+        _inputs: &[InPin],
+        _outputs: &[OutPin],
+        ui: &mut Ui,
+        snarl: &mut Snarl<NodeId>,
+    ) {
+        let id = snarl[node];
+        if ui.button("View output").clicked() {
+            self.actions.push(Action::View(id));
+            ui.close();
+        }
+        if ui.button("Duplicate").clicked() {
+            self.actions.push(Action::Duplicate(vec![id]));
+            ui.close();
+        }
+        if ui.button("Delete").clicked() {
+            self.actions.push(Action::Delete(vec![id]));
+            ui.close();
+        }
+    }
+}

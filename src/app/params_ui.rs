@@ -1,0 +1,321 @@
+//! The inspector: the selected node's parameters as widgets, built from the operator's
+//! parameter declaration (the [`ParamInfo`] list its `ParamVisitor` produces: kind, doc, unit,
+//! range, default). Edits write straight into the graph; the app turns a whole drag or a whole
+//! text edit into one undo step.
+
+use crate::graph::{Graph, NodeId};
+use crate::ops::params::{ParamInfo, ParamKind, ParamValue};
+use crate::ops::{self, GRAPH_NODE_OP};
+use egui::{RichText, Ui};
+use std::path::Path;
+
+/// Draws the widget for one parameter; returns true if `value` changed.
+pub fn param_ui(
+    ui: &mut Ui,
+    name: &str,
+    info: &ParamInfo,
+    value: &mut ParamValue,
+    base_dir: &Path,
+) -> bool {
+    let meta = &info.meta;
+    let suffix = if meta.unit.is_empty() {
+        String::new()
+    } else {
+        format!(" {}", meta.unit)
+    };
+    let mut changed = false;
+    let label = ui.label(name).on_hover_text(meta.doc).id;
+    match (&info.kind, value) {
+        (ParamKind::Bool, ParamValue::Bool(b)) => {
+            changed |= ui
+                .checkbox(b, "")
+                .labelled_by(label)
+                .on_hover_text(meta.doc)
+                .changed();
+        }
+        (ParamKind::Int, ParamValue::Int(i)) => {
+            let r = match meta.range {
+                Some((lo, hi)) => {
+                    let log = lo >= 1.0 && hi / lo > 100.0;
+                    ui.add(
+                        egui::Slider::new(i, lo as i64..=hi as i64)
+                            .logarithmic(log)
+                            .suffix(&suffix),
+                    )
+                }
+                None => ui.add(egui::DragValue::new(i).suffix(&suffix)),
+            };
+            changed |= r.labelled_by(label).on_hover_text(meta.doc).changed();
+        }
+        (ParamKind::Float, ParamValue::Float(x)) => {
+            let r = match meta.range {
+                Some((lo, hi)) => {
+                    let log = lo > 0.0 && hi / lo > 100.0;
+                    ui.add(
+                        egui::Slider::new(x, lo..=hi)
+                            .logarithmic(log)
+                            .suffix(&suffix)
+                            .max_decimals(4),
+                    )
+                }
+                None => ui.add(egui::DragValue::new(x).speed(0.01).suffix(&suffix)),
+            };
+            changed |= r.labelled_by(label).on_hover_text(meta.doc).changed();
+        }
+        (ParamKind::Choice(options), ParamValue::Choice(s)) => {
+            egui::ComboBox::from_id_salt(name)
+                .selected_text(s.as_str())
+                .show_ui(ui, |ui| {
+                    for o in options {
+                        changed |= ui.selectable_value(s, (*o).to_string(), *o).changed();
+                    }
+                });
+        }
+        (ParamKind::Text, ParamValue::Text(s)) => {
+            changed |= ui.text_edit_singleline(s).labelled_by(label).changed();
+        }
+        (ParamKind::Path, ParamValue::Path(s) | ParamValue::Text(s)) => {
+            ui.horizontal(|ui| {
+                changed |= ui
+                    .add(egui::TextEdit::singleline(s).desired_width(170.0))
+                    .labelled_by(label)
+                    .on_hover_text(meta.doc)
+                    .changed();
+                ui.menu_button("…", |ui| {
+                    if let Some(p) = file_menu_ui(ui, base_dir) {
+                        *s = p;
+                        changed = true;
+                        ui.close();
+                    }
+                })
+                .response
+                .on_hover_text("Pick a file next to the graph");
+            });
+        }
+        (ParamKind::Vec3, ParamValue::Vec3(v)) => {
+            ui.horizontal(|ui| {
+                for c in v.iter_mut() {
+                    let mut d = egui::DragValue::new(c).speed(0.01).max_decimals(3);
+                    if let Some((lo, hi)) = meta.range {
+                        d = d.range(lo..=hi);
+                    }
+                    changed |= ui.add(d).changed();
+                }
+            });
+        }
+        (
+            ParamKind::Floats | ParamKind::Profile,
+            ParamValue::Floats(v) | ParamValue::Profile(v),
+        ) => {
+            changed |= list_ui(ui, v, meta.range);
+        }
+        (ParamKind::Points, ParamValue::Points(pts)) => {
+            ui.vertical(|ui| {
+                let mut remove = None;
+                for (k, p) in pts.iter_mut().enumerate() {
+                    ui.horizontal(|ui| {
+                        ui.label(format!("{k}"));
+                        changed |= ui
+                            .add(egui::DragValue::new(&mut p[0]).prefix("x "))
+                            .changed();
+                        changed |= ui
+                            .add(egui::DragValue::new(&mut p[1]).prefix("y "))
+                            .changed();
+                        if ui.small_button("✖").clicked() {
+                            remove = Some(k);
+                        }
+                    });
+                }
+                if let Some(k) = remove {
+                    pts.remove(k);
+                    changed = true;
+                }
+                if ui.small_button("+ point").clicked() {
+                    let last = pts.last().copied().unwrap_or([0.0, 0.0]);
+                    pts.push([last[0] + 10.0, last[1]]);
+                    changed = true;
+                }
+            });
+        }
+        (_, v) => {
+            ui.label(format!("{v} ({})", v.kind_name()));
+        }
+    }
+    ui.end_row();
+    changed
+}
+
+fn list_ui(ui: &mut Ui, v: &mut Vec<f64>, range: Option<(f64, f64)>) -> bool {
+    let mut changed = false;
+    ui.vertical(|ui| {
+        ui.horizontal_wrapped(|ui| {
+            for x in v.iter_mut() {
+                let mut d = egui::DragValue::new(x).speed(0.01).max_decimals(4);
+                if let Some((lo, hi)) = range {
+                    d = d.range(lo..=hi);
+                }
+                changed |= ui.add(d).changed();
+            }
+        });
+        ui.horizontal(|ui| {
+            if ui.small_button("+").clicked() {
+                v.push(v.last().copied().unwrap_or(0.0));
+                changed = true;
+            }
+            if ui.small_button("−").clicked() && !v.is_empty() {
+                v.pop();
+                changed = true;
+            }
+        });
+    });
+    changed
+}
+
+/// Files in `base_dir` and its `data/` folder (a light file picker without system dialogs).
+fn file_menu_ui(ui: &mut Ui, base_dir: &Path) -> Option<String> {
+    let mut out = None;
+    let mut any = false;
+    for sub in ["", "data"] {
+        let dir = base_dir.join(sub);
+        let Ok(rd) = std::fs::read_dir(&dir) else {
+            continue;
+        };
+        let mut names: Vec<String> = rd
+            .filter_map(Result::ok)
+            .filter(|e| e.path().is_file())
+            .map(|e| e.file_name().to_string_lossy().into_owned())
+            .filter(|n| !n.starts_with('.'))
+            .collect();
+        names.sort();
+        for n in names {
+            any = true;
+            let rel = if sub.is_empty() {
+                n.clone()
+            } else {
+                format!("{sub}/{n}")
+            };
+            if ui.button(&rel).clicked() {
+                out = Some(rel);
+            }
+        }
+    }
+    if !any {
+        ui.weak(format!("no files in {}", base_dir.display()));
+    }
+    out
+}
+
+/// The parameters of node `id` (name, description, current value: the default where the file
+/// has none). A graph node's parameters are its `path` and the sub-graph's exposed ones.
+#[must_use]
+pub fn node_params(
+    graph: &Graph,
+    id: NodeId,
+    base_dir: &Path,
+) -> Vec<(String, ParamInfo, ParamValue)> {
+    let Some(n) = graph.nodes.get(&id) else {
+        return Vec::new();
+    };
+    let infos: Vec<(String, ParamInfo)> = if n.op == GRAPH_NODE_OP {
+        let mut v = vec![(
+            "path".to_string(),
+            ParamInfo {
+                name: "path",
+                kind: ParamKind::Path,
+                meta: crate::ops::params::Meta::new("The graph file this node uses."),
+                default: ParamValue::Path(String::new()),
+            },
+        )];
+        if let Some(ParamValue::Path(p) | ParamValue::Text(p)) = n.params.get("path") {
+            if let Ok(sub) = crate::graph::LoadedGraph::load(&base_dir.join(p)) {
+                for (name, ex) in &sub.graph.exposed {
+                    if let Some(mut info) = sub.param_info(ex.node, &ex.param) {
+                        if let Some(x) = sub
+                            .graph
+                            .nodes
+                            .get(&ex.node)
+                            .and_then(|n| n.params.get(&ex.param))
+                        {
+                            info.default = x.clone();
+                        }
+                        v.push((name.clone(), info));
+                    }
+                }
+            }
+        }
+        v
+    } else {
+        ops::find(&n.op)
+            .map(|o| {
+                o.params()
+                    .iter()
+                    .map(|i| (i.name.to_string(), i.clone()))
+                    .collect()
+            })
+            .unwrap_or_default()
+    };
+    infos
+        .into_iter()
+        .map(|(name, info)| {
+            let v = n
+                .params
+                .get(&name)
+                .cloned()
+                .unwrap_or_else(|| info.default.clone());
+            (name, info, v)
+        })
+        .collect()
+}
+
+/// The inspector for node `id`: name, operator doc, parameters. Edits go into `graph`.
+pub fn inspector_ui(ui: &mut Ui, graph: &mut Graph, id: NodeId, base_dir: &Path) {
+    let Some(n) = graph.nodes.get(&id) else {
+        ui.weak("No node selected.");
+        return;
+    };
+    let op = ops::find(&n.op);
+    ui.heading(super::graph_view::node_title(graph, id));
+    ui.label(RichText::new(format!("#{id} · {}", n.op)).small().weak());
+    if let Some(op) = op {
+        let doc = op.spec().doc;
+        let summary = doc.split(". ").next().unwrap_or(doc);
+        ui.label(summary).on_hover_text(doc);
+    }
+    ui.separator();
+    let mut name = n.name.clone().unwrap_or_default();
+    let params = node_params(graph, id, base_dir);
+    let mut edits: Vec<(String, ParamValue)> = Vec::new();
+    let mut name_changed = false;
+    egui::Grid::new(("params", id))
+        .num_columns(2)
+        .spacing([8.0, 6.0])
+        .striped(true)
+        .show(ui, |ui| {
+            ui.label("name")
+                .on_hover_text("Optional node name (for --set NAME.PARAM=…)");
+            name_changed = ui.text_edit_singleline(&mut name).changed();
+            ui.end_row();
+            for (pname, info, mut value) in params {
+                if param_ui(ui, &pname, &info, &mut value, base_dir) {
+                    edits.push((pname, value));
+                }
+            }
+        });
+    if let Some(n) = graph.nodes.get_mut(&id) {
+        if name_changed {
+            n.name = if name.trim().is_empty() {
+                None
+            } else {
+                Some(name)
+            };
+        }
+        for (k, v) in edits {
+            n.params.insert(k, v);
+        }
+    }
+    if ui.small_button("Reset to defaults").clicked() {
+        if let Some(n) = graph.nodes.get_mut(&id) {
+            n.params.retain(|k, _| k == "path" && n.op == GRAPH_NODE_OP);
+        }
+    }
+}

@@ -1,0 +1,480 @@
+//! The editor's document model, free of egui: the graph being edited (the truth), its file,
+//! edit commands and the undo history. Everything here is unit-tested without a window.
+
+// Graph errors carry their location by value; they are cold paths.
+#![allow(clippy::result_large_err)]
+
+use crate::graph::file;
+use crate::graph::{At, Graph, GraphError, NodeId, NodePorts, Source};
+use crate::ops::params::ParamValue;
+use std::collections::{BTreeMap, BTreeSet};
+use std::path::{Path, PathBuf};
+
+/// The demo graph, built in so the editor opens on something even without `graphs/`.
+pub const DEMO_GRAPH: &str = include_str!("../../graphs/demo.ron");
+
+/// How many undo steps are kept.
+pub const UNDO_LIMIT: usize = 200;
+
+/// Snapshot undo/redo. Graphs are small (parameters and edges, no pixels), so each step is a
+/// whole graph: undo restores the previous graph exactly.
+///
+/// Continuous edits (dragging a slider or a node, typing in a field) are merged into one step:
+/// [`History::record`] holds the graph from before the interaction and pushes it only when the
+/// interaction ends.
+#[derive(Clone, Debug, Default)]
+pub struct History {
+    undo: Vec<Graph>,
+    redo: Vec<Graph>,
+    pending: Option<Graph>,
+    version: u64,
+}
+
+impl History {
+    /// Records one frame's change from `before` to `after`. While `interacting` the change is
+    /// held; when the interaction ends it becomes one undo step (if the graph ended up changed).
+    pub fn record(&mut self, before: &Graph, after: &Graph, interacting: bool) {
+        if before != after && self.pending.is_none() {
+            self.pending = Some(before.clone());
+        }
+        if !interacting {
+            if let Some(p) = self.pending.take() {
+                if p != *after {
+                    self.push(p);
+                }
+            }
+        }
+    }
+
+    /// Pushes `before` as one undo step (a discrete command: add, delete, connect, …).
+    pub fn commit(&mut self, before: Graph) {
+        if let Some(p) = self.pending.take() {
+            if p != before {
+                self.push(p);
+            }
+        }
+        self.push(before);
+    }
+
+    /// Changes whenever a step is pushed, undone or redone.
+    #[must_use]
+    pub fn version(&self) -> u64 {
+        self.version
+    }
+
+    fn push(&mut self, g: Graph) {
+        self.version += 1;
+        if self.undo.last() != Some(&g) {
+            self.undo.push(g);
+            if self.undo.len() > UNDO_LIMIT {
+                self.undo.remove(0);
+            }
+        }
+        self.redo.clear();
+    }
+
+    /// Undoes the last step into `current`; false when there is nothing to undo.
+    pub fn undo(&mut self, current: &mut Graph) -> bool {
+        if let Some(p) = self.pending.take() {
+            if p != *current {
+                self.push(p);
+            }
+        }
+        match self.undo.pop() {
+            Some(g) => {
+                self.version += 1;
+                self.redo.push(std::mem::replace(current, g));
+                true
+            }
+            None => false,
+        }
+    }
+
+    /// Re-applies the last undone step; false when there is nothing to redo.
+    pub fn redo(&mut self, current: &mut Graph) -> bool {
+        match self.redo.pop() {
+            Some(g) => {
+                self.version += 1;
+                self.undo.push(std::mem::replace(current, g));
+                true
+            }
+            None => false,
+        }
+    }
+
+    /// Steps that can be undone.
+    #[must_use]
+    pub fn undo_len(&self) -> usize {
+        self.undo.len() + usize::from(self.pending.is_some())
+    }
+
+    /// Steps that can be redone.
+    #[must_use]
+    pub fn redo_len(&self) -> usize {
+        self.redo.len()
+    }
+
+    /// Forgets everything (a new document).
+    pub fn clear(&mut self) {
+        *self = Self::default();
+    }
+}
+
+/// A graph being edited, its file and its history.
+#[derive(Clone, Debug)]
+pub struct Document {
+    /// The graph: the truth the node view mirrors. It may be unfinished (inputs unconnected).
+    pub graph: Graph,
+    /// The file it was read from or saved to (`None` for a new graph or the built-in demo).
+    pub path: Option<PathBuf>,
+    /// The graph as last loaded or saved (for the unsaved-changes check).
+    saved: Graph,
+    /// Undo/redo.
+    pub history: History,
+}
+
+impl Default for Document {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl Document {
+    /// An empty, unsaved graph.
+    #[must_use]
+    pub fn new() -> Self {
+        Self::from_graph(Graph::default(), None)
+    }
+
+    fn from_graph(graph: Graph, path: Option<PathBuf>) -> Self {
+        Self {
+            saved: graph.clone(),
+            graph,
+            path,
+            history: History::default(),
+        }
+    }
+
+    /// The built-in demo graph (not tied to a file).
+    #[must_use]
+    pub fn demo() -> Self {
+        let f = file::parse(DEMO_GRAPH, "demo.ron").expect("the built-in demo graph parses");
+        let g = Graph::from_file(f, &At::file("demo.ron")).expect("the built-in demo is valid");
+        Self::from_graph(g, None)
+    }
+
+    /// Reads (and migrates) a graph file. It is not validated as a whole: an editor opens
+    /// unfinished graphs too; problems show on their nodes.
+    pub fn open(path: &Path) -> Result<Self, GraphError> {
+        let name = path.display().to_string();
+        let text = std::fs::read_to_string(path).map_err(|source| GraphError::Io {
+            file: name.clone(),
+            source,
+        })?;
+        let g = Graph::from_file(file::parse(&text, &name)?, &At::file(&name))?;
+        Ok(Self::from_graph(g, Some(path.to_path_buf())))
+    }
+
+    /// Writes the graph to `path` atomically and makes it the document's file.
+    pub fn save_as(&mut self, path: &Path) -> Result<(), GraphError> {
+        self.graph.save(path)?;
+        self.path = Some(path.to_path_buf());
+        self.saved = self.graph.clone();
+        Ok(())
+    }
+
+    /// True when the graph differs from the file.
+    #[must_use]
+    pub fn is_dirty(&self) -> bool {
+        self.graph != self.saved
+    }
+
+    /// Folder that relative paths in the graph are relative to.
+    #[must_use]
+    pub fn base_dir(&self) -> PathBuf {
+        match self.path.as_deref().and_then(Path::parent) {
+            Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
+            _ => PathBuf::from("."),
+        }
+    }
+
+    /// A short title: file name (or "untitled") and a star when unsaved.
+    #[must_use]
+    pub fn title(&self) -> String {
+        let name = self
+            .path
+            .as_deref()
+            .and_then(Path::file_name)
+            .map_or_else(|| "untitled".to_string(), |n| n.to_string_lossy().into());
+        format!("{name}{}", if self.is_dirty() { " *" } else { "" })
+    }
+
+    /// Ports of node `id` (see [`Graph::node_ports`]).
+    pub fn ports(&self, id: NodeId) -> Result<NodePorts, GraphError> {
+        self.graph.node_ports(id, &self.base_dir())
+    }
+
+    fn edit<R>(&mut self, f: impl FnOnce(&mut Graph) -> R) -> R {
+        let before = self.graph.clone();
+        let r = f(&mut self.graph);
+        if self.graph != before {
+            self.history.commit(before);
+        }
+        r
+    }
+
+    /// Adds a node of operator `op` at `pos`.
+    pub fn add_node(&mut self, op: &str, pos: [f32; 2]) -> NodeId {
+        self.edit(|g| g.add_node(op, pos))
+    }
+
+    /// Deletes nodes with their edges (and graph outputs or exposed parameters naming them).
+    pub fn delete(&mut self, ids: &[NodeId]) {
+        let ids: BTreeSet<NodeId> = ids.iter().copied().collect();
+        self.edit(|g| {
+            for id in &ids {
+                g.nodes.remove(id);
+            }
+            for n in g.nodes.values_mut() {
+                n.inputs
+                    .retain(|_, s| !matches!(s, Source::Node(src, _) if ids.contains(src)));
+            }
+            g.outputs.retain(|_, r| !ids.contains(&r.node));
+            g.exposed.retain(|_, e| !ids.contains(&e.node));
+        });
+    }
+
+    /// Duplicates nodes (same operator, parameters and incoming edges; edges among the
+    /// duplicated nodes follow the copies), offset by `offset`. Returns the new ids in order.
+    pub fn duplicate(&mut self, ids: &[NodeId], offset: [f32; 2]) -> Vec<NodeId> {
+        self.edit(|g| {
+            let mut map = BTreeMap::new();
+            for id in ids {
+                let Some(n) = g.nodes.get(id).cloned() else {
+                    continue;
+                };
+                let new = g.add_node(&n.op, [n.pos[0] + offset[0], n.pos[1] + offset[1]]);
+                let d = g.nodes.get_mut(&new).expect("just added");
+                d.params = n.params;
+                d.inputs = n.inputs;
+                map.insert(*id, new);
+            }
+            for new in map.values() {
+                if let Some(d) = g.nodes.get_mut(new) {
+                    for s in d.inputs.values_mut() {
+                        if let Source::Node(src, _) = s {
+                            if let Some(m) = map.get(src) {
+                                *src = *m;
+                            }
+                        }
+                    }
+                }
+            }
+            map.into_values().collect()
+        })
+    }
+
+    /// Connects output `from_port` of `from` to input `port` of `to`, if the core accepts the
+    /// edge (ports, types, cycles); otherwise the graph is unchanged and the reason returned.
+    pub fn connect(
+        &mut self,
+        from: NodeId,
+        from_port: &str,
+        to: NodeId,
+        port: &str,
+    ) -> Result<(), GraphError> {
+        let base = self.base_dir();
+        self.edit(|g| g.connect(from, from_port, to, port, &base))
+    }
+
+    /// Removes the edge into input `port` of `to`.
+    pub fn disconnect(&mut self, to: NodeId, port: &str) {
+        self.edit(|g| {
+            if let Some(n) = g.nodes.get_mut(&to) {
+                n.inputs.remove(port);
+            }
+        });
+    }
+
+    /// Sets one parameter as a single undo step.
+    pub fn set_param(&mut self, id: NodeId, name: &str, value: ParamValue) {
+        self.edit(|g| {
+            if let Some(n) = g.nodes.get_mut(&id) {
+                n.params.insert(name.to_string(), value);
+            }
+        });
+    }
+
+    /// Undoes one step.
+    pub fn undo(&mut self) -> bool {
+        self.history.undo(&mut self.graph)
+    }
+
+    /// Redoes one step.
+    pub fn redo(&mut self) -> bool {
+        self.history.redo(&mut self.graph)
+    }
+}
+
+/// The node a graph error points at, when it is a node of the top-level graph (`file`).
+#[must_use]
+pub fn error_node(e: &GraphError, file: &str) -> Option<NodeId> {
+    let at = match e {
+        GraphError::DuplicateNode { at, .. }
+        | GraphError::UnknownOp { at, .. }
+        | GraphError::Param { at, .. }
+        | GraphError::BadValue { at, .. }
+        | GraphError::UnknownPort { at, .. }
+        | GraphError::MissingNode { at, .. }
+        | GraphError::MissingInput { at, .. }
+        | GraphError::TypeMismatch { at, .. }
+        | GraphError::Cycle { at, .. }
+        | GraphError::Unknown { at, .. }
+        | GraphError::InputFile { at, .. }
+        | GraphError::UnboundInput { at, .. }
+        | GraphError::Node { at, .. } => at,
+        _ => return None,
+    };
+    if at.file == file {
+        at.node
+    } else {
+        None
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn demo() -> Document {
+        Document::demo()
+    }
+
+    #[test]
+    fn undo_restores_exactly_and_redo_reapplies() {
+        let mut d = demo();
+        let g0 = d.graph.clone();
+        let id = d.add_node("normalize", [10.0, 20.0]);
+        let g1 = d.graph.clone();
+        d.connect(3, "image", id, "image").unwrap();
+        let g2 = d.graph.clone();
+        assert!(d.undo());
+        assert_eq!(d.graph, g1);
+        assert!(d.undo());
+        assert_eq!(d.graph, g0);
+        assert!(!d.undo());
+        assert!(d.redo());
+        assert_eq!(d.graph, g1);
+        assert!(d.redo());
+        assert_eq!(d.graph, g2);
+        assert!(!d.redo());
+        // A new edit after undo drops the redo branch.
+        d.undo();
+        d.delete(&[id]);
+        assert_eq!(d.history.redo_len(), 0);
+        assert!(!d.graph.nodes.contains_key(&id));
+    }
+
+    #[test]
+    fn a_slider_drag_is_one_step() {
+        let mut d = demo();
+        let g0 = d.graph.clone();
+        // Frames of a drag: the value changes every frame while the pointer is down.
+        for (i, v) in [1.1, 1.4, 1.9, 2.5].iter().enumerate() {
+            let before = d.graph.clone();
+            d.graph
+                .nodes
+                .get_mut(&2)
+                .unwrap()
+                .params
+                .insert("amount".into(), ParamValue::Float(*v));
+            d.history.record(&before, &d.graph, true);
+            assert_eq!(d.history.undo_len(), 1, "frame {i}");
+        }
+        // Release: no change this frame, the interaction ends.
+        let before = d.graph.clone();
+        d.history.record(&before, &d.graph, false);
+        assert_eq!(d.history.undo_len(), 1);
+        let dragged = d.graph.clone();
+        assert!(d.undo());
+        assert_eq!(d.graph, g0);
+        assert!(d.redo());
+        assert_eq!(d.graph, dragged);
+        // A drag that ends where it started leaves no step.
+        let mut d = demo();
+        let start = d.graph.clone();
+        let mut g = start.clone();
+        g.nodes.get_mut(&2).unwrap().pos = [5.0, 5.0];
+        d.history.record(&start, &g, true);
+        d.history.record(&g, &start, false);
+        assert_eq!(d.history.undo_len(), 0);
+    }
+
+    #[test]
+    fn refused_connection_leaves_the_graph_unchanged() {
+        let mut d = demo();
+        let before = d.graph.clone();
+        // The relit picture into an RGBN input: a type mismatch.
+        let e = d.connect(4, "picture", 2, "image").unwrap_err();
+        assert!(e.to_string().contains("picture"), "{e}");
+        // Downstream into upstream: a cycle.
+        let e = d.connect(3, "image", 2, "image").unwrap_err();
+        assert!(matches!(e, GraphError::Cycle { .. }), "{e}");
+        assert_eq!(d.graph, before);
+        assert_eq!(d.history.undo_len(), 0);
+        assert!(!d.is_dirty());
+    }
+
+    #[test]
+    fn delete_duplicate_and_params() {
+        let mut d = demo();
+        let copies = d.duplicate(&[2, 3], [30.0, 30.0]);
+        assert_eq!(copies.len(), 2);
+        let (a, b) = (copies[0], copies[1]);
+        assert_eq!(
+            d.graph.nodes[&a].inputs["image"],
+            Source::Node(1, "image".into())
+        );
+        assert_eq!(
+            d.graph.nodes[&b].inputs["image"],
+            Source::Node(a, "image".into())
+        );
+        assert_eq!(d.graph.nodes[&b].params, d.graph.nodes[&3].params);
+        d.set_param(a, "amount", ParamValue::Float(2.0));
+        assert_eq!(d.graph.nodes[&a].params["amount"], ParamValue::Float(2.0));
+        d.delete(&[3]);
+        for n in d.graph.nodes.values() {
+            assert!(!n
+                .inputs
+                .values()
+                .any(|s| *s == Source::Node(3, "image".into())));
+        }
+        assert!(d.graph.outputs.values().all(|r| r.node != 3));
+        assert!(d.is_dirty());
+    }
+
+    #[test]
+    fn save_then_open_gives_the_same_graph() {
+        let mut d = demo();
+        let id = d.add_node("normalize", [1.5, -2.0]); // unfinished: input unconnected
+        d.set_param(2, "amount", ParamValue::Float(0.25));
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("edited.ron");
+        d.save_as(&p).unwrap();
+        assert!(!d.is_dirty());
+        let back = Document::open(&p).unwrap();
+        assert_eq!(back.graph, d.graph);
+        assert!(back.graph.nodes.contains_key(&id));
+        assert_eq!(back.base_dir(), dir.path());
+        assert_eq!(back.title(), "edited.ron");
+    }
+
+    #[test]
+    fn errors_point_at_top_level_nodes_only() {
+        let mut g = Document::demo().graph;
+        let id = g.add_node("normalize", [0.0, 0.0]);
+        let e = crate::graph::LoadedGraph::from_graph(g, None, PathBuf::from(".")).unwrap_err();
+        assert_eq!(error_node(&e, "<memory>"), Some(id));
+        assert_eq!(error_node(&e, "other.ron"), None);
+    }
+}

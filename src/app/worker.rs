@@ -1,0 +1,618 @@
+//! Evaluation off the UI thread. A worker thread owns the [`Evaluator`] (and so its cache);
+//! the UI sends [`EvalRequest`]s numbered by a generation and polls [`WorkerMsg`]s. Results of
+//! an older generation than the latest request are stale and dropped ([`Generations`]).
+//!
+//! The editor's graph is often unfinished. The worker evaluates every node it can: a node
+//! whose validation or evaluation fails gets the error message, and it and its descendants are
+//! left out, while the rest of the graph still evaluates. Nodes with side effects (`save`) and
+//! their descendants are never evaluated automatically.
+
+// Graph errors carry their location by value; they are cold paths.
+#![allow(clippy::result_large_err)]
+
+use super::state::error_node;
+use crate::eval::{CacheKey, EvalOptions, Evaluator, Plan, Progress};
+use crate::graph::{Graph, GraphError, LoadedGraph, NodeId, PortRef, Source};
+use crate::ops::{self, Picture, Value};
+use crate::raster::RgbnImage;
+use crate::render::{self, Shading, View};
+use std::collections::{BTreeMap, BTreeSet};
+use std::path::PathBuf;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::mpsc::{channel, Receiver, Sender};
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+/// Side of the node thumbnails, in pixels.
+pub const THUMB_SIZE: usize = 96;
+
+/// Label of the top-level graph in errors (see [`error_node`]).
+pub const TOP_LABEL: &str = "<memory>";
+
+/// Asks the worker to evaluate every node of `graph` it can.
+#[derive(Clone)]
+pub struct EvalRequest {
+    /// Increases with every request.
+    pub generation: u64,
+    /// The graph (a copy: the UI keeps editing its own).
+    pub graph: Graph,
+    /// Folder that relative paths are relative to.
+    pub base_dir: PathBuf,
+    /// Set to stop this evaluation early.
+    pub cancel: Arc<AtomicBool>,
+}
+
+/// One node's output.
+#[derive(Clone, Debug)]
+pub struct PortValue {
+    /// The value.
+    pub value: Value,
+    /// Its content key (the same value has the same key in every evaluation).
+    pub key: CacheKey,
+}
+
+/// Everything the worker learnt in one evaluation.
+#[derive(Clone, Debug, Default)]
+pub struct EvalOutcome {
+    /// The request's generation.
+    pub generation: u64,
+    /// Output values by (node, port).
+    pub values: BTreeMap<(NodeId, String), PortValue>,
+    /// Thumbnails (sRGB RGBA, at most [`THUMB_SIZE`] a side) of each node's first output.
+    pub thumbs: BTreeMap<NodeId, Arc<Picture>>,
+    /// Errors by node.
+    pub node_errors: BTreeMap<NodeId, String>,
+    /// Errors not attributable to a node of this graph.
+    pub error: Option<String>,
+    /// Relative RMS curl of each node's RGBN output.
+    pub curl: BTreeMap<NodeId, f64>,
+    /// Nodes computed (cache misses) in this evaluation.
+    pub computed: usize,
+    /// Wall time.
+    pub elapsed: Duration,
+    /// Memory cache: entries and bytes.
+    pub cache: (usize, usize),
+    /// The evaluation was cancelled.
+    pub cancelled: bool,
+}
+
+/// Messages from the worker.
+#[derive(Debug)]
+pub enum WorkerMsg {
+    /// A node finished.
+    Progress {
+        /// Generation of the request.
+        generation: u64,
+        /// Nodes done.
+        done: usize,
+        /// Nodes to run.
+        total: usize,
+    },
+    /// The evaluation finished (or failed, or was cancelled).
+    Done(Box<EvalOutcome>),
+}
+
+/// Tracks request generations: only the newest request's results are accepted.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Generations {
+    sent: u64,
+    done: u64,
+}
+
+impl Generations {
+    /// The number for a new request.
+    pub fn new_request(&mut self) -> u64 {
+        self.sent += 1;
+        self.sent
+    }
+    /// True if a result of `generation` is current (and marks it done); false if stale.
+    pub fn accept(&mut self, generation: u64) -> bool {
+        if generation == self.sent {
+            self.done = generation;
+            true
+        } else {
+            false
+        }
+    }
+    /// A request is out and its result not yet accepted.
+    #[must_use]
+    pub fn in_flight(&self) -> bool {
+        self.done != self.sent
+    }
+    /// The newest generation sent.
+    #[must_use]
+    pub fn latest(&self) -> u64 {
+        self.sent
+    }
+}
+
+/// The worker thread's handle.
+pub struct Worker {
+    tx: Option<Sender<EvalRequest>>,
+    rx: Receiver<WorkerMsg>,
+    thread: Option<std::thread::JoinHandle<()>>,
+}
+
+impl Worker {
+    /// Starts the thread. `wake` is called after each message (the editor asks for a repaint).
+    pub fn spawn(wake: Arc<dyn Fn() + Send + Sync>) -> Self {
+        let (tx, req_rx) = channel::<EvalRequest>();
+        let (msg_tx, rx) = channel();
+        let thread = std::thread::Builder::new()
+            .name("rgbn-eval".into())
+            .spawn(move || {
+                let ev = Evaluator::default();
+                while let Ok(mut req) = req_rx.recv() {
+                    // Only the newest request matters.
+                    while let Ok(newer) = req_rx.try_recv() {
+                        req = newer;
+                    }
+                    if req.cancel.load(Ordering::Relaxed) {
+                        continue;
+                    }
+                    let (ptx, pwake, g) = (msg_tx.clone(), wake.clone(), req.generation);
+                    let progress = Arc::new(move |p: &Progress| {
+                        let _ = ptx.send(WorkerMsg::Progress {
+                            generation: g,
+                            done: p.done,
+                            total: p.total,
+                        });
+                        pwake();
+                    });
+                    let out = evaluate(&ev, &req, Some(progress));
+                    if msg_tx.send(WorkerMsg::Done(Box::new(out))).is_err() {
+                        break;
+                    }
+                    wake();
+                }
+            })
+            .expect("spawn the evaluation thread");
+        Self {
+            tx: Some(tx),
+            rx,
+            thread: Some(thread),
+        }
+    }
+
+    /// Queues a request.
+    pub fn send(&self, req: EvalRequest) {
+        if let Some(tx) = &self.tx {
+            let _ = tx.send(req);
+        }
+    }
+
+    /// The next message, if any (never blocks).
+    pub fn poll(&self) -> Option<WorkerMsg> {
+        self.rx.try_recv().ok()
+    }
+
+    /// Waits up to `timeout` for the next message (tests).
+    pub fn wait(&self, timeout: Duration) -> Option<WorkerMsg> {
+        self.rx.recv_timeout(timeout).ok()
+    }
+}
+
+impl Drop for Worker {
+    fn drop(&mut self) {
+        self.tx = None; // ends the thread's loop after its current evaluation
+        if let Some(t) = self.thread.take() {
+            let _ = t.join();
+        }
+    }
+}
+
+/// Nodes that run a side effect or depend on one.
+fn side_effect_closure(g: &Graph) -> BTreeSet<NodeId> {
+    let mut out = BTreeSet::new();
+    let mut changed = true;
+    while changed {
+        changed = false;
+        for (id, n) in &g.nodes {
+            if out.contains(id) {
+                continue;
+            }
+            let effect = ops::find(&n.op).is_some_and(|o| o.spec().side_effect);
+            let below = n
+                .inputs
+                .values()
+                .any(|s| matches!(s, Source::Node(src, _) if out.contains(src)));
+            if effect || below {
+                out.insert(*id);
+                changed = true;
+            }
+        }
+    }
+    out
+}
+
+/// `id` and every node downstream of it.
+fn descendants(g: &Graph, id: NodeId) -> BTreeSet<NodeId> {
+    let mut out = BTreeSet::from([id]);
+    let mut changed = true;
+    while changed {
+        changed = false;
+        for (nid, n) in &g.nodes {
+            if !out.contains(nid)
+                && n.inputs
+                    .values()
+                    .any(|s| matches!(s, Source::Node(src, _) if out.contains(src)))
+            {
+                out.insert(*nid);
+                changed = true;
+            }
+        }
+    }
+    out
+}
+
+/// Evaluates every node of the request's graph it can (see the module docs).
+pub fn evaluate(
+    ev: &Evaluator,
+    req: &EvalRequest,
+    progress: Option<crate::eval::ProgressFn>,
+) -> EvalOutcome {
+    let t0 = Instant::now();
+    let mut out = EvalOutcome {
+        generation: req.generation,
+        ..EvalOutcome::default()
+    };
+    let mut g = req.graph.clone();
+    for id in side_effect_closure(&g) {
+        g.nodes.remove(&id);
+    }
+    // One graph output per node output: "ID:PORT".
+    let mut ports: BTreeMap<NodeId, Vec<String>> = BTreeMap::new();
+    for _attempt in 0..=req.graph.nodes.len() {
+        if req.cancel.load(Ordering::Relaxed) {
+            out.cancelled = true;
+            return out;
+        }
+        g.outputs.clear();
+        g.exposed.clear();
+        ports.clear();
+        let ids: Vec<NodeId> = g.nodes.keys().copied().collect();
+        let mut failed = None;
+        for id in ids {
+            match g.node_ports(id, &req.base_dir) {
+                Ok(p) => {
+                    let names: Vec<String> = p.outputs.iter().map(|o| o.name.clone()).collect();
+                    for name in &names {
+                        g.outputs.insert(
+                            format!("{id}:{name}"),
+                            PortRef {
+                                node: id,
+                                port: name.clone(),
+                            },
+                        );
+                    }
+                    ports.insert(id, names);
+                }
+                Err(e) => {
+                    failed = Some((id, e.to_string()));
+                    break;
+                }
+            }
+        }
+        let err = match failed {
+            Some(f) => Some(f),
+            None => match LoadedGraph::from_graph(g.clone(), None, req.base_dir.clone())
+                .and_then(|lg| Plan::new(&lg, &BTreeMap::new(), &req.base_dir))
+            {
+                Ok(plan) => {
+                    let opts = EvalOptions {
+                        cancel: Some(req.cancel.clone()),
+                        progress: progress.clone(),
+                        curl_stats: true,
+                    };
+                    match ev.eval(&plan, &[], &opts) {
+                        Ok(r) => {
+                            out.computed += r.misses();
+                            collect(&mut out, &r, &plan);
+                            None
+                        }
+                        Err(GraphError::Cancelled) => {
+                            out.cancelled = true;
+                            return out;
+                        }
+                        Err(e) => match error_node(&e, TOP_LABEL) {
+                            Some(id) => Some((id, e.to_string())),
+                            None => {
+                                out.error = Some(e.to_string());
+                                None
+                            }
+                        },
+                    }
+                }
+                Err(e) => match error_node(&e, TOP_LABEL) {
+                    Some(id) => Some((id, e.to_string())),
+                    None => {
+                        out.error = Some(e.to_string());
+                        None
+                    }
+                },
+            },
+        };
+        match err {
+            Some((id, msg)) => {
+                out.node_errors.insert(id, short_error(&msg));
+                for d in descendants(&g, id) {
+                    g.nodes.remove(&d);
+                }
+            }
+            None => break,
+        }
+    }
+    for (id, names) in &ports {
+        let Some(first) = names.first() else { continue };
+        if let Some(v) = out.values.get(&(*id, first.clone())) {
+            if let Some(t) = thumbnail(&v.value) {
+                out.thumbs.insert(*id, Arc::new(t));
+            }
+        }
+    }
+    out.elapsed = t0.elapsed();
+    out.cache = ev.mem_usage();
+    out
+}
+
+fn collect(out: &mut EvalOutcome, r: &crate::eval::EvalResult, plan: &Plan) {
+    // Keys of the instances, by instance index, from the stats (same order as evaluated).
+    let mut key_of: BTreeMap<usize, CacheKey> = BTreeMap::new();
+    for (i, inst) in plan.instances.iter().enumerate() {
+        if let Some(st) = r
+            .stats
+            .iter()
+            .find(|s| s.at == inst.at && s.op == inst.op.spec().id)
+        {
+            key_of.insert(i, st.key);
+            if let (Some(c), Some(node)) = (st.curl, st.at.node) {
+                if st.at.file == TOP_LABEL {
+                    out.curl.insert(node, c);
+                }
+            }
+        }
+    }
+    for (name, value) in &r.outputs {
+        let Some((id, port)) = name.split_once(':') else {
+            continue;
+        };
+        let Ok(id) = id.parse::<NodeId>() else {
+            continue;
+        };
+        let key = match plan.outputs.get(name) {
+            Some(crate::eval::Conn::Slot(i, p)) => key_of
+                .get(i)
+                .map_or(0, |k| k ^ (*p as u128).wrapping_mul(0x9E37_79B9_7F4A_7C15)),
+            _ => 0,
+        };
+        out.values.insert(
+            (id, port.to_string()),
+            PortValue {
+                value: value.clone(),
+                key,
+            },
+        );
+    }
+}
+
+/// An error message without its trailing location (`: node 7 "name" in <memory>`), which the
+/// editor shows on the node itself.
+#[must_use]
+pub fn short_error(msg: &str) -> String {
+    match msg.rfind(": node ") {
+        Some(i) if msg[i..].ends_with(TOP_LABEL) => msg[..i].to_string(),
+        _ => msg.to_string(),
+    }
+}
+
+/// A small picture of a value (nearest-neighbour downsampling; RGBN images relit with the
+/// default light), or `None` for numbers.
+#[must_use]
+pub fn thumbnail(v: &Value) -> Option<Picture> {
+    match v {
+        Value::Rgbn(img) => {
+            let small = downsample(img, THUMB_SIZE);
+            let rgba = render::render(&small, View::Relit, &Shading::default()).ok()?;
+            Some(Picture {
+                width: small.width(),
+                height: small.height(),
+                rgba,
+            })
+        }
+        Value::Picture(p) => Some(shrink_picture(p, THUMB_SIZE)),
+        Value::Mask(p) | Value::Scalar(p) => {
+            let pic = plane_picture(p);
+            Some(shrink_picture(&pic, THUMB_SIZE))
+        }
+        Value::Number(_) => None,
+    }
+}
+
+fn fit(w: usize, h: usize, max: usize) -> (usize, usize) {
+    let s = (max as f64 / w.max(h).max(1) as f64).min(1.0);
+    (
+        ((w as f64 * s).round() as usize).max(1),
+        ((h as f64 * s).round() as usize).max(1),
+    )
+}
+
+fn downsample(img: &RgbnImage, max: usize) -> RgbnImage {
+    let (w, h) = (img.width(), img.height());
+    let (tw, th) = fit(w, h, max);
+    if (tw, th) == (w, h) {
+        return img.clone();
+    }
+    let idx: Vec<usize> = (0..th)
+        .flat_map(|r| (0..tw).map(move |x| (r * h / th) * w + x * w / tw))
+        .collect();
+    let pick = |p: &[f32]| -> Vec<f32> { idx.iter().map(|&i| p[i]).collect() };
+    let [cr, cg, cb] = img.color();
+    let [nx, ny, nz] = img.normal();
+    RgbnImage::new(
+        tw,
+        th,
+        [pick(cr), pick(cg), pick(cb)],
+        [pick(nx), pick(ny), pick(nz)],
+        img.mask().map(pick),
+    )
+    .unwrap_or_else(|_| img.clone())
+}
+
+fn shrink_picture(p: &Picture, max: usize) -> Picture {
+    let (tw, th) = fit(p.width, p.height, max);
+    let mut rgba = Vec::with_capacity(tw * th * 4);
+    for r in 0..th {
+        for x in 0..tw {
+            let i = ((r * p.height / th) * p.width + x * p.width / tw) * 4;
+            rgba.extend_from_slice(&p.rgba[i..i + 4]);
+        }
+    }
+    Picture {
+        width: tw,
+        height: th,
+        rgba,
+    }
+}
+
+/// A scalar field or mask as grey, scaled from its minimum to its maximum (a mask in [0, 1]
+/// stays as is).
+#[must_use]
+pub fn plane_picture(p: &crate::raster::Plane) -> Picture {
+    let d = p.data();
+    let (mut lo, mut hi) = d
+        .iter()
+        .filter(|v| v.is_finite())
+        .fold((f32::INFINITY, f32::NEG_INFINITY), |(a, b), v| {
+            (a.min(*v), b.max(*v))
+        });
+    if lo >= 0.0 && hi <= 1.0 {
+        (lo, hi) = (0.0, 1.0);
+    }
+    let span = if hi > lo { hi - lo } else { 1.0 };
+    let rgba = d
+        .iter()
+        .flat_map(|v| {
+            let g = (((v - lo) / span).clamp(0.0, 1.0) * 255.0).round() as u8;
+            [g, g, g, 255]
+        })
+        .collect();
+    Picture {
+        width: p.width(),
+        height: p.height(),
+        rgba,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::app::state::Document;
+    use crate::ops::params::ParamValue;
+
+    fn request(g: &Graph, generation: u64) -> EvalRequest {
+        EvalRequest {
+            generation,
+            graph: g.clone(),
+            base_dir: PathBuf::from("."),
+            cancel: Arc::new(AtomicBool::new(false)),
+        }
+    }
+
+    fn small_demo() -> Document {
+        let mut d = Document::demo();
+        d.set_param(1, "size", ParamValue::Int(64));
+        d
+    }
+
+    #[test]
+    fn generations_drop_stale_results() {
+        let mut g = Generations::default();
+        assert!(!g.in_flight());
+        let a = g.new_request();
+        let b = g.new_request();
+        assert!(g.in_flight());
+        assert!(!g.accept(a), "an older result is stale");
+        assert!(g.in_flight());
+        assert!(g.accept(b));
+        assert!(!g.in_flight());
+        assert_eq!(g.latest(), b);
+    }
+
+    #[test]
+    fn evaluates_every_node_and_reports_errors_on_their_nodes() {
+        let mut d = small_demo();
+        let lonely = d.add_node("normalize", [0.0, 0.0]); // required input missing
+        let below = d.add_node("curl", [0.0, 0.0]);
+        d.connect(lonely, "image", below, "image").unwrap();
+        let ev = Evaluator::default();
+        let out = evaluate(&ev, &request(&d.graph, 7), None);
+        assert_eq!(out.generation, 7);
+        assert!(out.error.is_none(), "{:?}", out.error);
+        assert_eq!(
+            out.node_errors[&lonely],
+            "required input \"image\" is not connected"
+        );
+        assert!(!out.values.contains_key(&(below, "relative_rms".into())));
+        for id in 1..=6 {
+            assert!(
+                out.values.keys().any(|(n, _)| *n == id),
+                "node {id} has a value"
+            );
+        }
+        assert!(out.thumbs.contains_key(&3));
+        let t = &out.thumbs[&3];
+        assert!(t.width <= THUMB_SIZE && t.height <= THUMB_SIZE);
+        assert!(out.curl.contains_key(&3));
+        // Same graph again: all from the cache, same keys.
+        let again = evaluate(&ev, &request(&d.graph, 8), None);
+        assert_eq!(again.computed, 0);
+        assert_eq!(
+            again.values[&(3, "image".into())].key,
+            out.values[&(3, "image".into())].key
+        );
+    }
+
+    #[test]
+    fn cancelled_request_reports_cancelled() {
+        let d = small_demo();
+        let req = request(&d.graph, 1);
+        req.cancel.store(true, Ordering::Relaxed);
+        let out = evaluate(&Evaluator::default(), &req, None);
+        assert!(out.cancelled);
+    }
+
+    #[test]
+    fn save_nodes_are_not_run_automatically() {
+        let mut d = small_demo();
+        let s = d.add_node("save", [0.0, 0.0]);
+        let dir = tempfile::tempdir().unwrap();
+        let target = dir.path().join("x.exr");
+        d.set_param(s, "path", ParamValue::Path(target.display().to_string()));
+        d.connect(3, "image", s, "image").unwrap();
+        let out = evaluate(&Evaluator::default(), &request(&d.graph, 1), None);
+        assert!(!target.exists());
+        assert!(!out.values.keys().any(|(n, _)| *n == s));
+    }
+
+    #[test]
+    fn worker_thread_answers_the_newest_request() {
+        let d = small_demo();
+        let w = Worker::spawn(Arc::new(|| {}));
+        let mut gens = Generations::default();
+        let a = gens.new_request();
+        w.send(request(&d.graph, a));
+        let b = gens.new_request();
+        w.send(request(&d.graph, b));
+        let mut got_current = false;
+        let deadline = Instant::now() + Duration::from_secs(60);
+        while Instant::now() < deadline && !got_current {
+            if let Some(WorkerMsg::Done(o)) = w.wait(Duration::from_millis(100)) {
+                got_current = gens.accept(o.generation);
+                if got_current {
+                    assert!(!o.values.is_empty());
+                }
+            }
+        }
+        assert!(got_current);
+    }
+}

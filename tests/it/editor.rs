@@ -1,0 +1,187 @@
+//! The editor driven through its UI with egui_kittest (AccessKit queries, no GPU): open the
+//! demo, add a node from the menu, connect, edit a parameter (re-evaluation, new preview),
+//! undo, save and load.
+
+use egui::accesskit::Role;
+use egui::{Key, Modifiers};
+use egui_kittest::kittest::Queryable;
+use egui_kittest::Harness;
+use rgbn::app::graph_view::Action;
+use rgbn::app::state::Document;
+use rgbn::app::EditorApp;
+use rgbn::graph::Source;
+use rgbn::ops::params::ParamValue;
+use std::time::{Duration, Instant};
+
+/// The demo graph at a small size (fast evaluations).
+fn small_demo() -> Document {
+    let mut d = Document::demo();
+    d.graph
+        .nodes
+        .get_mut(&1)
+        .unwrap()
+        .params
+        .insert("size".into(), ParamValue::Int(96));
+    d
+}
+
+fn harness(doc: Document) -> Harness<'static, EditorApp> {
+    Harness::builder()
+        .with_size([1500.0, 900.0])
+        .build_ui_state(
+            |ui, app: &mut EditorApp| app.frame_ui(ui),
+            EditorApp::new(doc),
+        )
+}
+
+/// Steps frames until the worker has evaluated the current graph.
+fn settle(h: &mut Harness<'static, EditorApp>) {
+    let deadline = Instant::now() + Duration::from_secs(120);
+    loop {
+        h.step();
+        if !h.state().evaluating() {
+            break;
+        }
+        assert!(Instant::now() < deadline, "evaluation did not finish");
+        std::thread::sleep(Duration::from_millis(10));
+    }
+    h.step();
+    h.step();
+}
+
+#[test]
+fn editor_opens_the_demo_and_previews_it() {
+    let mut h = harness(small_demo());
+    settle(&mut h);
+    let app = h.state();
+    assert!(
+        app.outcome.node_errors.is_empty(),
+        "{:?}",
+        app.outcome.node_errors
+    );
+    assert_eq!(app.viewed, Some((3, "image".to_string())));
+    assert!(app.preview.renders >= 1, "the preview rendered");
+    assert!(app.first_preview.is_some());
+    assert!(app.outcome.thumbs.contains_key(&1));
+    // The layout: menus, panels, node titles from the graph.
+    for menu in ["File", "Edit", "Add", "View", "Help"] {
+        h.get_by_role_and_label(Role::Button, menu);
+    }
+    h.get_by_label("Inspector");
+    h.get_by_label("Preview");
+    h.get_by_label("sharpen · Sharpen");
+    // The viewed node's curl is in the status bar.
+    h.get_by_label_contains("curl (rel. RMS)");
+}
+
+#[test]
+fn add_from_menu_connect_edit_undo_save_load() {
+    let mut h = harness(small_demo());
+    settle(&mut h);
+    let n0 = h.state().doc.graph.nodes.len();
+
+    // Add a node from the menu: it goes after the selected node (3, "detail"), connected.
+    h.get_by_label("Add").click();
+    h.run_steps(2);
+    h.get_by_label("Normalize").click();
+    h.run_steps(2);
+    let g = h.state().doc.graph.clone();
+    assert_eq!(g.nodes.len(), n0 + 1);
+    let new = *g.nodes.keys().next_back().unwrap();
+    assert_eq!(g.nodes[&new].op, "normalize");
+    assert_eq!(
+        g.nodes[&new].inputs.get("image"),
+        Some(&Source::Node(3, "image".into()))
+    );
+    settle(&mut h);
+    assert!(h
+        .state()
+        .outcome
+        .values
+        .contains_key(&(new, "image".into())));
+
+    // Connect (as the graph view asks): the core accepts a good edge ...
+    h.state_mut().apply(Action::Connect {
+        from: 2,
+        from_port: "image".into(),
+        to: new,
+        port: "image".into(),
+    });
+    assert_eq!(
+        h.state().doc.graph.nodes[&new].inputs["image"],
+        Source::Node(2, "image".into())
+    );
+    // ... and refuses a bad one, saying why, with the graph unchanged.
+    let before = h.state().doc.graph.clone();
+    h.state_mut().apply(Action::Connect {
+        from: 4,
+        from_port: "picture".into(),
+        to: new,
+        port: "image".into(),
+    });
+    assert_eq!(h.state().doc.graph, before);
+    assert!(h.state().status.error);
+    h.step();
+    h.get_by_label_contains("connection refused");
+    settle(&mut h);
+
+    // Edit a parameter through the inspector: select "sharpen", nudge its amount slider.
+    h.state_mut().view_node(2);
+    h.run_steps(2);
+    let renders = h.state().preview.renders;
+    let requests = h.state().requests;
+    let key_before = h.state().outcome.values[&(2, "image".into())].key;
+    let graph_before_edit = h.state().doc.graph.clone();
+    h.get_by_role_and_label(Role::Slider, "amount").focus();
+    h.step();
+    h.key_press(Key::ArrowRight);
+    h.step();
+    h.key_press(Key::ArrowRight);
+    h.step();
+    // Leave the slider (ends the interaction: one undo step).
+    h.key_press(Key::Escape);
+    h.step();
+    let amount = h.state().doc.graph.nodes[&2].params["amount"].clone();
+    assert_ne!(
+        amount,
+        ParamValue::Float(1.0),
+        "the slider changed the parameter"
+    );
+    settle(&mut h);
+    assert!(
+        h.state().requests > requests,
+        "a re-evaluation was requested"
+    );
+    let key_after = h.state().outcome.values[&(2, "image".into())].key;
+    assert_ne!(key_before, key_after, "the node's output changed");
+    assert!(h.state().preview.renders > renders, "the preview changed");
+
+    // Undo restores the graph from before the edit.
+    h.key_press_modifiers(Modifiers::COMMAND, Key::Z);
+    h.step();
+    assert_eq!(h.state().doc.graph, graph_before_edit);
+    h.key_press_modifiers(Modifiers::COMMAND | Modifiers::SHIFT, Key::Z);
+    h.step();
+    assert_eq!(h.state().doc.graph.nodes[&2].params["amount"], amount);
+
+    // Save as … through the dialog, then load: the same graph.
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("edited.ron");
+    h.get_by_label("File").click();
+    h.run_steps(2);
+    h.get_by_label("Save As…").click();
+    h.run_steps(2);
+    const PATH: &str = "Path (relative to the working directory)";
+    h.get_by_role_and_label(Role::TextInput, PATH).focus();
+    h.step();
+    h.key_press_modifiers(Modifiers::COMMAND, Key::A);
+    h.get_by_role_and_label(Role::TextInput, PATH)
+        .type_text(&path.display().to_string());
+    h.step();
+    h.get_by_label("Save").click();
+    h.run_steps(2);
+    assert!(path.is_file(), "saved: {:?}", h.state().status);
+    assert!(!h.state().doc.is_dirty());
+    let back = Document::open(&path).unwrap();
+    assert_eq!(back.graph, h.state().doc.graph);
+}
