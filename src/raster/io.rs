@@ -831,7 +831,13 @@ pub fn save_plane_exr(plane: &super::Plane, channel: &str, path: &Path) -> Resul
         channel,
         FlatSamples::F32(plane.data().to_vec()),
     )];
-    write_exr_channels(plane.width(), plane.height(), list, path)
+    write_exr_channels(
+        plane.width(),
+        plane.height(),
+        list,
+        path,
+        ExrCompression::default(),
+    )
 }
 
 /// Writes only the colour: EXR (linear `R,G,B`) or PNG/TIFF (sRGB, 8 or 16 bit).
