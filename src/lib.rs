@@ -8,15 +8,11 @@
 //! Modules:
 //! - [`raster`]: the image model ([`RgbnImage`]), file I/O, gradient maths and curl,
 //!   convolution kernels, built-in sample and analytic surfaces.
-<<<<<<< HEAD
 //! - [`capture`]: photometric stereo and light calibration (photos → RGBN).
-//! - [`ops`]: operators (filters, …).
-=======
 //! - [`ops`]: operators (filters, …) and their node form: [`ops::Operator`], [`ops::OpSpec`],
 //!   typed ports, parameters declared once ([`ops::params`]), the registry.
 //! - [`graph`]: graphs of nodes, the versioned RON file format, validation.
 //! - [`eval`]: the lazy, content-keyed, cached evaluator.
->>>>>>> graph
 //! - [`render`]: relighting and the diagnostic views.
 //! - [`cli`]: the command line (used by the `rgbn` binary).
 //!

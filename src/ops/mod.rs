@@ -62,26 +62,22 @@
 //! then add `EmbossOp` to [`registry`] and an example `graphs/emboss.ron`. Bump
 //! [`OpSpec::version`] whenever the maths changes, so cached results are not reused.
 
-<<<<<<< HEAD
 pub mod band;
 pub mod bilateral;
 pub mod brush;
 pub mod combine;
-pub mod filter;
-pub mod geom;
-pub mod normalize;
-pub mod pen;
-pub mod rotate;
-pub mod stamp;
-=======
 pub mod curl;
 pub mod filter;
 pub mod filter_node;
+pub mod geom;
 pub mod load;
 pub mod normalize;
 pub mod params;
+pub mod pen;
 pub mod render_op;
+pub mod rotate;
 pub mod save;
+pub mod stamp;
 
 use crate::error::RgbnError;
 use crate::raster::{Plane, RgbnImage};
@@ -498,4 +494,3 @@ mod tests {
         }
     }
 }
->>>>>>> graph
