@@ -19,3 +19,9 @@ mod cache;
 
 #[path = "it/cli.rs"]
 mod cli;
+
+#[path = "it/nodes.rs"]
+mod nodes;
+
+#[path = "it/capture.rs"]
+mod capture;

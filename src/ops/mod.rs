@@ -68,6 +68,7 @@ pub mod bilateral;
 pub mod bilateral_node;
 pub mod brush;
 pub mod brush_node;
+pub mod capture_node;
 pub mod combine;
 pub mod combine_node;
 pub mod curl;
@@ -450,6 +451,7 @@ pub fn registry() -> &'static [Box<dyn DynOp>] {
             Entry::<load::Load>::boxed(),
             Entry::<load::LoadMask>::boxed(),
             Entry::<load::ApplyMask>::boxed(),
+            Entry::<capture_node::PhotometricStereoNode>::boxed(),
             // filter
             Entry::<FilterOp<GaussianK>>::boxed(),
             Entry::<FilterOp<BoxK>>::boxed(),
