@@ -7,6 +7,7 @@ use crate::capture::photometric::{
     PsInputSpec, PsMethod, Transfer,
 };
 use crate::raster::gradient::GradientField;
+use crate::raster::integrate::curl_interior;
 use crate::raster::io::{self, SaveOptions};
 use clap::{Args, ValueEnum};
 use std::io::Write;
@@ -141,10 +142,13 @@ pub fn capture_cmd(a: &CaptureArgs, out: &mut impl Write) -> Result<(), Failure>
     };
     let (img, rep) = photometric_stereo(&ps.stack, &ps.lights, ps.mask.as_deref(), &params)?;
     io::save(&img, &a.output, &SaveOptions::default())?;
-    let curl = GradientField::from_normals(&img).curl_stats(img.mask());
+    let interior = img
+        .mask()
+        .map(|m| curl_interior(m, img.width(), img.height()));
+    let curl = GradientField::from_normals(&img).curl_stats(interior.as_deref());
     let _ = writeln!(
         out,
-        "{}×{} from {} photos: {} of {} pixels solved ({} dark, {} unsolvable, {} with saturated samples); relative RMS curl {:.3e} → {}",
+        "{}×{} from {} photos: {} of {} pixels solved ({} dark, {} unsolvable, {} with saturated samples); relative RMS curl {:.3e} (mask interior) → {}",
         img.width(),
         img.height(),
         a.photos.len(),
