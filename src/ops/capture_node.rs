@@ -138,6 +138,14 @@ impl Operator for PhotometricStereoNode {
         ))
         .output(super::node_kit::curl_port("estimated normals (mask interior)"))
     }
+    fn check(p: &PhotometricNodeParams) -> Result<(), RgbnError> {
+        for (name, v) in [("photos", &p.photos), ("lights", &p.lights)] {
+            if v.is_empty() {
+                return Err(RgbnError::param(name, "a file path is required"));
+            }
+        }
+        Ok(())
+    }
     fn run(
         p: &PhotometricNodeParams,
         _: &Inputs<'_>,
