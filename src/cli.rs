@@ -19,6 +19,10 @@ use std::path::{Path, PathBuf};
 mod graph_cmds;
 pub use graph_cmds::{BatchArgs, CheckArgs, EvalArgs};
 
+#[path = "cli_capture.rs"]
+mod capture_cmds;
+pub use capture_cmds::CaptureArgs;
+
 /// Edit RGBN images (colour + normals) without breaking integrability.
 ///
 /// With no command, the editor opens on the demo graph (when built with the `gui` feature).
@@ -46,6 +50,8 @@ pub enum Command {
     Check(CheckArgs),
     /// List every operator with its doc, ports and parameters.
     Ops,
+    /// Photometric stereo: photos + lights → RGBN EXR; or --chrome: chrome-sphere photos → lights.
+    Capture(CaptureArgs),
     /// Open the editor on a graph file (the demo graph when none is given).
     #[cfg(feature = "gui")]
     Edit(EditArgs),
@@ -242,6 +248,7 @@ where
         Command::Batch(a) => graph_cmds::batch_cmd(&a, &mut out),
         Command::Check(a) => graph_cmds::check_cmd(&a, &mut out),
         Command::Ops => graph_cmds::ops_cmd(&mut out),
+        Command::Capture(a) => capture_cmds::capture_cmd(&a, &mut out),
         #[cfg(feature = "gui")]
         Command::Edit(a) => {
             drop(out);

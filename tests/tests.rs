@@ -23,3 +23,9 @@ mod cli;
 #[cfg(feature = "gui")]
 #[path = "it/editor.rs"]
 mod editor;
+
+#[path = "it/nodes.rs"]
+mod nodes;
+
+#[path = "it/capture.rs"]
+mod capture;

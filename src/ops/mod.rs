@@ -63,21 +63,30 @@
 //! [`OpSpec::version`] whenever the maths changes, so cached results are not reused.
 
 pub mod band;
+pub mod band_node;
 pub mod bilateral;
+pub mod bilateral_node;
 pub mod brush;
+pub mod brush_node;
+pub mod capture_node;
 pub mod combine;
+pub mod combine_node;
 pub mod curl;
 pub mod filter;
 pub mod filter_node;
 pub mod geom;
+pub mod integrate_node;
 pub mod load;
+pub mod node_kit;
 pub mod normalize;
 pub mod params;
 pub mod pen;
+pub mod pen_node;
 pub mod render_op;
 pub mod rotate;
 pub mod save;
 pub mod stamp;
+pub mod stamp_node;
 
 use crate::error::RgbnError;
 use crate::raster::{Plane, RgbnImage};
@@ -312,6 +321,22 @@ impl<'a> Inputs<'a> {
             _ => Err(Self::missing(name)),
         }
     }
+    /// The RGBN image on port `name`, `None` when unconnected (optional inputs).
+    pub fn rgbn_opt(&self, name: &str) -> Result<Option<&'a RgbnImage>, RgbnError> {
+        match self.get(name) {
+            Some(Value::Rgbn(i)) => Ok(Some(i)),
+            None => Ok(None),
+            _ => Err(Self::missing(name)),
+        }
+    }
+    /// The scalar field on port `name`, `None` when unconnected.
+    pub fn scalar(&self, name: &str) -> Result<Option<&'a Plane>, RgbnError> {
+        match self.get(name) {
+            Some(Value::Scalar(p)) => Ok(Some(p)),
+            None => Ok(None),
+            _ => Err(Self::missing(name)),
+        }
+    }
     /// The mask on port `name`, `None` when unconnected.
     pub fn mask(&self, name: &str) -> Result<Option<&'a Plane>, RgbnError> {
         match self.get(name) {
@@ -426,6 +451,7 @@ pub fn registry() -> &'static [Box<dyn DynOp>] {
             Entry::<load::Load>::boxed(),
             Entry::<load::LoadMask>::boxed(),
             Entry::<load::ApplyMask>::boxed(),
+            Entry::<capture_node::PhotometricStereoNode>::boxed(),
             // filter
             Entry::<FilterOp<GaussianK>>::boxed(),
             Entry::<FilterOp<BoxK>>::boxed(),
@@ -438,12 +464,24 @@ pub fn registry() -> &'static [Box<dyn DynOp>] {
             Entry::<FilterOp<SeparableK>>::boxed(),
             Entry::<FilterOp<DenseK>>::boxed(),
             Entry::<normalize::Normalize>::boxed(),
+            Entry::<band_node::BandNode>::boxed(),
+            Entry::<brush_node::BrushNode>::boxed(),
+            Entry::<bilateral_node::BilateralNode>::boxed(),
+            Entry::<integrate_node::ProjectNode>::boxed(),
+            // combine and draw
+            Entry::<combine_node::LinearCombineNode>::boxed(),
+            Entry::<combine_node::RotationCombineNode>::boxed(),
+            Entry::<stamp_node::StampNode>::boxed(),
+            Entry::<pen_node::PenNode>::boxed(),
             // render and analysis
             Entry::<render_op::Relight>::boxed(),
             Entry::<render_op::ViewOp>::boxed(),
             Entry::<curl::CurlOp>::boxed(),
+            Entry::<integrate_node::IntegrateNode>::boxed(),
             // output
             Entry::<save::Save>::boxed(),
+            Entry::<integrate_node::SaveHeight>::boxed(),
+            Entry::<integrate_node::SaveMesh>::boxed(),
         ]
     })
 }

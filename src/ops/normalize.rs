@@ -14,7 +14,7 @@
 //! - A. Agrawal, R. Chellappa, R. Raskar, "An algebraic approach to surface reconstruction from
 //!   gradient fields", ICCV 2005.
 
-use super::params::NoParams;
+use super::params::{Meta, ParamVisitor, Params};
 use super::rotate::saturate;
 use super::{Inputs, OpSpec, Operator, PortSpec, PortType, RunContext, Value};
 use crate::error::RgbnError;
@@ -129,31 +129,98 @@ pub fn curl_readout(img: &RgbnImage, with_map: bool) -> CurlReadout {
     curl_readout_gradients(&GradientField::from_normals(img), img.mask(), with_map)
 }
 
-// ---- the node ----
+/// Parameters of the [`Normalize`] node (the graph form of [`NormalizeParams`]).
+#[derive(Clone, Debug, PartialEq)]
+pub struct NormalizeNodeParams {
+    /// See [`NormalizeParams::repair`].
+    pub repair: bool,
+    /// See [`NormalizeParams::lift_back_facing`].
+    pub lift_back_facing: bool,
+    /// See [`NormalizeParams::min_z`].
+    pub min_z: f64,
+}
 
-/// Renormalises the normals ([`crate::RgbnImage::normalize`]).
+impl Default for NormalizeNodeParams {
+    fn default() -> Self {
+        let d = NormalizeParams::default();
+        Self {
+            repair: d.repair,
+            lift_back_facing: d.lift_back_facing,
+            min_z: f64::from(d.min_z),
+        }
+    }
+}
+
+impl Params for NormalizeNodeParams {
+    fn visit(&mut self, v: &mut dyn ParamVisitor) {
+        v.bool(
+            "repair",
+            &mut self.repair,
+            &Meta::new(
+                "Replace non-finite or zero-length normals by (0,0,1) and non-finite colour by 0.",
+            ),
+        );
+        v.bool(
+            "lift_back_facing",
+            &mut self.lift_back_facing,
+            &Meta::new("Lift normals with n_z < min_z to n_z = min_z, keeping their azimuth."),
+        );
+        v.float(
+            "min_z",
+            &mut self.min_z,
+            &Meta::new("Threshold on n_z for lift_back_facing.").range(0.0, 0.999),
+        );
+    }
+}
+
+/// The [`normalize`] node.
 pub struct Normalize;
 
 impl Operator for Normalize {
-    type Params = NoParams;
+    type Params = NormalizeNodeParams;
     fn spec() -> OpSpec {
         OpSpec::new(
             "normalize",
             "Normalize",
             "filter",
-            "Rescales every normal to unit length; colour and mask are unchanged.",
+            "Rescales every normal to unit length (idempotent); optionally repairs bad normals and lifts back-facing ones. Colour and mask are unchanged except for repairs.",
         )
+        .version(2)
         .input(PortSpec::new("image", PortType::Rgbn, "Image."))
         .output(PortSpec::new(
             "image",
             PortType::Rgbn,
             "Image with unit normals.",
         ))
+        .output(PortSpec::new(
+            "invalid",
+            PortType::Number,
+            "Input values that were not finite or normals of zero length (repaired when repair is on).",
+        ))
+        .output(PortSpec::new(
+            "lifted",
+            PortType::Number,
+            "Normals lifted to n_z = min_z.",
+        ))
     }
-    fn run(_: &NoParams, i: &Inputs<'_>, _: &RunContext) -> Result<Vec<Value>, RgbnError> {
-        let mut img = i.rgbn("image")?.clone();
-        img.normalize();
-        Ok(vec![Value::Rgbn(img)])
+    fn run(
+        p: &NormalizeNodeParams,
+        i: &Inputs<'_>,
+        _: &RunContext,
+    ) -> Result<Vec<Value>, RgbnError> {
+        let params = NormalizeParams {
+            repair: p.repair,
+            lift_back_facing: p.lift_back_facing,
+            min_z: p.min_z as f32,
+        };
+        let (img, rep) = normalize(i.rgbn("image")?, &params)?;
+        let b = rep.before;
+        let invalid = b.non_finite_normal + b.zero_length_normal + b.non_finite_color;
+        Ok(vec![
+            Value::Rgbn(img),
+            Value::Number(invalid as f64),
+            Value::Number(rep.lifted as f64),
+        ])
     }
 }
 
