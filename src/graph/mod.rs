@@ -146,20 +146,7 @@ impl Graph {
                 }
             };
             let sub = LoadedGraph::load(&base_dir.join(rel))?;
-            return Ok(NodePorts {
-                inputs: sub
-                    .graph
-                    .inputs
-                    .iter()
-                    .map(|(n, d)| PortSpec::new(n, d.ty, &d.doc))
-                    .collect(),
-                outputs: sub
-                    .graph
-                    .outputs
-                    .keys()
-                    .filter_map(|n| Some(PortSpec::new(n, sub.output_type(n)?, "")))
-                    .collect(),
-            });
+            return Ok(sub.ports_as_node());
         }
         let Some(op) = ops::find(&node.op) else {
             let ids = ops::registry()
@@ -538,23 +525,7 @@ impl LoadedGraph {
                 other => other,
             })?;
         }
-        let ports = NodePorts {
-            inputs: sub
-                .graph
-                .inputs
-                .iter()
-                .map(|(n, d)| PortSpec::new(n, d.ty, &d.doc))
-                .collect(),
-            outputs: sub
-                .graph
-                .outputs
-                .iter()
-                .filter_map(|(n, r)| {
-                    let ty = sub.output_port(r)?.ty;
-                    Some(PortSpec::new(n, ty, ""))
-                })
-                .collect(),
-        };
+        let ports = sub.ports_as_node();
         Ok((NodeKind::Graph(Arc::new(sub)), ports))
     }
 
@@ -847,6 +818,26 @@ impl LoadedGraph {
     #[must_use]
     pub fn output_type(&self, name: &str) -> Option<PortType> {
         Some(self.output_port(self.graph.outputs.get(name)?)?.ty)
+    }
+
+    /// The ports this graph has when used as a node in another graph: its named inputs and
+    /// outputs.
+    #[must_use]
+    pub fn ports_as_node(&self) -> NodePorts {
+        NodePorts {
+            inputs: self
+                .graph
+                .inputs
+                .iter()
+                .map(|(n, d)| PortSpec::new(n, d.ty, &d.doc))
+                .collect(),
+            outputs: self
+                .graph
+                .outputs
+                .keys()
+                .filter_map(|n| Some(PortSpec::new(n, self.output_type(n)?, "")))
+                .collect(),
+        }
     }
 }
 
