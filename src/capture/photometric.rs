@@ -1355,14 +1355,7 @@ mod tests {
             return;
         };
         let names = ["001", "008", "041", "048", "052", "089", "096"];
-        let spec = PsInputSpec {
-            photos: names.iter().map(|n| d.join(format!("{n}.png"))).collect(),
-            lights: d.join("light_directions.txt"),
-            intensities: Some(d.join("light_intensities.txt")),
-            names: Some(d.join("filenames.txt")),
-            mask: Some(d.join("mask.png")),
-            transfer: Transfer::Linear,
-        };
+        let spec = tests_support::diligent_spec(&d, &names);
         let inputs = load_inputs(&spec).unwrap();
         let (w, h) = (inputs.stack.width, inputs.stack.height);
         let mut mask = inputs.mask.clone().unwrap();
@@ -1449,14 +1442,7 @@ mod tests {
             "001", "008", "019", "023", "041", "045", "048", "052", "068", "071", "089", "093",
             "096",
         ];
-        let spec = PsInputSpec {
-            photos: names.iter().map(|n| d.join(format!("{n}.png"))).collect(),
-            lights: d.join("light_directions.txt"),
-            intensities: Some(d.join("light_intensities.txt")),
-            names: Some(d.join("filenames.txt")),
-            mask: Some(d.join("mask.png")),
-            transfer: Transfer::Linear,
-        };
+        let spec = tests_support::diligent_spec(&d, &names);
         let inputs = load_inputs(&spec).unwrap();
         let (w, h) = (inputs.stack.width, inputs.stack.height);
         let gt = read_mat_normals(&d.join("Normal_gt.mat"), "Normal_gt", w, h);
@@ -1607,6 +1593,18 @@ mod uw_tests {
 #[cfg(test)]
 mod tests_support {
     use std::path::{Path, PathBuf};
+
+    /// The DiLiGenT ball inputs for a subset of its photos (`names` like `"001"`).
+    pub fn diligent_spec(d: &Path, names: &[&str]) -> super::PsInputSpec {
+        super::PsInputSpec {
+            photos: names.iter().map(|n| d.join(format!("{n}.png"))).collect(),
+            lights: d.join("light_directions.txt"),
+            intensities: Some(d.join("light_intensities.txt")),
+            names: Some(d.join("filenames.txt")),
+            mask: Some(d.join("mask.png")),
+            transfer: super::Transfer::Linear,
+        }
+    }
 
     pub fn data_dir(sub: &str) -> Option<PathBuf> {
         let base = std::env::var_os("RGBN_DATA").map_or_else(
