@@ -50,6 +50,10 @@ pub enum Action {
     Duplicate(Vec<NodeId>),
     /// Show this node's output in the preview.
     View(NodeId),
+    /// Write this node's (first) output to a file chosen in the file dialog.
+    Export(NodeId),
+    /// Choose this path parameter of this node in the file dialog.
+    BrowseParam(NodeId, String),
 }
 
 /// Colour of a port type (pins and wires).
@@ -505,6 +509,10 @@ impl SnarlViewer<NodeId> for Viewer<'_, '_> {
         let id = snarl[node];
         if ui.button("View output").clicked() {
             self.actions.push(Action::View(id));
+            ui.close();
+        }
+        if ui.button("Export output…").clicked() {
+            self.actions.push(Action::Export(id));
             ui.close();
         }
         if ui.button("Duplicate").clicked() {

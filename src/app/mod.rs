@@ -12,14 +12,16 @@
 pub mod graph_view;
 pub mod params_ui;
 pub mod preview;
+pub mod recent;
 pub mod state;
 pub mod worker;
 
-use crate::graph::{Graph, NodeId, NodePorts};
+use crate::graph::{Graph, NodeDef, NodeId, NodePorts};
 use crate::ops::Value;
 use egui::{Color32, Key, KeyboardShortcut, Modifiers, RichText, TextureHandle, TextureOptions};
 use graph_view::{Action, GraphView, ViewData};
 use preview::{Preview, PreviewSettings};
+use recent::{RecentFiles, Recovery};
 use state::Document;
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -51,7 +53,15 @@ pub fn run(graph: Option<PathBuf>) -> Result<(), String> {
     eframe::run_native(
         "rgbn",
         options,
-        Box::new(move |_cc| Ok(Box::new(EditorApp::new(doc)))),
+        Box::new(move |_cc| {
+            let mut app = EditorApp::new(doc);
+            app.recent = RecentFiles::user();
+            if let Some(p) = app.doc.path.clone() {
+                let _ = app.recent.push(&p);
+            }
+            app.offer_recovery();
+            Ok(Box::new(app))
+        }),
     )
     .map_err(|e| e.to_string())
 }
@@ -59,12 +69,8 @@ pub fn run(graph: Option<PathBuf>) -> Result<(), String> {
 /// A dialog in progress.
 #[derive(Clone, Debug, PartialEq)]
 pub enum Dialog {
-    /// Enter a graph file to open.
-    Open(String),
-    /// Enter a path to save the graph to.
-    SaveAs(String),
-    /// Enter a path to write the viewed output to.
-    Export(String),
+    /// Autosaved work newer than the file was found: recover it or discard it.
+    Recover(Box<Recovery>),
     /// The document has unsaved changes; then do this.
     Unsaved(Then),
     /// About rgbn.
@@ -80,6 +86,19 @@ pub enum Then {
     Open(String),
     /// Close the window.
     Quit,
+}
+
+/// What a file picked in the file dialog is for.
+#[derive(Clone, Debug, PartialEq)]
+pub enum FilePurpose {
+    /// Open this graph.
+    Open,
+    /// Save the graph here.
+    SaveAs,
+    /// Write this node's output port here.
+    Export(NodeId, String),
+    /// Set this path parameter of this node.
+    Param(NodeId, String),
 }
 
 /// A status-bar message.
@@ -141,6 +160,14 @@ pub struct EditorApp {
     last_widget_selection: Vec<NodeId>,
     /// Evaluation requests sent (tests).
     pub requests: u64,
+    /// Recently used graph files (File ▸ Open recent).
+    pub recent: RecentFiles,
+    /// The open file dialog and what its pick is for.
+    files: Option<(egui_file_dialog::FileDialog, FilePurpose)>,
+    /// The folder the file dialog opens in: the last one used, else the graph's folder.
+    pub dialog_dir: Option<PathBuf>,
+    /// Copied nodes and the document epoch they were copied in.
+    clipboard: Option<(u64, Vec<NodeDef>)>,
 }
 
 impl EditorApp {
@@ -186,7 +213,138 @@ impl EditorApp {
             requests: 0,
             last_autosave: Instant::now(),
             last_widget_selection: Vec::new(),
+            recent: RecentFiles::default(),
+            files: None,
+            dialog_dir: None,
+            clipboard: None,
         }
+    }
+
+    /// If the document's recovery file holds newer, different work, asks whether to restore it.
+    pub fn offer_recovery(&mut self) {
+        if let Some(r) = recent::recovery_offer(self.doc.path.as_deref(), &self.doc.graph) {
+            self.dialog = Some(Dialog::Recover(Box::new(r)));
+        }
+    }
+
+    /// Replaces the graph with the recovered one (one undo step back to the file's graph); the
+    /// document stays unsaved until the user saves.
+    pub fn recover(&mut self, r: &Recovery) {
+        let before = self.doc.graph.clone();
+        self.doc.graph = r.graph.clone();
+        self.doc.history.commit(before);
+        self.say(format!("recovered unsaved work from {}", r.path.display()));
+    }
+
+    /// True while the file dialog is open.
+    #[must_use]
+    pub fn file_dialog_open(&self) -> bool {
+        self.files.is_some()
+    }
+
+    /// Opens the file dialog for `purpose`.
+    pub fn browse(&mut self, purpose: FilePurpose) {
+        use egui_file_dialog::FileDialog;
+        let dir = match &self.dialog_dir {
+            Some(d) if d.is_dir() => d.clone(),
+            _ => recent::absolute(&self.doc.base_dir()),
+        };
+        let d = FileDialog::new().initial_directory(dir);
+        let mut d = match &purpose {
+            FilePurpose::Open => d
+                .title("Open graph")
+                .add_file_filter_extensions("Graphs (*.ron)", vec!["ron"])
+                .default_file_filter("Graphs (*.ron)"),
+            FilePurpose::SaveAs => {
+                let name = self
+                    .doc
+                    .path
+                    .as_deref()
+                    .and_then(Path::file_name)
+                    .map_or_else(|| "graph.ron".to_string(), |n| n.to_string_lossy().into());
+                d.title("Save graph as").default_file_name(&name)
+            }
+            FilePurpose::Export(id, port) => {
+                let ext = match self.outcome.values.get(&(*id, port.clone())) {
+                    Some(v) if matches!(v.value, Value::Rgbn(_)) => "exr",
+                    _ => "png",
+                };
+                d.title("Export output")
+                    .default_file_name(&format!("node{id}-{port}.{ext}"))
+            }
+            FilePurpose::Param(_, name) => d.title(&format!("Choose {name}")),
+        };
+        match purpose {
+            FilePurpose::Open | FilePurpose::Param(..) => d.pick_file(),
+            FilePurpose::SaveAs | FilePurpose::Export(..) => d.save_file(),
+        }
+        self.files = Some((d, purpose));
+    }
+
+    /// Acts on a file picked for `purpose`.
+    pub fn picked(&mut self, path: &Path, purpose: FilePurpose) {
+        self.dialog_dir = path.parent().map(Path::to_path_buf);
+        match purpose {
+            FilePurpose::Open => self.open_path(path),
+            FilePurpose::SaveAs => {
+                self.save_to(path);
+            }
+            FilePurpose::Export(id, port) => self.export(path, id, &port),
+            FilePurpose::Param(id, name) => {
+                let base = recent::absolute(&self.doc.base_dir());
+                let rel = path.strip_prefix(&base).unwrap_or(path);
+                let v = crate::ops::params::ParamValue::Path(rel.to_string_lossy().into_owned());
+                self.doc.set_param(id, &name, v);
+                self.say(format!("#{id}.{name} = {}", rel.display()));
+            }
+        }
+    }
+
+    fn file_dialog_ui(&mut self, ctx: &egui::Context) {
+        let Some((d, _)) = &mut self.files else {
+            return;
+        };
+        d.update(ctx);
+        match d.state() {
+            egui_file_dialog::DialogState::Open => {}
+            egui_file_dialog::DialogState::Picked(p) => {
+                let p = p.clone();
+                if let Some((_, purpose)) = self.files.take() {
+                    self.picked(&p, purpose);
+                }
+            }
+            _ => self.files = None,
+        }
+    }
+
+    /// Copies nodes to the editor's clipboard (and their RON text to the system clipboard).
+    pub fn copy(&mut self, ids: &[NodeId]) {
+        let nodes = self.doc.copy(ids);
+        if nodes.is_empty() {
+            return;
+        }
+        if let (Some(ctx), Ok(text)) = (
+            self.wake_ctx.get(),
+            ron::ser::to_string_pretty(&nodes, ron::ser::PrettyConfig::default()),
+        ) {
+            ctx.copy_text(text);
+        }
+        self.say(format!("copied {} node(s)", nodes.len()));
+        self.clipboard = Some((self.doc_epoch, nodes));
+    }
+
+    /// Pastes the clipboard's nodes (offset; edges from outside the copied set kept when they
+    /// were copied from this document). Returns the new ids.
+    pub fn paste(&mut self) -> Vec<NodeId> {
+        let Some((epoch, nodes)) = self.clipboard.clone() else {
+            return Vec::new();
+        };
+        let new = self
+            .doc
+            .paste(&nodes, [40.0, 60.0], epoch == self.doc_epoch);
+        self.selected = new.last().copied();
+        self.say(format!("pasted {} node(s)", new.len()));
+        new
     }
 
     /// True while an evaluation is running or a newer graph waits to be sent.
@@ -324,6 +482,31 @@ impl EditorApp {
         Some((&v.value, v.key))
     }
 
+    /// The "before" of the viewed node for the split view: the value on its first input wired
+    /// to an RGBN output, when the viewed value is RGBN too.
+    fn before_value(&self) -> Option<(&Value, u128)> {
+        let (id, port) = self.viewed.as_ref()?;
+        let viewed = self.outcome.values.get(&(*id, port.clone()))?;
+        if !matches!(viewed.value, Value::Rgbn(_)) {
+            return None;
+        }
+        let node = self.doc.graph.nodes.get(id)?;
+        let ports = self.ports.get(id)?;
+        ports.inputs.iter().find_map(|i| {
+            let crate::graph::Source::Node(src, sp) = node.inputs.get(&i.name)? else {
+                return None;
+            };
+            let v = self.outcome.values.get(&(*src, sp.clone()))?;
+            matches!(v.value, Value::Rgbn(_)).then_some((&v.value, v.key))
+        })
+    }
+
+    /// True while an evaluation or a preview render is under way.
+    #[must_use]
+    pub fn busy(&self) -> bool {
+        self.evaluating() || self.preview.pending()
+    }
+
     /// Applies a graph-view action to the document.
     pub fn apply(&mut self, a: Action) {
         match a {
@@ -362,6 +545,18 @@ impl EditorApp {
                 self.say(format!("duplicated {} node(s)", new.len()));
             }
             Action::View(id) => self.view_node(id),
+            Action::Export(id) => {
+                let port = self
+                    .ports
+                    .get(&id)
+                    .and_then(|p| p.outputs.first())
+                    .map(|o| o.name.clone());
+                match port {
+                    Some(port) => self.browse(FilePurpose::Export(id, port)),
+                    None => self.fail(format!("node #{id} has no output to export")),
+                }
+            }
+            Action::BrowseParam(id, name) => self.browse(FilePurpose::Param(id, name)),
         }
     }
 
@@ -439,8 +634,17 @@ impl EditorApp {
             Ok(d) => {
                 self.new_doc(d);
                 self.say(format!("opened {}", path.display()));
+                if let Err(e) = self.recent.push(path) {
+                    tracing::warn!("recent files not saved: {e}");
+                }
+                self.offer_recovery();
             }
-            Err(e) => self.fail(e.to_string()),
+            Err(e) => {
+                if !path.exists() {
+                    let _ = self.recent.remove(path);
+                }
+                self.fail(e.to_string());
+            }
         }
     }
 
@@ -452,6 +656,9 @@ impl EditorApp {
                 let _ = std::fs::remove_file(old_recovery);
                 let _ = std::fs::remove_file(self.recovery_path());
                 self.say(format!("saved {}", path.display()));
+                if let Err(e) = self.recent.push(path) {
+                    tracing::warn!("recent files not saved: {e}");
+                }
                 true
             }
             Err(e) => {
@@ -465,7 +672,7 @@ impl EditorApp {
         match self.doc.path.clone() {
             Some(p) => self.save_to(&p),
             None => {
-                self.dialog = Some(Dialog::SaveAs("graph.ron".into()));
+                self.browse(FilePurpose::SaveAs);
                 false
             }
         }
@@ -485,7 +692,7 @@ impl EditorApp {
                 self.new_doc(Document::new());
                 self.say("new graph");
             }
-            Then::Open(p) if p.is_empty() => self.dialog = Some(Dialog::Open(String::new())),
+            Then::Open(p) if p.is_empty() => self.browse(FilePurpose::Open),
             Then::Open(p) => self.open_path(Path::new(&p)),
             Then::Quit => {
                 self.allow_close = true;
@@ -496,12 +703,16 @@ impl EditorApp {
         }
     }
 
-    fn export(&mut self, path: &Path) {
-        let Some((v, _)) = self.viewed_value() else {
-            self.fail("nothing to export: the viewed node has no value yet");
+    /// Writes output `port` of node `id` to `path` (format from the extension; atomic; never
+    /// over one of the graph's input files).
+    pub fn export(&mut self, path: &Path, id: NodeId, port: &str) {
+        let Some(v) = self.outcome.values.get(&(id, port.to_string())) else {
+            self.fail(format!(
+                "nothing to export: node #{id} has no value on {port:?} yet (still evaluating, or it failed)"
+            ));
             return;
         };
-        let v = v.clone();
+        let v = v.value.clone();
         match crate::ops::save::write_value(&v, path, &crate::raster::io::SaveOptions::default()) {
             Ok(()) => self.say(format!("exported {}", path.display())),
             Err(e) => self.fail(e.to_string()),
@@ -512,15 +723,7 @@ impl EditorApp {
     /// folder for an untitled graph.
     #[must_use]
     pub fn recovery_path(&self) -> PathBuf {
-        match &self.doc.path {
-            Some(p) => {
-                let name = p
-                    .file_stem()
-                    .map_or_else(|| "graph".to_string(), |s| s.to_string_lossy().into_owned());
-                self.doc.base_dir().join(format!(".{name}.autosave.ron"))
-            }
-            None => std::env::temp_dir().join("rgbn-untitled.autosave.ron"),
-        }
+        recent::recovery_path(self.doc.path.as_deref())
     }
 
     /// Every 30 s with unsaved changes, writes the graph to the recovery file.
@@ -569,7 +772,20 @@ impl EditorApp {
         if hit(sc(Modifiers::COMMAND, Key::N)) {
             self.guarded(Then::New);
         }
-        if !typing {
+        if !typing && self.files.is_none() {
+            let (copy, paste) = ctx.input(|i| {
+                (
+                    i.events.iter().any(|e| matches!(e, egui::Event::Copy)),
+                    i.events.iter().any(|e| matches!(e, egui::Event::Paste(_))),
+                )
+            });
+            if copy {
+                let sel = self.view.selected(ctx);
+                self.copy(&sel);
+            }
+            if paste {
+                self.paste();
+            }
             let sel = self.view.selected(ctx);
             if !sel.is_empty() {
                 if hit(sc(Modifiers::COMMAND, Key::D)) {
@@ -631,6 +847,7 @@ impl EditorApp {
         self.view.write_back_positions(&mut self.doc.graph);
         egui::CentralPanel::default().show(ui, |ui| self.preview_ui(ui));
         self.dialogs_ui(&ctx);
+        self.file_dialog_ui(&ctx);
         if self.show_ops {
             let mut open = true;
             egui::Window::new("Operators")
@@ -683,21 +900,44 @@ impl EditorApp {
                     self.guarded(Then::Open(String::new()));
                     ui.close();
                 }
+                ui.menu_button("Open recent", |ui| {
+                    if self.recent.paths.is_empty() {
+                        ui.weak("no recent files");
+                    }
+                    for p in self.recent.paths.clone() {
+                        let name = p.file_name().map_or_else(
+                            || p.display().to_string(),
+                            |n| n.to_string_lossy().into(),
+                        );
+                        if ui
+                            .button(name)
+                            .on_hover_text(p.display().to_string())
+                            .clicked()
+                        {
+                            self.guarded(Then::Open(p.display().to_string()));
+                            ui.close();
+                        }
+                    }
+                });
                 if ui.button("Save").clicked() {
                     self.save();
                     ui.close();
                 }
                 if ui.button("Save As…").clicked() {
-                    let p = self
-                        .doc
-                        .path
-                        .as_ref()
-                        .map_or_else(|| "graph.ron".into(), |p| p.display().to_string());
-                    self.dialog = Some(Dialog::SaveAs(p));
+                    self.browse(FilePurpose::SaveAs);
                     ui.close();
                 }
-                if ui.button("Export output…").clicked() {
-                    self.dialog = Some(Dialog::Export("output.png".into()));
+                let viewed = self.viewed.clone();
+                if ui
+                    .add_enabled(viewed.is_some(), egui::Button::new("Export viewed output…"))
+                    .on_hover_text(
+                        "Write the previewed node's output to EXR/PNG (any node: right-click it)",
+                    )
+                    .clicked()
+                {
+                    if let Some((id, port)) = viewed {
+                        self.browse(FilePurpose::Export(id, port));
+                    }
                     ui.close();
                 }
                 ui.separator();
@@ -736,7 +976,21 @@ impl EditorApp {
                     .add_enabled(!sel.is_empty(), egui::Button::new("Duplicate"))
                     .clicked()
                 {
-                    actions.push(Action::Duplicate(sel));
+                    actions.push(Action::Duplicate(sel.clone()));
+                    ui.close();
+                }
+                if ui
+                    .add_enabled(!sel.is_empty(), egui::Button::new("Copy"))
+                    .clicked()
+                {
+                    self.copy(&sel);
+                    ui.close();
+                }
+                if ui
+                    .add_enabled(self.clipboard.is_some(), egui::Button::new("Paste"))
+                    .clicked()
+                {
+                    self.paste();
                     ui.close();
                 }
             });
@@ -746,7 +1000,7 @@ impl EditorApp {
                 }
             });
             ui.menu_button("View", |ui| {
-                for v in crate::render::View::ALL {
+                for v in preview::Mode::ALL {
                     if ui
                         .selectable_label(self.settings.view == v, v.name())
                         .clicked()
@@ -843,7 +1097,9 @@ impl EditorApp {
             return;
         };
         let base = self.doc.base_dir();
-        params_ui::inspector_ui(ui, &mut self.doc.graph, id, &base);
+        if let Some(name) = params_ui::inspector_ui(ui, &mut self.doc.graph, id, &base) {
+            self.browse(FilePurpose::Param(id, name));
+        }
         if let Some(e) = self.outcome.node_errors.get(&id) {
             ui.separator();
             ui.colored_label(Color32::from_rgb(255, 110, 110), e);
@@ -884,14 +1140,23 @@ impl EditorApp {
                 }
             }
         });
-        preview::settings_ui(ui, &mut self.settings);
+        let before = self.before_value().map(|(v, k)| (v.clone(), k));
+        preview::settings_ui(
+            ui,
+            &mut self.settings,
+            &mut self.preview.split,
+            before.is_some(),
+        );
         ui.separator();
         let ctx = ui.ctx().clone();
         let current = self.viewed_value().map(|(v, k)| (v.clone(), k));
         match &current {
             Some((v, k)) => {
-                let req = Preview::request(v, *k, &self.settings);
-                self.preview.update(&ctx, v, req);
+                let mut req = Preview::request(v, *k, &self.settings);
+                let before = before.filter(|_| self.preview.split.is_some());
+                req.before = before.as_ref().map(|b| b.1);
+                self.preview
+                    .update(&ctx, v, before.as_ref().map(|b| &b.0), req);
                 if self.first_preview.is_none() {
                     let t = self.started.elapsed();
                     self.first_preview = Some(t);
@@ -936,42 +1201,30 @@ impl EditorApp {
         let modal = egui::Modal::new(egui::Id::new("dialog")).show(ctx, |ui| {
             ui.set_min_width(380.0);
             match d {
-                Dialog::Open(mut p) | Dialog::SaveAs(mut p) | Dialog::Export(mut p) => {
-                    let (title, verb) = match &self.dialog {
-                        Some(Dialog::Open(_)) => ("Open graph", "Open"),
-                        Some(Dialog::SaveAs(_)) => ("Save graph as", "Save"),
-                        _ => ("Export the viewed output", "Export"),
-                    };
-                    ui.heading(title);
-                    let label = ui.label("Path (relative to the working directory)").id;
-                    let r = ui
-                        .add(egui::TextEdit::singleline(&mut p).desired_width(360.0))
-                        .labelled_by(label);
-                    let enter = r.lost_focus() && ui.input(|i| i.key_pressed(Key::Enter));
-                    if matches!(self.dialog, Some(Dialog::Export(_))) {
-                        ui.weak("pictures → .png/.tif, RGBN images → .exr/.png, masks → .png/.exr");
-                    }
+                Dialog::Recover(r) => {
+                    ui.heading("Recover unsaved work?");
+                    let age = r
+                        .modified
+                        .elapsed()
+                        .map_or_else(|_| "just now".to_string(), |d| format!("{} min ago", d.as_secs() / 60));
+                    ui.label(format!(
+                        "{} holds changes to {} that were never saved (autosaved {age}).",
+                        r.path.display(),
+                        self.doc.title()
+                    ));
                     ui.horizontal(|ui| {
-                        let go = ui.button(verb).clicked() || enter;
-                        let cancel = ui.button("Cancel").clicked();
-                        next = match (&self.dialog, go, cancel) {
-                            (_, _, true) => None,
-                            (Some(Dialog::Open(_)), true, _) => {
-                                then = Some(("open", p.clone()));
-                                None
-                            }
-                            (Some(Dialog::SaveAs(_)), true, _) => {
-                                then = Some(("save", p.clone()));
-                                None
-                            }
-                            (Some(Dialog::Export(_)), true, _) => {
-                                then = Some(("export", p.clone()));
-                                None
-                            }
-                            (Some(Dialog::Open(_)), false, _) => Some(Dialog::Open(p.clone())),
-                            (Some(Dialog::SaveAs(_)), false, _) => Some(Dialog::SaveAs(p.clone())),
-                            _ => Some(Dialog::Export(p.clone())),
-                        };
+                        if ui.button("Recover").clicked() {
+                            next = None;
+                            self.recover(&r);
+                        }
+                        if ui.button("Discard").on_hover_text("Delete the recovery file").clicked() {
+                            next = None;
+                            let _ = std::fs::remove_file(&r.path);
+                            self.say("discarded the autosaved work");
+                        }
+                        if ui.button("Later").on_hover_text("Keep the recovery file").clicked() {
+                            next = None;
+                        }
                     });
                 }
                 Dialog::Unsaved(t) => {
@@ -1009,11 +1262,6 @@ impl EditorApp {
         }
         self.dialog = next;
         match then {
-            Some(("open", p)) => self.open_path(Path::new(&p)),
-            Some(("save", p)) => {
-                self.save_to(Path::new(&p));
-            }
-            Some(("export", p)) => self.export(Path::new(&p)),
             Some(("save-then", _)) => {
                 let t = self.pending_then.take();
                 if self.save() {

@@ -16,6 +16,7 @@ pub fn param_ui(
     info: &ParamInfo,
     value: &mut ParamValue,
     base_dir: &Path,
+    browse: &mut bool,
 ) -> bool {
     let meta = &info.meta;
     let suffix = if meta.unit.is_empty() {
@@ -90,6 +91,13 @@ pub fn param_ui(
                 })
                 .response
                 .on_hover_text("Pick a file next to the graph");
+                if ui
+                    .small_button("Browse…")
+                    .on_hover_text("Choose any file in the file dialog")
+                    .clicked()
+                {
+                    *browse = true;
+                }
             });
         }
         (ParamKind::Vec3, ParamValue::Vec3(v)) => {
@@ -103,10 +111,13 @@ pub fn param_ui(
                 }
             });
         }
-        (
-            ParamKind::Floats | ParamKind::Profile,
-            ParamValue::Floats(v) | ParamValue::Profile(v),
-        ) => {
+        (ParamKind::Profile, ParamValue::Floats(v) | ParamValue::Profile(v)) => {
+            ui.vertical(|ui| {
+                changed |= profile_ui(ui, v, meta.range);
+                ui.collapsing("values", |ui| changed |= list_ui(ui, v, meta.range));
+            });
+        }
+        (ParamKind::Floats, ParamValue::Floats(v) | ParamValue::Profile(v)) => {
             changed |= list_ui(ui, v, meta.range);
         }
         (ParamKind::Points, ParamValue::Points(pts)) => {
@@ -171,6 +182,132 @@ fn list_ui(ui: &mut Ui, v: &mut Vec<f64>, range: Option<(f64, f64)>) -> bool {
     changed
 }
 
+/// A profile (samples at equally spaced u from −1 to 1) as an editable curve: drag a sample
+/// up or down; double-click the curve to add a sample there, right-click a sample to remove it.
+fn profile_ui(ui: &mut Ui, v: &mut Vec<f64>, range: Option<(f64, f64)>) -> bool {
+    use egui::{Color32, Pos2, Rect, Sense, Stroke, Vec2};
+    let mut changed = false;
+    let (rect, resp) = ui.allocate_exact_size(Vec2::new(200.0, 90.0), Sense::click_and_drag());
+    let painter = ui.painter_at(rect);
+    painter.rect_filled(rect, 3.0, ui.visuals().extreme_bg_color);
+    if v.len() < 2 {
+        if ui.small_button("start a curve").clicked() {
+            *v = vec![0.0, 1.0, 0.0];
+            changed = true;
+        }
+        return changed;
+    }
+    // Vertical scale: the samples' range padded, always including 0.
+    let lo = v.iter().copied().fold(0.0f64, f64::min);
+    let hi = v.iter().copied().fold(0.0f64, f64::max);
+    let pad = ((hi - lo) * 0.15).max(0.5);
+    let (lo, hi) = (lo - pad, hi + pad);
+    let inner = rect.shrink(6.0);
+    let n = v.len();
+    let to_screen = |k: usize, y: f64| {
+        Pos2::new(
+            inner.left() + inner.width() * k as f32 / (n - 1) as f32,
+            inner.bottom() - inner.height() * ((y - lo) / (hi - lo)) as f32,
+        )
+    };
+    let from_screen_y =
+        |py: f32| lo + (hi - lo) * f64::from((inner.bottom() - py) / inner.height());
+    let zero = to_screen(0, 0.0).y;
+    painter.line_segment(
+        [
+            Pos2::new(inner.left(), zero),
+            Pos2::new(inner.right(), zero),
+        ],
+        Stroke::new(1.0, Color32::from_gray(80)),
+    );
+    let pts: Vec<Pos2> = v
+        .iter()
+        .enumerate()
+        .map(|(k, y)| to_screen(k, *y))
+        .collect();
+    painter.add(egui::Shape::line(
+        pts.clone(),
+        Stroke::new(1.5, Color32::from_rgb(120, 190, 255)),
+    ));
+    let drag_id = resp.id.with("sample");
+    let hovered = resp.hover_pos().and_then(|p| {
+        pts.iter()
+            .enumerate()
+            .map(|(k, q)| (k, q.distance(p)))
+            .filter(|(_, d)| *d < 8.0)
+            .min_by(|a, b| a.1.total_cmp(&b.1))
+            .map(|(k, _)| k)
+    });
+    if resp.drag_started() {
+        ui.data_mut(|d| d.insert_temp(drag_id, hovered));
+    }
+    let dragging: Option<usize> = ui.data(|d| d.get_temp(drag_id)).flatten();
+    if let (true, Some(k), Some(p)) = (resp.dragged(), dragging, resp.interact_pointer_pos()) {
+        let mut y = from_screen_y(p.y);
+        if let Some((a, b)) = range {
+            y = y.clamp(a, b);
+        }
+        let y = (y * 100.0).round() / 100.0;
+        if k < n && v[k] != y {
+            v[k] = y;
+            changed = true;
+        }
+    }
+    if resp.drag_stopped() {
+        ui.data_mut(|d| d.remove::<Option<usize>>(drag_id));
+    }
+    if resp.secondary_clicked() && n > 2 {
+        if let Some(k) = hovered {
+            v.remove(k);
+            changed = true;
+        }
+    }
+    if resp.double_clicked() && hovered.is_none() {
+        if let Some(p) = resp.interact_pointer_pos() {
+            // Resample to one more sample, keeping the curve's shape (linear interpolation).
+            let m = n + 1;
+            let t = ((p.x - inner.left()) / inner.width()).clamp(0.0, 1.0);
+            let at = |x: f64| {
+                let f = x * (n - 1) as f64;
+                let i = (f.floor() as usize).min(n - 2);
+                let w = f - i as f64;
+                v[i] * (1.0 - w) + v[i + 1] * w
+            };
+            let mut out: Vec<f64> = (0..m).map(|k| at(k as f64 / (m - 1) as f64)).collect();
+            let near = (f64::from(t) * (m - 1) as f64).round() as usize;
+            out[near] = from_screen_y(p.y);
+            *v = out;
+            changed = true;
+        }
+    }
+    for (k, q) in pts.iter().enumerate() {
+        let hot = hovered == Some(k) || dragging == Some(k);
+        painter.circle_filled(
+            *q,
+            if hot { 5.0 } else { 3.5 },
+            if hot { Color32::YELLOW } else { Color32::WHITE },
+        );
+    }
+    painter.text(
+        Rect::from_min_size(inner.min, Vec2::ZERO).min,
+        egui::Align2::LEFT_TOP,
+        format!("{hi:.1}"),
+        egui::FontId::monospace(9.0),
+        Color32::GRAY,
+    );
+    painter.text(
+        Pos2::new(inner.left(), inner.bottom()),
+        egui::Align2::LEFT_BOTTOM,
+        format!("{lo:.1}"),
+        egui::FontId::monospace(9.0),
+        Color32::GRAY,
+    );
+    resp.on_hover_text(
+        "Drag a sample up/down; double-click to add a sample; right-click a sample to remove it",
+    );
+    changed
+}
+
 /// Files in `base_dir` and its `data/` folder (a light file picker without system dialogs).
 fn file_menu_ui(ui: &mut Ui, base_dir: &Path) -> Option<String> {
     let mut out = None;
@@ -205,6 +342,33 @@ fn file_menu_ui(ui: &mut Ui, base_dir: &Path) -> Option<String> {
     out
 }
 
+/// A graph file loaded once per (path, modification time, size): the inspector draws every
+/// frame and must not re-read and re-validate the file each time.
+fn load_cached(path: &Path) -> Option<std::sync::Arc<crate::graph::LoadedGraph>> {
+    use std::collections::HashMap;
+    use std::sync::{Arc, Mutex, OnceLock};
+    type Entry = (
+        Option<std::time::SystemTime>,
+        u64,
+        Arc<crate::graph::LoadedGraph>,
+    );
+    static CACHE: OnceLock<Mutex<HashMap<std::path::PathBuf, Entry>>> = OnceLock::new();
+    let meta = std::fs::metadata(path).ok()?;
+    let stamp = (meta.modified().ok(), meta.len());
+    let cache = CACHE.get_or_init(Mutex::default);
+    if let Some((t, len, g)) = cache.lock().ok()?.get(path) {
+        if (*t, *len) == stamp {
+            return Some(g.clone());
+        }
+    }
+    let g = Arc::new(crate::graph::LoadedGraph::load(path).ok()?);
+    cache
+        .lock()
+        .ok()?
+        .insert(path.to_path_buf(), (stamp.0, stamp.1, g.clone()));
+    Some(g)
+}
+
 /// The parameters of node `id` (name, description, current value: the default where the file
 /// has none). A graph node's parameters are its `path` and the sub-graph's exposed ones.
 #[must_use]
@@ -227,7 +391,7 @@ pub fn node_params(
             },
         )];
         if let Some(ParamValue::Path(p) | ParamValue::Text(p)) = n.params.get("path") {
-            if let Ok(sub) = crate::graph::LoadedGraph::load(&base_dir.join(p)) {
+            if let Some(sub) = load_cached(&base_dir.join(p)) {
                 for (name, ex) in &sub.graph.exposed {
                     if let Some(mut info) = sub.param_info(ex.node, &ex.param) {
                         if let Some(x) = sub
@@ -268,10 +432,12 @@ pub fn node_params(
 }
 
 /// The inspector for node `id`: name, operator doc, parameters. Edits go into `graph`.
-pub fn inspector_ui(ui: &mut Ui, graph: &mut Graph, id: NodeId, base_dir: &Path) {
+/// Returns the name of a path parameter whose "Browse…" button was clicked.
+pub fn inspector_ui(ui: &mut Ui, graph: &mut Graph, id: NodeId, base_dir: &Path) -> Option<String> {
+    let mut browse_for = None;
     let Some(n) = graph.nodes.get(&id) else {
         ui.weak("No node selected.");
-        return;
+        return None;
     };
     let op = ops::find(&n.op);
     ui.heading(super::graph_view::node_title(graph, id));
@@ -296,8 +462,12 @@ pub fn inspector_ui(ui: &mut Ui, graph: &mut Graph, id: NodeId, base_dir: &Path)
             name_changed = ui.text_edit_singleline(&mut name).changed();
             ui.end_row();
             for (pname, info, mut value) in params {
-                if param_ui(ui, &pname, &info, &mut value, base_dir) {
-                    edits.push((pname, value));
+                let mut browse = false;
+                if param_ui(ui, &pname, &info, &mut value, base_dir, &mut browse) {
+                    edits.push((pname.clone(), value));
+                }
+                if browse {
+                    browse_for = Some(pname);
                 }
             }
         });
@@ -318,4 +488,5 @@ pub fn inspector_ui(ui: &mut Ui, graph: &mut Graph, id: NodeId, base_dir: &Path)
             n.params.retain(|k, _| k == "path" && n.op == GRAPH_NODE_OP);
         }
     }
+    browse_for
 }

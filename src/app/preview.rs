@@ -5,19 +5,74 @@
 //! What is shown is keyed by a [`PreviewRequest`] — plain data: the value's content key and the
 //! display settings. The texture is re-rendered only when the request changes, so dragging the
 //! light relights the evaluated image without re-running the graph.
+//!
+//! Rendering runs on its own thread ([`Renderer`]): the UI sends the newest request and keeps
+//! showing the previous texture until the new picture arrives (requests that pile up while one
+//! renders are skipped), so a 4K relight never stalls a frame. The height view integrates the
+//! normals (DCT Poisson) on that thread, once per evaluated value.
 
 use crate::ops::{Picture, Value};
 use crate::raster::gradient::GradientField;
 use crate::raster::Plane;
 use crate::render::{self, Light, Shading, View};
 use egui::{Color32, Pos2, Rect, Sense, Stroke, TextureHandle, TextureOptions, Ui, Vec2};
+use std::sync::mpsc::{channel, Receiver, Sender};
 use std::sync::Arc;
+
+/// What the preview shows of an RGBN image.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Mode {
+    /// Relit with the preview's light.
+    #[default]
+    Relit,
+    /// Colour only.
+    Albedo,
+    /// Normals as colour.
+    Normals,
+    /// Curl map (blue − / white 0 / red +).
+    Curl,
+    /// The height the normals integrate to (DCT Poisson), grey from low to high.
+    Height,
+}
+
+impl Mode {
+    /// Every mode, in menu order.
+    pub const ALL: [Mode; 5] = [
+        Mode::Relit,
+        Mode::Albedo,
+        Mode::Normals,
+        Mode::Curl,
+        Mode::Height,
+    ];
+
+    /// Its name in menus.
+    #[must_use]
+    pub fn name(self) -> &'static str {
+        match self {
+            Mode::Relit => "relit",
+            Mode::Albedo => "albedo",
+            Mode::Normals => "normals",
+            Mode::Curl => "curl",
+            Mode::Height => "height",
+        }
+    }
+
+    fn render_view(self) -> Option<View> {
+        match self {
+            Mode::Relit => Some(View::Relit),
+            Mode::Albedo => Some(View::Albedo),
+            Mode::Normals => Some(View::Normals),
+            Mode::Curl => Some(View::Curl),
+            Mode::Height => None,
+        }
+    }
+}
 
 /// Display settings of the preview (not part of the graph).
 #[derive(Clone, Debug, PartialEq)]
 pub struct PreviewSettings {
-    /// Relit, albedo, normals or curl.
-    pub view: View,
+    /// Relit, albedo, normals, curl or height.
+    pub view: Mode,
     /// Direction towards the light (OpenGL frame, unit).
     pub light: [f32; 3],
     /// Ambient term.
@@ -36,7 +91,7 @@ impl Default for PreviewSettings {
         let d = s.lights[0].direction;
         let len = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
         Self {
-            view: View::Relit,
+            view: Mode::Relit,
             light: [d[0] / len, d[1] / len, d[2] / len],
             ambient: s.ambient,
             specular: s.specular,
@@ -67,12 +122,130 @@ pub struct PreviewRequest {
     pub key: u128,
     /// Display settings (ignored for values that are already pictures).
     pub settings: Option<PreviewSettings>,
+    /// Content key of the "before" value shown left of the split line, if any.
+    pub before: Option<u128>,
+}
+
+/// A render job for the preview thread.
+struct Job {
+    req: PreviewRequest,
+    value: Value,
+    before: Option<Value>,
+    ctx: egui::Context,
+}
+
+/// A finished render.
+struct Rendered {
+    req: PreviewRequest,
+    main: Option<egui::ColorImage>,
+    before: Option<egui::ColorImage>,
+    ms: f64,
+}
+
+/// The preview's render thread: renders the newest job, skipping older ones still queued.
+pub struct Renderer {
+    tx: Option<Sender<Job>>,
+    rx: Receiver<Rendered>,
+    handle: Option<std::thread::JoinHandle<()>>,
+}
+
+impl Default for Renderer {
+    fn default() -> Self {
+        let (tx, jobs) = channel::<Job>();
+        let (done, rx) = channel();
+        let handle = std::thread::Builder::new()
+            .name("rgbn-preview".into())
+            .spawn(move || {
+                let mut heights = HeightCache::default();
+                while let Ok(mut job) = jobs.recv() {
+                    while let Ok(newer) = jobs.try_recv() {
+                        job = newer;
+                    }
+                    let t0 = std::time::Instant::now();
+                    let settings = job.req.settings.clone().unwrap_or_default();
+                    let main = render_color_image(&job.value, job.req.key, &settings, &mut heights);
+                    let before = job.before.as_ref().and_then(|b| {
+                        render_color_image(b, job.req.before.unwrap_or(0), &settings, &mut heights)
+                    });
+                    let out = Rendered {
+                        req: job.req,
+                        main,
+                        before,
+                        ms: t0.elapsed().as_secs_f64() * 1e3,
+                    };
+                    if done.send(out).is_err() {
+                        break;
+                    }
+                    job.ctx.request_repaint();
+                }
+            })
+            .expect("spawn the preview thread");
+        Self {
+            tx: Some(tx),
+            rx,
+            handle: Some(handle),
+        }
+    }
+}
+
+impl Drop for Renderer {
+    fn drop(&mut self) {
+        self.tx = None;
+        if let Some(h) = self.handle.take() {
+            let _ = h.join();
+        }
+    }
+}
+
+/// The last integrated height, by the value's content key.
+#[derive(Default)]
+struct HeightCache(Option<(u128, Arc<Plane>)>);
+
+impl HeightCache {
+    fn get(&mut self, key: u128, img: &crate::RgbnImage) -> Option<Arc<Plane>> {
+        if let Some((k, p)) = &self.0 {
+            if *k == key && key != 0 {
+                return Some(p.clone());
+            }
+        }
+        let params = crate::raster::integrate::IntegrateParams::default();
+        let (z, _) = crate::raster::integrate::integrate_normals(img, &params).ok()?;
+        let z = Arc::new(z);
+        self.0 = Some((key, z.clone()));
+        Some(z)
+    }
+}
+
+fn render_color_image(
+    v: &Value,
+    key: u128,
+    s: &PreviewSettings,
+    heights: &mut HeightCache,
+) -> Option<egui::ColorImage> {
+    let p = match (v, s.view) {
+        (Value::Rgbn(img), Mode::Height) => {
+            let z = heights.get(key, img)?;
+            super::worker::plane_picture(&z)
+        }
+        _ => render_value(v, s)?,
+    };
+    Some(egui::ColorImage::from_rgba_unmultiplied(
+        [p.width, p.height],
+        &p.rgba,
+    ))
 }
 
 /// The preview's runtime state.
 pub struct Preview {
     texture: Option<TextureHandle>,
+    before_texture: Option<TextureHandle>,
+    /// The newest request sent to the render thread.
     last: Option<PreviewRequest>,
+    /// The request the texture on screen shows.
+    shown: Option<PreviewRequest>,
+    renderer: Renderer,
+    /// Where the before/after split line is (0 = all after … 1 = all before), when shown.
+    pub split: Option<f32>,
     curl: Option<(u128, Arc<Plane>)>,
     /// Zoom (screen points per image pixel); `None` fits the image to the panel.
     pub zoom: Option<f32>,
@@ -88,7 +261,11 @@ impl Default for Preview {
     fn default() -> Self {
         Self {
             texture: None,
+            before_texture: None,
             last: None,
+            shown: None,
+            renderer: Renderer::default(),
+            split: None,
             curl: None,
             zoom: None,
             pan: Vec2::ZERO,
@@ -102,7 +279,8 @@ impl Default for Preview {
 pub fn render_value(v: &Value, s: &PreviewSettings) -> Option<Picture> {
     match v {
         Value::Rgbn(img) => {
-            let rgba = render::render(img, s.view, &s.shading()).ok()?;
+            let view = s.view.render_view().unwrap_or(View::Relit);
+            let rgba = render::render(img, view, &s.shading()).ok()?;
             Some(Picture {
                 width: img.width(),
                 height: img.height(),
@@ -122,40 +300,105 @@ impl Preview {
         PreviewRequest {
             key,
             settings: matches!(value, Value::Rgbn(_)).then(|| settings.clone()),
+            before: None,
         }
     }
 
     /// Forgets the texture (the viewed node changed or has no value).
     pub fn clear(&mut self) {
         self.texture = None;
+        self.before_texture = None;
         self.last = None;
+        self.shown = None;
     }
 
-    /// Makes the texture show `value` as `req` asks, rendering only if `req` changed.
-    pub fn update(&mut self, ctx: &egui::Context, value: &Value, req: PreviewRequest) {
+    /// True while a render for the newest request is under way.
+    #[must_use]
+    pub fn pending(&self) -> bool {
+        self.last.is_some() && self.last != self.shown
+    }
+
+    /// Asks for `value` (and `before`, shown left of the split line) as `req` says; renders on
+    /// the preview thread only if `req` changed. Takes finished renders: the texture shows the
+    /// newest one.
+    pub fn update(
+        &mut self,
+        ctx: &egui::Context,
+        value: &Value,
+        before: Option<&Value>,
+        req: PreviewRequest,
+    ) {
+        self.take_rendered(ctx);
         if self.last.as_ref() == Some(&req) {
             return;
         }
-        let t0 = std::time::Instant::now();
-        let settings = req.settings.clone().unwrap_or_default();
-        match render_value(value, &settings) {
-            Some(p) => {
-                let img = egui::ColorImage::from_rgba_unmultiplied([p.width, p.height], &p.rgba);
-                match &mut self.texture {
-                    Some(t) if t.size() == [p.width, p.height] => {
-                        t.set(img, TextureOptions::NEAREST);
-                    }
-                    _ => {
-                        self.texture =
-                            Some(ctx.load_texture("preview", img, TextureOptions::NEAREST));
-                    }
-                }
+        if let Some(tx) = &self.renderer.tx {
+            let job = Job {
+                req: req.clone(),
+                value: value.clone(),
+                before: before.cloned(),
+                ctx: ctx.clone(),
+            };
+            if tx.send(job).is_ok() {
+                self.last = Some(req);
             }
-            None => self.texture = None,
         }
+    }
+
+    fn take_rendered(&mut self, ctx: &egui::Context) {
+        let mut newest = None;
+        while let Ok(r) = self.renderer.rx.try_recv() {
+            newest = Some(r);
+        }
+        let Some(r) = newest else {
+            return;
+        };
+        if self.last.as_ref().map(|l| l.key) != Some(r.req.key) && self.last.is_some() {
+            // A render of a value no longer viewed: keep it only if nothing else is on screen.
+            if self.texture.is_some() {
+                return;
+            }
+        }
+        set_texture(ctx, &mut self.texture, "preview", r.main);
+        set_texture(ctx, &mut self.before_texture, "preview-before", r.before);
         self.renders += 1;
-        self.render_ms = t0.elapsed().as_secs_f64() * 1e3;
-        self.last = Some(req);
+        self.render_ms = r.ms;
+        self.shown = Some(r.req);
+    }
+
+    /// Draws the "before" picture over the part of `img_rect` left of the split line, and the
+    /// line itself.
+    fn draw_split(&self, painter: &egui::Painter, img_rect: Rect) {
+        let (Some(t), Some(s)) = (&self.before_texture, self.split) else {
+            return;
+        };
+        let x = img_rect.left() + img_rect.width() * s.clamp(0.0, 1.0);
+        let left = Rect::from_min_max(img_rect.min, Pos2::new(x, img_rect.bottom()));
+        painter.image(
+            t.id(),
+            left,
+            Rect::from_min_max(Pos2::ZERO, Pos2::new(s.clamp(0.0, 1.0), 1.0)),
+            Color32::WHITE,
+        );
+        painter.line_segment(
+            [
+                Pos2::new(x, img_rect.top()),
+                Pos2::new(x, img_rect.bottom()),
+            ],
+            Stroke::new(1.5, Color32::from_rgb(255, 220, 80)),
+        );
+        for (text, align, dx) in [
+            ("before", egui::Align2::RIGHT_TOP, -4.0),
+            ("after", egui::Align2::LEFT_TOP, 4.0),
+        ] {
+            painter.text(
+                Pos2::new(x + dx, img_rect.top().max(painter.clip_rect().top()) + 4.0),
+                align,
+                text,
+                egui::FontId::proportional(12.0),
+                Color32::from_rgb(255, 220, 80),
+            );
+        }
     }
 
     fn curl_plane(&mut self, key: u128, img: &crate::RgbnImage) -> Arc<Plane> {
@@ -222,6 +465,7 @@ impl Preview {
             Rect::from_min_max(Pos2::ZERO, Pos2::new(1.0, 1.0)),
             Color32::WHITE,
         );
+        self.draw_split(&painter, img_rect);
         painter.rect_stroke(
             img_rect,
             0.0,
@@ -313,14 +557,40 @@ pub fn light_ui(ui: &mut Ui, light: &mut [f32; 3]) -> bool {
     changed
 }
 
-/// The display controls: view mode, light, ambient, specular, exposure.
-pub fn settings_ui(ui: &mut Ui, s: &mut PreviewSettings) {
+fn set_texture(
+    ctx: &egui::Context,
+    slot: &mut Option<TextureHandle>,
+    name: &str,
+    img: Option<egui::ColorImage>,
+) {
+    match (img, slot.as_mut()) {
+        (Some(img), Some(t)) if t.size() == img.size => t.set(img, TextureOptions::NEAREST),
+        (Some(img), _) => *slot = Some(ctx.load_texture(name, img, TextureOptions::NEAREST)),
+        (None, _) => *slot = None,
+    }
+}
+
+/// The display controls: view mode, before/after split, light, ambient, specular, exposure.
+/// `can_split`: the viewed node has an RGBN input to compare with.
+pub fn settings_ui(ui: &mut Ui, s: &mut PreviewSettings, split: &mut Option<f32>, can_split: bool) {
     ui.horizontal(|ui| {
-        for v in View::ALL {
+        for v in Mode::ALL {
             ui.selectable_value(&mut s.view, v, v.name());
         }
+        ui.separator();
+        let mut on = split.is_some();
+        let r = ui
+            .add_enabled(can_split, egui::Checkbox::new(&mut on, "before/after"))
+            .on_hover_text("Show the node's input (before) left of a split line and its output (after) right of it");
+        if r.changed() {
+            *split = on.then_some(0.5);
+        }
+        if let Some(x) = split.as_mut() {
+            ui.add_enabled(can_split, egui::Slider::new(x, 0.0..=1.0).show_value(false))
+                .on_hover_text("Split position");
+        }
     });
-    if s.view == View::Relit {
+    if s.view == Mode::Relit {
         ui.horizontal(|ui| {
             light_ui(ui, &mut s.light);
             egui::Grid::new("shading").num_columns(2).show(ui, |ui| {

@@ -5,7 +5,7 @@
 #![allow(clippy::result_large_err)]
 
 use crate::graph::file;
-use crate::graph::{At, Graph, GraphError, NodeId, NodePorts, Source};
+use crate::graph::{At, Graph, GraphError, NodeDef, NodeId, NodePorts, Source};
 use crate::ops::params::ParamValue;
 use std::collections::{BTreeMap, BTreeSet};
 use std::path::{Path, PathBuf};
@@ -247,27 +247,51 @@ impl Document {
     /// Duplicates nodes (same operator, parameters and incoming edges; edges among the
     /// duplicated nodes follow the copies), offset by `offset`. Returns the new ids in order.
     pub fn duplicate(&mut self, ids: &[NodeId], offset: [f32; 2]) -> Vec<NodeId> {
+        let nodes = self.copy(ids);
+        self.paste(&nodes, offset, true)
+    }
+
+    /// The nodes `ids` as they are now (for the clipboard).
+    #[must_use]
+    pub fn copy(&self, ids: &[NodeId]) -> Vec<NodeDef> {
+        ids.iter()
+            .filter_map(|id| self.graph.nodes.get(id).cloned())
+            .collect()
+    }
+
+    /// Inserts copies of `nodes` (new ids, offset by `offset`) as one undo step. Edges among
+    /// the copied nodes follow the copies; an edge from a node outside the set is kept when
+    /// `keep_external` (the nodes came from this same graph) and that node still exists, and
+    /// dropped otherwise. Returns the new ids in order.
+    pub fn paste(
+        &mut self,
+        nodes: &[NodeDef],
+        offset: [f32; 2],
+        keep_external: bool,
+    ) -> Vec<NodeId> {
         self.edit(|g| {
             let mut map = BTreeMap::new();
-            for id in ids {
-                let Some(n) = g.nodes.get(id).cloned() else {
-                    continue;
-                };
+            for n in nodes {
                 let new = g.add_node(&n.op, [n.pos[0] + offset[0], n.pos[1] + offset[1]]);
                 let d = g.nodes.get_mut(&new).expect("just added");
-                d.params = n.params;
-                d.inputs = n.inputs;
-                map.insert(*id, new);
+                d.params.clone_from(&n.params);
+                d.inputs.clone_from(&n.inputs);
+                map.insert(n.id, new);
             }
             for new in map.values() {
+                let existing: BTreeSet<NodeId> = g.nodes.keys().copied().collect();
                 if let Some(d) = g.nodes.get_mut(new) {
-                    for s in d.inputs.values_mut() {
-                        if let Source::Node(src, _) = s {
+                    d.inputs.retain(|_, s| match s {
+                        Source::Node(src, _) => {
                             if let Some(m) = map.get(src) {
                                 *src = *m;
+                                true
+                            } else {
+                                keep_external && existing.contains(src)
                             }
                         }
-                    }
+                        _ => true,
+                    });
                 }
             }
             map.into_values().collect()

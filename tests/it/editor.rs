@@ -34,12 +34,12 @@ fn harness(doc: Document) -> Harness<'static, EditorApp> {
         )
 }
 
-/// Steps frames until the worker has evaluated the current graph.
+/// Steps frames until the worker has evaluated the current graph and the preview is rendered.
 fn settle(h: &mut Harness<'static, EditorApp>) {
     let deadline = Instant::now() + Duration::from_secs(120);
     loop {
         h.step();
-        if !h.state().evaluating() {
+        if !h.state().busy() {
             break;
         }
         assert!(Instant::now() < deadline, "evaluation did not finish");
@@ -164,23 +164,36 @@ fn add_from_menu_connect_edit_undo_save_load() {
     h.step();
     assert_eq!(h.state().doc.graph.nodes[&2].params["amount"], amount);
 
-    // Save as … through the dialog, then load: the same graph.
+    // Save as … through the file dialog (opened in a temporary folder), then load: the same
+    // graph.
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("edited.ron");
+    h.state_mut().dialog_dir = Some(dir.path().to_path_buf());
     h.get_by_label("File").click();
     h.run_steps(2);
     h.get_by_label("Save As…").click();
-    h.run_steps(2);
-    const PATH: &str = "Path (relative to the working directory)";
-    h.get_by_role_and_label(Role::TextInput, PATH).focus();
+    h.run_steps(3);
+    assert!(h.state().file_dialog_open());
+    // The file-name field has the focus with the name's stem selected: typing replaces it.
+    h.key_press_modifiers(Modifiers::COMMAND, Key::A);
+    h.step();
+    let field = h
+        .get_all_by_role(Role::TextInput)
+        .find(|n| n.value().as_deref() == Some("graph.ron"))
+        .expect("the file-name field shows the default name");
+    field.focus();
     h.step();
     h.key_press_modifiers(Modifiers::COMMAND, Key::A);
-    h.get_by_role_and_label(Role::TextInput, PATH)
-        .type_text(&path.display().to_string());
     h.step();
-    h.get_by_label("Save").click();
+    h.get_all_by_role(Role::TextInput)
+        .find(|n| n.value().as_deref() == Some("graph.ron"))
+        .unwrap()
+        .type_text("edited.ron");
     h.run_steps(2);
+    h.get_by_label("📥  Save").click();
+    h.run_steps(3);
     assert!(path.is_file(), "saved: {:?}", h.state().status);
+    assert!(!h.state().file_dialog_open());
     assert!(!h.state().doc.is_dirty());
     let back = Document::open(&path).unwrap();
     assert_eq!(back.graph, h.state().doc.graph);
