@@ -713,6 +713,25 @@ impl EditorApp {
             return;
         };
         let v = v.value.clone();
+        // Never over one of the graph's own files (inputs, sub-graphs) or the graph itself.
+        let base = self.doc.base_dir();
+        let mut files: Vec<PathBuf> = self
+            .doc
+            .graph
+            .nodes
+            .values()
+            .flat_map(|n| n.params.values())
+            .filter_map(|p| match p {
+                crate::ops::params::ParamValue::Path(p) if !p.is_empty() => Some(base.join(p)),
+                _ => None,
+            })
+            .collect();
+        files.extend(self.doc.path.clone());
+        let inputs: Vec<&Path> = files.iter().map(PathBuf::as_path).collect();
+        if let Err(e) = crate::raster::io::check_output(path, &inputs) {
+            self.fail(e.to_string());
+            return;
+        }
         match crate::ops::save::write_value(&v, path, &crate::raster::io::SaveOptions::default()) {
             Ok(()) => self.say(format!("exported {}", path.display())),
             Err(e) => self.fail(e.to_string()),

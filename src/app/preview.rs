@@ -312,6 +312,18 @@ impl Preview {
         self.shown = None;
     }
 
+    /// True when the split view's "before" picture is on screen.
+    #[must_use]
+    pub fn showing_before(&self) -> bool {
+        self.split.is_some() && self.before_texture.is_some()
+    }
+
+    /// The display settings of the picture on screen (`None` for pictures and masks).
+    #[must_use]
+    pub fn shown_settings(&self) -> Option<&PreviewSettings> {
+        self.shown.as_ref()?.settings.as_ref()
+    }
+
     /// True while a render for the newest request is under way.
     #[must_use]
     pub fn pending(&self) -> bool {

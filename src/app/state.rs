@@ -450,6 +450,40 @@ mod tests {
     }
 
     #[test]
+    fn copy_paste_within_and_across_documents() {
+        let mut d = demo();
+        let clip = d.copy(&[2, 3]);
+        let before = d.graph.clone();
+        let new = d.paste(&clip, [10.0, 20.0], true);
+        assert_eq!(new.len(), 2);
+        let (a, b) = (new[0], new[1]);
+        // 2 took its input from 1 (outside the copied set): kept within the same document.
+        assert_eq!(
+            d.graph.nodes[&a].inputs["image"],
+            Source::Node(1, "image".into())
+        );
+        // 3 took its input from 2: follows the copy.
+        assert_eq!(
+            d.graph.nodes[&b].inputs["image"],
+            Source::Node(a, "image".into())
+        );
+        assert_eq!(d.graph.nodes[&a].pos[0], before.nodes[&2].pos[0] + 10.0);
+        assert_eq!(d.graph.nodes[&b].params, before.nodes[&3].params);
+        // One undo step removes the whole paste.
+        assert!(d.undo());
+        assert_eq!(d.graph, before);
+        // Into another document: edges from outside the copied set are dropped.
+        let mut other = Document::new();
+        let new = other.paste(&clip, [0.0, 0.0], false);
+        assert_eq!(other.graph.nodes.len(), 2);
+        assert!(!other.graph.nodes[&new[0]].inputs.contains_key("image"));
+        assert_eq!(
+            other.graph.nodes[&new[1]].inputs["image"],
+            Source::Node(new[0], "image".into())
+        );
+    }
+
+    #[test]
     fn delete_duplicate_and_params() {
         let mut d = demo();
         let copies = d.duplicate(&[2, 3], [30.0, 30.0]);

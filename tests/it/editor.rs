@@ -198,3 +198,78 @@ fn add_from_menu_connect_edit_undo_save_load() {
     let back = Document::open(&path).unwrap();
     assert_eq!(back.graph, h.state().doc.graph);
 }
+
+#[test]
+fn recover_autosave_export_any_node_split_and_height_views() {
+    let dir = tempfile::tempdir().unwrap();
+    let file = dir.path().join("g.ron");
+    let mut doc = small_demo();
+    doc.save_as(&file).unwrap();
+    // Work autosaved after the file was written, never saved: amount of node 2 changed.
+    let mut edited = doc.graph.clone();
+    edited
+        .nodes
+        .get_mut(&2)
+        .unwrap()
+        .params
+        .insert("amount".into(), ParamValue::Float(3.0));
+    std::thread::sleep(Duration::from_millis(20));
+    edited
+        .save(&rgbn::app::recent::recovery_path(Some(&file)))
+        .unwrap();
+
+    let mut app = EditorApp::new(Document::open(&file).unwrap());
+    app.offer_recovery();
+    let mut h = Harness::builder()
+        .with_size([1500.0, 900.0])
+        .build_ui_state(|ui, app: &mut EditorApp| app.frame_ui(ui), app);
+    h.run_steps(2);
+    h.get_by_label("Recover unsaved work?");
+    h.get_by_label("Recover").click();
+    h.run_steps(2);
+    assert_eq!(h.state().doc.graph, edited, "the autosaved graph is back");
+    assert!(h.state().doc.is_dirty(), "recovered work is unsaved");
+    h.state_mut().doc.undo();
+    assert_eq!(h.state().doc.graph, doc.graph, "undo goes back to the file");
+    h.state_mut().doc.redo();
+    settle(&mut h);
+
+    // Export node 1 (not the viewed one) from its menu: the file dialog opens in the graph's
+    // folder with a name from the node and port.
+    assert_ne!(h.state().viewed.as_ref().map(|v| v.0), Some(1));
+    h.state_mut().apply(Action::Export(1));
+    h.run_steps(3);
+    assert!(h.state().file_dialog_open());
+    h.get_by_label("📥  Save").click();
+    h.run_steps(3);
+    let out = dir.path().join("node1-image.exr");
+    assert!(out.is_file(), "exported: {:?}", h.state().status);
+    let back = rgbn::raster::io::load_exr(&out, &Default::default()).unwrap();
+    let rgbn::ops::Value::Rgbn(orig) = &h.state().outcome.values[&(1, "image".into())].value else {
+        panic!("node 1 gives an RGBN image")
+    };
+    assert_eq!((back.width(), back.height()), (orig.width(), orig.height()));
+    for (a, b) in back.normal().iter().zip(orig.normal()) {
+        assert_eq!(a, b, "EXR f32 round trip is exact");
+    }
+
+    // Split view on node 2 (its input is node 1's image).
+    h.state_mut().view_node(2);
+    h.run_steps(2);
+    assert!(!h.state().preview.showing_before());
+    h.get_by_label("before/after").click();
+    h.run_steps(1);
+    settle(&mut h);
+    assert!(h.state().preview.showing_before());
+
+    // Height view: the shown picture is the integrated height.
+    let renders = h.state().preview.renders;
+    h.get_by_role_and_label(Role::Button, "height").click();
+    h.run_steps(1);
+    settle(&mut h);
+    assert!(h.state().preview.renders > renders);
+    assert_eq!(
+        h.state().preview.shown_settings().map(|s| s.view),
+        Some(rgbn::app::preview::Mode::Height)
+    );
+}
