@@ -1176,7 +1176,7 @@ impl EditorApp {
                 req.before = before.as_ref().map(|b| b.1);
                 self.preview
                     .update(&ctx, v, before.as_ref().map(|b| &b.0), req);
-                if self.first_preview.is_none() {
+                if self.first_preview.is_none() && self.preview.renders > 0 {
                     let t = self.started.elapsed();
                     self.first_preview = Some(t);
                     if self.timing {

@@ -229,10 +229,23 @@ fn render_color_image(
         }
         _ => render_value(v, s)?,
     };
-    Some(egui::ColorImage::from_rgba_unmultiplied(
-        [p.width, p.height],
-        &p.rgba,
-    ))
+    Some(display_image(&p))
+}
+
+/// The picture as an egui image. Pictures whose pixels are all opaque or transparent black
+/// (relit, albedo, normals, curl, height) are already premultiplied: their bytes are taken as
+/// they are instead of being converted pixel by pixel.
+#[must_use]
+pub fn display_image(p: &Picture) -> egui::ColorImage {
+    let premultiplied = p
+        .rgba
+        .chunks_exact(4)
+        .all(|c| c[3] == 255 || c == [0, 0, 0, 0]);
+    if premultiplied {
+        egui::ColorImage::from_rgba_premultiplied([p.width, p.height], &p.rgba)
+    } else {
+        egui::ColorImage::from_rgba_unmultiplied([p.width, p.height], &p.rgba)
+    }
 }
 
 /// The preview's runtime state.

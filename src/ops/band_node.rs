@@ -40,7 +40,7 @@ impl Params for BandNodeParams {
             "op",
             &mut self.op,
             &["keep", "remove"],
-            &Meta::new("keep: B ∗ g (the band only); remove: g − B ∗ g (everything but the band)."),
+            &Meta::new("keep: B * g (the band only); remove: g − B * g (everything but the band)."),
         );
         visit_border(v, &mut self.border);
     }

@@ -139,7 +139,7 @@ macro_rules! kernel_node {
 kernel_node!(
     /// Gaussian blur.
     GaussianK, "filter.gaussian", "Gaussian blur",
-    "Smooths the relief: G_σ ∗ g on the gradients (recursive Deriche filter for σ ≥ 3).",
+    "Smooths the relief: G_σ * g on the gradients (recursive Deriche filter for σ ≥ 3).",
     { sigma_px = 2.0, sigma("Standard deviation of the Gaussian."); },
     |s| Kernel::Gaussian { sigma_px: s.sigma_px as f32 }
 );
@@ -147,7 +147,7 @@ kernel_node!(
 kernel_node!(
     /// Unsharp masking.
     SharpenK, "filter.sharpen", "Sharpen",
-    "Sharpens the relief: g + amount·(g − G_σ ∗ g) (all-pass plus a multiple of the high-pass).",
+    "Sharpens the relief: g + amount·(g − G_σ * g) (all-pass plus a multiple of the high-pass).",
     {
         sigma_px = 2.0, sigma("σ of the Gaussian whose residual is added.");
         amount = 1.0, amount("How much of the high-pass is added.");
@@ -158,7 +158,7 @@ kernel_node!(
 kernel_node!(
     /// Band-pass enhancement.
     EdgeK, "filter.edge", "Edge enhance",
-    "Enhances a band of detail: g + amount·(G_fine − G_coarse) ∗ g.",
+    "Enhances a band of detail: g + amount·(G_fine − G_coarse) * g.",
     {
         sigma_fine_px = 1.0, sigma("σ of the finer Gaussian.");
         sigma_coarse_px = 4.0, sigma("σ of the coarser Gaussian.");
@@ -174,7 +174,7 @@ kernel_node!(
 kernel_node!(
     /// High-pass.
     HighPassK, "filter.highpass", "High-pass",
-    "Keeps the fine detail only: g − G_σ ∗ g.",
+    "Keeps the fine detail only: g − G_σ * g.",
     { sigma_px = 4.0, sigma("σ of the Gaussian removed."); },
     |s| Kernel::HighPass { sigma_px: s.sigma_px as f32 }
 );
@@ -182,7 +182,7 @@ kernel_node!(
 kernel_node!(
     /// Difference of Gaussians.
     DogK, "filter.dog", "Difference of Gaussians",
-    "Keeps one band of detail: (G_fine − G_coarse) ∗ g.",
+    "Keeps one band of detail: (G_fine − G_coarse) * g.",
     {
         sigma_fine_px = 1.0, sigma("σ of the finer Gaussian.");
         sigma_coarse_px = 4.0, sigma("σ of the coarser Gaussian.");
@@ -196,7 +196,7 @@ kernel_node!(
 kernel_node!(
     /// Laplacian of Gaussian.
     LogK, "filter.log", "Laplacian of Gaussian",
-    "Scale-normalised Laplacian of Gaussian, −σ²∇²(G_σ ∗ g) (centre-positive blob detector).",
+    "Scale-normalised Laplacian of Gaussian, −σ²∇²(G_σ * g) (centre-positive blob detector).",
     { sigma_px = 2.0, sigma("σ of the Gaussian."); },
     |s| Kernel::LoG { sigma_px: s.sigma_px as f32 }
 );

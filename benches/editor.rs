@@ -1,0 +1,38 @@
+//! The editor's preview work per light move, without a window: relight a 2K RGBN (2048² demo
+//! medallion, 4.2 MP — twice a 2048×1080 frame) and turn it into the egui image that is
+//! uploaded as the texture. This is what the preview thread does for every light position
+//! while the light is dragged; the graph is not re-run. Also the height view (DCT Poisson of
+//! the normals, once per evaluated value).
+//!
+//! `RAYON_NUM_THREADS=2 cargo bench --bench editor`
+
+use criterion::{criterion_group, criterion_main, Criterion};
+use rgbn::app::preview::{display_image, render_value, Mode, PreviewSettings};
+use rgbn::ops::Value;
+use std::hint::black_box;
+
+fn bench(c: &mut Criterion) {
+    let img = Value::Rgbn(rgbn::raster::sample::demo_medallion(2048));
+    let mut g = c.benchmark_group("preview_2048");
+    g.sample_size(20);
+    let mut s = PreviewSettings::default();
+    let mut k = 0u32;
+    g.bench_function("relight_to_texture", |b| {
+        b.iter(|| {
+            // A new light direction every time, as while dragging.
+            k = k.wrapping_add(1);
+            let a = f32::from((k % 64) as u16) / 64.0 * std::f32::consts::TAU;
+            s.light = [0.5 * a.cos(), 0.5 * a.sin(), 0.75f32.sqrt()];
+            let p = render_value(&img, &s).expect("relit");
+            black_box(display_image(&p))
+        })
+    });
+    s.view = Mode::Albedo;
+    g.bench_function("albedo_to_texture", |b| {
+        b.iter(|| black_box(display_image(&render_value(&img, &s).expect("albedo"))))
+    });
+    g.finish();
+}
+
+criterion_group!(benches, bench);
+criterion_main!(benches);
