@@ -50,6 +50,8 @@ pub enum Action {
     Duplicate(Vec<NodeId>),
     /// Show this node's output in the preview.
     View(NodeId),
+    /// Show this output port of this node in the preview.
+    ViewPort(NodeId, String),
     /// Write this node's (first) output to a file chosen in the file dialog.
     Export(NodeId),
     /// Choose this path parameter of this node in the file dialog.
@@ -80,6 +82,8 @@ pub struct ViewData<'a> {
     pub errors: &'a BTreeMap<NodeId, String>,
     /// The node shown in the preview.
     pub viewed: Option<NodeId>,
+    /// Its output port shown in the preview.
+    pub viewed_port: Option<&'a str>,
 }
 
 /// The mirror of the graph in egui-snarl.
@@ -369,11 +373,27 @@ impl SnarlViewer<NodeId> for Viewer<'_, '_> {
         snarl: &mut Snarl<NodeId>,
     ) -> impl SnarlPin + 'static {
         let id = snarl[pin.id.node];
-        let Some(p) = self.ports(id).and_then(|p| p.outputs.get(pin.id.output)) else {
+        let data = self.data;
+        let Some(p) = data
+            .ports
+            .get(&id)
+            .and_then(|p| p.outputs.get(pin.id.output))
+        else {
             return PinInfo::circle();
         };
-        ui.label(&p.name)
-            .on_hover_text(format!("{} — {}", p.ty.name(), p.doc));
+        let viewed = self.data.viewed == Some(id) && self.data.viewed_port == Some(p.name.as_str());
+        let text = if viewed {
+            RichText::new(&p.name).underline()
+        } else {
+            RichText::new(&p.name)
+        };
+        if ui
+            .add(egui::Label::new(text).sense(egui::Sense::click()))
+            .on_hover_text(format!("{} — {} (click to preview)", p.ty.name(), p.doc))
+            .clicked()
+        {
+            self.actions.push(Action::ViewPort(id, p.name.clone()));
+        }
         PinInfo::square().with_fill(type_color(p.ty))
     }
 

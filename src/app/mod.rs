@@ -545,6 +545,10 @@ impl EditorApp {
                 self.say(format!("duplicated {} node(s)", new.len()));
             }
             Action::View(id) => self.view_node(id),
+            Action::ViewPort(id, port) => {
+                self.selected = Some(id);
+                self.viewed = Some((id, port));
+            }
             Action::Export(id) => {
                 let port = self
                     .ports
@@ -860,6 +864,7 @@ impl EditorApp {
                     thumbs: &tex,
                     errors: &self.outcome.node_errors,
                     viewed: self.viewed.as_ref().map(|v| v.0),
+                    viewed_port: self.viewed.as_ref().map(|v| v.1.as_str()),
                 };
                 actions.extend(self.view.show_ui(ui, &data));
             });
