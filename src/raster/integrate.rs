@@ -646,22 +646,34 @@ impl PairedDct {
     /// Makhoul-reorders `a` (real parts) and `b` (imaginary parts, 0 if absent) into `buf`.
     fn load(&self, a: &[f32], b: Option<&[f32]>, buf: &mut [C32]) {
         let n = self.len;
-        let (lo, hi) = buf.split_at_mut(n.div_ceil(2));
+        // lo[m] = x[2m], hi reversed: buf[N−1−m] = x[2m+1].
+        let (lo, hi) = buf.split_at_mut(n - n / 2);
         match b {
             Some(b) => {
-                for (m, v) in lo.iter_mut().enumerate() {
-                    *v = Complex::new(a[2 * m], b[2 * m]);
+                for (((l, u), pa), pb) in lo
+                    .iter_mut()
+                    .zip(hi.iter_mut().rev())
+                    .zip(a.chunks_exact(2))
+                    .zip(b.chunks_exact(2))
+                {
+                    *l = Complex::new(pa[0], pb[0]);
+                    *u = Complex::new(pa[1], pb[1]);
                 }
-                for (m, v) in hi.iter_mut().rev().enumerate() {
-                    *v = Complex::new(a[2 * m + 1], b[2 * m + 1]);
+                if n % 2 == 1 {
+                    lo[n / 2] = Complex::new(a[n - 1], b[n - 1]);
                 }
             }
             None => {
-                for (m, v) in lo.iter_mut().enumerate() {
-                    *v = Complex::new(a[2 * m], 0.0);
+                for ((l, u), pa) in lo
+                    .iter_mut()
+                    .zip(hi.iter_mut().rev())
+                    .zip(a.chunks_exact(2))
+                {
+                    *l = Complex::new(pa[0], 0.0);
+                    *u = Complex::new(pa[1], 0.0);
                 }
-                for (m, v) in hi.iter_mut().rev().enumerate() {
-                    *v = Complex::new(a[2 * m + 1], 0.0);
+                if n % 2 == 1 {
+                    lo[n / 2] = Complex::new(a[n - 1], 0.0);
                 }
             }
         }
@@ -672,16 +684,15 @@ impl PairedDct {
     fn post2(&self, buf: &[C32], xa: &mut [f32], xb: Option<&mut [f32]>) {
         let n = self.len;
         xa[0] = buf[0].re;
-        let t = &self.half_twiddle;
-        for k in 1..n {
-            let (c, d) = (buf[k], buf[n - k]);
-            xa[k] = t[k].re * (c.re + d.re) - t[k].im * (c.im - d.im);
+        // (C_k, C_{N−k}) for k = 1..N.
+        let (t, c) = (&self.half_twiddle[1..n], &buf[1..n]);
+        for (((o, t), c), d) in xa[1..n].iter_mut().zip(t).zip(c).zip(c.iter().rev()) {
+            *o = t.re * (c.re + d.re) - t.im * (c.im - d.im);
         }
         if let Some(xb) = xb {
             xb[0] = buf[0].im;
-            for k in 1..n {
-                let (c, d) = (buf[k], buf[n - k]);
-                xb[k] = t[k].re * (c.im + d.im) + t[k].im * (c.re - d.re);
+            for (((o, t), c), d) in xb[1..n].iter_mut().zip(t).zip(c).zip(c.iter().rev()) {
+                *o = t.re * (c.im + d.im) + t.im * (c.re - d.re);
             }
         }
     }
@@ -691,21 +702,32 @@ impl PairedDct {
     fn pre3(&self, xa: &[f32], xb: Option<&[f32]>, buf: &mut [C32]) {
         let n = self.len;
         let t = &self.half_twiddle_inv;
-        // V = t·(X_k − i X_{N−k}); C = Va + i Vb.
-        let v = |x: &[f32], k: usize| -> C32 {
-            let y = if k == 0 { 0.0 } else { x[n - k] };
-            Complex::new(t[k].re * x[k] + t[k].im * y, t[k].im * x[k] - t[k].re * y)
-        };
+        // V_k = t_k·(X_k − i X_{N−k}) (X_N = 0); C = Va + i Vb.
+        let v = |t: C32, x: f32, y: f32| Complex::new(t.re * x + t.im * y, t.im * x - t.re * y);
+        let join = |va: C32, vb: C32| Complex::new(va.re - vb.im, va.im + vb.re);
+        let (ta, xa1) = (&t[1..n], &xa[1..n]);
         match xb {
             Some(xb) => {
-                for (k, o) in buf.iter_mut().enumerate() {
-                    let (va, vb) = (v(xa, k), v(xb, k));
-                    *o = Complex::new(va.re - vb.im, va.im + vb.re);
+                buf[0] = join(v(t[0], xa[0], 0.0), v(t[0], xb[0], 0.0));
+                let xb1 = &xb[1..n];
+                for ((((o, &t), (&a, &ar)), &b), &br) in buf[1..n]
+                    .iter_mut()
+                    .zip(ta)
+                    .zip(xa1.iter().zip(xa1.iter().rev()))
+                    .zip(xb1)
+                    .zip(xb1.iter().rev())
+                {
+                    *o = join(v(t, a, ar), v(t, b, br));
                 }
             }
             None => {
-                for (k, o) in buf.iter_mut().enumerate() {
-                    *o = v(xa, k);
+                buf[0] = v(t[0], xa[0], 0.0);
+                for ((o, &t), (&a, &ar)) in buf[1..n]
+                    .iter_mut()
+                    .zip(ta)
+                    .zip(xa1.iter().zip(xa1.iter().rev()))
+                {
+                    *o = v(t, a, ar);
                 }
             }
         }
@@ -714,19 +736,21 @@ impl PairedDct {
     /// Undoes the Makhoul order of an inverse FFT `buf` into `a` (real parts) and `b`.
     fn store(&self, buf: &[C32], a: &mut [f32], b: Option<&mut [f32]>) {
         let n = self.len;
-        let (lo, hi) = buf.split_at(n.div_ceil(2));
-        for (m, v) in lo.iter().enumerate() {
-            a[2 * m] = v.re;
+        let (lo, hi) = buf.split_at(n - n / 2);
+        for ((l, u), pa) in lo.iter().zip(hi.iter().rev()).zip(a.chunks_exact_mut(2)) {
+            pa[0] = l.re;
+            pa[1] = u.re;
         }
-        for (m, v) in hi.iter().rev().enumerate() {
-            a[2 * m + 1] = v.re;
+        if n % 2 == 1 {
+            a[n - 1] = lo[n / 2].re;
         }
         if let Some(b) = b {
-            for (m, v) in lo.iter().enumerate() {
-                b[2 * m] = v.im;
+            for ((l, u), pb) in lo.iter().zip(hi.iter().rev()).zip(b.chunks_exact_mut(2)) {
+                pb[0] = l.im;
+                pb[1] = u.im;
             }
-            for (m, v) in hi.iter().rev().enumerate() {
-                b[2 * m + 1] = v.im;
+            if n % 2 == 1 {
+                b[n - 1] = lo[n / 2].im;
             }
         }
     }
@@ -812,8 +836,13 @@ fn poisson_dct(g: &GradientField, domain: Option<&[f32]>) -> Plane {
             let (c0, cols) = (grp.c0, grp.cols);
             let buf = &mut buf[..cols.div_ceil(2) * h];
             for (r, &pos) in dh.pos.iter().enumerate() {
-                for (j, pair) in grp.row(r).chunks(2).enumerate() {
-                    buf[j * h + pos] = Complex::new(pair[0], pair.get(1).copied().unwrap_or(0.0));
+                let row = grp.row(r);
+                let mut pairs = row.chunks_exact(2);
+                for (col, pair) in buf.chunks_exact_mut(h).zip(&mut pairs) {
+                    col[pos] = Complex::new(pair[0], pair[1]);
+                }
+                if let [x] = pairs.remainder() {
+                    buf[cols / 2 * h + pos] = Complex::new(*x, 0.0);
                 }
             }
             dh.fwd.process_with_scratch(buf, scratch);
@@ -829,12 +858,14 @@ fn poisson_dct(g: &GradientField, domain: Option<&[f32]>) -> Plane {
             }
             dh.inv.process_with_scratch(buf, scratch);
             for (r, &pos) in dh.pos.iter().enumerate() {
-                for (j, pair) in grp.row(r).chunks_mut(2).enumerate() {
-                    let v = buf[j * h + pos];
-                    pair[0] = v.re;
-                    if let Some(o) = pair.get_mut(1) {
-                        *o = v.im;
-                    }
+                let row = grp.row(r);
+                let mut pairs = row.chunks_exact_mut(2);
+                for (col, pair) in buf.chunks_exact(h).zip(&mut pairs) {
+                    pair[0] = col[pos].re;
+                    pair[1] = col[pos].im;
+                }
+                if let [x] = pairs.into_remainder() {
+                    *x = buf[cols / 2 * h + pos].re;
                 }
             }
         },
