@@ -22,16 +22,25 @@
 //! - [`IntegrationMethod::PoissonDct`] (Simchony, Chellappa & Shao 1990): `L` is diagonalised by
 //!   the 2-D DCT-II, with eigenvalues `λ(k,l) = (2 − 2cos(πk/W)) + (2 − 2cos(πl/H))`. So
 //!   `z = DCT⁻¹[ DCT(b) / λ ]` with the `(0,0)` term (the free constant) set to 0: the result has
-//!   zero mean. Cost: four passes of 1-D DCTs over rows and two cache-tiled transposes, `f32`
-//!   throughout. Each real DCT is Makhoul's reordering + one complex FFT (rustfft, planned once
-//!   per call), **two rows per FFT** (real rows packed as real and imaginary parts), rayon over
-//!   row pairs with one scratch buffer per job; rustdct serves as the test oracle.
+//!   zero mean. Cost: three passes over one buffer — row pairs (divergence fused, DCT-II along
+//!   x); groups of 16 columns gathered in cache-line row segments (DCT-II along y, eigenvalue
+//!   division, DCT-III along y, scattered back); row pairs (DCT-III along x) — no transposes.
+//!   Each real DCT is Makhoul's reordering + one complex FFT, **two sequences per FFT** (packed
+//!   as real and imaginary parts: the work of a half-length real FFT each); rustfft plans and
+//!   twiddles are cached across calls; rustdct serves as the test oracle.
+//!   **Precision: `f32` throughout** (as the input gradients and output heights). It keeps
+//!   integration of exact discrete gradients to < 2e-3 px max error and the sum-of-Gaussians
+//!   RMSE at ≈ 0.045 px (tests below), and matches an `f64` rustdct reference to 1e-4 of the
+//!   amplitude; `f64` would double memory traffic for no visible gain at these tolerances.
 //! - [`IntegrationMethod::FrankotChellappa`] (Frankot & Chellappa 1988): the same least squares
 //!   but with **periodic** boundaries, solved with FFTs: with `a = e^{2πi k/W} − 1`,
 //!   `c = e^{−2πi l/H} − 1` (the transfer functions of the two forward differences),
 //!   `Ẑ = (ā P̂ + c̄ Q̂) / (|a|² + |c|²)`. Every gradient sample is used, including the last
 //!   column's `p` and the top row's `q` as wrap-around edges. Exact for periodic heights; for
 //!   others the wrap-around edges disagree and the error concentrates at the borders.
+//!   Real-input packing (rows of `p + i q` split into half spectra, column FFTs on `W/2 + 1`
+//!   bins with the solve fused, two Hermitian rows per inverse FFT): the FFT work of scipy's
+//!   `rfft2` ×2 + `irfft2`, `f32`.
 //! - [`IntegrationMethod::MaskedPoisson`]: only edges with both ends inside the mask
 //!   (coverage ≥ 0.5) are equations, so nothing outside the object (background normals,
 //!   depth discontinuities at the silhouette) leaks in. The masked Laplacian is solved by
