@@ -4,7 +4,9 @@
 //! Run: `cargo bench --bench kernels` (set `RAYON_NUM_THREADS=2` to match the peer runs).
 
 use criterion::{criterion_group, criterion_main, Criterion};
-use rgbn::ops::filter::{filter_gradients, filter_normals, FilterOptions, Kernel};
+use rgbn::ops::filter::{
+    filter_gradients, filter_normals, filter_normals_general, FilterOptions, Kernel,
+};
 use rgbn::raster::gradient::GradientField;
 use rgbn::raster::io::{self, ExrPrecision, NormalConvention};
 use rgbn::raster::sample::Surface;
@@ -66,6 +68,17 @@ fn kernels(c: &mut Criterion) {
             })
         });
     }
+    // The unfused path (masks, compound kernels): the "before" of the fused sweeps.
+    group.bench_function("normals_gauss8_normals_unfused", |b| {
+        b.iter(|| {
+            filter_normals_general(
+                black_box(&img),
+                &[Kernel::Gaussian { sigma_px: 8.0 }],
+                &opts,
+            )
+            .unwrap()
+        })
+    });
     let g0 = GradientField::from_normals(&img);
     group.bench_function("gauss8_on_gradient_field", |b| {
         b.iter_batched_ref(

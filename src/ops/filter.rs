@@ -29,8 +29,9 @@
 //! is blended with the original by coverage (`m·filtered + (1−m)·original`).
 
 use crate::error::RgbnError;
-use crate::raster::convolve::{self, BorderMode, Fir};
+use crate::raster::convolve::{self, BorderMode, Fir, LineFilter};
 use crate::raster::gradient::{CurlStats, GradientField};
+use crate::raster::smooth::smooth_normals;
 use crate::raster::RgbnImage;
 use rayon::prelude::*;
 
@@ -510,7 +511,62 @@ pub fn filter_gradients(
 }
 
 /// Filters the normals of `img` (colour and mask are shared, unchanged).
+///
+/// A single Gaussian or box kernel without mask-aware filtering runs fused (two sweeps over
+/// the image, see [`crate::raster::smooth`]); everything else runs
+/// [`filter_normals_general`]. Both give the same normals.
 pub fn filter_normals(
+    img: &RgbnImage,
+    kernels: &[Kernel],
+    opts: &FilterOptions,
+) -> Result<(RgbnImage, FilterReport), RgbnError> {
+    let masked = opts.mask_aware && img.mask().is_some();
+    match kernels {
+        [k @ Kernel::Gaussian { sigma_px }] if !masked => {
+            k.validate()?;
+            if *sigma_px < convolve::IIR_MIN_SIGMA {
+                filter_normals_fused(img, &Fir::gaussian(*sigma_px), opts.border)
+            } else {
+                filter_normals_fused(img, &convolve::Deriche::new(*sigma_px), opts.border)
+            }
+        }
+        [k @ Kernel::Box { radius_px }] if !masked => {
+            k.validate()?;
+            let radius = *radius_px as usize;
+            filter_normals_fused(img, &convolve::BoxFilter { radius }, opts.border)
+        }
+        _ => filter_normals_general(img, kernels, opts),
+    }
+}
+
+fn filter_normals_fused<F: LineFilter>(
+    img: &RgbnImage,
+    f: &F,
+    border: BorderMode,
+) -> Result<(RgbnImage, FilterReport), RgbnError> {
+    let [nx, ny, nz] = img.normal();
+    let s = smooth_normals(
+        [nx, ny, nz],
+        img.mask(),
+        img.width(),
+        img.height(),
+        f,
+        border,
+    );
+    Ok((
+        img.with_normals(s.normal)?,
+        FilterReport {
+            clamped: s.clamped,
+            curl_before: s.curl_before.stats(),
+            curl_after: s.curl_after.stats(),
+        },
+    ))
+}
+
+/// [`filter_normals`] for any kernel list, unfused: normals → gradient planes → curl
+/// statistics → kernels plane by plane → statistics → normals. Also the reference the fused
+/// path is tested and benchmarked against.
+pub fn filter_normals_general(
     img: &RgbnImage,
     kernels: &[Kernel],
     opts: &FilterOptions,

@@ -85,8 +85,9 @@ impl std::str::FromStr for BorderMode {
 pub const IIR_MIN_SIGMA: f32 = 3.0;
 
 /// Lanes processed together. 16 f32 = one 64-byte cache line per row for the vertical pass.
-const LANES: usize = 16;
-type Lane = [f32; LANES];
+pub(crate) const LANES: usize = 16;
+/// `LANES` samples, one from each of `LANES` independent lines.
+pub type Lane = [f32; LANES];
 
 /// A 1-D filter applied along lane-interleaved lines.
 pub trait LineFilter: Sync {
@@ -96,7 +97,7 @@ pub trait LineFilter: Sync {
 }
 
 #[inline(always)]
-fn lane_splat(v: f32) -> Lane {
+pub(crate) fn lane_splat(v: f32) -> Lane {
     [v; LANES]
 }
 
@@ -395,17 +396,51 @@ impl Deriche {
 
 /// A raw pointer that may be shared between rayon tasks writing disjoint elements.
 #[derive(Clone, Copy)]
-struct SharedMut(*mut f32);
+pub(crate) struct SharedMut(pub(crate) *mut f32);
 
 impl SharedMut {
     /// The pointer. A method (not field access) so closures capture the whole `Sync` wrapper.
-    fn get(self) -> *mut f32 {
+    pub(crate) fn get(self) -> *mut f32 {
         self.0
     }
 }
-// SAFETY: used only to write disjoint column groups from parallel tasks (see `filter_columns`).
+// SAFETY: used only to write disjoint column groups from parallel tasks (see `filter_columns`
+// and `smooth::smooth_normals`).
 unsafe impl Send for SharedMut {}
 unsafe impl Sync for SharedMut {}
+
+/// Reads `cols ≤ LANES` floats from `src` into a lane (the rest zero). A whole lane is one
+/// 64-byte load instead of a `memmove` call of variable length.
+///
+/// # Safety
+/// `src..src+cols` must be readable.
+#[inline(always)]
+pub(crate) unsafe fn load_lane(src: *const f32, cols: usize) -> Lane {
+    if cols == LANES {
+        // SAFETY: the caller guarantees LANES readable floats.
+        unsafe { src.cast::<Lane>().read_unaligned() }
+    } else {
+        let mut lane = lane_splat(0.0);
+        // SAFETY: the caller guarantees `cols` readable floats; `lane` holds LANES ≥ cols.
+        unsafe { std::ptr::copy_nonoverlapping(src, lane.as_mut_ptr(), cols) };
+        lane
+    }
+}
+
+/// Writes the first `cols ≤ LANES` floats of `lane` to `dst`.
+///
+/// # Safety
+/// `dst..dst+cols` must be writable and not aliased by any live reference.
+#[inline(always)]
+pub(crate) unsafe fn store_lane(dst: *mut f32, lane: &Lane, cols: usize) {
+    if cols == LANES {
+        // SAFETY: the caller guarantees LANES writable floats.
+        unsafe { dst.cast::<Lane>().write_unaligned(*lane) }
+    } else {
+        // SAFETY: the caller guarantees `cols` writable floats.
+        unsafe { std::ptr::copy_nonoverlapping(lane.as_ptr(), dst, cols) };
+    }
+}
 
 /// Filters every row of `data` (`width × height`, row-major) along x, in place.
 pub fn filter_rows<F: LineFilter>(
@@ -466,16 +501,12 @@ pub fn filter_columns<F: LineFilter>(
             for (r, lane) in buf.iter_mut().enumerate() {
                 // SAFETY: reads columns c0..c0+cols of row r, inside the buffer; no other task
                 // writes these columns (groups are disjoint).
-                let src =
-                    unsafe { std::slice::from_raw_parts(ptr.get().add(r * width + c0), cols) };
-                lane[..cols].copy_from_slice(src);
+                *lane = unsafe { load_lane(ptr.get().add(r * width + c0), cols) };
             }
             f.run(buf, scratch, border);
             for (r, lane) in buf.iter().enumerate() {
                 // SAFETY: as above; this task alone owns columns c0..c0+cols.
-                let dst =
-                    unsafe { std::slice::from_raw_parts_mut(ptr.get().add(r * width + c0), cols) };
-                dst.copy_from_slice(&lane[..cols]);
+                unsafe { store_lane(ptr.get().add(r * width + c0), lane, cols) };
             }
         },
     );

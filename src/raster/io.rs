@@ -190,8 +190,11 @@ pub fn load(spec: &InputSpec, opts: &LoadOptions) -> Result<Loaded, RgbnError> {
             path: normal_path,
         });
     }
-    let repaired = image.repair();
-    Ok(Loaded { image, repaired })
+    image.repair_validated(&before);
+    Ok(Loaded {
+        image,
+        repaired: before,
+    })
 }
 
 fn open_check(path: &Path) -> Result<(), RgbnError> {
@@ -257,6 +260,9 @@ fn decode_raster(path: &Path) -> Result<Raster, RgbnError> {
                 source: e,
             })
     };
+    if fmt == image::ImageFormat::Png {
+        return decode_png(path);
+    }
     let (w, h) = open()?.into_dimensions().map_err(decode_err)?;
     let (w, h) = (w as usize, h as usize);
     check_size(w, h, &path.display().to_string())?;
@@ -282,6 +288,68 @@ fn decode_raster(path: &Path) -> Result<Raster, RgbnError> {
         3
     } else {
         channels
+    };
+    Ok(Raster {
+        width: w,
+        height: h,
+        channels,
+        samples,
+    })
+}
+
+/// Decodes a PNG with the `png` crate: the size is checked before the pixel buffer is
+/// allocated, palette and sub-byte images are expanded to 8 bits, and 16-bit big-endian
+/// samples are converted to `u16` in parallel.
+fn decode_png(path: &Path) -> Result<Raster, RgbnError> {
+    let err = |e: png::DecodingError| match e {
+        png::DecodingError::IoError(io) if io.kind() != std::io::ErrorKind::UnexpectedEof => {
+            RgbnError::Read {
+                path: path.into(),
+                source: io,
+            }
+        }
+        other => RgbnError::Decode {
+            detail: other.to_string(),
+            path: path.into(),
+        },
+    };
+    let file = std::fs::File::open(path).map_err(|e| RgbnError::Read {
+        path: path.into(),
+        source: e,
+    })?;
+    // Our own size limit is checked below, before the image buffer exists.
+    let limits = png::Limits { bytes: usize::MAX };
+    let mut dec = png::Decoder::new_with_limits(std::io::BufReader::new(file), limits);
+    dec.set_transformations(png::Transformations::EXPAND);
+    let mut reader = dec.read_info().map_err(err)?;
+    let (w, h) = {
+        let i = reader.info();
+        (i.width as usize, i.height as usize)
+    };
+    check_size(w, h, &path.display().to_string())?;
+    let size = reader
+        .output_buffer_size()
+        .ok_or_else(|| RgbnError::Decode {
+            detail: "image too large for this machine".into(),
+            path: path.into(),
+        })?;
+    let mut buf = vec![0u8; size];
+    let frame = reader.next_frame(&mut buf).map_err(err)?;
+    buf.truncate(frame.buffer_size());
+    let channels = frame.color_type.samples();
+    let samples = match frame.bit_depth {
+        png::BitDepth::Sixteen => {
+            let mut v = vec![0u16; buf.len() / 2];
+            v.par_chunks_mut(1 << 16)
+                .zip(buf.par_chunks(2 << 16))
+                .for_each(|(d, s)| {
+                    for (d, s) in d.iter_mut().zip(s.chunks_exact(2)) {
+                        *d = u16::from_be_bytes([s[0], s[1]]);
+                    }
+                });
+            Samples::U16(v)
+        }
+        _ => Samples::U8(buf),
     };
     Ok(Raster {
         width: w,
@@ -974,6 +1042,47 @@ fn color_type(channels: usize, sixteen: bool) -> image::ExtendedColorType {
     }
 }
 
+/// PNG row filter for 16-bit files (normal maps, the large time-critical case): `Up` pairs with
+/// the `png` crate's fast (fdeflate) compressor; adaptive filtering (trying all five filters
+/// per row) cost more time than it saved. 8-bit files (colour, masks, small) keep adaptive
+/// filtering, i.e. the bytes the image crate wrote before.
+const PNG16_FILTER: png::Filter = png::Filter::Up;
+
+/// Writes a PNG with the `png` crate (fast compression). `bytes` are the samples, 16-bit ones
+/// big-endian as PNG stores them.
+fn encode_png(
+    bytes: &[u8],
+    w: usize,
+    h: usize,
+    channels: usize,
+    sixteen: bool,
+    path: &Path,
+) -> Result<(), RgbnError> {
+    write_atomic(path, |out| {
+        let mut enc = png::Encoder::new(out, w as u32, h as u32);
+        enc.set_color(match channels {
+            1 => png::ColorType::Grayscale,
+            2 => png::ColorType::GrayscaleAlpha,
+            4 => png::ColorType::Rgba,
+            _ => png::ColorType::Rgb,
+        });
+        enc.set_depth(if sixteen {
+            png::BitDepth::Sixteen
+        } else {
+            png::BitDepth::Eight
+        });
+        enc.set_compression(png::Compression::Fast);
+        enc.set_filter(if sixteen {
+            PNG16_FILTER
+        } else {
+            png::Filter::Adaptive
+        });
+        let mut wr = enc.write_header().map_err(|e| e.to_string())?;
+        wr.write_image_data(bytes).map_err(|e| e.to_string())?;
+        wr.finish().map_err(|e| e.to_string())
+    })
+}
+
 fn encode_raster(
     bytes: &[u8],
     w: usize,
@@ -985,17 +1094,11 @@ fn encode_raster(
     use image::ImageEncoder;
     write_atomic(path, |out| {
         let r = match fmt {
-            Format::Png => image::codecs::png::PngEncoder::new_with_quality(
-                out,
-                image::codecs::png::CompressionType::Fast,
-                image::codecs::png::FilterType::Adaptive,
-            )
-            .write_image(bytes, w as u32, h as u32, ct),
             Format::Tiff => image::codecs::tiff::TiffEncoder::new(out)
                 .write_image(bytes, w as u32, h as u32, ct),
             Format::Jpeg => image::codecs::jpeg::JpegEncoder::new_with_quality(out, 95)
                 .write_image(bytes, w as u32, h as u32, ct),
-            Format::Exr => unreachable!("EXR goes through the exr crate"),
+            Format::Png | Format::Exr => unreachable!("PNG: encode_png; EXR: the exr crate"),
         };
         r.map_err(|e| e.to_string())
     })
@@ -1010,6 +1113,9 @@ pub fn write_raster8(
     fmt: Format,
     path: &Path,
 ) -> Result<(), RgbnError> {
+    if fmt == Format::Png {
+        return encode_png(data, w, h, channels, false, path);
+    }
     encode_raster(data, w, h, color_type(channels, false), fmt, path)
 }
 
@@ -1028,9 +1134,23 @@ pub fn write_raster16(
             path: path.into(),
         });
     }
-    let mut bytes = Vec::with_capacity(data.len() * 2);
-    for v in data {
-        bytes.extend_from_slice(&v.to_ne_bytes());
+    // PNG stores big-endian samples; the image crate's TIFF encoder takes native order.
+    let png = fmt == Format::Png;
+    let mut bytes = vec![0u8; data.len() * 2];
+    bytes
+        .par_chunks_mut(2 << 16)
+        .zip(data.par_chunks(1 << 16))
+        .for_each(|(d, s)| {
+            for (d, v) in d.chunks_exact_mut(2).zip(s) {
+                d.copy_from_slice(&if png {
+                    v.to_be_bytes()
+                } else {
+                    v.to_ne_bytes()
+                });
+            }
+        });
+    if png {
+        return encode_png(&bytes, w, h, channels, true, path);
     }
     encode_raster(&bytes, w, h, color_type(channels, true), fmt, path)
 }

@@ -12,6 +12,7 @@ pub mod integrate;
 pub mod io;
 pub mod mesh;
 pub mod sample;
+pub mod smooth;
 
 use crate::error::RgbnError;
 use std::sync::Arc;
@@ -310,29 +311,43 @@ impl RgbnImage {
         use rayon::prelude::*;
         let n = self.len();
         let chunk = 1 << 16;
+        let [cr, cg, cb] = &*self.color;
+        let [nx, ny, nz] = &*self.normal;
+        let mask = self.mask.as_deref();
         (0..n.div_ceil(chunk))
             .into_par_iter()
             .map(|c| {
-                let mut v = Validation::default();
-                for i in c * chunk..((c + 1) * chunk).min(n) {
-                    v.pixels += 1;
-                    let col_bad = self.color.iter().any(|p| !p[i].is_finite())
-                        || self.mask.as_ref().is_some_and(|m| !m[i].is_finite());
-                    v.non_finite_color += usize::from(col_bad);
-                    let [x, y, z] = [self.normal[0][i], self.normal[1][i], self.normal[2][i]];
-                    if !(x.is_finite() && y.is_finite() && z.is_finite()) {
-                        v.non_finite_normal += 1;
-                        continue;
-                    }
+                let r = c * chunk..((c + 1) * chunk).min(n);
+                // Branch-free per-pixel flags summed in u32 lanes (the loop vectorises).
+                let mut counts = [0u32; 5];
+                let (cr, cg, cb) = (&cr[r.clone()], &cg[r.clone()], &cb[r.clone()]);
+                let (nx, ny, nz) = (&nx[r.clone()], &ny[r.clone()], &nz[r.clone()]);
+                let m = mask.map(|m| &m[r.clone()]);
+                for i in 0..r.len() {
+                    let col_ok = cr[i].is_finite()
+                        & cg[i].is_finite()
+                        & cb[i].is_finite()
+                        & m.is_none_or(|m| m[i].is_finite());
+                    let [x, y, z] = [nx[i], ny[i], nz[i]];
+                    let finite = x.is_finite() & y.is_finite() & z.is_finite();
                     let len = (x * x + y * y + z * z).sqrt();
-                    if len < MIN_NORMAL_LENGTH {
-                        v.zero_length_normal += 1;
-                        continue;
-                    }
-                    v.non_unit += usize::from((len - 1.0).abs() > 1e-3);
-                    v.back_facing += usize::from(z <= 0.0);
+                    let zero = finite & (len < MIN_NORMAL_LENGTH);
+                    let ok = finite & !zero;
+                    counts[0] += u32::from(!col_ok);
+                    counts[1] += u32::from(!finite);
+                    counts[2] += u32::from(zero);
+                    counts[3] += u32::from(ok & ((len - 1.0).abs() > 1e-3));
+                    counts[4] += u32::from(ok & (z <= 0.0));
                 }
-                v
+                let [col, nonfin, zero, non_unit, back] = counts.map(|c| c as usize);
+                Validation {
+                    pixels: r.len(),
+                    non_finite_color: col,
+                    non_finite_normal: nonfin,
+                    zero_length_normal: zero,
+                    back_facing: back,
+                    non_unit,
+                }
             })
             .reduce(Validation::default, |a, b| Validation {
                 pixels: a.pixels + b.pixels,
@@ -350,8 +365,15 @@ impl RgbnImage {
     /// Returns the validation of the image *before* repair.
     pub fn repair(&mut self) -> Validation {
         let before = self.validate();
+        self.repair_validated(&before);
+        before
+    }
+
+    /// [`repair`](Self::repair) given `before`, a [`validate`](Self::validate) of the image
+    /// as it is now (saves validating twice).
+    pub fn repair_validated(&mut self, before: &Validation) {
         if before.is_clean() {
-            return before;
+            return;
         }
         use rayon::prelude::*;
         let [nx, ny, nz] = self.normal_mut();
@@ -378,7 +400,6 @@ impl RgbnImage {
                 fix(Arc::make_mut(m));
             }
         }
-        before
     }
 
     /// Renormalises every normal in place (zero-length ones become `(0, 0, 1)`).

@@ -1,0 +1,525 @@
+//! Fused "normals → gradient → separable smoother → normals" with the curl statistics of the
+//! field before and after, in two sweeps over the image instead of seven.
+//!
+//! The unfused reference is `GradientField::from_normals` → `curl_stats` → `filter_rows` →
+//! `filter_columns` → `curl_stats` → `to_normals` (what `ops::filter` runs for masks and
+//! compound kernels). Here:
+//!
+//! 1. **Row sweep** (bands of [`LANES`] rows): each row's `(p, q)` is computed from the normals
+//!    (same [`gradient_of_normal`] and `n_z` clamp), its curl sums are taken with the previous
+//!    row's `p` (one extra row of `p` per band is recomputed), then the band is filtered along
+//!    x. The filtered `p`, `q` are parked in the output `n_x`, `n_y` planes (no gradient planes
+//!    are allocated).
+//! 2. **Column sweep** (groups of [`LANES`] columns): `p`, `q` are filtered along y, the curl
+//!    sums of the filtered field are taken from the lane buffers, and [`normal_of_gradient`] is
+//!    written straight into the three output planes. The curl at a group's last column needs
+//!    `q` of the next group's first column: each group hands over that column's filtered `q`
+//!    and its own partial terms, and those `height` curl terms per group are summed afterwards.
+//!
+//! Filtered values are bit-identical to the unfused path (same line filter, same arithmetic);
+//! the curl statistics are the same sums taken in a different order (`f32` partial sums over
+//! a row, or over ≤ 64 rows of one column, then `f64`), so they agree to rounding
+//! (`tests::fused_equals_the_unfused_reference`).
+
+use super::convolve::{
+    lane_splat, load_lane, store_lane, BorderMode, Lane, LineFilter, SharedMut, LANES,
+};
+use super::gradient::{gradient_of_normal, normal_of_gradient, CurlSums, NZ_EPSILON};
+use rayon::prelude::*;
+
+/// The result of [`smooth_normals`].
+#[derive(Clone, Debug)]
+pub struct SmoothedNormals {
+    /// The filtered unit normals (x, y, z planes).
+    pub normal: [Vec<f32>; 3],
+    /// Pixels whose `n_z` was clamped when converting to gradients.
+    pub clamped: usize,
+    /// Curl sums of the gradient field before filtering.
+    pub curl_before: CurlSums,
+    /// Curl sums of the filtered gradient field.
+    pub curl_after: CurlSums,
+}
+
+/// Rows of one column summed in `f32` before going to `f64`.
+const F32_RUN: usize = 64;
+
+/// Filters the gradient field of `normal` (`w × h` planes) with `f` along x then y and returns
+/// the normals of the result, with curl sums before and after (pixels with `mask < 0.5`
+/// skipped in the sums; the mask does not affect the filter).
+pub fn smooth_normals<F: LineFilter>(
+    normal: [&[f32]; 3],
+    mask: Option<&[f32]>,
+    w: usize,
+    h: usize,
+    f: &F,
+    border: BorderMode,
+) -> SmoothedNormals {
+    let n = w * h;
+    assert!(normal.iter().all(|p| p.len() == n) && mask.is_none_or(|m| m.len() == n));
+    let mut out = [vec![0.0f32; n], vec![0.0f32; n], vec![0.0f32; n]];
+    if n == 0 {
+        return SmoothedNormals {
+            normal: out,
+            clamped: 0,
+            curl_before: CurlSums::default(),
+            curl_after: CurlSums::default(),
+        };
+    }
+    let sw = Sweep {
+        normal,
+        mask,
+        w,
+        h,
+        f,
+        border,
+    };
+    let (clamped, curl_before) = row_sweep(&sw, &mut out);
+    let curl_after = column_sweep(&sw, &mut out);
+    SmoothedNormals {
+        normal: out,
+        clamped,
+        curl_before,
+        curl_after,
+    }
+}
+
+/// Per-thread buffers of the row sweep.
+#[derive(Default)]
+struct RowScratch {
+    p: Vec<Lane>,
+    q: Vec<Lane>,
+    filter: Vec<Lane>,
+    p_row: Vec<f32>,
+    q_row: Vec<f32>,
+    p_prev: Vec<f32>,
+}
+
+/// Per-thread buffers of the column sweep.
+#[derive(Default)]
+struct ColumnScratch {
+    p: Vec<Lane>,
+    q: Vec<Lane>,
+    filter: Vec<Lane>,
+}
+
+/// `(p, q)` of one row of normals into `p`, `q`; returns the clamped count.
+#[inline(always)]
+fn gradient_row(nx: &[f32], ny: &[f32], nz: &[f32], p: &mut [f32], q: &mut [f32]) -> usize {
+    let w = p.len();
+    let (nx, ny, nz, q) = (&nx[..w], &ny[..w], &nz[..w], &mut q[..w]);
+    let mut clamped = 0usize;
+    for x in 0..w {
+        [p[x], q[x]] = gradient_of_normal([nx[x], ny[x], nz[x]]);
+        clamped += usize::from(nz[x] < NZ_EPSILON);
+    }
+    clamped
+}
+
+/// The inputs both sweeps share.
+struct Sweep<'a, F> {
+    normal: [&'a [f32]; 3],
+    mask: Option<&'a [f32]>,
+    w: usize,
+    h: usize,
+    f: &'a F,
+    border: BorderMode,
+}
+
+/// What a column group hands over for the curl at its last column `x` (row by row):
+/// `p(x, r−1) − p(x, r)`, `q(x, r)`, whether the pixel counts, and `q` of its *first* column
+/// (which the previous group needs).
+#[derive(Clone, Copy, Default)]
+struct Seam {
+    dp: f32,
+    q_last: f32,
+    keep: bool,
+    q_first: f32,
+}
+
+impl<F: LineFilter> Sweep<'_, F> {
+    /// One band of the row sweep (rows `r0..`, `pb`/`qb` = those rows of the output
+    /// `n_x`/`n_y` planes); returns (clamped, curl sums before). Dispatches to the AVX2 twin.
+    fn band(
+        &self,
+        s: &mut RowScratch,
+        r0: usize,
+        pb: &mut [f32],
+        qb: &mut [f32],
+    ) -> (usize, CurlSums) {
+        #[cfg(target_arch = "x86_64")]
+        if std::arch::is_x86_feature_detected!("avx2") {
+            // SAFETY: `band_avx2` only requires AVX2, whose presence was just checked.
+            return unsafe { self.band_avx2(s, r0, pb, qb) };
+        }
+        self.band_portable(s, r0, pb, qb)
+    }
+
+    /// [`Self::band_portable`] compiled for AVX2 (no FMA: bit-identical results), as
+    /// `convolve::Deriche::run_avx2`: the gradient and curl loops run 8 lanes wide.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    fn band_avx2(
+        &self,
+        s: &mut RowScratch,
+        r0: usize,
+        pb: &mut [f32],
+        qb: &mut [f32],
+    ) -> (usize, CurlSums) {
+        self.band_portable(s, r0, pb, qb)
+    }
+
+    #[inline(always)]
+    fn band_portable(
+        &self,
+        s: &mut RowScratch,
+        r0: usize,
+        pb: &mut [f32],
+        qb: &mut [f32],
+    ) -> (usize, CurlSums) {
+        let (w, [nx, ny, nz]) = (self.w, self.normal);
+        let rows = pb.len() / w;
+        s.p.clear();
+        s.p.resize(w, lane_splat(0.0));
+        s.q.clear();
+        s.q.resize(w, lane_splat(0.0));
+        for v in [&mut s.p_row, &mut s.q_row, &mut s.p_prev] {
+            v.resize(w, 0.0);
+        }
+        if r0 > 0 {
+            let o = (r0 - 1) * w..r0 * w;
+            let q_row = &mut s.q_row;
+            gradient_row(&nx[o.clone()], &ny[o.clone()], &nz[o], &mut s.p_prev, q_row);
+        }
+        let (mut clamped, mut sums) = (0usize, CurlSums::default());
+        for k in 0..rows {
+            let r = r0 + k;
+            let o = r * w..(r + 1) * w;
+            clamped += gradient_row(
+                &nx[o.clone()],
+                &ny[o.clone()],
+                &nz[o.clone()],
+                &mut s.p_row,
+                &mut s.q_row,
+            );
+            if r >= 1 {
+                let m = self.mask.map(|m| &m[o]);
+                sums = sums.merge(CurlSums::of_row(&s.p_prev, &s.p_row, &s.q_row, m));
+            }
+            for (x, (&p, &q)) in s.p_row.iter().zip(&s.q_row).enumerate() {
+                s.p[x][k] = p;
+                s.q[x][k] = q;
+            }
+            std::mem::swap(&mut s.p_prev, &mut s.p_row);
+        }
+        self.f.run(&mut s.p, &mut s.filter, self.border);
+        self.f.run(&mut s.q, &mut s.filter, self.border);
+        for k in 0..rows {
+            let (pr, qr) = (&mut pb[k * w..(k + 1) * w], &mut qb[k * w..(k + 1) * w]);
+            for (x, (p, q)) in pr.iter_mut().zip(qr.iter_mut()).enumerate() {
+                *p = s.p[x][k];
+                *q = s.q[x][k];
+            }
+        }
+        (clamped, sums)
+    }
+
+    /// One column group `g` of the column sweep: reads the row-filtered `p`, `q` parked in the
+    /// output `n_x`, `n_y` planes at `out`, writes the normals there; returns the group's curl
+    /// sums and its [`Seam`]. Dispatches to the AVX2 twin.
+    ///
+    /// # Safety
+    /// `out` must point to the three output planes (`w × h` each); no other task may touch
+    /// columns `g·LANES ..` `(g+1)·LANES` of them.
+    unsafe fn group(
+        &self,
+        s: &mut ColumnScratch,
+        g: usize,
+        out: [SharedMut; 3],
+    ) -> (CurlSums, Vec<Seam>) {
+        #[cfg(target_arch = "x86_64")]
+        if std::arch::is_x86_feature_detected!("avx2") {
+            // SAFETY: AVX2 presence was just checked; the rest is the caller's contract.
+            return unsafe { self.group_avx2(s, g, out) };
+        }
+        // SAFETY: the caller's contract.
+        unsafe { self.group_portable(s, g, out) }
+    }
+
+    /// [`Self::group_portable`] compiled for AVX2 (no FMA: bit-identical results).
+    ///
+    /// # Safety
+    /// As [`Self::group`], and AVX2 must be available.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    unsafe fn group_avx2(
+        &self,
+        s: &mut ColumnScratch,
+        g: usize,
+        out: [SharedMut; 3],
+    ) -> (CurlSums, Vec<Seam>) {
+        // SAFETY: the caller's contract.
+        unsafe { self.group_portable(s, g, out) }
+    }
+
+    /// # Safety
+    /// As [`Self::group`].
+    #[inline(always)]
+    unsafe fn group_portable(
+        &self,
+        s: &mut ColumnScratch,
+        g: usize,
+        out: [SharedMut; 3],
+    ) -> (CurlSums, Vec<Seam>) {
+        let (w, h) = (self.w, self.h);
+        let c0 = g * LANES;
+        let cols = LANES.min(w - c0);
+        for (buf, src) in [(&mut s.p, out[0]), (&mut s.q, out[1])] {
+            buf.clear();
+            buf.resize(h, lane_splat(0.0));
+            for (r, lane) in buf.iter_mut().enumerate() {
+                // SAFETY: columns c0..c0+cols of row r lie inside the plane and belong to this
+                // task alone (the caller's contract).
+                *lane = unsafe { load_lane(src.get().add(r * w + c0), cols) };
+            }
+        }
+        self.f.run(&mut s.p, &mut s.filter, self.border);
+        self.f.run(&mut s.q, &mut s.filter, self.border);
+        let (bp, bq) = (&s.p, &s.q);
+        let sums = group_curl(bp, bq, self.mask, w, c0, cols);
+        let last = cols - 1;
+        let seam: Vec<Seam> = (0..h)
+            .map(|r| Seam {
+                dp: if r >= 1 {
+                    bp[r - 1][last] - bp[r][last]
+                } else {
+                    0.0
+                },
+                q_last: bq[r][last],
+                keep: r >= 1 && self.mask.is_none_or(|m| m[r * w + c0 + last] >= 0.5),
+                q_first: bq[r][0],
+            })
+            .collect();
+        for r in 0..h {
+            let (p, q) = (&bp[r], &bq[r]);
+            let mut nrm = [lane_splat(0.0); 3];
+            for l in 0..LANES {
+                [nrm[0][l], nrm[1][l], nrm[2][l]] = normal_of_gradient(p[l], q[l]);
+            }
+            for (dst, lane) in out.iter().zip(&nrm) {
+                // SAFETY: as above; this task has already read these columns.
+                unsafe { store_lane(dst.get().add(r * w + c0), lane, cols) };
+            }
+        }
+        (sums, seam)
+    }
+}
+
+/// Step 1 of the module docs; returns (clamped, curl sums before).
+fn row_sweep<F: LineFilter>(sw: &Sweep<'_, F>, out: &mut [Vec<f32>; 3]) -> (usize, CurlSums) {
+    let w = sw.w;
+    let [ox, oy, _] = out;
+    ox.par_chunks_mut(w * LANES)
+        .zip(oy.par_chunks_mut(w * LANES))
+        .enumerate()
+        .map_init(RowScratch::default, |s, (band, (pb, qb))| {
+            sw.band(s, band * LANES, pb, qb)
+        })
+        .reduce(
+            || (0, CurlSums::default()),
+            |a, b| (a.0 + b.0, a.1.merge(b.1)),
+        )
+}
+
+/// Step 2 of the module docs; returns the curl sums after filtering.
+fn column_sweep<F: LineFilter>(sw: &Sweep<'_, F>, out: &mut [Vec<f32>; 3]) -> CurlSums {
+    let groups = sw.w.div_ceil(LANES);
+    let ptr = out.each_mut().map(|v| SharedMut(v.as_mut_ptr()));
+    let per_group: Vec<(CurlSums, Vec<Seam>)> = (0..groups)
+        .into_par_iter()
+        // SAFETY: `ptr` are the three w×h output planes, borrowed mutably for this call;
+        // each group index is visited once, so each task owns its columns.
+        .map_init(ColumnScratch::default, |s, g| unsafe {
+            sw.group(s, g, ptr)
+        })
+        .collect();
+    // Curl at each group's last column, with the next group's first-column q.
+    let seams = per_group
+        .par_windows(2)
+        .map(|pair| {
+            let (a, b) = (&pair[0].1, &pair[1].1);
+            let (mut c2, mut max) = (0.0f64, 0.0f32);
+            for (s, t) in a.iter().zip(b) {
+                if s.keep {
+                    let c = s.dp - (t.q_first - s.q_last);
+                    c2 += f64::from(c * c);
+                    max = max.max(c.abs());
+                }
+            }
+            CurlSums {
+                c2,
+                g2: 0.0,
+                n: 0,
+                max,
+            }
+        })
+        .reduce(CurlSums::default, CurlSums::merge);
+    per_group
+        .into_iter()
+        .fold(seams, |acc, (s, _)| acc.merge(s))
+}
+
+/// Curl sums of one filtered column group (`cols` columns from `c0`) except the curl term of
+/// its last column, which needs the next group (see [`Seam`]); the gradient term and the
+/// count of that column are included. Columns `x = w−1` and row 0 are not counted.
+#[inline(always)]
+fn group_curl(
+    bp: &[Lane],
+    bq: &[Lane],
+    mask: Option<&[f32]>,
+    w: usize,
+    c0: usize,
+    cols: usize,
+) -> CurlSums {
+    // 0/1 weights: lanes whose gradient term counts (x ≤ w−2) and whose curl term is taken
+    // here (not the last lane). Multiplying is exact (values are finite: gradients are
+    // clamped and the filters are linear).
+    let counted: Lane = std::array::from_fn(|l| f32::from(u8::from(l < cols && c0 + l + 1 < w)));
+    let interior: Lane = std::array::from_fn(|l| f32::from(u8::from(l + 1 < cols)));
+    let mut total = CurlSums::default();
+    let (mut c2, mut g2, mut mx, mut n) = (
+        lane_splat(0.0),
+        lane_splat(0.0),
+        lane_splat(0.0),
+        lane_splat(0.0),
+    );
+    for r in 1..bp.len() {
+        let (pu, pc, qc) = (&bp[r - 1], &bp[r], &bq[r]);
+        let keep: Lane = match mask {
+            None => counted,
+            Some(m) => std::array::from_fn(|l| {
+                if counted[l] > 0.0 && m[r * w + c0 + l] >= 0.5 {
+                    1.0
+                } else {
+                    0.0
+                }
+            }),
+        };
+        let qn: Lane = std::array::from_fn(|l| if l + 1 < LANES { qc[l + 1] } else { 0.0 });
+        for l in 0..LANES {
+            let c = ((pu[l] - pc[l]) - (qn[l] - qc[l])) * (keep[l] * interior[l]);
+            c2[l] += c * c;
+            g2[l] += (pc[l] * pc[l] + qc[l] * qc[l]) * keep[l];
+            mx[l] = mx[l].max(c.abs());
+            n[l] += keep[l];
+        }
+        if r % F32_RUN == 0 || r + 1 == bp.len() {
+            total = total.merge(CurlSums {
+                c2: c2.iter().map(|&v| f64::from(v)).sum(),
+                g2: g2.iter().map(|&v| f64::from(v)).sum(),
+                n: n.iter().map(|&v| v as usize).sum(),
+                max: mx.iter().copied().fold(0.0, f32::max),
+            });
+            (c2, g2, n) = (lane_splat(0.0), lane_splat(0.0), lane_splat(0.0));
+        }
+    }
+    total
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::raster::convolve::{self, BoxFilter, Deriche, Fir};
+    use crate::raster::gradient::{CurlStats, GradientField};
+    use crate::raster::sample::Surface;
+    use crate::raster::RgbnImage;
+
+    /// The unfused reference: convert, stats, separable filter, stats, back to normals.
+    fn reference<F: LineFilter>(
+        img: &RgbnImage,
+        f: &F,
+        border: BorderMode,
+    ) -> ([Vec<f32>; 3], usize, CurlStats, CurlStats) {
+        let mut g = GradientField::from_normals(img);
+        let before = g.curl_stats(img.mask());
+        convolve::separable(&mut g.p, g.width, g.height, f, border);
+        convolve::separable(&mut g.q, g.width, g.height, f, border);
+        let after = g.curl_stats(img.mask());
+        (g.to_normals(), g.clamped, before, after)
+    }
+
+    fn close(a: f64, b: f64, rel: f64) -> bool {
+        (a - b).abs() <= rel * a.abs().max(b.abs())
+    }
+
+    fn check<F: LineFilter>(img: &RgbnImage, f: &F, border: BorderMode) {
+        let (w, h) = (img.width(), img.height());
+        let [nx, ny, nz] = img.normal();
+        let got = smooth_normals([nx, ny, nz], img.mask(), w, h, f, border);
+        let (want, clamped, before, after) = reference(img, f, border);
+        // Same filter, same arithmetic: bit-identical normals.
+        for (k, (g, wa)) in got.normal.iter().zip(&want).enumerate() {
+            assert!(
+                g.iter().zip(wa).all(|(a, b)| a.to_bits() == b.to_bits()),
+                "{w}×{h} {border:?}: plane {k} differs"
+            );
+        }
+        assert_eq!(got.clamped, clamped);
+        // Statistics: the same terms summed in another order; stated tolerance 1e-5 relative
+        // on the RMS values, the maximum exactly.
+        for (s, r) in [(got.curl_before, before), (got.curl_after, after)] {
+            let s = s.stats();
+            assert!(
+                close(s.rms_curl, r.rms_curl, 1e-5),
+                "{w}×{h}: {s:?} vs {r:?}"
+            );
+            assert!(
+                close(s.rms_gradient, r.rms_gradient, 1e-5),
+                "{w}×{h}: {s:?} vs {r:?}"
+            );
+            assert_eq!(s.max_abs_curl, r.max_abs_curl, "{w}×{h}");
+        }
+    }
+
+    /// A non-integrable test image (curl ≠ 0 everywhere) with a few grazing normals.
+    fn rough(w: usize, h: usize, masked: bool) -> RgbnImage {
+        let (mut img, _) = Surface::Sphere {
+            radius_px: 0.4 * w.min(h) as f64,
+        }
+        .render(w, h);
+        let [nx, ny, nz] = img.normal_mut();
+        for i in 0..w * h {
+            let t = ((i * 7919) % 1013) as f32 / 1013.0 - 0.5;
+            nx[i] += 0.3 * t;
+            ny[i] -= 0.2 * t * t;
+            if i % 97 == 0 {
+                nz[i] = 1e-4;
+            }
+        }
+        if masked {
+            let m = (0..w * h).map(|i| (i % w) as f32 / w as f32).collect();
+            img.set_mask(Some(m)).unwrap();
+        }
+        img
+    }
+
+    #[test]
+    fn fused_equals_the_unfused_reference() {
+        // Sizes around the lane count (partial bands and groups, single column/row groups).
+        for (w, h) in [
+            (37, 21),
+            (16, 16),
+            (17, 33),
+            (64, 5),
+            (1, 9),
+            (9, 1),
+            (2, 2),
+        ] {
+            for border in BorderMode::ALL {
+                let img = rough(w, h, false);
+                check(&img, &Deriche::new(4.0), border);
+                check(&img, &BoxFilter { radius: 2 }, border);
+            }
+            check(&rough(w, h, true), &Fir::gaussian(1.5), BorderMode::Mirror);
+        }
+    }
+}
