@@ -18,12 +18,21 @@ pub fn graph_path(name: &str) -> PathBuf {
     root().join("graphs").join(name)
 }
 
+/// A shipped graph file: `*.ron`, not hidden (the editor's `.NAME.autosave.ron` recovery files
+/// live beside the graphs they belong to and are not part of the repository).
+fn shipped_graph(p: &Path) -> bool {
+    p.extension().is_some_and(|e| e == "ron")
+        && !p
+            .file_name()
+            .is_some_and(|n| n.to_string_lossy().starts_with('.'))
+}
+
 /// Every `graphs/*.ron` (top level only, sorted).
 pub fn top_graphs() -> Vec<PathBuf> {
     let mut v: Vec<PathBuf> = std::fs::read_dir(root().join("graphs"))
         .expect("graphs/ exists")
         .filter_map(|e| e.ok().map(|e| e.path()))
-        .filter(|p| p.extension().is_some_and(|e| e == "ron"))
+        .filter(|p| shipped_graph(p))
         .collect();
     v.sort();
     v
@@ -36,7 +45,7 @@ pub fn all_graphs() -> Vec<PathBuf> {
             let p = e.path();
             if p.is_dir() {
                 walk(&p, out);
-            } else if p.extension().is_some_and(|e| e == "ron") {
+            } else if shipped_graph(&p) {
                 out.push(p);
             }
         }
