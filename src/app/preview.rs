@@ -6,11 +6,15 @@
 //! display settings. The texture is re-rendered only when the request changes, so dragging the
 //! light relights the evaluated image without re-running the graph.
 
+use super::tools::ViewTransform;
+use super::tools_ui::{ToolCx, Tools};
 use crate::ops::{Picture, Value};
 use crate::raster::gradient::GradientField;
 use crate::raster::Plane;
 use crate::render::{self, Light, Shading, View};
-use egui::{Color32, Pos2, Rect, Sense, Stroke, TextureHandle, TextureOptions, Ui, Vec2};
+use egui::{
+    Color32, PointerButton, Pos2, Rect, Sense, Stroke, TextureHandle, TextureOptions, Ui, Vec2,
+};
 use std::sync::Arc;
 
 /// Display settings of the preview (not part of the graph).
@@ -82,6 +86,8 @@ pub struct Preview {
     pub renders: u64,
     /// Time of the last render.
     pub render_ms: f64,
+    /// The screen ↔ image mapping of the last drawn frame (tools, tests).
+    pub transform: Option<ViewTransform>,
 }
 
 impl Default for Preview {
@@ -94,6 +100,7 @@ impl Default for Preview {
             pan: Vec2::ZERO,
             renders: 0,
             render_ms: 0.0,
+            transform: None,
         }
     }
 }
@@ -171,7 +178,15 @@ impl Preview {
 
     /// Draws the image with zoom and pan; returns the readout line for the pixel under the
     /// cursor, if any.
-    pub fn image_ui(&mut self, ui: &mut Ui, value: Option<(&Value, u128)>) -> Option<String> {
+    ///
+    /// With an on-image tool active (`tools`), the primary button draws and panning moves to
+    /// the middle or secondary button or Space + drag; without one, any drag pans.
+    pub fn image_ui(
+        &mut self,
+        ui: &mut Ui,
+        value: Option<(&Value, u128)>,
+        tools: Option<(&mut Tools, &mut ToolCx<'_>)>,
+    ) -> Option<String> {
         let (rect, resp) = ui.allocate_exact_size(ui.available_size(), Sense::click_and_drag());
         let painter = ui.painter_at(rect);
         painter.rect_filled(rect, 0.0, Color32::from_gray(24));
@@ -206,11 +221,20 @@ impl Preview {
                 }
             }
         }
-        if resp.dragged() {
+        let tool_active = tools.as_ref().is_some_and(|(t, _)| t.active());
+        let pan_drag = if tool_active {
+            let space = ui.input(|i| i.key_down(egui::Key::Space));
+            resp.dragged_by(PointerButton::Middle)
+                || resp.dragged_by(PointerButton::Secondary)
+                || (space && resp.dragged_by(PointerButton::Primary))
+        } else {
+            resp.dragged()
+        };
+        if pan_drag {
             self.pan += resp.drag_delta();
             self.zoom = Some(zoom);
         }
-        if resp.double_clicked() {
+        if resp.double_clicked() && !tool_active {
             self.zoom = None;
             self.pan = Vec2::ZERO;
             zoom = fit;
@@ -228,6 +252,16 @@ impl Preview {
             Stroke::new(1.0, Color32::from_gray(70)),
             egui::StrokeKind::Outside,
         );
+        let xf = ViewTransform::new(
+            [rect.center().x, rect.center().y],
+            [self.pan.x, self.pan.y],
+            [size.x, size.y],
+            zoom,
+        );
+        self.transform = Some(xf);
+        if let Some((t, cx)) = tools {
+            t.image_ui(ui, &resp, &painter, xf, cx);
+        }
         let pos = resp.hover_pos()?;
         let rel = (pos - img_rect.min) / zoom;
         let (x, row) = (rel.x.floor(), rel.y.floor());
