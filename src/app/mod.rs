@@ -266,6 +266,7 @@ impl EditorApp {
                 cancel: cancel.clone(),
             });
             self.requests += 1;
+            self.tools.request_sent();
             self.in_flight = Some(InFlight {
                 cancel,
                 started: Instant::now(),
@@ -902,9 +903,12 @@ impl EditorApp {
                 let req = Preview::request(v, *k, &self.settings);
                 self.preview.update(&ctx, v, req);
                 if self.preview.renders != renders {
-                    if let Some((first, last)) = self.tools.preview_rendered(!self.evaluating()) {
+                    if let Some((first, last)) = self.tools.preview_rendered() {
                         if self.timing {
-                            eprintln!("rgbn editor: tool edit → relit preview {first:.0} ms after the first unshown edit, {last:.0} ms after the latest");
+                            eprintln!(
+                                "rgbn editor: tool edit → relit preview after {last:.0} ms (newest edit shown), {first:.0} ms (oldest; texture render {:.0} ms)",
+                                self.preview.render_ms
+                            );
                         }
                     }
                 }

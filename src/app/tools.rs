@@ -92,6 +92,10 @@ impl ToolKind {
 pub struct ToolState {
     /// The active tool.
     pub kind: ToolKind,
+    /// Stroke width of new pen paths.
+    pub pen_width_px: f64,
+    /// Relief height of new pen paths (negative engraves).
+    pub pen_height_px: f64,
     /// Radius of new brush strokes.
     pub brush_radius_px: f64,
     /// Feather of new brush strokes.
@@ -105,6 +109,8 @@ impl Default for ToolState {
     fn default() -> Self {
         Self {
             kind: ToolKind::Pan,
+            pen_width_px: 12.0,
+            pen_height_px: 4.0,
             brush_radius_px: 12.0,
             brush_feather_px: 6.0,
             live: true,
@@ -323,7 +329,9 @@ pub fn insert_after(
                 .map(move |(p, _)| (*id, p.clone()))
         })
         .collect();
-    let id = g.add_node(op, [pos[0] + 120.0, pos[1] + 150.0]);
+    // Below everything, so it does not cover other nodes.
+    let below = g.nodes.values().map(|n| n.pos[1]).fold(pos[1], f32::max) + 130.0;
+    let id = g.add_node(op, [pos[0] + 120.0, below]);
     if let Err(e) = g.connect(after, port, id, "image", base_dir) {
         g.nodes.remove(&id);
         return Err(e);
@@ -341,7 +349,7 @@ pub fn insert_after(
         }
     }
     if op == "stamp" {
-        let s = g.add_node("surface", [pos[0] - 40.0, pos[1] + 300.0]);
+        let s = g.add_node("surface", [pos[0] - 40.0, below + 130.0]);
         set(g, s, "shape", ParamValue::Choice("gaussians".into()));
         set(g, s, "width", ParamValue::Int(DEFAULT_STAMP_SIDE as i64));
         set(g, s, "height", ParamValue::Int(DEFAULT_STAMP_SIDE as i64));
@@ -378,6 +386,8 @@ pub struct Stroke {
     pub points: Vec<[f64; 2]>,
     /// Brush radius and feather for a new brush node.
     pub brush: (f64, f64),
+    /// Width and height for a new pen node.
+    pub pen: (f64, f64),
 }
 
 impl Stroke {
@@ -411,6 +421,9 @@ impl Stroke {
                 if self.op == "brush" {
                     set(g, id, "radius_px", ParamValue::Float(self.brush.0));
                     set(g, id, "feather_px", ParamValue::Float(self.brush.1));
+                } else {
+                    set(g, id, "width_px", ParamValue::Float(self.pen.0));
+                    set(g, id, "height_px", ParamValue::Float(self.pen.1));
                 }
                 self.node = Some(id);
                 id
@@ -637,6 +650,7 @@ impl Gesture {
             base: Vec::new(),
             points: vec![press.at],
             brush: (tools.brush_radius_px, tools.brush_feather_px),
+            pen: (tools.pen_width_px, tools.pen_height_px),
         };
         match target(g, op, selected, viewed, &doc.base_dir())? {
             Target::Edit(id) if !has_own_points(g, id) => s.node = Some(id),
@@ -977,6 +991,14 @@ mod tests {
             g.nodes[&id].params["points"],
             ParamValue::Points(vec![[10.0, 10.0], [20.0, 10.0], [30.0, 15.0], [40.0, 30.0]])
         );
+        // With the tool's width and height.
+        assert_eq!(g.nodes[&id].params["width_px"], ParamValue::Float(12.0));
+        assert_eq!(g.nodes[&id].params["height_px"], ParamValue::Float(4.0));
+        // Below the other nodes in the graph view.
+        assert!(g
+            .nodes
+            .values()
+            .all(|n| n.id == id || n.pos[1] < g.nodes[&id].pos[1]));
         // Wired into the data flow: reads the viewed node; its readers and the graph's
         // "image" output now read the pen.
         assert_eq!(

@@ -23,11 +23,11 @@ pub struct Tools {
     pub state: ToolState,
     /// The gesture in progress.
     pub gesture: Option<Gesture>,
-    /// When the first tool edit not yet shown in a re-evaluated preview was written.
-    unshown_since: Option<Instant>,
-    /// When the latest tool edit was written.
-    last_write: Option<Instant>,
-    /// Latest tool edit → relit preview latencies (first unshown edit, latest edit), ms.
+    /// Times of the first and latest tool edits not yet sent to the worker.
+    unsent: Option<(Instant, Instant)>,
+    /// The same for the evaluation request in flight.
+    sent: Option<(Instant, Instant)>,
+    /// Latest tool edit → relit preview latencies (oldest and newest edit shown), ms.
     pub last_latency_ms: Option<(f64, f64)>,
 }
 
@@ -74,6 +74,25 @@ impl Tools {
                     ToolKind::Brush => "Drag to paint the filter brush's region (Shift extends the selected brush's stroke)",
                     ToolKind::Vertices => "Drag a vertex of the selected pen, brush or stamp node; right-click deletes it",
                 });
+            }
+            if self.state.kind == ToolKind::Pen {
+                ui.separator();
+                ui.add(
+                    egui::DragValue::new(&mut self.state.pen_width_px)
+                        .range(0.5..=2000.0)
+                        .speed(0.2)
+                        .prefix("width ")
+                        .suffix(" px"),
+                )
+                .on_hover_text("Stroke width of new pen paths");
+                ui.add(
+                    egui::DragValue::new(&mut self.state.pen_height_px)
+                        .range(-500.0..=500.0)
+                        .speed(0.1)
+                        .prefix("height ")
+                        .suffix(" px"),
+                )
+                .on_hover_text("Relief height of new pen paths (negative engraves)");
             }
             if self.state.kind == ToolKind::Brush {
                 ui.separator();
@@ -233,23 +252,27 @@ impl Tools {
                 }
             }
         }
+        if resp.hovered() && !space {
+            ui.ctx().set_cursor_icon(egui::CursorIcon::Crosshair);
+        }
         self.overlay(ui, resp, painter, xf, cx);
     }
 
     fn wrote(&mut self) {
         let now = Instant::now();
-        self.last_write = Some(now);
-        self.unshown_since.get_or_insert(now);
+        let first = self.unsent.map_or(now, |u| u.0);
+        self.unsent = Some((first, now));
     }
 
-    /// Called after the preview texture was re-rendered; `settled` when the graph the preview
-    /// shows is the current one. Returns (and keeps) the edit → relit preview latencies.
-    pub fn preview_rendered(&mut self, settled: bool) -> Option<(f64, f64)> {
-        if !settled {
-            return None;
-        }
-        let first = self.unshown_since.take()?;
-        let last = self.last_write.unwrap_or(first);
+    /// Called when an evaluation request is sent: it carries the tool edits made so far.
+    pub fn request_sent(&mut self) {
+        self.sent = self.unsent.take();
+    }
+
+    /// Called after the preview texture was re-rendered from a new evaluation. Returns (and
+    /// keeps) how long ago the oldest and newest tool edits it shows were made, in ms.
+    pub fn preview_rendered(&mut self) -> Option<(f64, f64)> {
+        let (first, last) = self.sent.take()?;
         let ms = |t: Instant| t.elapsed().as_secs_f64() * 1e3;
         self.last_latency_ms = Some((ms(first), ms(last)));
         self.last_latency_ms
@@ -291,10 +314,18 @@ impl Tools {
                     if closed && pts.len() > 2 {
                         line.push(pts[0]);
                     }
-                    painter.line(line.clone(), dark);
-                    painter.line(line, Stroke::new(1.5, PATH));
+                    painter.line(
+                        line.clone(),
+                        Stroke::new(2.5, Color32::from_black_alpha(90)),
+                    );
+                    painter.line(line, Stroke::new(1.0, PATH.gamma_multiply(0.7)));
                     let hover = resp.hover_pos();
-                    for p in &pts {
+                    let handles: Vec<Pos2> = if self.state.kind == ToolKind::Vertices {
+                        pts.clone()
+                    } else {
+                        pts.first().into_iter().chain(pts.last()).copied().collect()
+                    };
+                    for p in &handles {
                         let hot = hover.is_some_and(|h| h.distance(*p) <= PICK_RADIUS_PT);
                         painter.circle(
                             *p,
