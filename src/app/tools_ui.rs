@@ -29,6 +29,9 @@ pub struct Tools {
     sent: Option<(Instant, Instant)>,
     /// Latest tool edit → relit preview latencies (oldest and newest edit shown), ms.
     pub last_latency_ms: Option<(f64, f64)>,
+    /// During a gesture: the previous frame's time and the intervals between frames (ms) —
+    /// how long a pointer move waits for its overlay at most.
+    frames: (Option<Instant>, Vec<f64>),
 }
 
 /// What the tools need from the editor for one frame.
@@ -147,6 +150,13 @@ impl Tools {
             extend: shift,
         };
         let base = cx.doc.base_dir();
+        if self.gesture.is_some() {
+            let now = Instant::now();
+            if let Some(t) = self.frames.0 {
+                self.frames.1.push((now - t).as_secs_f64() * 1e3);
+            }
+            self.frames.0 = Some(now);
+        }
 
         // Start a gesture.
         if self.gesture.is_none() && resp.drag_started_by(PointerButton::Primary) && !space {
@@ -198,6 +208,7 @@ impl Tools {
         }
         if escape {
             if let Some(g) = self.gesture.take() {
+                self.frames = (None, Vec::new());
                 g.cancel(cx.doc);
                 cx.message = Some("stroke cancelled".into());
             }
@@ -206,6 +217,18 @@ impl Tools {
         let released = !ui.input(|i| i.pointer.button_down(PointerButton::Primary));
         if self.gesture.is_some() && (resp.drag_stopped() || released) {
             let g = self.gesture.take().expect("checked");
+            let (_, iv) = std::mem::take(&mut self.frames);
+            if !iv.is_empty() && std::env::var_os("RGBN_EDITOR_TIMING").is_some() {
+                let mut s = iv.clone();
+                s.sort_by(f64::total_cmp);
+                eprintln!(
+                    "rgbn editor: gesture of {} frames; frame interval median {:.1} ms, p90 {:.1} ms, max {:.1} ms",
+                    s.len() + 1,
+                    s[s.len() / 2],
+                    s[s.len() * 9 / 10],
+                    s[s.len() - 1]
+                );
+            }
             let p = resp
                 .interact_pointer_pos()
                 .or(resp.hover_pos())
