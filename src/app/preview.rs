@@ -222,6 +222,7 @@ impl Preview {
             }
         }
         let tool_active = tools.as_ref().is_some_and(|(t, _)| t.active());
+        let drawing = tools.as_ref().is_some_and(|(t, _)| t.gesture.is_some());
         let pan_drag = if tool_active {
             let space = ui.input(|i| i.key_down(egui::Key::Space));
             resp.dragged_by(PointerButton::Middle)
@@ -286,9 +287,15 @@ impl Preview {
             Value::Rgbn(img) => {
                 let c = img.color_at(x, row);
                 let n = img.normal_at(x, row);
-                let curl = self.curl_plane(key, img).at(x, row);
+                // The curl plane costs a full-image pass on this thread: not for every
+                // intermediate image of a stroke.
+                let curl = match self.curl.as_ref().filter(|c| c.0 == key) {
+                    _ if !drawing => format!("{:+.2e}", self.curl_plane(key, img).at(x, row)),
+                    Some((_, p)) => format!("{:+.2e}", p.at(x, row)),
+                    None => "—".into(),
+                };
                 format!(
-                    "({x}, {row})  colour {:.3} {:.3} {:.3}  normal {:+.3} {:+.3} {:+.3}  curl {curl:+.2e}",
+                    "({x}, {row})  colour {:.3} {:.3} {:.3}  normal {:+.3} {:+.3} {:+.3}  curl {curl}",
                     c[0], c[1], c[2], n[0], n[1], n[2]
                 )
             }

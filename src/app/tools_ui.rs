@@ -234,9 +234,12 @@ impl Tools {
                 .or(resp.hover_pos())
                 .unwrap_or_default();
             let created = g.node().is_none();
+            let pre = cx.doc.graph.clone();
             match g.finish(cx.doc, press_at(p)) {
                 Ok(true) => {
-                    self.wrote();
+                    if cx.doc.graph != pre {
+                        self.wrote();
+                    }
                     if created {
                         if let Some(id) = cx.doc.graph.nodes.keys().next_back().copied() {
                             adopt(cx, id);
