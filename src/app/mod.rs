@@ -4,7 +4,9 @@
 //! - [`state`]: the document (graph, file, undo history) and edit commands — no egui;
 //! - [`worker`]: evaluation on a worker thread, generations, thumbnails — no egui;
 //! - [`graph_view`]: the node graph (egui-snarl as a view of the graph);
-//! - [`params_ui`]: the inspector; [`preview`]: the relit preview.
+//! - [`params_ui`]: the inspector; [`preview`]: the relit preview;
+//! - [`tools`]: on-image pen, stamp and brush tools — no egui; [`tools_ui`]: their toolbar and
+//!   overlays.
 //!
 //! Layout: menu bar; node graph | preview | inspector (resizable); status bar with evaluation
 //! progress, cache memory and the viewed node's curl.
@@ -14,6 +16,8 @@ pub mod params_ui;
 pub mod preview;
 pub mod recent;
 pub mod state;
+pub mod tools;
+pub mod tools_ui;
 pub mod worker;
 
 use crate::graph::{Graph, NodeDef, NodeId, NodePorts};
@@ -168,6 +172,8 @@ pub struct EditorApp {
     pub dialog_dir: Option<PathBuf>,
     /// Copied nodes and the document epoch they were copied in.
     clipboard: Option<(u64, Vec<NodeDef>)>,
+    /// On-image tools (pen, stamp, brush, vertices).
+    pub tools: tools_ui::Tools,
 }
 
 impl EditorApp {
@@ -217,6 +223,7 @@ impl EditorApp {
             files: None,
             dialog_dir: None,
             clipboard: None,
+            tools: tools_ui::Tools::default(),
         }
     }
 
@@ -417,6 +424,7 @@ impl EditorApp {
                 cancel: cancel.clone(),
             });
             self.requests += 1;
+            self.tools.request_sent();
             self.in_flight = Some(InFlight {
                 cancel,
                 started: Instant::now(),
@@ -1171,9 +1179,11 @@ impl EditorApp {
             &mut self.preview.split,
             before.is_some(),
         );
+        self.tools.toolbar_ui(ui);
         ui.separator();
         let ctx = ui.ctx().clone();
         let current = self.viewed_value().map(|(v, k)| (v.clone(), k));
+        let renders = self.preview.renders;
         match &current {
             Some((v, k)) => {
                 let mut req = Preview::request(v, *k, &self.settings);
@@ -1181,6 +1191,16 @@ impl EditorApp {
                 req.before = before.as_ref().map(|b| b.1);
                 self.preview
                     .update(&ctx, v, before.as_ref().map(|b| &b.0), req);
+                if self.preview.renders != renders {
+                    if let Some((first, last)) = self.tools.preview_rendered() {
+                        if self.timing {
+                            eprintln!(
+                                "rgbn editor: tool edit → relit preview after {last:.0} ms (newest edit shown), {first:.0} ms (oldest; texture render {:.0} ms)",
+                                self.preview.render_ms
+                            );
+                        }
+                    }
+                }
                 if self.first_preview.is_none() && self.preview.renders > 0 {
                     let t = self.started.elapsed();
                     self.first_preview = Some(t);
@@ -1192,17 +1212,41 @@ impl EditorApp {
                     }
                 }
             }
+            // A node a tool just made: keep the last picture until it is evaluated.
+            None if self.in_flight.is_some() => {}
             None => self.preview.clear(),
         }
+        let stamp_size = self.selected.and_then(|s| {
+            let n = self.doc.graph.nodes.get(&s).filter(|n| n.op == "stamp")?;
+            let crate::graph::Source::Node(src, port) = n.inputs.get("stamp")? else {
+                return None;
+            };
+            match &self.outcome.values.get(&(*src, port.clone()))?.value {
+                Value::Rgbn(img) => Some([img.width(), img.height()]),
+                _ => None,
+            }
+        });
+        let mut cx = tools_ui::ToolCx {
+            doc: &mut self.doc,
+            selected: &mut self.selected,
+            viewed: &mut self.viewed,
+            stamp_size,
+            message: None,
+        };
         let readout_h = 22.0;
         let mut rect_ui = ui.available_size();
         rect_ui.y -= readout_h;
         let mut readout = None;
         ui.allocate_ui(rect_ui, |ui| {
-            readout = self
-                .preview
-                .image_ui(ui, current.as_ref().map(|(v, k)| (v, *k)));
+            readout = self.preview.image_ui(
+                ui,
+                current.as_ref().map(|(v, k)| (v, *k)),
+                Some((&mut self.tools, &mut cx)),
+            );
         });
+        if let Some(m) = cx.message.take() {
+            self.say(m);
+        }
         let text = match (&current, &self.viewed) {
             (_, None) => "Click a node to view its output.".to_string(),
             (None, Some((id, _))) => match self.outcome.node_errors.get(id) {

@@ -11,11 +11,15 @@
 //! renders are skipped), so a 4K relight never stalls a frame. The height view integrates the
 //! normals (DCT Poisson) on that thread, once per evaluated value.
 
+use super::tools::ViewTransform;
+use super::tools_ui::{ToolCx, Tools};
 use crate::ops::{Picture, Value};
 use crate::raster::gradient::GradientField;
 use crate::raster::Plane;
 use crate::render::{self, Light, Shading, View};
-use egui::{Color32, Pos2, Rect, Sense, Stroke, TextureHandle, TextureOptions, Ui, Vec2};
+use egui::{
+    Color32, PointerButton, Pos2, Rect, Sense, Stroke, TextureHandle, TextureOptions, Ui, Vec2,
+};
 use std::sync::mpsc::{channel, Receiver, Sender};
 use std::sync::Arc;
 
@@ -268,6 +272,8 @@ pub struct Preview {
     pub renders: u64,
     /// Time of the last render.
     pub render_ms: f64,
+    /// The screen ↔ image mapping of the last drawn frame (tools, tests).
+    pub transform: Option<ViewTransform>,
 }
 
 impl Default for Preview {
@@ -284,6 +290,7 @@ impl Default for Preview {
             pan: Vec2::ZERO,
             renders: 0,
             render_ms: 0.0,
+            transform: None,
         }
     }
 }
@@ -439,7 +446,15 @@ impl Preview {
 
     /// Draws the image with zoom and pan; returns the readout line for the pixel under the
     /// cursor, if any.
-    pub fn image_ui(&mut self, ui: &mut Ui, value: Option<(&Value, u128)>) -> Option<String> {
+    ///
+    /// With an on-image tool active (`tools`), the primary button draws and panning moves to
+    /// the middle or secondary button or Space + drag; without one, any drag pans.
+    pub fn image_ui(
+        &mut self,
+        ui: &mut Ui,
+        value: Option<(&Value, u128)>,
+        tools: Option<(&mut Tools, &mut ToolCx<'_>)>,
+    ) -> Option<String> {
         let (rect, resp) = ui.allocate_exact_size(ui.available_size(), Sense::click_and_drag());
         let painter = ui.painter_at(rect);
         painter.rect_filled(rect, 0.0, Color32::from_gray(24));
@@ -474,11 +489,21 @@ impl Preview {
                 }
             }
         }
-        if resp.dragged() {
+        let tool_active = tools.as_ref().is_some_and(|(t, _)| t.active());
+        let drawing = tools.as_ref().is_some_and(|(t, _)| t.gesture.is_some());
+        let pan_drag = if tool_active {
+            let space = ui.input(|i| i.key_down(egui::Key::Space));
+            resp.dragged_by(PointerButton::Middle)
+                || resp.dragged_by(PointerButton::Secondary)
+                || (space && resp.dragged_by(PointerButton::Primary))
+        } else {
+            resp.dragged()
+        };
+        if pan_drag {
             self.pan += resp.drag_delta();
             self.zoom = Some(zoom);
         }
-        if resp.double_clicked() {
+        if resp.double_clicked() && !tool_active {
             self.zoom = None;
             self.pan = Vec2::ZERO;
             zoom = fit;
@@ -497,6 +522,16 @@ impl Preview {
             Stroke::new(1.0, Color32::from_gray(70)),
             egui::StrokeKind::Outside,
         );
+        let xf = ViewTransform::new(
+            [rect.center().x, rect.center().y],
+            [self.pan.x, self.pan.y],
+            [size.x, size.y],
+            zoom,
+        );
+        self.transform = Some(xf);
+        if let Some((t, cx)) = tools {
+            t.image_ui(ui, &resp, &painter, xf, cx);
+        }
         let pos = resp.hover_pos()?;
         let rel = (pos - img_rect.min) / zoom;
         let (x, row) = (rel.x.floor(), rel.y.floor());
@@ -521,9 +556,15 @@ impl Preview {
             Value::Rgbn(img) => {
                 let c = img.color_at(x, row);
                 let n = img.normal_at(x, row);
-                let curl = self.curl_plane(key, img).at(x, row);
+                // The curl plane costs a full-image pass on this thread: not for every
+                // intermediate image of a stroke.
+                let curl = match self.curl.as_ref().filter(|c| c.0 == key) {
+                    _ if !drawing => format!("{:+.2e}", self.curl_plane(key, img).at(x, row)),
+                    Some((_, p)) => format!("{:+.2e}", p.at(x, row)),
+                    None => "—".into(),
+                };
                 format!(
-                    "({x}, {row})  colour {:.3} {:.3} {:.3}  normal {:+.3} {:+.3} {:+.3}  curl {curl:+.2e}",
+                    "({x}, {row})  colour {:.3} {:.3} {:.3}  normal {:+.3} {:+.3} {:+.3}  curl {curl}",
                     c[0], c[1], c[2], n[0], n[1], n[2]
                 )
             }

@@ -1,13 +1,14 @@
 //! The editor driven through its UI with egui_kittest (AccessKit queries, no GPU): open the
 //! demo, add a node from the menu, connect, edit a parameter (re-evaluation, new preview),
-//! undo, save and load.
+//! undo, save and load; a pen stroke drawn on the preview.
 
 use egui::accesskit::Role;
-use egui::{Key, Modifiers};
+use egui::{Key, Modifiers, Pos2};
 use egui_kittest::kittest::Queryable;
 use egui_kittest::Harness;
 use rgbn::app::graph_view::Action;
 use rgbn::app::state::Document;
+use rgbn::app::tools::ToolKind;
 use rgbn::app::EditorApp;
 use rgbn::graph::Source;
 use rgbn::ops::params::ParamValue;
@@ -272,4 +273,94 @@ fn recover_autosave_export_any_node_split_and_height_views() {
         h.state().preview.shown_settings().map(|s| s.view),
         Some(rgbn::app::preview::Mode::Height)
     );
+}
+
+#[test]
+fn a_pen_stroke_on_the_preview_adds_a_pen_path_evaluates_and_undoes() {
+    let mut h = harness(small_demo());
+    settle(&mut h);
+    // Choose the pen from the toolbar above the preview.
+    h.get_by_label("Pen").click();
+    h.run_steps(2);
+    assert_eq!(h.state().tools.state.kind, ToolKind::Pen);
+
+    let before = h.state().doc.graph.clone();
+    let (requests, renders, steps) = {
+        let a = h.state();
+        (a.requests, a.preview.renders, a.doc.history.undo_len())
+    };
+    let pan = h.state().preview.pan;
+    let xf = h.state().preview.transform.expect("the preview was drawn");
+    let path = [[20.0, 20.0], [40.0, 30.0], [60.0, 50.0], [70.0, 70.0]];
+    let screen: Vec<Pos2> = path
+        .iter()
+        .map(|p| {
+            let s = xf.screen_from_image(*p);
+            Pos2::new(s[0], s[1])
+        })
+        .collect();
+    // Press, drag through the points, release: simulated pointer events.
+    h.hover_at(screen[0]);
+    h.step();
+    h.drag_at(screen[0]);
+    h.step();
+    for p in &screen[1..] {
+        h.hover_at(*p);
+        h.step();
+    }
+    // While drawing: the stroke is already in the graph (live), not yet an undo step.
+    assert_ne!(h.state().doc.graph, before);
+    h.drop_at(*screen.last().unwrap());
+    h.step();
+    h.step();
+
+    let app = h.state();
+    assert_eq!(app.preview.pan, pan, "a pen drag does not pan");
+    let g = &app.doc.graph;
+    assert_eq!(g.nodes.len(), before.nodes.len() + 1);
+    let pen = *g.nodes.keys().next_back().unwrap();
+    assert_eq!(g.nodes[&pen].op, "pen");
+    // Inserted after the viewed node (3, "detail"): it reads it, its readers read the pen.
+    assert_eq!(
+        g.nodes[&pen].inputs["image"],
+        Source::Node(3, "image".into())
+    );
+    assert_eq!(
+        g.nodes[&4].inputs["image"],
+        Source::Node(pen, "image".into())
+    );
+    let ParamValue::Points(got) = &g.nodes[&pen].params["points"] else {
+        panic!("pen points: {:?}", g.nodes[&pen].params)
+    };
+    assert_eq!(got.len(), path.len(), "{got:?}");
+    for (a, b) in got.iter().zip(&path) {
+        assert!(
+            (a[0] - b[0]).abs() < 1e-3 && (a[1] - b[1]).abs() < 1e-3,
+            "{got:?}"
+        );
+    }
+    assert_eq!(
+        app.doc.history.undo_len(),
+        steps + 1,
+        "one stroke, one step"
+    );
+    assert_eq!(app.selected, Some(pen));
+    assert_eq!(app.viewed, Some((pen, "image".to_string())));
+
+    // The edit was evaluated and the preview shows the pen's output.
+    settle(&mut h);
+    let app = h.state();
+    assert!(app.requests > requests, "a re-evaluation was requested");
+    assert!(
+        app.outcome.node_errors.is_empty(),
+        "{:?}",
+        app.outcome.node_errors
+    );
+    assert!(app.outcome.values.contains_key(&(pen, "image".into())));
+    assert!(app.preview.renders > renders, "the preview changed");
+
+    // Undo restores the graph exactly.
+    h.key_press_modifiers(Modifiers::COMMAND, Key::Z);
+    h.step();
+    assert_eq!(h.state().doc.graph, before);
 }
