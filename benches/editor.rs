@@ -4,10 +4,13 @@
 //! while the light is dragged; the graph is not re-run. Also the height view (DCT Poisson of
 //! the normals, once per evaluated value).
 //!
+//! Zoomed out (fit to the panel), the preview renders every `⌊1/zoom⌋`-th pixel; the
+//! `_stride2/3` cases measure that path.
+//!
 //! `RAYON_NUM_THREADS=2 cargo bench --bench editor`
 
 use criterion::{criterion_group, criterion_main, Criterion};
-use rgbn::app::preview::{display_image, render_value, Mode, PreviewSettings};
+use rgbn::app::preview::{decimate, display_image, render_value, Mode, PreviewSettings};
 use rgbn::ops::Value;
 use std::hint::black_box;
 
@@ -27,6 +30,22 @@ fn bench(c: &mut Criterion) {
             black_box(display_image(&p))
         })
     });
+    // Zoomed out to fit the default preview panel (≈ 600 px for 2048 px: zoom ≈ 0.3), the
+    // preview renders every 2nd or 3rd pixel (decimated once per value, relit per light move).
+    let Value::Rgbn(full) = &img else {
+        unreachable!()
+    };
+    for stride in [2usize, 3] {
+        let small = Value::Rgbn(decimate(full, stride));
+        g.bench_function(format!("relight_to_texture_stride{stride}"), |b| {
+            b.iter(|| {
+                k = k.wrapping_add(1);
+                let a = f32::from((k % 64) as u16) / 64.0 * std::f32::consts::TAU;
+                s.light = [0.5 * a.cos(), 0.5 * a.sin(), 0.75f32.sqrt()];
+                black_box(display_image(&render_value(&small, &s).expect("relit")))
+            })
+        });
+    }
     s.view = Mode::Albedo;
     g.bench_function("albedo_to_texture", |b| {
         b.iter(|| black_box(display_image(&render_value(&img, &s).expect("albedo"))))

@@ -1244,6 +1244,9 @@ impl EditorApp {
                 Some((&mut self.tools, &mut cx)),
             );
         });
+        if let Some(l) = self.preview.light_request.take() {
+            self.settings.light = l;
+        }
         if let Some(m) = cx.message.take() {
             self.say(m);
         }

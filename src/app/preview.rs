@@ -128,6 +128,10 @@ pub struct PreviewRequest {
     pub settings: Option<PreviewSettings>,
     /// Content key of the "before" value shown left of the split line, if any.
     pub before: Option<u128>,
+    /// RGBN images are rendered from every `stride`-th pixel (1 = all). Zoomed out, the screen
+    /// shows less than one pixel in `1/zoom` anyway (nearest-neighbour sampling), so the preview
+    /// renders at about the displayed resolution: [`Preview::stride_for_zoom`].
+    pub stride: usize,
 }
 
 /// A render job for the preview thread.
@@ -141,6 +145,8 @@ struct Job {
 /// A finished render.
 struct Rendered {
     req: PreviewRequest,
+    /// Size of the value in pixels (the texture is smaller when `req.stride > 1`).
+    logical: [usize; 2],
     main: Option<egui::ColorImage>,
     before: Option<egui::ColorImage>,
     ms: f64,
@@ -161,17 +167,24 @@ impl Default for Renderer {
             .name("rgbn-preview".into())
             .spawn(move || {
                 let mut heights = HeightCache::default();
+                let mut small = SmallCache::default();
                 while let Ok(mut job) = jobs.recv() {
                     while let Ok(newer) = jobs.try_recv() {
                         job = newer;
                     }
                     let t0 = std::time::Instant::now();
                     let settings = job.req.settings.clone().unwrap_or_default();
-                    let main = render_color_image(&job.value, job.req.key, &settings, &mut heights);
+                    let logical = value_size(&job.value);
+                    let stride = job.req.stride;
+                    let value = small.get(0, &job.value, job.req.key, stride);
+                    let main = render_color_image(&value, job.req.key, &settings, &mut heights);
                     let before = job.before.as_ref().and_then(|b| {
-                        render_color_image(b, job.req.before.unwrap_or(0), &settings, &mut heights)
+                        let key = job.req.before.unwrap_or(0);
+                        let b = small.get(1, b, key, stride);
+                        render_color_image(&b, key, &settings, &mut heights)
                     });
                     let out = Rendered {
+                        logical,
                         req: job.req,
                         main,
                         before,
@@ -198,6 +211,67 @@ impl Drop for Renderer {
         if let Some(h) = self.handle.take() {
             let _ = h.join();
         }
+    }
+}
+
+/// Width and height of a value in pixels (`[0, 0]` for numbers).
+fn value_size(v: &Value) -> [usize; 2] {
+    match v {
+        Value::Rgbn(img) => [img.width(), img.height()],
+        Value::Mask(p) | Value::Scalar(p) => [p.width(), p.height()],
+        Value::Picture(p) => [p.width, p.height],
+        Value::Number(_) => [0, 0],
+    }
+}
+
+/// Every `stride`-th pixel of an RGBN image (top-left aligned), or the image itself.
+#[must_use]
+pub fn decimate(img: &crate::RgbnImage, stride: usize) -> crate::RgbnImage {
+    if stride <= 1 {
+        return img.clone();
+    }
+    let (w, h) = (img.width(), img.height());
+    let (tw, th) = (w.div_ceil(stride), h.div_ceil(stride));
+    let pick = |p: &[f32]| -> Vec<f32> {
+        let mut out = Vec::with_capacity(tw * th);
+        for r in (0..h).step_by(stride) {
+            out.extend(p[r * w..(r + 1) * w].iter().step_by(stride));
+        }
+        out
+    };
+    let [cr, cg, cb] = img.color();
+    let [nx, ny, nz] = img.normal();
+    crate::RgbnImage::new(
+        tw,
+        th,
+        [pick(cr), pick(cg), pick(cb)],
+        [pick(nx), pick(ny), pick(nz)],
+        img.mask().map(pick),
+    )
+    .unwrap_or_else(|_| img.clone())
+}
+
+/// The decimated copies of the last two values rendered (main and before), by key and stride:
+/// while the light moves only the small image is relit.
+#[derive(Default)]
+struct SmallCache([Option<(u128, usize, Value)>; 2]);
+
+impl SmallCache {
+    fn get(&mut self, slot: usize, v: &Value, key: u128, stride: usize) -> Value {
+        let Value::Rgbn(img) = v else {
+            return v.clone();
+        };
+        if stride <= 1 {
+            return v.clone();
+        }
+        if let Some((k, s, small)) = &self.0[slot] {
+            if *k == key && *s == stride && key != 0 {
+                return small.clone();
+            }
+        }
+        let small = Value::Rgbn(decimate(img, stride));
+        self.0[slot] = Some((key, stride, small.clone()));
+        small
     }
 }
 
@@ -261,6 +335,12 @@ pub struct Preview {
     /// The request the texture on screen shows.
     shown: Option<PreviewRequest>,
     renderer: Renderer,
+    /// Size in pixels of the value on screen (the texture may be smaller: `stride`).
+    shown_size: Option<Vec2>,
+    /// The zoom of the last frame drawn (screen points per image pixel).
+    last_zoom: Option<f32>,
+    /// A light direction asked for by Shift-dragging on the image (taken by the app).
+    pub light_request: Option<[f32; 3]>,
     /// Where the before/after split line is (0 = all after … 1 = all before), when shown.
     pub split: Option<f32>,
     curl: Option<(u128, Arc<Plane>)>,
@@ -284,6 +364,9 @@ impl Default for Preview {
             last: None,
             shown: None,
             renderer: Renderer::default(),
+            shown_size: None,
+            last_zoom: None,
+            light_request: None,
             split: None,
             curl: None,
             zoom: None,
@@ -321,6 +404,17 @@ impl Preview {
             key,
             settings: matches!(value, Value::Rgbn(_)).then(|| settings.clone()),
             before: None,
+            stride: 1,
+        }
+    }
+
+    /// The render stride for a zoom: `⌊1/zoom⌋` (at most 8) when zoomed out, else 1.
+    #[must_use]
+    pub fn stride_for_zoom(zoom: f32) -> usize {
+        if zoom >= 1.0 || !zoom.is_finite() || zoom <= 0.0 {
+            1
+        } else {
+            ((1.0 / zoom).floor() as usize).clamp(1, 8)
         }
     }
 
@@ -358,9 +452,12 @@ impl Preview {
         ctx: &egui::Context,
         value: &Value,
         before: Option<&Value>,
-        req: PreviewRequest,
+        mut req: PreviewRequest,
     ) {
         self.take_rendered(ctx);
+        if matches!(value, Value::Rgbn(_)) {
+            req.stride = self.last_zoom.map_or(1, Self::stride_for_zoom);
+        }
         if self.last.as_ref() == Some(&req) {
             return;
         }
@@ -391,6 +488,7 @@ impl Preview {
                 return;
             }
         }
+        self.shown_size = Some(Vec2::new(r.logical[0] as f32, r.logical[1] as f32));
         set_texture(ctx, &mut self.texture, "preview", r.main);
         set_texture(ctx, &mut self.before_texture, "preview-before", r.before);
         self.renders += 1;
@@ -470,7 +568,7 @@ impl Preview {
             }
             return None;
         };
-        let size = tex.size_vec2();
+        let size = self.shown_size.unwrap_or_else(|| tex.size_vec2());
         let fit = (rect.width() / size.x)
             .min(rect.height() / size.y)
             .max(1e-3);
@@ -497,7 +595,23 @@ impl Preview {
                 || resp.dragged_by(PointerButton::Secondary)
                 || (space && resp.dragged_by(PointerButton::Primary))
         } else {
-            resp.dragged()
+            // Shift-drag (or Alt-drag) moves the light instead of panning.
+            let light_mod = ui.input(|i| i.modifiers.shift || i.modifiers.alt);
+            if light_mod && resp.dragged_by(PointerButton::Primary) {
+                if let Some(p) = resp.interact_pointer_pos() {
+                    let c = rect.center() + self.pan;
+                    let r = 0.5 * (size * zoom).min_elem().max(1.0);
+                    let mut d = (p - c) / r;
+                    if d.length() > 0.995 {
+                        d = d.normalized() * 0.995;
+                    }
+                    let z = (1.0 - d.length_sq()).max(0.0).sqrt();
+                    self.light_request = Some([d.x, -d.y, z]);
+                }
+                false
+            } else {
+                resp.dragged()
+            }
         };
         if pan_drag {
             self.pan += resp.drag_delta();
@@ -508,6 +622,7 @@ impl Preview {
             self.pan = Vec2::ZERO;
             zoom = fit;
         }
+        self.last_zoom = Some(zoom);
         let img_rect = Rect::from_center_size(rect.center() + self.pan, size * zoom);
         painter.image(
             tex.id(),
@@ -680,6 +795,32 @@ pub fn settings_ui(ui: &mut Ui, s: &mut PreviewSettings, split: &mut Option<f32>
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn zoomed_out_previews_render_every_stride_th_pixel() {
+        assert_eq!(Preview::stride_for_zoom(1.0), 1);
+        assert_eq!(Preview::stride_for_zoom(4.0), 1);
+        assert_eq!(Preview::stride_for_zoom(0.5), 2);
+        assert_eq!(Preview::stride_for_zoom(0.34), 2);
+        assert_eq!(Preview::stride_for_zoom(0.3), 3);
+        assert_eq!(Preview::stride_for_zoom(0.01), 8);
+        let img = crate::raster::sample::demo_medallion(37);
+        let small = decimate(&img, 3);
+        assert_eq!((small.width(), small.height()), (13, 13));
+        for (r, x) in [(0, 0), (5, 7), (12, 12)] {
+            assert_eq!(small.normal_at(x, r), img.normal_at(3 * x, 3 * r));
+            assert_eq!(small.color_at(x, r), img.color_at(3 * x, 3 * r));
+        }
+        // Relighting the decimated image gives exactly the full render's pixels at those spots.
+        let s = PreviewSettings::default();
+        let full = render_value(&Value::Rgbn(img.clone()), &s).unwrap();
+        let part = render_value(&Value::Rgbn(small), &s).unwrap();
+        for (r, x) in [(0, 0), (5, 7), (12, 12)] {
+            let i = (r * 13 + x) * 4;
+            let j = (3 * r * 37 + 3 * x) * 4;
+            assert_eq!(part.rgba[i..i + 4], full.rgba[j..j + 4]);
+        }
+    }
 
     #[test]
     fn preview_request_is_plain_data_keyed_apart_from_evaluation() {
