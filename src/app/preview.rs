@@ -232,23 +232,11 @@ pub fn decimate(img: &crate::RgbnImage, stride: usize) -> crate::RgbnImage {
     }
     let (w, h) = (img.width(), img.height());
     let (tw, th) = (w.div_ceil(stride), h.div_ceil(stride));
-    let pick = |p: &[f32]| -> Vec<f32> {
-        let mut out = Vec::with_capacity(tw * th);
-        for r in (0..h).step_by(stride) {
-            out.extend(p[r * w..(r + 1) * w].iter().step_by(stride));
-        }
-        out
-    };
-    let [cr, cg, cb] = img.color();
-    let [nx, ny, nz] = img.normal();
-    crate::RgbnImage::new(
-        tw,
-        th,
-        [pick(cr), pick(cg), pick(cb)],
-        [pick(nx), pick(ny), pick(nz)],
-        img.mask().map(pick),
-    )
-    .unwrap_or_else(|_| img.clone())
+    let idx: Vec<usize> = (0..h)
+        .step_by(stride)
+        .flat_map(|r| (0..w).step_by(stride).map(move |x| r * w + x))
+        .collect();
+    super::worker::gather(img, tw, th, &idx)
 }
 
 /// The decimated copies of the last two values rendered (main and before), by key and stride:

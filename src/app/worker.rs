@@ -445,6 +445,13 @@ fn downsample(img: &RgbnImage, max: usize) -> RgbnImage {
     let idx: Vec<usize> = (0..th)
         .flat_map(|r| (0..tw).map(move |x| (r * h / th) * w + x * w / tw))
         .collect();
+    gather(img, tw, th, &idx)
+}
+
+/// A `tw`×`th` image of the pixels of `img` at the flat indices `idx` (row-major), every plane
+/// alike; `img` itself if that fails.
+#[must_use]
+pub fn gather(img: &RgbnImage, tw: usize, th: usize, idx: &[usize]) -> RgbnImage {
     let pick = |p: &[f32]| -> Vec<f32> { idx.iter().map(|&i| p[i]).collect() };
     let [cr, cg, cb] = img.color();
     let [nx, ny, nz] = img.normal();

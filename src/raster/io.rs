@@ -228,6 +228,21 @@ struct Raster {
     samples: Samples,
 }
 
+/// A decoder's failure: an I/O error other than a truncated file is a read error; everything
+/// else (truncation included) is a decode error with the decoder's message.
+fn read_or_decode_error(path: &Path, io: Option<std::io::Error>, detail: String) -> RgbnError {
+    match io {
+        Some(io) if io.kind() != std::io::ErrorKind::UnexpectedEof => RgbnError::Read {
+            path: path.into(),
+            source: io,
+        },
+        _ => RgbnError::Decode {
+            detail,
+            path: path.into(),
+        },
+    }
+}
+
 /// Decodes a PNG/JPEG/TIFF with the image crate, checking the size before decoding.
 fn decode_raster(path: &Path) -> Result<Raster, RgbnError> {
     open_check(path)?;
@@ -237,17 +252,12 @@ fn decode_raster(path: &Path) -> Result<Raster, RgbnError> {
         Format::Tiff => image::ImageFormat::Tiff,
         Format::Exr => unreachable!("EXR is decoded by the exr crate"),
     };
-    let decode_err = |e: image::ImageError| match e {
-        image::ImageError::IoError(io) if io.kind() != std::io::ErrorKind::UnexpectedEof => {
-            RgbnError::Read {
-                path: path.into(),
-                source: io,
-            }
+    let decode_err = |e: image::ImageError| {
+        let detail = e.to_string();
+        match e {
+            image::ImageError::IoError(io) => read_or_decode_error(path, Some(io), detail),
+            _ => read_or_decode_error(path, None, detail),
         }
-        other => RgbnError::Decode {
-            detail: other.to_string(),
-            path: path.into(),
-        },
     };
     let open = || {
         image::ImageReader::open(path)
@@ -301,17 +311,12 @@ fn decode_raster(path: &Path) -> Result<Raster, RgbnError> {
 /// allocated, palette and sub-byte images are expanded to 8 bits, and 16-bit big-endian
 /// samples are converted to `u16` in parallel.
 fn decode_png(path: &Path) -> Result<Raster, RgbnError> {
-    let err = |e: png::DecodingError| match e {
-        png::DecodingError::IoError(io) if io.kind() != std::io::ErrorKind::UnexpectedEof => {
-            RgbnError::Read {
-                path: path.into(),
-                source: io,
-            }
+    let err = |e: png::DecodingError| {
+        let detail = e.to_string();
+        match e {
+            png::DecodingError::IoError(io) => read_or_decode_error(path, Some(io), detail),
+            _ => read_or_decode_error(path, None, detail),
         }
-        other => RgbnError::Decode {
-            detail: other.to_string(),
-            path: path.into(),
-        },
     };
     let file = std::fs::File::open(path).map_err(|e| RgbnError::Read {
         path: path.into(),
