@@ -364,3 +364,39 @@ fn a_pen_stroke_on_the_preview_adds_a_pen_path_evaluates_and_undoes() {
     h.step();
     assert_eq!(h.state().doc.graph, before);
 }
+
+#[test]
+fn shift_drag_on_the_image_moves_the_light_without_panning() {
+    let mut h = harness(small_demo());
+    settle(&mut h);
+    let (light0, pan0) = (h.state().settings.light, h.state().preview.pan);
+    let xf = h.state().preview.transform.expect("the preview was drawn");
+    // From the image centre towards its right edge: the light tilts towards +x.
+    let screen: Vec<Pos2> = [[48.0, 48.0], [60.0, 48.0], [80.0, 48.0], [90.0, 48.0]]
+        .iter()
+        .map(|p| {
+            let s = xf.screen_from_image(*p);
+            Pos2::new(s[0], s[1])
+        })
+        .collect();
+    h.event(egui::Event::ModifiersChanged(Modifiers::SHIFT));
+    h.hover_at(screen[0]);
+    h.step();
+    h.drag_at(screen[0]);
+    h.step();
+    for p in &screen[1..] {
+        h.hover_at(*p);
+        h.step();
+    }
+    h.drop_at(*screen.last().unwrap());
+    h.step();
+    h.event(egui::Event::ModifiersChanged(Modifiers::NONE));
+    h.step();
+    let app = h.state();
+    assert_eq!(app.preview.pan, pan0, "a Shift-drag does not pan");
+    let l = app.settings.light;
+    assert_ne!(l, light0, "the light moved");
+    assert!(l[0] > 0.5 && l[1].abs() < 0.05, "light towards +x: {l:?}");
+    let len = (l[0] * l[0] + l[1] * l[1] + l[2] * l[2]).sqrt();
+    assert!((len - 1.0).abs() < 1e-5, "unit light direction: {len}");
+}
