@@ -282,6 +282,16 @@ impl Viewer<'_, '_> {
     fn ports(&self, id: NodeId) -> Option<&NodePorts> {
         self.data.ports.get(&id)
     }
+
+    /// Asks to remove the edge into input number `input` of node `node`.
+    fn disconnect_input(&mut self, node: NodeId, input: usize) {
+        if let Some(tp) = self.ports(node).and_then(|p| p.inputs.get(input)) {
+            self.actions.push(Action::Disconnect {
+                to: node,
+                port: tp.name.clone(),
+            });
+        }
+    }
 }
 
 /// A node's title: its name, or its operator's title.
@@ -444,24 +454,12 @@ impl SnarlViewer<NodeId> for Viewer<'_, '_> {
     }
 
     fn disconnect(&mut self, _from: &OutPin, to: &InPin, snarl: &mut Snarl<NodeId>) {
-        let tid = snarl[to.id.node];
-        if let Some(tp) = self.ports(tid).and_then(|p| p.inputs.get(to.id.input)) {
-            self.actions.push(Action::Disconnect {
-                to: tid,
-                port: tp.name.clone(),
-            });
-        }
+        self.disconnect_input(snarl[to.id.node], to.id.input);
     }
 
     fn drop_inputs(&mut self, pin: &InPin, snarl: &mut Snarl<NodeId>) {
         if !pin.remotes.is_empty() {
-            let tid = snarl[pin.id.node];
-            if let Some(tp) = self.ports(tid).and_then(|p| p.inputs.get(pin.id.input)) {
-                self.actions.push(Action::Disconnect {
-                    to: tid,
-                    port: tp.name.clone(),
-                });
-            }
+            self.disconnect_input(snarl[pin.id.node], pin.id.input);
         }
     }
 
