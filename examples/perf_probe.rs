@@ -84,10 +84,18 @@ fn main() {
                 println!("filter_normals_general (unfused) gauss{sigma}: {t:.1} ms");
             }
         }
+        "fused" => {
+            let k = [Kernel::Gaussian { sigma_px: 8.0 }];
+            let t = min_ms(n, || drop(filter_normals(&img, &k, &opts).unwrap()));
+            println!("filter_normals (fused) gauss8: {t:.1} ms");
+        }
         "relight" => {
             let s = Shading::default();
             let t = min_ms(n, || drop(render::relight(&img, &s).unwrap()));
             println!("relight: {t:.1} ms");
+            let mut out = Vec::new();
+            let t = min_ms(n, || render::relight_into(&img, &s, &mut out).unwrap());
+            println!("relight_into (buffer reused): {t:.1} ms");
         }
         "curl" => {
             let t = min_ms(n, || drop(g.curl()));
@@ -107,6 +115,6 @@ fn main() {
             println!("png16 write {t:.0} ms, read {r:.0} ms");
             let _ = std::fs::remove_file(p);
         }
-        other => eprintln!("unknown probe {other:?} (filter, relight, curl, png, exr)"),
+        other => eprintln!("unknown probe {other:?} (filter, fused, relight, curl, png, exr)"),
     }
 }

@@ -76,6 +76,7 @@
 //! - S. Seitz et al., UW CSE 455 "Photometric stereo" project (chrome-ball light calibration).
 
 use crate::error::RgbnError;
+use crate::raster::buf;
 use crate::raster::{check_size, io, RgbnImage};
 use rayon::prelude::*;
 use std::path::{Path, PathBuf};
@@ -651,9 +652,13 @@ pub fn photometric_stereo(
     // Pseudo-inverse rows: P = (LᵀL)⁻¹ Lᵀ, 3 × m.
     let pinv: Vec<[f64; 3]> = dirs.iter().map(|l| solve3(&a_all, *l)).collect();
 
-    let mut color = [vec![0.0f32; n], vec![0.0f32; n], vec![0.0f32; n]];
-    let mut normal = [vec![0.0f32; n], vec![0.0f32; n], vec![1.0f32; n]];
-    let mut out_mask = vec![0.0f32; n];
+    let mut color = [buf::zeroed_f32(n), buf::zeroed_f32(n), buf::zeroed_f32(n)];
+    let mut normal = [
+        buf::zeroed_f32(n),
+        buf::zeroed_f32(n),
+        buf::filled_f32(n, 1.0),
+    ];
+    let mut out_mask = buf::zeroed_f32(n);
     let photos = &stack.photos;
     let [cr, cg, cb] = &mut color;
     let [nx, ny, nz] = &mut normal;

@@ -34,6 +34,7 @@
 
 use super::rotate::{normalize3, Frame};
 use crate::error::RgbnError;
+use crate::raster::buf;
 use crate::raster::gradient::{CurlStats, GradientField};
 use crate::raster::RgbnImage;
 use rayon::prelude::*;
@@ -135,9 +136,9 @@ pub fn bilateral(
     let metric = params.normal_metric;
     let (nrm, col, mask) = (img.normal(), img.color(), img.mask());
     let n = w * h;
-    let mut out_n = [vec![0.0f32; n], vec![0.0f32; n], vec![0.0f32; n]];
+    let mut out_n = [buf::zeroed_f32(n), buf::zeroed_f32(n), buf::zeroed_f32(n)];
     let mut out_c = if params.filter_color {
-        Some([vec![0.0f32; n], vec![0.0f32; n], vec![0.0f32; n]])
+        Some([buf::zeroed_f32(n), buf::zeroed_f32(n), buf::zeroed_f32(n)])
     } else {
         None
     };
@@ -250,7 +251,7 @@ pub fn split(
     let (base, report) = bilateral(img, params)?;
     let (bn, on) = (base.normal(), img.normal());
     let n = img.len();
-    let mut d = [vec![0.0f32; n], vec![0.0f32; n], vec![0.0f32; n]];
+    let mut d = [buf::zeroed_f32(n), buf::zeroed_f32(n), buf::zeroed_f32(n)];
     let [dx, dy, dz] = &mut d;
     dx.par_iter_mut()
         .zip(dy.par_iter_mut())

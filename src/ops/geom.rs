@@ -20,6 +20,7 @@
 //! - M. Hestenes, E. Stiefel, "Methods of conjugate gradients for solving linear systems" (1952).
 
 use crate::error::RgbnError;
+use crate::raster::buf;
 use crate::raster::gradient::GradientField;
 use crate::raster::Plane;
 use rayon::prelude::*;
@@ -352,7 +353,7 @@ pub fn distance_transform(seeds: &[bool], width: usize, height: usize) -> Plane 
         }
     }
     // Rows.
-    let mut out = vec![0.0f32; width * height];
+    let mut out = buf::zeroed_f32(width * height);
     out.par_chunks_mut(width.max(1))
         .zip(f.par_chunks(width.max(1)))
         .for_each(|(o, row)| {

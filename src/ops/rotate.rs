@@ -45,6 +45,7 @@
 //!   normals", NPAR 2007 (detail as a rotation of the base).
 
 use crate::error::RgbnError;
+use crate::raster::buf;
 use crate::raster::gradient::{CurlStats, GradientField};
 use crate::raster::{Plane, RgbnImage};
 use rayon::prelude::*;
@@ -433,9 +434,9 @@ pub fn rotation_combine(
     let ex = existing.unwrap_or(base);
     let (bn, dn, en) = (base.normal(), detail.normal(), ex.normal());
     let mut out = [
-        vec![0.0f32; w * h],
-        vec![0.0f32; w * h],
-        vec![0.0f32; w * h],
+        buf::zeroed_f32(w * h),
+        buf::zeroed_f32(w * h),
+        buf::zeroed_f32(w * h),
     ];
     let [ox, oy, oz] = &mut out;
     let saturated: usize = ox

@@ -18,6 +18,7 @@
 //! smooth signal (the use case — gradients of a surface) the relative RMS error of the output
 //! is below 1e-3. See the doc of [`gaussian`] for the measured table.
 
+use crate::raster::buf;
 use rayon::prelude::*;
 
 /// How samples outside the image are invented.
@@ -584,7 +585,7 @@ pub fn convolve_2d(
     border: BorderMode,
 ) -> Vec<f32> {
     let (rx, ry) = ((kw / 2) as isize, (kh / 2) as isize);
-    let mut out = vec![0.0f32; data.len()];
+    let mut out = buf::zeroed_f32(data.len());
     out.par_chunks_mut(width.max(1))
         .enumerate()
         .for_each(|(r, orow)| {
@@ -653,7 +654,7 @@ mod tests {
 
     fn impulse_error(sigma: f32) -> f32 {
         let n = (28.0 * sigma) as usize + 1;
-        let mut x = vec![0.0f32; n];
+        let mut x = buf::zeroed_f32(n);
         x[n / 2] = 1.0;
         let got = run_line(&Deriche::new(sigma), &x, BorderMode::Zero);
         let want = exact_line(&x, sigma, BorderMode::Zero);

@@ -16,6 +16,7 @@
 //!   the discrete gradient of any height (Agrawal et al. 2005).
 
 use super::{Plane, RgbnImage};
+use crate::raster::buf;
 use rayon::prelude::*;
 
 /// Smallest `n_z` used when dividing; slopes are thus bounded by `1/NZ_EPSILON = 1000`.
@@ -55,8 +56,8 @@ impl GradientField {
         Self {
             width,
             height,
-            p: vec![0.0; width * height],
-            q: vec![0.0; width * height],
+            p: buf::zeroed_f32(width * height),
+            q: buf::zeroed_f32(width * height),
             clamped: 0,
         }
     }
@@ -66,8 +67,8 @@ impl GradientField {
     pub fn from_normals(img: &RgbnImage) -> Self {
         let (w, h) = (img.width(), img.height());
         let [nx, ny, nz] = img.normal();
-        let mut p = vec![0.0f32; w * h];
-        let mut q = vec![0.0f32; w * h];
+        let mut p = buf::zeroed_f32(w * h);
+        let mut q = buf::zeroed_f32(w * h);
         let clamped = p
             .par_chunks_mut(w.max(1))
             .zip(q.par_chunks_mut(w.max(1)))
@@ -100,8 +101,8 @@ impl GradientField {
     pub fn from_height(z: &Plane) -> Self {
         let (w, h) = (z.width(), z.height());
         let d = z.data();
-        let mut p = vec![0.0f32; w * h];
-        let mut q = vec![0.0f32; w * h];
+        let mut p = buf::zeroed_f32(w * h);
+        let mut q = buf::zeroed_f32(w * h);
         p.par_chunks_mut(w.max(1))
             .zip(q.par_chunks_mut(w.max(1)))
             .enumerate()
@@ -156,7 +157,7 @@ impl GradientField {
     #[must_use]
     pub fn to_normals(&self) -> [Vec<f32>; 3] {
         let n = self.width * self.height;
-        let mut out = [vec![0.0f32; n], vec![0.0f32; n], vec![0.0f32; n]];
+        let mut out = [buf::zeroed_f32(n), buf::zeroed_f32(n), buf::zeroed_f32(n)];
         let w = self.width.max(1);
         let [nx, ny, nz] = &mut out;
         nx.par_chunks_mut(w)
@@ -341,7 +342,7 @@ impl Plane {
         height: usize,
         f: impl Fn(usize, &mut [f32]) + Sync + Send,
     ) -> Self {
-        let mut data = vec![0.0f32; width * height];
+        let mut data = buf::zeroed_f32(width * height);
         data.par_chunks_mut(width.max(1))
             .enumerate()
             .for_each(|(r, out)| f(r, out));

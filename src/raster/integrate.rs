@@ -78,6 +78,7 @@
 use super::gradient::{CurlStats, GradientField};
 use super::{Plane, RgbnImage};
 use crate::error::RgbnError;
+use crate::raster::buf;
 use rayon::prelude::*;
 use rustfft::num_complex::Complex;
 use rustfft::{Fft, FftPlanner};
@@ -397,7 +398,7 @@ fn edge_residual_rms(z: &Plane, g: &GradientField, domain: Option<&[f32]>) -> f6
 
 /// The divergence `b = Dᵀ g` (module docs); with a domain only edges inside it count.
 fn divergence(g: &GradientField, domain: Option<&[f32]>) -> Vec<f32> {
-    let mut b = vec![0.0f32; g.width * g.height];
+    let mut b = buf::zeroed_f32(g.width * g.height);
     b.par_chunks_mut(g.width)
         .enumerate()
         .for_each(|(r, out)| divergence_row(g, domain, r, out));
@@ -807,7 +808,7 @@ const DCT_COLUMN_GROUP: usize = 16;
 fn poisson_dct(g: &GradientField, domain: Option<&[f32]>) -> Plane {
     let (w, h) = (g.width, g.height);
     let (dw, dh) = (dct_plan(w), dct_plan(h));
-    let mut z = vec![0.0f32; w * h];
+    let mut z = buf::zeroed_f32(w * h);
     for_row_pairs(&mut z, w, dw.scratch_len, |r, a, mut b, buf, s| {
         divergence_row(g, domain, r, a);
         if let Some(b) = b.as_deref_mut() {
@@ -838,7 +839,7 @@ fn poisson_dct(g: &GradientField, domain: Option<&[f32]>) -> Plane {
             (
                 vec![C_ZERO; pairs_max * h],
                 vec![C_ZERO; dh.scratch_len],
-                vec![0.0f32; 2 * h],
+                buf::zeroed_f32(2 * h),
             )
         },
         |(buf, scratch, x2), grp| {
@@ -980,7 +981,7 @@ fn frankot_chellappa(g: &GradientField) -> Plane {
         },
     );
     // (3) Two Hermitian rows per inverse FFT: z_r + i z_{r+1} = IFFT(Ẑ_r + i Ẑ_{r+1}).
-    let mut z = vec![0.0f32; w * h];
+    let mut z = buf::zeroed_f32(w * h);
     z.par_chunks_mut(2 * w)
         .zip(spec.par_chunks(4 * hw))
         .with_min_len(4)
@@ -1461,7 +1462,11 @@ mod tests {
         };
         let sphere = Surface::Sphere { radius_px: rr };
         let n = size * size;
-        let mut normal = [vec![0.0f32; n], vec![0.0f32; n], vec![1.0f32; n]];
+        let mut normal = [
+            buf::zeroed_f32(n),
+            buf::zeroed_f32(n),
+            buf::filled_f32(n, 1.0),
+        ];
         for i in 0..n {
             let (u, v) = ((i % size) as f64 - c, c - (i / size) as f64);
             if u * u + v * v < a * a {
@@ -1571,7 +1576,7 @@ mod tests {
     #[test]
     fn bad_inputs_are_errors_not_panics() {
         let g = GradientField::zeros(8, 8);
-        let empty = vec![0.0f32; 64];
+        let empty = buf::zeroed_f32(64);
         for method in [
             IntegrationMethod::PoissonDct,
             IntegrationMethod::FrankotChellappa,
@@ -1600,7 +1605,7 @@ mod tests {
         let one = GradientField::zeros(1, 1);
         let (z, _) = integrate_gradients(&one, None, &IntegrateParams::default()).unwrap();
         assert_eq!(z.data(), &[0.0]);
-        let mut m = vec![0.0f32; 64];
+        let mut m = buf::zeroed_f32(64);
         m[9] = 1.0;
         let params = IntegrateParams {
             method: IntegrationMethod::MaskedPoisson,

@@ -16,6 +16,7 @@
 
 use super::{check_size, RgbnImage, Validation};
 use crate::error::RgbnError;
+use crate::raster::buf;
 use rayon::prelude::*;
 use std::path::{Path, PathBuf};
 
@@ -338,7 +339,7 @@ fn decode_png(path: &Path) -> Result<Raster, RgbnError> {
             detail: "image too large for this machine".into(),
             path: path.into(),
         })?;
-    let mut buf = vec![0u8; size];
+    let mut buf = buf::zeroed_u8(size);
     let frame = reader.next_frame(&mut buf).map_err(err)?;
     buf.truncate(frame.buffer_size());
     let channels = frame.color_type.samples();
@@ -573,9 +574,9 @@ pub fn load_normal_map(path: &Path, opts: &LoadOptions) -> Result<RgbnImage, Rgb
         r.width,
         r.height,
         [
-            vec![DEFAULT_ALBEDO; n],
-            vec![DEFAULT_ALBEDO; n],
-            vec![DEFAULT_ALBEDO; n],
+            buf::filled_f32(n, DEFAULT_ALBEDO),
+            buf::filled_f32(n, DEFAULT_ALBEDO),
+            buf::filled_f32(n, DEFAULT_ALBEDO),
         ],
         [nx, ny, nz],
         None,
@@ -684,9 +685,9 @@ pub fn load_exr(path: &Path, opts: &LoadOptions) -> Result<RgbnImage, RgbnError>
         let normal = e.take_three(["R", "G", "B"], path)?;
         (
             [
-                vec![DEFAULT_ALBEDO; n],
-                vec![DEFAULT_ALBEDO; n],
-                vec![DEFAULT_ALBEDO; n],
+                buf::filled_f32(n, DEFAULT_ALBEDO),
+                buf::filled_f32(n, DEFAULT_ALBEDO),
+                buf::filled_f32(n, DEFAULT_ALBEDO),
             ],
             normal,
         )
@@ -700,9 +701,9 @@ pub fn load_exr(path: &Path, opts: &LoadOptions) -> Result<RgbnImage, RgbnError>
         })?;
         let color = e.take_three(["R", "G", "B"], path).unwrap_or_else(|_| {
             [
-                vec![DEFAULT_ALBEDO; n],
-                vec![DEFAULT_ALBEDO; n],
-                vec![DEFAULT_ALBEDO; n],
+                buf::filled_f32(n, DEFAULT_ALBEDO),
+                buf::filled_f32(n, DEFAULT_ALBEDO),
+                buf::filled_f32(n, DEFAULT_ALBEDO),
             ]
         });
         (color, normal)
@@ -1141,7 +1142,7 @@ pub fn write_raster16(
     }
     // PNG stores big-endian samples; the image crate's TIFF encoder takes native order.
     let png = fmt == Format::Png;
-    let mut bytes = vec![0u8; data.len() * 2];
+    let mut bytes = buf::zeroed_u8(data.len() * 2);
     bytes
         .par_chunks_mut(2 << 16)
         .zip(data.par_chunks(1 << 16))

@@ -6,6 +6,7 @@
 //! Conventions (see `ARCHITECTURE.md`): colour is linear light; normals are unit vectors in the
 //! OpenGL frame (`+x` right, `+y` up, `+z` towards the viewer).
 
+pub mod buf;
 pub mod convolve;
 pub mod gradient;
 pub mod integrate;
@@ -70,7 +71,7 @@ impl Plane {
         Self {
             width,
             height,
-            data: vec![value; width * height],
+            data: buf::filled_f32(width * height, value),
         }
     }
 
@@ -94,7 +95,7 @@ impl Plane {
     #[must_use]
     pub fn from_fn(width: usize, height: usize, f: impl Fn(usize, usize) -> f32 + Sync) -> Self {
         use rayon::prelude::*;
-        let mut data = vec![0.0; width * height];
+        let mut data = buf::zeroed_f32(width * height);
         data.par_chunks_mut(width.max(1))
             .enumerate()
             .for_each(|(row, out)| {
@@ -186,8 +187,12 @@ impl RgbnImage {
         Self {
             width,
             height,
-            color: Arc::new(color.map(|c| vec![c; n])),
-            normal: Arc::new([vec![0.0; n], vec![0.0; n], vec![1.0; n]]),
+            color: Arc::new(color.map(|c| buf::filled_f32(n, c))),
+            normal: Arc::new([
+                buf::zeroed_f32(n),
+                buf::zeroed_f32(n),
+                buf::filled_f32(n, 1.0),
+            ]),
             mask: None,
         }
     }

@@ -5,6 +5,7 @@
 
 use super::gradient::normal_of_gradient;
 use super::{Plane, RgbnImage};
+use crate::raster::buf;
 use rayon::prelude::*;
 
 /// An analytic height field `z(u, v)` with its exact gradient.
@@ -96,8 +97,12 @@ impl Surface {
     pub fn render(&self, width: usize, height: usize) -> (RgbnImage, Plane) {
         let (cx, cy) = (width as f64 / 2.0, height as f64 / 2.0);
         let n = width * height;
-        let mut normal = [vec![0.0f32; n], vec![0.0f32; n], vec![1.0f32; n]];
-        let mut mask = vec![1.0f32; n];
+        let mut normal = [
+            buf::zeroed_f32(n),
+            buf::zeroed_f32(n),
+            buf::filled_f32(n, 1.0),
+        ];
+        let mut mask = buf::filled_f32(n, 1.0);
         let z = Plane::from_fn(width, height, |x, r| {
             self.height(x as f64 - cx, cy - r as f64) as f32
         });
@@ -234,8 +239,8 @@ pub fn demo_medallion(size: usize) -> RgbnImage {
     let n = size * size;
     let c = size as f64 / 2.0;
     let rr = 0.45 * size as f64;
-    let mut color = [vec![0.0f32; n], vec![0.0f32; n], vec![0.0f32; n]];
-    let mut normal = [vec![0.0f32; n], vec![0.0f32; n], vec![0.0f32; n]];
+    let mut color = [buf::zeroed_f32(n), buf::zeroed_f32(n), buf::zeroed_f32(n)];
+    let mut normal = [buf::zeroed_f32(n), buf::zeroed_f32(n), buf::zeroed_f32(n)];
     type Row = (Vec<[f32; 3]>, Vec<[f32; 3]>);
     let rows: Vec<Row> = (0..size)
         .into_par_iter()

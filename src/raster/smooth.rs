@@ -25,6 +25,7 @@ use super::convolve::{
     lane_splat, load_lane, store_lane, BorderMode, Lane, LineFilter, SharedMut, LANES,
 };
 use super::gradient::{gradient_of_normal, normal_of_gradient, CurlSums, NZ_EPSILON};
+use crate::raster::buf;
 use rayon::prelude::*;
 
 /// The result of [`smooth_normals`].
@@ -56,7 +57,7 @@ pub fn smooth_normals<F: LineFilter>(
 ) -> SmoothedNormals {
     let n = w * h;
     assert!(normal.iter().all(|p| p.len() == n) && mask.is_none_or(|m| m.len() == n));
-    let mut out = [vec![0.0f32; n], vec![0.0f32; n], vec![0.0f32; n]];
+    let mut out = [buf::zeroed_f32(n), buf::zeroed_f32(n), buf::zeroed_f32(n)];
     if n == 0 {
         return SmoothedNormals {
             normal: out,
