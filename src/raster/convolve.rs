@@ -443,6 +443,141 @@ pub(crate) unsafe fn store_lane(dst: *mut f32, lane: &Lane, cols: usize) {
     }
 }
 
+/// Gathers a band of `rows ≤ LANES` rows (`band`, row-major, `width` floats each) into lanes:
+/// `lanes[x][k] = band[k·width + x]`, lanes `rows..` zero. A full band goes through 8×8
+/// register transposes (AVX) instead of one scalar store per float.
+pub(crate) fn rows_to_lanes(band: &[f32], width: usize, lanes: &mut Vec<Lane>) {
+    let rows = band.len() / width.max(1);
+    assert!(rows <= LANES && band.len() == rows * width);
+    if rows < LANES || lanes.len() != width {
+        lanes.clear();
+        lanes.resize(width, lane_splat(0.0));
+    }
+    #[cfg(target_arch = "x86_64")]
+    if rows == LANES && std::arch::is_x86_feature_detected!("avx") {
+        // SAFETY: AVX was just detected; `band` holds LANES rows of `width`, `lanes` `width`.
+        return unsafe { transpose_avx::rows_to_lanes(band, width, lanes) };
+    }
+    for k in 0..rows {
+        for (lane, &v) in lanes.iter_mut().zip(&band[k * width..(k + 1) * width]) {
+            lane[k] = v;
+        }
+    }
+}
+
+/// The inverse of [`rows_to_lanes`]: `band[k·width + x] = lanes[x][k]` for the band's rows.
+pub(crate) fn lanes_to_rows(lanes: &[Lane], width: usize, band: &mut [f32]) {
+    let rows = band.len() / width.max(1);
+    assert!(rows <= LANES && band.len() == rows * width && lanes.len() == width);
+    #[cfg(target_arch = "x86_64")]
+    if rows == LANES && std::arch::is_x86_feature_detected!("avx") {
+        // SAFETY: AVX was just detected; the sizes were just checked.
+        return unsafe { transpose_avx::lanes_to_rows(lanes, width, band) };
+    }
+    for k in 0..rows {
+        for (v, lane) in band[k * width..(k + 1) * width].iter_mut().zip(lanes) {
+            *v = lane[k];
+        }
+    }
+}
+
+/// The AVX 8×8 transposes behind [`rows_to_lanes`] and [`lanes_to_rows`] (data movement only,
+/// so results are bit-identical to the scalar loops).
+#[cfg(target_arch = "x86_64")]
+mod transpose_avx {
+    use super::{Lane, LANES};
+    use std::arch::x86_64::{
+        __m256, _mm256_loadu_ps, _mm256_permute2f128_ps, _mm256_setzero_ps, _mm256_shuffle_ps,
+        _mm256_storeu_ps, _mm256_unpackhi_ps, _mm256_unpacklo_ps,
+    };
+
+    /// `out[j][k] = r[k][j]`.
+    #[inline]
+    #[target_feature(enable = "avx")]
+    fn transpose8(r: [__m256; 8]) -> [__m256; 8] {
+        let t0 = _mm256_unpacklo_ps(r[0], r[1]);
+        let t1 = _mm256_unpackhi_ps(r[0], r[1]);
+        let t2 = _mm256_unpacklo_ps(r[2], r[3]);
+        let t3 = _mm256_unpackhi_ps(r[2], r[3]);
+        let t4 = _mm256_unpacklo_ps(r[4], r[5]);
+        let t5 = _mm256_unpackhi_ps(r[4], r[5]);
+        let t6 = _mm256_unpacklo_ps(r[6], r[7]);
+        let t7 = _mm256_unpackhi_ps(r[6], r[7]);
+        let s0 = _mm256_shuffle_ps::<0x44>(t0, t2);
+        let s1 = _mm256_shuffle_ps::<0xee>(t0, t2);
+        let s2 = _mm256_shuffle_ps::<0x44>(t1, t3);
+        let s3 = _mm256_shuffle_ps::<0xee>(t1, t3);
+        let s4 = _mm256_shuffle_ps::<0x44>(t4, t6);
+        let s5 = _mm256_shuffle_ps::<0xee>(t4, t6);
+        let s6 = _mm256_shuffle_ps::<0x44>(t5, t7);
+        let s7 = _mm256_shuffle_ps::<0xee>(t5, t7);
+        [
+            _mm256_permute2f128_ps::<0x20>(s0, s4),
+            _mm256_permute2f128_ps::<0x20>(s1, s5),
+            _mm256_permute2f128_ps::<0x20>(s2, s6),
+            _mm256_permute2f128_ps::<0x20>(s3, s7),
+            _mm256_permute2f128_ps::<0x31>(s0, s4),
+            _mm256_permute2f128_ps::<0x31>(s1, s5),
+            _mm256_permute2f128_ps::<0x31>(s2, s6),
+            _mm256_permute2f128_ps::<0x31>(s3, s7),
+        ]
+    }
+
+    /// # Safety
+    /// AVX available; `band.len() == LANES · width`, `lanes.len() == width`.
+    #[target_feature(enable = "avx")]
+    pub(super) unsafe fn rows_to_lanes(band: &[f32], width: usize, lanes: &mut [Lane]) {
+        debug_assert!(band.len() == LANES * width && lanes.len() == width);
+        let full = width / 8 * 8;
+        for x0 in (0..full).step_by(8) {
+            for half in 0..LANES / 8 {
+                let mut r = [_mm256_setzero_ps(); 8];
+                for (k, v) in r.iter_mut().enumerate() {
+                    // SAFETY: row half·8+k < LANES, columns x0..x0+8 ≤ width: inside `band`.
+                    *v = unsafe { _mm256_loadu_ps(band.as_ptr().add((half * 8 + k) * width + x0)) };
+                }
+                for (j, v) in transpose8(r).into_iter().enumerate() {
+                    // SAFETY: lane x0+j < width exists; floats half·8.. half·8+8 ≤ LANES.
+                    unsafe { _mm256_storeu_ps(lanes[x0 + j].as_mut_ptr().add(half * 8), v) };
+                }
+            }
+        }
+        for k in 0..LANES {
+            for x in full..width {
+                lanes[x][k] = band[k * width + x];
+            }
+        }
+    }
+
+    /// # Safety
+    /// AVX available; `band.len() == LANES · width`, `lanes.len() == width`.
+    #[target_feature(enable = "avx")]
+    pub(super) unsafe fn lanes_to_rows(lanes: &[Lane], width: usize, band: &mut [f32]) {
+        debug_assert!(band.len() == LANES * width && lanes.len() == width);
+        let full = width / 8 * 8;
+        for x0 in (0..full).step_by(8) {
+            for half in 0..LANES / 8 {
+                let mut r = [_mm256_setzero_ps(); 8];
+                for (j, v) in r.iter_mut().enumerate() {
+                    // SAFETY: lane x0+j < width exists; floats half·8.. half·8+8 ≤ LANES.
+                    *v = unsafe { _mm256_loadu_ps(lanes[x0 + j].as_ptr().add(half * 8)) };
+                }
+                for (k, v) in transpose8(r).into_iter().enumerate() {
+                    // SAFETY: row half·8+k < LANES, columns x0..x0+8 ≤ width: inside `band`.
+                    unsafe {
+                        _mm256_storeu_ps(band.as_mut_ptr().add((half * 8 + k) * width + x0), v);
+                    }
+                }
+            }
+        }
+        for k in 0..LANES {
+            for x in full..width {
+                band[k * width + x] = lanes[x][k];
+            }
+        }
+    }
+}
+
 /// Filters every row of `data` (`width × height`, row-major) along x, in place.
 pub fn filter_rows<F: LineFilter>(
     data: &mut [f32],
@@ -458,22 +593,9 @@ pub fn filter_rows<F: LineFilter>(
     data.par_chunks_mut(width * LANES).for_each_init(
         || (Vec::<Lane>::new(), Vec::<Lane>::new()),
         |(buf, scratch), band| {
-            let rows = band.len() / width;
-            buf.clear();
-            buf.resize(width, lane_splat(0.0));
-            for k in 0..rows {
-                let row = &band[k * width..(k + 1) * width];
-                for (x, v) in row.iter().enumerate() {
-                    buf[x][k] = *v;
-                }
-            }
+            rows_to_lanes(band, width, buf);
             f.run(buf, scratch, border);
-            for k in 0..rows {
-                let row = &mut band[k * width..(k + 1) * width];
-                for (x, v) in row.iter_mut().enumerate() {
-                    *v = buf[x][k];
-                }
-            }
+            lanes_to_rows(buf, width, band);
         },
     );
 }
@@ -728,6 +850,29 @@ mod tests {
                 s += x[BorderMode::Clamp.map(n as isize + k, x.len()).unwrap()];
             }
             assert!((got[n] - s / 5.0).abs() < 1e-5);
+        }
+    }
+
+    #[test]
+    fn band_transposes_match_their_definition() {
+        // Widths around the 8-column blocks, full and partial bands; lanes beyond the band's
+        // rows are zero; the way back restores the band exactly.
+        for width in [1, 7, 8, 9, 16, 23, 40] {
+            for rows in [1, 5, LANES] {
+                let band: Vec<f32> = (0..rows * width).map(|i| i as f32 * 0.5 - 3.0).collect();
+                let mut lanes = vec![lane_splat(9.0); 3];
+                rows_to_lanes(&band, width, &mut lanes);
+                assert_eq!(lanes.len(), width);
+                for (x, lane) in lanes.iter().enumerate() {
+                    for (k, &v) in lane.iter().enumerate() {
+                        let want = if k < rows { band[k * width + x] } else { 0.0 };
+                        assert_eq!(v, want, "{width}×{rows} lane {x} row {k}");
+                    }
+                }
+                let mut back = vec![f32::NAN; rows * width];
+                lanes_to_rows(&lanes, width, &mut back);
+                assert_eq!(back, band, "{width}×{rows}");
+            }
         }
     }
 

@@ -22,7 +22,8 @@
 //! (`tests::fused_equals_the_unfused_reference`).
 
 use super::convolve::{
-    lane_splat, load_lane, store_lane, BorderMode, Lane, LineFilter, SharedMut, LANES,
+    lane_splat, lanes_to_rows, load_lane, rows_to_lanes, store_lane, BorderMode, Lane, LineFilter,
+    SharedMut, LANES,
 };
 use super::gradient::{gradient_of_normal, normal_of_gradient, CurlSums, NZ_EPSILON};
 use crate::raster::buf;
@@ -90,7 +91,8 @@ struct RowScratch {
     p: Vec<Lane>,
     q: Vec<Lane>,
     filter: Vec<Lane>,
-    p_row: Vec<f32>,
+    p_band: Vec<f32>,
+    q_band: Vec<f32>,
     q_row: Vec<f32>,
     p_prev: Vec<f32>,
 }
@@ -179,13 +181,12 @@ impl<F: LineFilter> Sweep<'_, F> {
     ) -> (usize, CurlSums) {
         let (w, [nx, ny, nz]) = (self.w, self.normal);
         let rows = pb.len() / w;
-        s.p.clear();
-        s.p.resize(w, lane_splat(0.0));
-        s.q.clear();
-        s.q.resize(w, lane_splat(0.0));
-        for v in [&mut s.p_row, &mut s.q_row, &mut s.p_prev] {
-            v.resize(w, 0.0);
-        }
+        // The band's gradient rows, contiguous (then transposed into lanes as a block).
+        s.p_band.resize(rows * w, 0.0);
+        s.q_band.resize(rows * w, 0.0);
+        s.p_prev.resize(w, 0.0);
+        s.q_row.resize(w, 0.0);
+        let (p_band, q_band) = (&mut s.p_band[..rows * w], &mut s.q_band[..rows * w]);
         if r0 > 0 {
             let o = (r0 - 1) * w..r0 * w;
             let q_row = &mut s.q_row;
@@ -195,32 +196,25 @@ impl<F: LineFilter> Sweep<'_, F> {
         for k in 0..rows {
             let r = r0 + k;
             let o = r * w..(r + 1) * w;
-            clamped += gradient_row(
-                &nx[o.clone()],
-                &ny[o.clone()],
-                &nz[o.clone()],
-                &mut s.p_row,
-                &mut s.q_row,
-            );
+            let (p_done, p_rest) = p_band.split_at_mut(k * w);
+            let (p_row, q_row) = (&mut p_rest[..w], &mut q_band[k * w..(k + 1) * w]);
+            clamped += gradient_row(&nx[o.clone()], &ny[o.clone()], &nz[o.clone()], p_row, q_row);
             if r >= 1 {
+                let p_prev = if k == 0 {
+                    &s.p_prev[..]
+                } else {
+                    &p_done[(k - 1) * w..]
+                };
                 let m = self.mask.map(|m| &m[o]);
-                sums = sums.merge(CurlSums::of_row(&s.p_prev, &s.p_row, &s.q_row, m));
+                sums = sums.merge(CurlSums::of_row(p_prev, p_row, q_row, m));
             }
-            for (x, (&p, &q)) in s.p_row.iter().zip(&s.q_row).enumerate() {
-                s.p[x][k] = p;
-                s.q[x][k] = q;
-            }
-            std::mem::swap(&mut s.p_prev, &mut s.p_row);
         }
+        rows_to_lanes(p_band, w, &mut s.p);
+        rows_to_lanes(q_band, w, &mut s.q);
         self.f.run(&mut s.p, &mut s.filter, self.border);
         self.f.run(&mut s.q, &mut s.filter, self.border);
-        for k in 0..rows {
-            let (pr, qr) = (&mut pb[k * w..(k + 1) * w], &mut qb[k * w..(k + 1) * w]);
-            for (x, (p, q)) in pr.iter_mut().zip(qr.iter_mut()).enumerate() {
-                *p = s.p[x][k];
-                *q = s.q[x][k];
-            }
-        }
+        lanes_to_rows(&s.p, w, pb);
+        lanes_to_rows(&s.q, w, qb);
         (clamped, sums)
     }
 
