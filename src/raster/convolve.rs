@@ -356,9 +356,11 @@ impl Deriche {
         let pad = self.pad_for(border);
         let [s0, s1] = self.sec;
 
-        // ---- causal pass into scratch ----
-        scratch.clear();
-        scratch.resize(n, lane_splat(0.0));
+        // ---- causal pass into scratch (every element written below) ----
+        if scratch.len() != n {
+            scratch.clear();
+            scratch.resize(n, lane_splat(0.0));
+        }
         let x0 = fetch(line, -(pad as isize) - 1, border);
         let mut xp = x0; // x[i-1]
                          // Recursion state of the two second-order sections: [a1, a2, b1, b2] (y[i-1], y[i-2]).

@@ -184,8 +184,10 @@ impl GradientField {
             }
             let (pu, pc) = (&p[(r - 1) * w..r * w], &p[r * w..(r + 1) * w]);
             let qc = &q[r * w..(r + 1) * w];
-            for x in 0..w - 1 {
-                out[x] = (pu[x] - pc[x]) - (qc[x + 1] - qc[x]);
+            let dp = pu.iter().zip(pc);
+            let dq = qc.iter().zip(&qc[1..]);
+            for (o, ((&a, &b), (&q0, &q1))) in out[..w - 1].iter_mut().zip(dp.zip(dq)) {
+                *o = (a - b) - (q1 - q0);
             }
             out[w - 1] = 0.0;
         })

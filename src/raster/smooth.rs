@@ -88,8 +88,7 @@ pub fn smooth_normals<F: LineFilter>(
 /// Per-thread buffers of the row sweep.
 #[derive(Default)]
 struct RowScratch {
-    p: Vec<Lane>,
-    q: Vec<Lane>,
+    lanes: Vec<Lane>,
     filter: Vec<Lane>,
     p_band: Vec<f32>,
     q_band: Vec<f32>,
@@ -209,12 +208,12 @@ impl<F: LineFilter> Sweep<'_, F> {
                 sums = sums.merge(CurlSums::of_row(p_prev, p_row, q_row, m));
             }
         }
-        rows_to_lanes(p_band, w, &mut s.p);
-        rows_to_lanes(q_band, w, &mut s.q);
-        self.f.run(&mut s.p, &mut s.filter, self.border);
-        self.f.run(&mut s.q, &mut s.filter, self.border);
-        lanes_to_rows(&s.p, w, pb);
-        lanes_to_rows(&s.q, w, qb);
+        // p then q through one lane buffer (a smaller working set than both at once).
+        for (band, out) in [(&*p_band, pb), (&*q_band, qb)] {
+            rows_to_lanes(band, w, &mut s.lanes);
+            self.f.run(&mut s.lanes, &mut s.filter, self.border);
+            lanes_to_rows(&s.lanes, w, out);
+        }
         (clamped, sums)
     }
 
