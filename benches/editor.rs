@@ -10,7 +10,7 @@
 //! `RAYON_NUM_THREADS=2 cargo bench --bench editor`
 
 use criterion::{criterion_group, criterion_main, Criterion};
-use rgbn::app::preview::{decimate, display_image, render_value, Mode, PreviewSettings};
+use rgbn::app::preview::{color_image, decimate, Mode, PreviewSettings};
 use rgbn::ops::Value;
 use std::hint::black_box;
 
@@ -26,8 +26,7 @@ fn bench(c: &mut Criterion) {
             k = k.wrapping_add(1);
             let a = f32::from((k % 64) as u16) / 64.0 * std::f32::consts::TAU;
             s.light = [0.5 * a.cos(), 0.5 * a.sin(), 0.75f32.sqrt()];
-            let p = render_value(&img, &s).expect("relit");
-            black_box(display_image(&p))
+            black_box(color_image(&img, &s).expect("relit"))
         })
     });
     // Zoomed out to fit the default preview panel (≈ 600 px for 2048 px: zoom ≈ 0.3), the
@@ -42,13 +41,13 @@ fn bench(c: &mut Criterion) {
                 k = k.wrapping_add(1);
                 let a = f32::from((k % 64) as u16) / 64.0 * std::f32::consts::TAU;
                 s.light = [0.5 * a.cos(), 0.5 * a.sin(), 0.75f32.sqrt()];
-                black_box(display_image(&render_value(&small, &s).expect("relit")))
+                black_box(color_image(&small, &s).expect("relit"))
             })
         });
     }
     s.view = Mode::Albedo;
     g.bench_function("albedo_to_texture", |b| {
-        b.iter(|| black_box(display_image(&render_value(&img, &s).expect("albedo"))))
+        b.iter(|| black_box(color_image(&img, &s).expect("albedo")))
     });
     g.finish();
 }

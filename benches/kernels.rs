@@ -92,6 +92,11 @@ fn kernels(c: &mut Criterion) {
     group.bench_function("relight", |b| {
         b.iter(|| render::relight(black_box(&img), &shading).unwrap())
     });
+    // The preview's case: the same output buffer relit again and again (no page faults).
+    let mut rgba = vec![0u8; img.len() * 4];
+    group.bench_function("relight_into_reused_buffer", |b| {
+        b.iter(|| render::relight_into(black_box(&img), &shading, &mut rgba).unwrap())
+    });
 
     let dir = tempfile::tempdir().unwrap();
     let exr = dir.path().join("bench.exr");

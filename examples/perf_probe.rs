@@ -89,11 +89,18 @@ fn main() {
             let t = min_ms(n, || drop(filter_normals(&img, &k, &opts).unwrap()));
             println!("filter_normals (fused) gauss8: {t:.1} ms");
         }
+        "relight_demo" => {
+            let demo = rgbn::raster::sample::demo_medallion(2048);
+            let s = Shading::default();
+            println!("demo 2048²: mask {}", demo.mask().is_some());
+            let t = min_ms(n, || drop(render::relight(&demo, &s).unwrap()));
+            println!("relight demo 2048²: {t:.1} ms");
+        }
         "relight" => {
             let s = Shading::default();
             let t = min_ms(n, || drop(render::relight(&img, &s).unwrap()));
             println!("relight: {t:.1} ms");
-            let mut out = Vec::new();
+            let mut out = vec![0u8; img.len() * 4];
             let t = min_ms(n, || render::relight_into(&img, &s, &mut out).unwrap());
             println!("relight_into (buffer reused): {t:.1} ms");
         }

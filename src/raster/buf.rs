@@ -47,8 +47,9 @@ pub fn zeroed_planes(n: usize) -> [Vec<f32>; 3] {
     [zeroed_f32(n), zeroed_f32(n), zeroed_f32(n)]
 }
 
-/// Advises the kernel to back the 2 MiB-aligned interior of `buf` with huge pages.
-fn advise_huge_pages<T>(buf: &[T]) {
+/// Advises the kernel to back the 2 MiB-aligned interior of `buf` with huge pages (call it
+/// before the buffer is first written; buffers under 4 MiB are left alone).
+pub fn advise_huge_pages<T>(buf: &[T]) {
     let bytes = std::mem::size_of_val(buf);
     if bytes < MIN_ADVISED_BYTES {
         return;

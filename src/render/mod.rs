@@ -5,7 +5,7 @@
 use crate::error::RgbnError;
 use crate::raster::buf;
 use crate::raster::gradient::GradientField;
-use crate::raster::io::{srgb8_index, srgb8_lut_encode, SRGB8_LUT_SIZE};
+use crate::raster::io::{srgb8_lut_encode, SRGB8_LUT_SIZE};
 use crate::raster::RgbnImage;
 use rayon::prelude::*;
 
@@ -149,19 +149,24 @@ pub fn render(img: &RgbnImage, view: View, shading: &Shading) -> Result<Vec<u8>,
 /// `out = 2^ev · (albedo · (ambient + Σ cᵢ max(0, n·lᵢ)) + ks · Σ cᵢ max(0, n·hᵢ)^shininess)`,
 /// specular only where `n·lᵢ > 0`.
 pub fn relight(img: &RgbnImage, shading: &Shading) -> Result<Vec<u8>, RgbnError> {
-    let mut out = Vec::new();
+    let mut out = buf::zeroed_u8(img.len() * 4);
     relight_into(img, shading, &mut out)?;
     Ok(out)
 }
 
-/// [`relight`] into `out` (resized to `4 · width · height`), reusing its allocation: a
-/// preview that relights the same image again and again writes into memory that is already
-/// mapped instead of faulting in (and zeroing) a fresh 33 MB at 4K each time.
-pub fn relight_into(
-    img: &RgbnImage,
-    shading: &Shading,
-    out: &mut Vec<u8>,
-) -> Result<(), RgbnError> {
+/// [`relight`] into `out` (`4 · width · height` bytes, RGBA8): lets a caller that relights the
+/// same image again and again reuse memory that is already mapped, or render straight into
+/// its own pixel type (the editor preview's texture pixels).
+pub fn relight_into(img: &RgbnImage, shading: &Shading, out: &mut [u8]) -> Result<(), RgbnError> {
+    if out.len() != img.len() * 4 {
+        return Err(RgbnError::InvalidImage(format!(
+            "relight output holds {} bytes; a {}×{} image needs {}",
+            out.len(),
+            img.width(),
+            img.height(),
+            img.len() * 4
+        )));
+    }
     shading.validate()?;
     let lights: Vec<RelightLight> = shading
         .lights
@@ -175,7 +180,7 @@ pub fn relight_into(
             }
         })
         .collect();
-    let (w, h) = (img.width(), img.height());
+    let w = img.width();
     let [cr, cg, cb] = img.color();
     let [nx, ny, nz] = img.normal();
     let mask = img.mask();
@@ -187,15 +192,6 @@ pub fn relight_into(
         shininess: shading.shininess,
         srgb: srgb8_lut_encode(),
     };
-    let len = w * h * 4;
-    if out.len() != len {
-        out.clear();
-        if out.capacity() < len {
-            *out = buf::zeroed_u8(len);
-        } else {
-            out.resize(len, 0);
-        }
-    }
     out.par_chunks_mut(w.max(1) * 4)
         .enumerate()
         .for_each(|(row, orow)| {
@@ -360,32 +356,48 @@ impl RelightKernel<'_> {
                 }
             }
         }
-        // Table index of a linear value: `srgb8_index` but rounding ties to even (through
-        // [`ROUND`], which vectorises); the mask keeps even a NaN's index in the table.
         for j in 0..3 {
             let terms = rows.c[j][..m]
                 .iter()
                 .zip(sc.diff[j][..m].iter().zip(&sc.spec[j][..m]));
             for (o, (&cv, (&dv, &sv))) in sc.idx[j][..m].iter_mut().zip(terms) {
-                let v = self.gain * (cv * dv + self.ks * sv);
-                *o = (v.clamp(0.0, 1.0) * (SRGB8_LUT_SIZE - 1) as f32 + ROUND).to_bits();
+                *o = srgb8_table_index(self.gain * (cv * dv + self.ks * sv));
             }
         }
-        let srgb = &self.srgb[..SRGB8_LUT_SIZE];
-        let lookup =
-            |j: usize, i: usize| u32::from(srgb[sc.idx[j][i] as usize & (SRGB8_LUT_SIZE - 1)]);
-        for (i, px) in out.chunks_exact_mut(4).take(m).enumerate() {
-            let alpha = match rows.mask {
-                None => 255,
-                Some(mk) if mk[i] <= 0.0 => {
-                    px.copy_from_slice(&[0; 4]);
-                    continue;
-                }
-                Some(mk) => u32::from((mk[i].min(1.0) * 255.0 + 0.5) as u8),
-            };
-            let word = lookup(0, i) | lookup(1, i) << 8 | lookup(2, i) << 16 | alpha << 24;
-            px.copy_from_slice(&word.to_le_bytes());
-        }
+        let alpha = |i: usize| match rows.mask {
+            None => Some(255),
+            Some(mk) if mk[i] <= 0.0 => None,
+            Some(mk) => Some(u32::from((mk[i].min(1.0) * 255.0 + 0.5) as u8)),
+        };
+        pack_rgba(&sc.idx, alpha, self.srgb, &mut out[..4 * m]);
+    }
+}
+
+/// Table index (into [`srgb8_lut_encode`]) of a linear value:
+/// [`crate::raster::io::srgb8_index`] but rounding ties to even (through [`ROUND`], which
+/// vectorises); [`pack_rgba`]'s mask keeps even a NaN's index inside the table.
+#[inline(always)]
+fn srgb8_table_index(v: f32) -> u32 {
+    (v.clamp(0.0, 1.0) * (SRGB8_LUT_SIZE - 1) as f32 + ROUND).to_bits()
+}
+
+/// Writes `out.len() / 4 ≤ CHUNK` RGBA pixels: the sRGB bytes of the table indices `idx` and
+/// `alpha(i)`, or transparent black where `alpha` is `None`. One 4-byte store per pixel.
+#[inline(always)]
+fn pack_rgba(
+    idx: &[[u32; CHUNK]; 3],
+    alpha: impl Fn(usize) -> Option<u32>,
+    srgb: &[u8],
+    out: &mut [u8],
+) {
+    let srgb = &srgb[..SRGB8_LUT_SIZE];
+    let lookup = |j: usize, i: usize| u32::from(srgb[idx[j][i] as usize & (SRGB8_LUT_SIZE - 1)]);
+    for (i, px) in out.chunks_exact_mut(4).take(CHUNK).enumerate() {
+        let word = match alpha(i) {
+            None => 0,
+            Some(a) => lookup(0, i) | lookup(1, i) << 8 | lookup(2, i) << 16 | a << 24,
+        };
+        px.copy_from_slice(&word.to_le_bytes());
     }
 }
 
@@ -406,18 +418,33 @@ fn normalize3(v: [f32; 3]) -> [f32; 3] {
 /// Albedo as sRGB RGBA8.
 #[must_use]
 pub fn albedo(img: &RgbnImage) -> Vec<u8> {
+    // Runs of 64 chunks per task; per chunk the table indices are computed lanes-wide.
+    const RUN: usize = 64 * CHUNK;
     let srgb = srgb8_lut_encode();
-    let [r, g, b] = img.color();
+    let color = img.color();
     let mask = img.mask();
-    map_pixels(img.width(), img.height(), |i| {
-        let a = mask.map_or(255, |m| (m[i].clamp(0.0, 1.0) * 255.0 + 0.5) as u8);
-        [
-            srgb[srgb8_index(r[i])],
-            srgb[srgb8_index(g[i])],
-            srgb[srgb8_index(b[i])],
-            a,
-        ]
-    })
+    let mut out = buf::zeroed_u8(img.len() * 4);
+    out.par_chunks_mut(4 * RUN)
+        .enumerate()
+        .for_each(|(k, run)| {
+            let mut idx = [[0u32; CHUNK]; 3];
+            for (c, px) in run.chunks_mut(4 * CHUNK).enumerate() {
+                let start = k * RUN + c * CHUNK;
+                let m = (px.len() / 4).min(CHUNK);
+                for (ij, plane) in idx.iter_mut().zip(color) {
+                    for (o, &v) in ij[..m].iter_mut().zip(&plane[start..start + m]) {
+                        *o = srgb8_table_index(v);
+                    }
+                }
+                let alpha = |i: usize| {
+                    Some(mask.map_or(255, |mk| {
+                        u32::from((mk[start + i].clamp(0.0, 1.0) * 255.0 + 0.5) as u8)
+                    }))
+                };
+                pack_rgba(&idx, alpha, srgb, px);
+            }
+        });
+    out
 }
 
 /// Normals encoded `(n+1)/2 · 255` (OpenGL convention), opaque.
@@ -642,14 +669,35 @@ mod tests {
     }
 
     #[test]
-    fn relight_into_reuses_and_resizes_its_buffer() {
+    fn relight_into_overwrites_a_used_buffer_and_checks_its_size() {
         let (a, _) = crate::raster::sample::Surface::Sphere { radius_px: 20.0 }.render(48, 40);
-        let (b, _) = crate::raster::sample::Surface::Sphere { radius_px: 9.0 }.render(17, 11);
         let s = Shading::default();
-        let mut out = vec![7u8; 3];
-        for img in [&a, &b, &a] {
-            relight_into(img, &s, &mut out).unwrap();
-            assert_eq!(out, relight(img, &s).unwrap());
+        let mut out = vec![7u8; 48 * 40 * 4];
+        relight_into(&a, &s, &mut out).unwrap();
+        assert_eq!(out, relight(&a, &s).unwrap());
+        let err = relight_into(&a, &s, &mut out[4..]).unwrap_err().to_string();
+        assert!(err.contains("48×40"), "{err}");
+    }
+
+    #[test]
+    fn albedo_is_the_srgb_of_the_colour_with_the_mask_as_alpha() {
+        // 70×67 = 4690 pixels: more than one task's run (4096) and a partial chunk.
+        let (w, h) = (70, 67);
+        let mut img = RgbnImage::flat(w, h, [0.0; 3]);
+        let n = w * h;
+        let ramp = |k: usize| (0..n).map(move |i| ((i * (k + 3)) % 1000) as f32 / 900.0 - 0.05);
+        img.set_color([ramp(0).collect(), ramp(1).collect(), ramp(2).collect()])
+            .unwrap();
+        let mask: Vec<f32> = (0..n).map(|i| (i % 7) as f32 / 6.0).collect();
+        img.set_mask(Some(mask.clone())).unwrap();
+        let px = albedo(&img);
+        for i in 0..n {
+            for j in 0..3 {
+                let v = img.color()[j][i].clamp(0.0, 1.0);
+                let want = (linear_to_srgb(v) * 255.0).round() as i32;
+                assert!((i32::from(px[4 * i + j]) - want).abs() <= 1, "pixel {i}");
+            }
+            assert_eq!(px[4 * i + 3], (mask[i] * 255.0 + 0.5) as u8, "alpha {i}");
         }
     }
 
