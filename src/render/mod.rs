@@ -235,13 +235,14 @@ struct RelightRow<'a> {
 const CHUNK: usize = 64;
 
 /// `log2(x)` for normal `x > 0`, within 3e-7 of the exact value (absolute for `|log2 x| ≤ 1`,
-/// relative beyond): exponent plus
-/// `2/ln 2 · atanh(t)`, `t = (m − 1)/(m + 1)` with the mantissa `m` in `[√½, √2)`, as an odd
-/// series to `t⁹` (`|t| < 0.172`, first dropped term `< 2e-10`). Branch-free, so it vectorises.
+/// relative beyond): `x = m · 2^e` with `m ∈ [√½, √2)`, then `log2 m = 2/ln 2 · atanh(t)`,
+/// `t = (m − 1)/(m + 1)`, as an odd series to `t⁹` (`|t| < 0.172`, first dropped term `< 2e-10`).
+/// Branch-free, so it vectorises.
 #[inline(always)]
 fn log2_fast(x: f32) -> f32 {
     let bits = x.to_bits();
-    // Re-bias so that the mantissa lands in [√½, √2): add (1 − √½)'s offset to the bits.
+    // 0x3f35_04f3 is √½: subtracting its bits makes the exponent field that of x/√½ (so e is
+    // the exponent with m ∈ [√½, √2)); adding them back to the mantissa bits rebuilds m.
     let shifted = bits.wrapping_sub(0x3f35_04f3);
     let e = (shifted as i32) >> 23;
     let m = f32::from_bits((shifted & 0x007f_ffff).wrapping_add(0x3f35_04f3));
