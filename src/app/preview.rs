@@ -313,18 +313,19 @@ pub fn display_image(p: &Picture) -> egui::ColorImage {
     }
 }
 
-/// What the preview shows of `v` under `s` (all but the height view), as an egui image. An
-/// unmasked RGBN relit (the light-drag case) is rendered straight into the texture's pixels:
-/// every alpha is 255, so the sRGB bytes already are egui's premultiplied `Color32`s, and the
-/// 16 MB per 2K frame are neither converted nor copied.
+/// What the preview shows of `v` under `s` (all but the height view), as an egui image. A
+/// view whose pixels are all opaque (any view of an unmasked RGBN; normals and curl always) is
+/// rendered straight into the texture's pixels: its sRGB bytes already are egui's
+/// premultiplied `Color32`s, so the 16 MB of a 2K frame are neither scanned, converted nor
+/// copied (the light-drag case).
 #[must_use]
 pub fn color_image(v: &Value, s: &PreviewSettings) -> Option<egui::ColorImage> {
-    if let Value::Rgbn(img) = v {
-        if img.mask().is_none() && s.view == Mode::Relit {
+    if let (Value::Rgbn(img), Some(view)) = (v, s.view.render_view()) {
+        if img.mask().is_none() || matches!(view, View::Normals | View::Curl) {
             let mut pixels: Vec<egui::Color32> = bytemuck::zeroed_vec(img.len());
             crate::raster::buf::advise_huge_pages(&pixels);
             let rgba: &mut [u8] = bytemuck::cast_slice_mut(&mut pixels);
-            render::relight_into(img, &s.shading(), rgba).ok()?;
+            render::render_into(img, view, &s.shading(), rgba).ok()?;
             return Some(egui::ColorImage::new([img.width(), img.height()], pixels));
         }
     }
@@ -802,25 +803,30 @@ mod tests {
     use super::*;
 
     #[test]
-    fn relit_fast_path_gives_the_pixels_of_the_general_path() {
-        // Unmasked: rendered straight into Color32s; masked (partial coverage): through the
-        // RGBA picture and the unmultiplied conversion. Both must equal relight → display_image.
+    fn direct_rendering_gives_the_pixels_of_the_general_path() {
+        // Every view, unmasked (straight into Color32s) and masked with partial coverage
+        // (relit and albedo then go through the RGBA picture and the unmultiplied conversion):
+        // the same pixels as render → display_image.
         let img = crate::raster::sample::demo_medallion(45);
         let mut masked = img.clone();
         let m: Vec<f32> = (0..img.len()).map(|i| (i % 5) as f32 / 4.0).collect();
         masked.set_mask(Some(m)).unwrap();
-        let s = PreviewSettings::default();
-        for im in [img, masked] {
-            let v = Value::Rgbn(im.clone());
-            let fast = color_image(&v, &s).unwrap();
-            let rgba = render::relight(&im, &s.shading()).unwrap();
-            let want = display_image(&Picture {
-                width: im.width(),
-                height: im.height(),
-                rgba,
-            });
-            assert_eq!(fast.size, [45, 45]);
-            assert_eq!(fast.pixels, want.pixels);
+        for view in [Mode::Relit, Mode::Albedo, Mode::Normals, Mode::Curl] {
+            let s = PreviewSettings {
+                view,
+                ..PreviewSettings::default()
+            };
+            for im in [&img, &masked] {
+                let fast = color_image(&Value::Rgbn(im.clone()), &s).unwrap();
+                let rgba = render::render(im, view.render_view().unwrap(), &s.shading()).unwrap();
+                let want = display_image(&Picture {
+                    width: im.width(),
+                    height: im.height(),
+                    rgba,
+                });
+                assert_eq!(fast.size, [45, 45]);
+                assert!(fast.pixels == want.pixels, "{view:?}");
+            }
         }
     }
 

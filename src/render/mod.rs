@@ -135,12 +135,36 @@ impl std::str::FromStr for View {
 
 /// Renders `view` of `img` as sRGB RGBA8.
 pub fn render(img: &RgbnImage, view: View, shading: &Shading) -> Result<Vec<u8>, RgbnError> {
-    Ok(match view {
-        View::Relit => relight(img, shading)?,
-        View::Albedo => albedo(img),
-        View::Normals => normals_as_color(img),
-        View::Curl => curl_map(&GradientField::from_normals(img), None),
-    })
+    let mut out = buf::zeroed_u8(img.len() * 4);
+    render_into(img, view, shading, &mut out)?;
+    Ok(out)
+}
+
+/// [`render`] into `out` (`4 · width · height` bytes), e.g. straight into a texture's pixels.
+/// The relit and albedo views of a masked image carry coverage in alpha (not premultiplied);
+/// the others are opaque.
+pub fn render_into(
+    img: &RgbnImage,
+    view: View,
+    shading: &Shading,
+    out: &mut [u8],
+) -> Result<(), RgbnError> {
+    if out.len() != img.len() * 4 {
+        return Err(RgbnError::InvalidImage(format!(
+            "render output holds {} bytes; a {}×{} image needs {}",
+            out.len(),
+            img.width(),
+            img.height(),
+            img.len() * 4
+        )));
+    }
+    match view {
+        View::Relit => relight_into(img, shading, out)?,
+        View::Albedo => albedo_into(img, out),
+        View::Normals => normals_as_color_into(img, out),
+        View::Curl => curl_map_into(&GradientField::from_normals(img), None, out),
+    }
+    Ok(())
 }
 
 /// Lambert + Blinn-Phong relighting with the viewer at `+z` (orthographic), to sRGB RGBA8.
@@ -419,12 +443,18 @@ fn normalize3(v: [f32; 3]) -> [f32; 3] {
 /// Albedo as sRGB RGBA8.
 #[must_use]
 pub fn albedo(img: &RgbnImage) -> Vec<u8> {
+    let mut out = buf::zeroed_u8(img.len() * 4);
+    albedo_into(img, &mut out);
+    out
+}
+
+/// [`albedo`] into `out` (`4 · len` bytes).
+fn albedo_into(img: &RgbnImage, out: &mut [u8]) {
     // Runs of 64 chunks per task; per chunk the table indices are computed lanes-wide.
     const RUN: usize = 64 * CHUNK;
     let srgb = srgb8_lut_encode();
     let color = img.color();
     let mask = img.mask();
-    let mut out = buf::zeroed_u8(img.len() * 4);
     out.par_chunks_mut(4 * RUN)
         .enumerate()
         .for_each(|(k, run)| {
@@ -445,28 +475,37 @@ pub fn albedo(img: &RgbnImage) -> Vec<u8> {
                 pack_rgba(&idx, alpha, srgb, px);
             }
         });
-    out
 }
 
 /// Normals encoded `(n+1)/2 · 255` (OpenGL convention), opaque.
 #[must_use]
 pub fn normals_as_color(img: &RgbnImage) -> Vec<u8> {
+    let mut out = buf::zeroed_u8(img.len() * 4);
+    normals_as_color_into(img, &mut out);
+    out
+}
+
+fn normals_as_color_into(img: &RgbnImage, out: &mut [u8]) {
     let [x, y, z] = img.normal();
     let enc = |v: f32| ((v.clamp(-1.0, 1.0) + 1.0) * 127.5 + 0.5) as u8;
-    map_pixels(img.width(), img.height(), |i| {
-        [enc(x[i]), enc(y[i]), enc(z[i]), 255]
-    })
+    map_pixels(out, |i| [enc(x[i]), enc(y[i]), enc(z[i]), 255]);
 }
 
 /// The curl map, blue (−) – white (0) – red (+), saturating at ±`scale` (default: 4 × RMS
 /// curl, so that a field with curl only at rounding level shows white).
 #[must_use]
 pub fn curl_map(g: &GradientField, scale: Option<f32>) -> Vec<u8> {
+    let mut out = buf::zeroed_u8(g.width * g.height * 4);
+    curl_map_into(g, scale, &mut out);
+    out
+}
+
+fn curl_map_into(g: &GradientField, scale: Option<f32>, out: &mut [u8]) {
     let c = g.curl();
     let stats = g.curl_stats(None);
     let s = scale.unwrap_or((4.0 * stats.rms_curl) as f32).max(1e-6);
     let d = c.data();
-    map_pixels(g.width, g.height, |i| {
+    map_pixels(out, |i| {
         let t = (d[i] / s).clamp(-1.0, 1.0);
         let fade = ((1.0 - t.abs()) * 255.0 + 0.5) as u8;
         if t >= 0.0 {
@@ -474,17 +513,16 @@ pub fn curl_map(g: &GradientField, scale: Option<f32>) -> Vec<u8> {
         } else {
             [fade, fade, 255, 255]
         }
-    })
+    });
 }
 
-fn map_pixels(w: usize, h: usize, f: impl Fn(usize) -> [u8; 4] + Sync) -> Vec<u8> {
-    let mut out = buf::zeroed_u8(w * h * 4);
+/// Fills RGBA8 `out` with `f(pixel index)`, in parallel.
+fn map_pixels(out: &mut [u8], f: impl Fn(usize) -> [u8; 4] + Sync) {
     out.par_chunks_mut(4 * 4096).enumerate().for_each(|(c, o)| {
         for (k, px) in o.chunks_exact_mut(4).enumerate() {
             px.copy_from_slice(&f(c * 4096 + k));
         }
     });
-    out
 }
 
 #[cfg(test)]
