@@ -149,15 +149,7 @@ pub fn render_into(
     shading: &Shading,
     out: &mut [u8],
 ) -> Result<(), RgbnError> {
-    if out.len() != img.len() * 4 {
-        return Err(RgbnError::InvalidImage(format!(
-            "render output holds {} bytes; a {}×{} image needs {}",
-            out.len(),
-            img.width(),
-            img.height(),
-            img.len() * 4
-        )));
-    }
+    check_output_len(img, out, "render")?;
     match view {
         View::Relit => relight_into(img, shading, out)?,
         View::Albedo => albedo_into(img, out),
@@ -165,6 +157,20 @@ pub fn render_into(
         View::Curl => curl_map_into(&GradientField::from_normals(img), None, out),
     }
     Ok(())
+}
+
+/// Refuses an RGBA8 output slice that does not hold exactly `img`'s pixels.
+fn check_output_len(img: &RgbnImage, out: &[u8], what: &str) -> Result<(), RgbnError> {
+    if out.len() == img.len() * 4 {
+        return Ok(());
+    }
+    Err(RgbnError::InvalidImage(format!(
+        "{what} output holds {} bytes; a {}×{} image needs {}",
+        out.len(),
+        img.width(),
+        img.height(),
+        img.len() * 4
+    )))
 }
 
 /// Lambert + Blinn-Phong relighting with the viewer at `+z` (orthographic), to sRGB RGBA8.
@@ -182,15 +188,7 @@ pub fn relight(img: &RgbnImage, shading: &Shading) -> Result<Vec<u8>, RgbnError>
 /// same image again and again reuse memory that is already mapped, or render straight into
 /// its own pixel type (the editor preview's texture pixels).
 pub fn relight_into(img: &RgbnImage, shading: &Shading, out: &mut [u8]) -> Result<(), RgbnError> {
-    if out.len() != img.len() * 4 {
-        return Err(RgbnError::InvalidImage(format!(
-            "relight output holds {} bytes; a {}×{} image needs {}",
-            out.len(),
-            img.width(),
-            img.height(),
-            img.len() * 4
-        )));
-    }
+    check_output_len(img, out, "relight")?;
     shading.validate()?;
     let lights: Vec<RelightLight> = shading
         .lights
