@@ -29,15 +29,18 @@ pub fn zeroed_u8(n: usize) -> Vec<u8> {
     v
 }
 
-/// A `Vec<f32>` of `n` copies of `value`.
+/// A `Vec<f32>` of `n` copies of `value`. Large buffers are filled by all threads, so that
+/// their first-touch page faults (most of the cost) are taken in parallel too.
 #[must_use]
 pub fn filled_f32(n: usize, value: f32) -> Vec<f32> {
-    if value.to_bits() == 0 {
-        return zeroed_f32(n);
+    if n * std::mem::size_of::<f32>() < MIN_ADVISED_BYTES {
+        return vec![value; n];
     }
-    let mut v = Vec::with_capacity(n);
-    advise_huge_pages(v.spare_capacity_mut());
-    v.resize(n, value);
+    let mut v = zeroed_f32(n);
+    if value.to_bits() != 0 {
+        use rayon::prelude::*;
+        v.par_chunks_mut(1 << 18).for_each(|c| c.fill(value));
+    }
     v
 }
 
