@@ -290,24 +290,10 @@ fn a_pen_stroke_on_the_preview_adds_a_pen_path_evaluates_and_undoes() {
         (a.requests, a.preview.renders, a.doc.history.undo_len())
     };
     let pan = h.state().preview.pan;
-    let xf = h.state().preview.transform.expect("the preview was drawn");
     let path = [[20.0, 20.0], [40.0, 30.0], [60.0, 50.0], [70.0, 70.0]];
-    let screen: Vec<Pos2> = path
-        .iter()
-        .map(|p| {
-            let s = xf.screen_from_image(*p);
-            Pos2::new(s[0], s[1])
-        })
-        .collect();
+    let screen = screen_points(&h, &path);
     // Press, drag through the points, release: simulated pointer events.
-    h.hover_at(screen[0]);
-    h.step();
-    h.drag_at(screen[0]);
-    h.step();
-    for p in &screen[1..] {
-        h.hover_at(*p);
-        h.step();
-    }
+    press_and_move(&mut h, &screen);
     // While drawing: the stroke is already in the graph (live), not yet an undo step.
     assert_ne!(h.state().doc.graph, before);
     h.drop_at(*screen.last().unwrap());
@@ -365,21 +351,19 @@ fn a_pen_stroke_on_the_preview_adds_a_pen_path_evaluates_and_undoes() {
     assert_eq!(h.state().doc.graph, before);
 }
 
-#[test]
-fn shift_drag_on_the_image_moves_the_light_without_panning() {
-    let mut h = harness(small_demo());
-    settle(&mut h);
-    let (light0, pan0) = (h.state().settings.light, h.state().preview.pan);
+/// Screen positions of image-pixel points under the preview's last drawn transform.
+fn screen_points(h: &Harness<'_, EditorApp>, path: &[[f64; 2]]) -> Vec<Pos2> {
     let xf = h.state().preview.transform.expect("the preview was drawn");
-    // From the image centre towards its right edge: the light tilts towards +x.
-    let screen: Vec<Pos2> = [[48.0, 48.0], [60.0, 48.0], [80.0, 48.0], [90.0, 48.0]]
-        .iter()
+    path.iter()
         .map(|p| {
             let s = xf.screen_from_image(*p);
             Pos2::new(s[0], s[1])
         })
-        .collect();
-    h.event(egui::Event::ModifiersChanged(Modifiers::SHIFT));
+        .collect()
+}
+
+/// Presses the primary button at `screen[0]` and moves through the rest (not released).
+fn press_and_move(h: &mut Harness<'_, EditorApp>, screen: &[Pos2]) {
     h.hover_at(screen[0]);
     h.step();
     h.drag_at(screen[0]);
@@ -388,6 +372,20 @@ fn shift_drag_on_the_image_moves_the_light_without_panning() {
         h.hover_at(*p);
         h.step();
     }
+}
+
+#[test]
+fn shift_drag_on_the_image_moves_the_light_without_panning() {
+    let mut h = harness(small_demo());
+    settle(&mut h);
+    let (light0, pan0) = (h.state().settings.light, h.state().preview.pan);
+    // From the image centre towards its right edge: the light tilts towards +x.
+    let screen = screen_points(
+        &h,
+        &[[48.0, 48.0], [60.0, 48.0], [80.0, 48.0], [90.0, 48.0]],
+    );
+    h.event(egui::Event::ModifiersChanged(Modifiers::SHIFT));
+    press_and_move(&mut h, &screen);
     h.drop_at(*screen.last().unwrap());
     h.step();
     h.event(egui::Event::ModifiersChanged(Modifiers::NONE));
