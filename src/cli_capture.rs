@@ -25,12 +25,17 @@ pub enum MethodArg {
 #[derive(Args, Debug)]
 pub struct CaptureArgs {
     /// Photos from one viewpoint, in light-row order (or matched by --names).
-    #[arg(long, num_args = 1.., required = true)]
+    #[arg(long, num_args = 1.., required_unless_present = "lp")]
     pub photos: Vec<PathBuf>,
     /// Light directions: one `x y z` row per light (x right, y up, z to the camera), optional
     /// count line first. Not used with --chrome.
-    #[arg(long, required_unless_present = "chrome")]
+    #[arg(long, required_unless_present_any = ["chrome", "lp"])]
     pub lights: Option<PathBuf>,
+    /// An RTI light-position file (RTIBuilder / RelightLab `.lp`): a count line, then `NAME x y
+    /// z` per photo (x right, y up, z to the camera; names relative to the file). Gives both the
+    /// photos and their light directions.
+    #[arg(long, conflicts_with_all = ["photos", "lights", "names", "chrome"])]
+    pub lp: Option<PathBuf>,
     /// Per-light `r g b` intensities, same layout.
     #[arg(long)]
     pub intensities: Option<PathBuf>,
@@ -65,7 +70,7 @@ pub fn capture_cmd(a: &CaptureArgs, out: &mut impl Write) -> Result<(), Failure>
     };
     let mut inputs: Vec<&Path> = a.photos.iter().map(PathBuf::as_path).collect();
     inputs.extend(
-        [&a.lights, &a.intensities, &a.names, &a.mask]
+        [&a.lights, &a.lp, &a.intensities, &a.names, &a.mask]
             .into_iter()
             .flatten()
             .map(PathBuf::as_path),
@@ -124,15 +129,33 @@ pub fn capture_cmd(a: &CaptureArgs, out: &mut impl Write) -> Result<(), Failure>
                 a.output.display()
             ),
         })?;
+    let lights = match (&a.lp, &a.lights) {
+        (Some(lp), _) => {
+            if !crate::capture::lp::is_lp(lp) {
+                return Err(Failure {
+                    code: 2,
+                    message: format!(
+                        "--lp takes an RTI light-position file ending in .lp: {}",
+                        lp.display()
+                    ),
+                });
+            }
+            lp.clone()
+        }
+        (None, l) => l.clone().unwrap_or_default(),
+    };
     let spec = PsInputSpec {
         photos: a.photos.clone(),
-        lights: a.lights.clone().unwrap_or_default(),
+        lights,
         intensities: a.intensities.clone(),
         names: a.names.clone(),
         mask: a.mask.clone(),
         transfer,
     };
     let ps = load_inputs(&spec)?;
+    for note in &ps.notes {
+        eprintln!("note: {note}");
+    }
     let params = PhotometricParams {
         method: match a.method {
             MethodArg::Ls => PsMethod::LeastSquares,
@@ -151,7 +174,7 @@ pub fn capture_cmd(a: &CaptureArgs, out: &mut impl Write) -> Result<(), Failure>
         "{}×{} from {} photos: {} of {} pixels solved ({} dark, {} unsolvable, {} with saturated samples); relative RMS curl {:.3e} (mask interior) → {}",
         img.width(),
         img.height(),
-        a.photos.len(),
+        ps.stack.photos.len(),
         rep.solved,
         rep.pixels,
         rep.dark,

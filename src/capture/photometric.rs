@@ -265,7 +265,8 @@ pub fn read_name_list(path: &Path) -> Result<Vec<String>, RgbnError> {
 pub struct PsInputSpec {
     /// The photos, in light order unless `names` is given.
     pub photos: Vec<PathBuf>,
-    /// Light directions: rows `x y z`, optionally preceded by a count line.
+    /// Light directions: rows `x y z`, optionally preceded by a count line; or an RTI `.lp`
+    /// light-position file ([`super::lp`]), which also names the photos when `photos` is empty.
     pub lights: PathBuf,
     /// Optional per-light RGB intensities, same layout.
     pub intensities: Option<PathBuf>,
@@ -284,6 +285,9 @@ pub struct PsInputs {
     pub stack: PhotoStack,
     pub lights: Lights,
     pub mask: Option<Vec<f32>>,
+    /// Remarks for the user about the inputs (e.g. light directions normalised), each naming
+    /// its file and line.
+    pub notes: Vec<String>,
 }
 
 /// Loads and pairs up everything in `spec`.
@@ -293,12 +297,32 @@ pub struct PsInputs {
 /// mask of another size; [`RgbnError::LightCountMismatch`] when the light (or intensity) rows do
 /// not pair with the photos (or a photo is missing from `names`).
 pub fn load_inputs(spec: &PsInputSpec) -> Result<PsInputs, RgbnError> {
+    // An RTI `.lp` file as `lights` gives the directions, and the photos when none are listed.
+    let lp = if super::lp::is_lp(&spec.lights) {
+        Some(super::lp::read_lp(&spec.lights)?)
+    } else {
+        None
+    };
+    let from_lp;
+    let spec = match &lp {
+        Some(lp) if spec.photos.is_empty() => {
+            from_lp = PsInputSpec {
+                photos: lp.photos.clone(),
+                ..spec.clone()
+            };
+            &from_lp
+        }
+        _ => spec,
+    };
     if spec.photos.len() < 3 {
         return Err(RgbnError::TooFewLights {
             count: spec.photos.len(),
         });
     }
-    let dirs = read_rows3(&spec.lights)?;
+    let (dirs, notes) = match lp {
+        Some(lp) => (lp.directions, lp.notes),
+        None => (read_rows3(&spec.lights)?, Vec::new()),
+    };
     let ints = spec.intensities.as_deref().map(read_rows3).transpose()?;
     let m = spec.photos.len();
     // Row of each photo.
@@ -373,6 +397,7 @@ pub fn load_inputs(spec: &PsInputSpec) -> Result<PsInputs, RgbnError> {
             intensities,
         },
         mask,
+        notes,
     })
 }
 

@@ -46,6 +46,7 @@ fn synthetic_files(dir: &Path) -> Vec<(String, Vec<u8>)> {
     let mut files = Vec::new();
     let mut list = String::new();
     let mut light_text = String::from("# Synthetic Lambertian sphere (tests/it/capture.rs)\n6\n");
+    let mut lp_text = String::from("6\n");
     for (j, l) in lights().iter().enumerate() {
         let mut px = vec![0u8; SIZE * SIZE * 3];
         for i in 0..SIZE * SIZE {
@@ -66,6 +67,7 @@ fn synthetic_files(dir: &Path) -> Vec<(String, Vec<u8>)> {
         list.push_str(&name);
         list.push('\n');
         light_text.push_str(&format!("{:.6} {:.6} {:.6}\n", l[0], l[1], l[2]));
+        lp_text.push_str(&format!("{name} {:.6} {:.6} {:.6}\n", l[0], l[1], l[2]));
     }
     let m8: Vec<u8> = mask
         .iter()
@@ -76,6 +78,7 @@ fn synthetic_files(dir: &Path) -> Vec<(String, Vec<u8>)> {
     files.push(("mask.png".into(), std::fs::read(&p).unwrap()));
     files.push(("photos.txt".into(), list.into_bytes()));
     files.push(("lights.txt".into(), light_text.into_bytes()));
+    files.push(("capture.lp".into(), lp_text.into_bytes()));
     files
 }
 
@@ -158,6 +161,116 @@ fn capture_cli_recovers_the_synthetic_sphere() {
     // the trimmed estimator drops the shadowed observations and leaves 8-bit quantisation.
     assert!(errs[0] < 3.0, "ls: {}°", errs[0]);
     assert!(errs[1] < 0.5 && errs[1] < errs[0], "trimmed: {}°", errs[1]);
+}
+
+/// `rgbn capture --lp LP --mask (the synthetic mask) -o OUT`; the output and stderr.
+fn capture_lp(lp: &Path, out: &Path) -> (std::process::Output, Option<RgbnImage>) {
+    let mask = ps_dir().join("mask.png");
+    let o = rgbn(&[
+        "capture",
+        "--lp",
+        lp.to_str().unwrap(),
+        "--mask",
+        mask.to_str().unwrap(),
+        "-o",
+        out.to_str().unwrap(),
+    ]);
+    let img = o
+        .status
+        .success()
+        .then(|| io::load_exr(out, &LoadOptions::default()).unwrap());
+    (o, img)
+}
+
+#[test]
+fn capture_lp_recovers_the_synthetic_sphere_in_the_rti_convention() {
+    // The committed `.lp` names the photos relative to itself; its directions are the renderer's
+    // (x right, y up, z towards the camera).
+    let tmp = tempfile::tempdir().unwrap();
+    let (o, img) = capture_lp(&ps_dir().join("capture.lp"), &tmp.path().join("lp.exr"));
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    let (e, n) = sphere_error(&img.unwrap(), 0.3);
+    eprintln!("synthetic sphere, capture --lp: mean angular error {e:.3}° over {n} pixels");
+    assert!(n > 1500 && e < 0.5, "{e}° over {n}");
+
+    // The convention is what makes it right: the same file read with y pointing down (the
+    // image-row direction) is far off. Absolute photo paths from another machine (a Windows
+    // path) are found by their file name beside the `.lp`.
+    let text = std::fs::read_to_string(ps_dir().join("capture.lp")).unwrap();
+    for f in (0..6).map(|j| format!("light{j}.png")) {
+        std::fs::copy(ps_dir().join(&f), tmp.path().join(&f)).unwrap();
+    }
+    let flip: String = text
+        .lines()
+        .map(|l| {
+            let w: Vec<&str> = l.split_whitespace().collect();
+            if w.len() == 4 {
+                let y: f64 = w[2].parse().unwrap();
+                format!("C:\\capture\\{} {} {} {}\n", w[0], w[1], -y, w[3])
+            } else {
+                format!("{l}\n")
+            }
+        })
+        .collect();
+    let flipped = write(tmp.path(), "flipped.lp", &flip);
+    let (o, img) = capture_lp(&flipped, &tmp.path().join("flipped.exr"));
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    let (e_flip, _) = sphere_error(&img.unwrap(), 0.3);
+    eprintln!("the same capture with y flipped: {e_flip:.1}°");
+    assert!(e_flip > 10.0, "{e_flip}°");
+}
+
+#[test]
+fn capture_lp_normalises_long_directions_with_a_note_and_names_bad_lines() {
+    let tmp = tempfile::tempdir().unwrap();
+    let text = std::fs::read_to_string(ps_dir().join("capture.lp")).unwrap();
+    for f in (0..6).map(|j| format!("light{j}.png")) {
+        std::fs::copy(ps_dir().join(&f), tmp.path().join(&f)).unwrap();
+    }
+    // Every direction twice as long: the same result, and a note per line.
+    let long: String = text
+        .lines()
+        .map(|l| {
+            let w: Vec<&str> = l.split_whitespace().collect();
+            if w.len() == 4 {
+                let d: Vec<f64> = w[1..]
+                    .iter()
+                    .map(|t| 2.0 * t.parse::<f64>().unwrap())
+                    .collect();
+                format!("{} {} {} {}\n", w[0], d[0], d[1], d[2])
+            } else {
+                format!("{l}\n")
+            }
+        })
+        .collect();
+    let lp = write(tmp.path(), "long.lp", &long);
+    let (o, img) = capture_lp(&lp, &tmp.path().join("long.exr"));
+    let e = stderr(&o);
+    assert_eq!(o.status.code(), Some(0), "{e}");
+    assert_eq!(e.matches("normalised").count(), 6, "{e}");
+    assert!(e.contains("line 2 of") && e.contains("long.lp"), "{e}");
+    let (err, _) = sphere_error(&img.unwrap(), 0.3);
+    assert!(err < 0.5, "{err}°");
+
+    // A count that disagrees with the photo lines: one line naming the line, exit 2, no output.
+    let short = write(tmp.path(), "short.lp", &text.replacen('6', "7", 1));
+    let out = tmp.path().join("short.exr");
+    let (o, _) = capture_lp(&short, &out);
+    let e = stderr(&o);
+    assert_eq!(o.status.code(), Some(2), "{e}");
+    assert_eq!(e.trim().lines().count(), 1, "{e}");
+    assert!(
+        e.contains("line 1") && e.contains("7 photos") && e.contains("short.lp"),
+        "{e}"
+    );
+    assert!(!out.exists());
+    // `--lp` with a file that is not an .lp, and `--lp` with `--photos`: usage errors.
+    let o = rgbn(&["capture", "--lp", "lights.txt", "-o", "x.exr"]);
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    let o = rgbn(&[
+        "capture", "--lp", "a.lp", "--photos", "a.png", "-o", "x.exr",
+    ]);
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
 }
 
 #[test]
