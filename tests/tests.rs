@@ -11,6 +11,9 @@ mod real_data;
 #[path = "it/graphs.rs"]
 mod graphs;
 
+#[path = "it/golden.rs"]
+mod golden;
+
 #[path = "it/graph_errors.rs"]
 mod graph_errors;
 
