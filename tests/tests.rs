@@ -23,6 +23,9 @@ mod cache;
 #[path = "it/cli.rs"]
 mod cli;
 
+#[path = "it/cli_errors.rs"]
+mod cli_errors;
+
 #[cfg(feature = "gui")]
 #[path = "it/editor.rs"]
 mod editor;

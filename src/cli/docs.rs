@@ -40,7 +40,7 @@ fn render(cmd: clap::Command) -> String {
 
 /// A man page: its file name (`rgbn-eval.1`) and its roff text.
 fn man_page(cmd: clap::Command) -> (String, String) {
-    let man = clap_mangen::Man::new(cmd);
+    let man = clap_mangen::Man::new(cmd).source(format!("rgbn {}", env!("CARGO_PKG_VERSION")));
     let mut buf = Vec::new();
     // Rendering into memory cannot fail (a `Vec` never returns an I/O error).
     let _ = man.render(&mut buf);
