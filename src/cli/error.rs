@@ -52,9 +52,9 @@ pub enum CliError {
     #[error(transparent)]
     Rgbn(#[from] RgbnError),
 
-    /// A graph file, graph or evaluation error.
+    /// A graph file, graph or evaluation error (boxed: it carries its location by value).
     #[error(transparent)]
-    Graph(#[from] GraphError),
+    Graph(Box<GraphError>),
 
     /// Some files of a batch failed (each was reported when it failed).
     #[error("{failed} of {total} files failed: {list}")]
@@ -76,19 +76,28 @@ pub enum CliError {
     Editor(String),
 }
 
+impl From<GraphError> for CliError {
+    fn from(e: GraphError) -> Self {
+        CliError::Graph(Box::new(e))
+    }
+}
+
 impl CliError {
     /// The exit code of this error: the one mapping from errors to codes (see the module doc).
     #[must_use]
     pub fn exit(&self) -> Exit {
         let library_error = match self {
             CliError::Clap(e) if !e.use_stderr() => return Exit::Ok,
-            CliError::Rgbn(e) | CliError::Graph(GraphError::Node { source: e, .. }) => e,
-            CliError::Graph(GraphError::Cancelled) | CliError::Batch { .. } => return Exit::Failed,
-            CliError::Clap(_)
-            | CliError::Usage(_)
-            | CliError::Graph(_)
-            | CliError::Stdout(_)
-            | CliError::Editor(_) => return Exit::Usage,
+            CliError::Rgbn(e) => e,
+            CliError::Graph(g) => match g.as_ref() {
+                GraphError::Node { source, .. } => source,
+                GraphError::Cancelled => return Exit::Failed,
+                _ => return Exit::Usage,
+            },
+            CliError::Batch { .. } => return Exit::Failed,
+            CliError::Clap(_) | CliError::Usage(_) | CliError::Stdout(_) | CliError::Editor(_) => {
+                return Exit::Usage
+            }
         };
         match library_error {
             // An operator met an image it cannot process (inconsistent sizes, …).

@@ -1,8 +1,5 @@
 //! The graph commands of the CLI: `eval`, `batch`, `check`, `ops` (a part of [`crate::cli`]).
 
-// Graph errors carry their location (file, node, names) by value; they are cold paths.
-#![allow(clippy::result_large_err)]
-
 use super::error::{message, usage, CliError};
 use super::out::Out;
 use crate::error::RgbnError;

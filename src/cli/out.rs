@@ -89,7 +89,6 @@ mod tests {
         out.line("a").unwrap();
         out.line("b").unwrap();
         out.flush().unwrap();
-        drop(out);
         assert_eq!(w.1, 1, "nothing is written after the pipe closed");
     }
 

@@ -20,8 +20,11 @@ use rgbn::raster::io::{self, ExrCompression, ExrPrecision};
 use rgbn::RgbnImage;
 use std::path::{Path, PathBuf};
 
+/// `(node, parameter, value)`, as `--set NODE.PARAM=VALUE`.
+type Set = (&'static str, &'static str, &'static str);
+
 /// Graph, `--set` overrides that make it small, and the outputs compared pixel by pixel.
-const CASES: &[(&str, &[(&str, &str, &str)], &[&str])] = &[
+const CASES: &[(&str, &[Set], &[&str])] = &[
     (
         "demo",
         &[("source", "size", "48")],
@@ -98,7 +101,11 @@ fn compare_rgbn(want: &RgbnImage, got: &RgbnImage) -> Result<(), String> {
     }
     for ((name, a), (_, b)) in pw.iter().zip(&pg) {
         let bad: Vec<usize> = (0..w * h)
-            .filter(|&i| !((a[i] - b[i]).abs() <= FLOAT_ABS + FLOAT_REL * a[i].abs()))
+            // NaN in either differs.
+            .filter(|&i| {
+                let d = (a[i] - b[i]).abs();
+                d.is_nan() || d > FLOAT_ABS + FLOAT_REL * a[i].abs()
+            })
             .collect();
         if let Some(&i) = bad.first() {
             return Err(format!(
