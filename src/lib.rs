@@ -29,6 +29,8 @@ pub mod graph;
 pub mod ops;
 pub mod raster;
 pub mod render;
+#[doc(hidden)]
+pub mod test_data;
 
 pub use error::RgbnError;
 pub use raster::gradient::GradientField;

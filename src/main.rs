@@ -1,7 +1,58 @@
 //! The `rgbn` binary: the command line (and, with the `gui` feature, the editor).
+//!
+//! The binary's edge: it sets up logging, runs [`rgbn::cli::run`] (which handles every error
+//! once and maps it to the exit code) and exits with that code.
 
+use std::io::IsTerminal;
 use std::process::ExitCode;
+use tracing_subscriber::filter::{EnvFilter, LevelFilter};
+use tracing_subscriber::fmt::format::{FormatEvent, FormatFields, Writer};
+use tracing_subscriber::fmt::FmtContext;
+use tracing_subscriber::registry::LookupSpan;
 
 fn main() -> ExitCode {
-    ExitCode::from(rgbn::cli::run(std::env::args_os()))
+    init_logging();
+    rgbn::cli::run(std::env::args_os()).into()
+}
+
+/// Warnings and errors logged by the library (e.g. "disk cache write failed") go to stderr as
+/// `rgbn: warning: …` lines. `RUST_LOG` selects more (`RUST_LOG=debug`, `RUST_LOG=rgbn=info`);
+/// the default is `warn`.
+fn init_logging() {
+    let filter = EnvFilter::builder()
+        .with_default_directive(LevelFilter::WARN.into())
+        .from_env_lossy();
+    let _ = tracing_subscriber::fmt()
+        .with_env_filter(filter)
+        .with_writer(std::io::stderr)
+        .with_ansi(std::io::stderr().is_terminal())
+        .event_format(OneLine)
+        .try_init();
+}
+
+/// `rgbn: LEVEL: message`, the form of the CLI's own error lines.
+struct OneLine;
+
+impl<S, N> FormatEvent<S, N> for OneLine
+where
+    S: tracing::Subscriber + for<'a> LookupSpan<'a>,
+    N: for<'a> FormatFields<'a> + 'static,
+{
+    fn format_event(
+        &self,
+        ctx: &FmtContext<'_, S, N>,
+        mut w: Writer<'_>,
+        event: &tracing::Event<'_>,
+    ) -> std::fmt::Result {
+        let level = match *event.metadata().level() {
+            tracing::Level::ERROR => "error",
+            tracing::Level::WARN => "warning",
+            tracing::Level::INFO => "info",
+            tracing::Level::DEBUG => "debug",
+            tracing::Level::TRACE => "trace",
+        };
+        write!(w, "rgbn: {level}: ")?;
+        ctx.field_format().format_fields(w.by_ref(), event)?;
+        writeln!(w)
+    }
 }

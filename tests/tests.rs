@@ -11,6 +11,9 @@ mod real_data;
 #[path = "it/graphs.rs"]
 mod graphs;
 
+#[path = "it/golden.rs"]
+mod golden;
+
 #[path = "it/graph_errors.rs"]
 mod graph_errors;
 
@@ -19,6 +22,9 @@ mod cache;
 
 #[path = "it/cli.rs"]
 mod cli;
+
+#[path = "it/cli_errors.rs"]
+mod cli_errors;
 
 #[cfg(feature = "gui")]
 #[path = "it/editor.rs"]

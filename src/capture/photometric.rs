@@ -1637,19 +1637,6 @@ mod tests_support {
     }
 
     pub fn data_dir(sub: &str) -> Option<PathBuf> {
-        let base = std::env::var_os("RGBN_DATA").map_or_else(
-            || Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/data"),
-            PathBuf::from,
-        );
-        let d = base.join(sub);
-        if d.is_dir() {
-            Some(d)
-        } else {
-            eprintln!(
-                "SKIPPED: real data {} not found (set RGBN_DATA)",
-                d.display()
-            );
-            None
-        }
+        crate::test_data::real_data(sub)
     }
 }

@@ -260,19 +260,3 @@ pub enum GraphError {
     #[error("evaluation cancelled")]
     Cancelled,
 }
-
-impl GraphError {
-    /// Process exit code: 1 for evaluation failures (an operator failed on valid input,
-    /// cancellation), 2 for bad usage or bad input (files, graph, parameters).
-    #[must_use]
-    pub fn exit_code(&self) -> u8 {
-        match self {
-            GraphError::Node {
-                source: RgbnError::InvalidImage(_) | RgbnError::Write { .. },
-                ..
-            }
-            | GraphError::Cancelled => 1,
-            _ => 2,
-        }
-    }
-}

@@ -463,33 +463,25 @@ pub fn integrate_least_squares(g: &GradientField, rel_tol: f64, max_iter: usize)
 }
 
 /// Test fixture: a `size × size` crop (top-left) of the Poly Haven rosewood veneer (colour +
-/// GL normal map) from `$RGBN_DATA` or `../shared/data`; `None` (with a message saying the test
-/// skips) when the data is absent.
+/// GL normal map) from the real test data ([`crate::test_data`]); `None` when it is absent.
 #[cfg(test)]
 pub(crate) fn rosewood_crop(size: usize) -> Option<crate::raster::RgbnImage> {
     use crate::raster::io::{load, InputSpec, LoadOptions};
-    let root = std::env::var_os("RGBN_DATA")
-        .map(std::path::PathBuf::from)
-        .unwrap_or_else(|| std::path::PathBuf::from("../shared/data"));
-    let dir = root.join("polyhaven-rosewood-veneer");
+    let dir = crate::test_data::real_data("polyhaven-rosewood-veneer")?;
     let (color, normal) = (
         dir.join("rosewood_veneer1_diff_1k.jpg"),
         dir.join("rosewood_veneer1_nor_gl_1k.png"),
     );
-    if !(color.exists() && normal.exists()) {
-        eprintln!(
-            "SKIP: real data not found in {} (set RGBN_DATA)",
-            dir.display()
-        );
-        return None;
-    }
     let spec = InputSpec {
         color: Some(color),
         normal: Some(normal),
         ..InputSpec::default()
     };
-    let img = load(&spec, &LoadOptions::default()).ok()?.image;
-    super::stamp::extract_stamp(
+    // The data is there: failing to read or crop it fails the test (never a silent skip).
+    let img = load(&spec, &LoadOptions::default())
+        .expect("the rosewood texture loads")
+        .image;
+    let crop = super::stamp::extract_stamp(
         &img,
         0,
         0,
@@ -497,7 +489,8 @@ pub(crate) fn rosewood_crop(size: usize) -> Option<crate::raster::RgbnImage> {
         size.min(img.height()),
         None,
     )
-    .ok()
+    .expect("the crop is inside the texture");
+    Some(crop)
 }
 
 #[cfg(test)]

@@ -417,8 +417,9 @@ impl<T: Operator> DynOp for Entry<T> {
         let p: T::Params = params::from_values(values)?;
         T::check(&p).map_err(|e| match e {
             RgbnError::InvalidParam { name, detail } => ParamError::Range { name, detail },
+            // Not about one parameter (checks report `InvalidParam`): name the operator.
             other => ParamError::Range {
-                name: String::new(),
+                name: self.spec.id.to_string(),
                 detail: other.to_string(),
             },
         })?;
@@ -430,8 +431,7 @@ impl<T: Operator> DynOp for Entry<T> {
         inputs: &[Option<Value>],
         ctx: &RunContext,
     ) -> Result<Vec<Value>, RgbnError> {
-        let p: T::Params =
-            params::from_values(values).map_err(|e| RgbnError::param("", e.to_string()))?;
+        let p: T::Params = params::from_values(values)?;
         let out = T::run(&p, &Inputs::new(&self.spec.inputs, inputs), ctx)?;
         debug_assert_eq!(out.len(), self.spec.outputs.len());
         Ok(out)

@@ -449,6 +449,35 @@ impl fmt::Display for ParamError {
     }
 }
 
+impl ParamError {
+    /// The parameter the error is about.
+    #[must_use]
+    pub fn name(&self) -> &str {
+        match self {
+            ParamError::Unknown { name, .. }
+            | ParamError::Kind { name, .. }
+            | ParamError::Range { name, .. } => name,
+        }
+    }
+}
+
+/// The same error as an [`crate::RgbnError::InvalidParam`] named after its parameter.
+impl From<ParamError> for crate::RgbnError {
+    fn from(e: ParamError) -> Self {
+        let detail = match &e {
+            ParamError::Unknown { suggestion, .. } => match suggestion {
+                Some(s) => format!("no such parameter (did you mean {s:?}?)"),
+                None => "no such parameter".into(),
+            },
+            ParamError::Kind {
+                expected, found, ..
+            } => format!("needs a {expected} value, got a {found}"),
+            ParamError::Range { detail, .. } => detail.clone(),
+        };
+        crate::RgbnError::param(e.name(), detail)
+    }
+}
+
 fn set_if<T>(ok: bool, dst: &mut T, v: T) {
     if ok {
         *dst = v;

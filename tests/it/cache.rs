@@ -256,7 +256,7 @@ fn progress_is_reported_and_cancellation_stops() {
     };
     let e = Evaluator::default().eval(&plan, &[], &opts).unwrap_err();
     assert!(matches!(e, rgbn::graph::GraphError::Cancelled), "{e}");
-    assert_eq!(e.exit_code(), 1);
+    assert_eq!(rgbn::cli::CliError::from(e).exit(), rgbn::cli::Exit::Failed);
 }
 
 #[test]

@@ -412,17 +412,9 @@ fn capture_chrome_writes_a_light_file_the_capture_reads() {
 
 #[test]
 fn capture_cli_on_the_diligent_ball() {
-    let Some(d) = data_dir("capture_cli_on_the_diligent_ball") else {
+    let Some(d) = real_data("diligent-ball-subset") else {
         return;
     };
-    let d = d.join("diligent-ball-subset");
-    if !d.is_dir() {
-        eprintln!(
-            "SKIPPED capture_cli_on_the_diligent_ball: no {}",
-            d.display()
-        );
-        return;
-    }
     let out = tempfile::tempdir().unwrap();
     let exr = out.path().join("ball.exr");
     let names = [

@@ -84,22 +84,10 @@ pub fn write(dir: &Path, name: &str, text: &str) -> PathBuf {
     p
 }
 
-/// The third-party test data (`$RGBN_DATA`, else `../shared/data` beside the checkout), or
-/// `None` with a note on stderr so a skipped test says so.
-pub fn data_dir(test: &str) -> Option<PathBuf> {
-    let dir = std::env::var_os("RGBN_DATA")
-        .map(PathBuf::from)
-        .unwrap_or_else(|| PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../shared/data"));
-    if dir.is_dir() {
-        Some(dir)
-    } else {
-        eprintln!(
-            "SKIPPED {test}: test data not found at {} (set RGBN_DATA)",
-            dir.display()
-        );
-        None
-    }
-}
+/// Real third-party test data: `sub` under `$RGBN_DATA` (else `../shared/data`), or `None`
+/// with a `SKIPPED` note — a failure instead with `RGBN_REQUIRE_DATA=1` (CI). The one helper
+/// every real-data test uses, unit tests included.
+pub use rgbn::test_data::real_data;
 
 /// Runs the `rgbn` binary.
 pub fn rgbn(args: &[&str]) -> Output {

@@ -2,6 +2,7 @@
 //! (and port or parameter), never a panic.
 
 use crate::common::*;
+use rgbn::cli::{CliError, Exit};
 use rgbn::eval::{EvalOptions, Evaluator, Plan};
 use rgbn::graph::{GraphError, LoadedGraph};
 use std::collections::BTreeMap;
@@ -24,7 +25,8 @@ fn load_err(dir: &Path, name: &str, text: &str) -> (GraphError, String) {
             let m = e.to_string();
             assert!(m.contains(name), "message does not name the file: {m}");
             assert!(!m.contains('\n'), "message is not one line: {m}");
-            assert_eq!(e.exit_code(), 2, "{m}");
+            let again = LoadedGraph::load(&p).map(|_| ()).unwrap_err();
+            assert_eq!(CliError::from(again).exit(), Exit::Usage, "{m}");
             (e, m)
         }
     }
@@ -260,8 +262,8 @@ fn set_and_bind_errors() {
     let e = Evaluator::default()
         .eval(&plan, &[], &EvalOptions::default())
         .unwrap_err();
-    assert_eq!(e.exit_code(), 2);
     has(&e.to_string(), &["nope.exr", "file not found"]);
+    assert_eq!(CliError::from(e).exit(), Exit::Usage);
     inputs.clear();
     inputs.insert("imag".to_string(), d.path().join("nope.exr"));
     let e = Plan::new(&lg, &inputs, d.path()).err().unwrap();

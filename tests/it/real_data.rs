@@ -1,14 +1,14 @@
 //! The core on real third-party data (`../shared/data`, see its PROVENANCE files). Each test
-//! says when it skips because the data is absent.
+//! says when it skips because the data is absent, and fails instead with `RGBN_REQUIRE_DATA=1`.
 
-use crate::common::data_dir;
+use crate::common::real_data;
 use rgbn::ops::filter::{filter_gradients, FilterOptions, Kernel};
 use rgbn::raster::convolve::{self, BorderMode};
 use rgbn::raster::gradient::GradientField;
 use rgbn::raster::io::{load, InputSpec, LoadOptions, NormalConvention};
 
 fn rosewood(conv: NormalConvention) -> Option<rgbn::raster::io::Loaded> {
-    let d = data_dir("rosewood")?.join("polyhaven-rosewood-veneer");
+    let d = real_data("polyhaven-rosewood-veneer")?;
     let spec = InputSpec {
         color: Some(d.join("rosewood_veneer1_diff_1k.jpg")),
         normal: Some(d.join("rosewood_veneer1_nor_gl_1k.png")),

@@ -1,7 +1,8 @@
 //! `rgbn capture`: photometric stereo from photos + a light file to an RGBN EXR, and
 //! (`--chrome`) light calibration from photos of a mirror sphere to a light file.
 
-use super::Failure;
+use super::error::{usage, CliError};
+use super::out::Out;
 use crate::capture::photometric::{
     calibrate_chrome, load_inputs, photometric_stereo, ChromeParams, PhotoStack, PhotometricParams,
     PsInputSpec, PsMethod, Transfer,
@@ -62,7 +63,7 @@ pub struct CaptureArgs {
     pub output: PathBuf,
 }
 
-pub fn capture_cmd(a: &CaptureArgs, out: &mut impl Write) -> Result<(), Failure> {
+pub fn capture_cmd(a: &CaptureArgs, out: &mut Out<'_>) -> Result<(), CliError> {
     let transfer = if a.srgb {
         Transfer::Srgb
     } else {
@@ -77,10 +78,10 @@ pub fn capture_cmd(a: &CaptureArgs, out: &mut impl Write) -> Result<(), Failure>
     );
     io::check_output(&a.output, &inputs)?;
     if a.chrome {
-        let mask_path = a.mask.as_ref().ok_or_else(|| Failure {
-            code: 2,
-            message: "--chrome needs --mask (the sphere's mask)".into(),
-        })?;
+        let mask_path = a
+            .mask
+            .as_ref()
+            .ok_or_else(|| usage("--chrome needs --mask (the sphere's mask)"))?;
         let stack = PhotoStack::load(&a.photos, transfer)?;
         let (w, h, mask) = io::load_mask(mask_path)?;
         if (w, h) != (stack.width, stack.height) {
@@ -108,26 +109,24 @@ pub fn capture_cmd(a: &CaptureArgs, out: &mut impl Write) -> Result<(), Failure>
             }
             f.write_all(s.as_bytes()).map_err(|e| e.to_string())
         })?;
-        let _ = writeln!(
-            out,
+        out.line(format_args!(
             "{} light directions (sphere at ({:.1}, {:.1}), radius {:.1} px) → {}",
             cal.directions.len(),
             cal.centre_px[0],
             cal.centre_px[1],
             cal.radius_px,
             a.output.display()
-        );
+        ))?;
         return Ok(());
     }
     io::Format::of(&a.output)
         .ok()
         .filter(|f| *f == io::Format::Exr)
-        .ok_or_else(|| Failure {
-            code: 2,
-            message: format!(
+        .ok_or_else(|| {
+            usage(format!(
                 "the output must be an .exr (colour + normals + mask): {}",
                 a.output.display()
-            ),
+            ))
         })?;
     let lights = match (&a.lp, &a.lights) {
         (Some(lp), _) => {
@@ -169,8 +168,7 @@ pub fn capture_cmd(a: &CaptureArgs, out: &mut impl Write) -> Result<(), Failure>
         .mask()
         .map(|m| curl_interior(m, img.width(), img.height()));
     let curl = GradientField::from_normals(&img).curl_stats(interior.as_deref());
-    let _ = writeln!(
-        out,
+    out.line(format_args!(
         "{}×{} from {} photos: {} of {} pixels solved ({} dark, {} unsolvable, {} with saturated samples); relative RMS curl {:.3e} (mask interior) → {}",
         img.width(),
         img.height(),
@@ -182,6 +180,6 @@ pub fn capture_cmd(a: &CaptureArgs, out: &mut impl Write) -> Result<(), Failure>
         rep.with_saturated,
         curl.relative,
         a.output.display()
-    );
+    ))?;
     Ok(())
 }

@@ -1,6 +1,7 @@
-//! The command line. Exit codes: 0 success, 1 evaluation failure, 2 bad usage or bad input.
-//! Errors are printed once, as one line on stderr: `rgbn: <what is wrong>: <file>`.
+//! The image commands: `info`, `render`, `filter` (a part of [`crate::cli`]).
 
+use super::error::{usage, CliError};
+use super::out::Out;
 use crate::error::RgbnError;
 use crate::ops::filter::{filter_normals, FilterOptions, Kernel};
 use crate::raster::convolve::BorderMode;
@@ -11,59 +12,8 @@ use crate::raster::io::{
 use crate::raster::sample::demo_medallion;
 use crate::raster::RgbnImage;
 use crate::render::{self, Light, Shading, View};
-use clap::{Args, Parser, Subcommand};
-use std::io::Write;
+use clap::Args;
 use std::path::{Path, PathBuf};
-
-#[path = "cli_graph.rs"]
-mod graph_cmds;
-pub use graph_cmds::{BatchArgs, CheckArgs, EvalArgs};
-
-#[path = "cli_capture.rs"]
-mod capture_cmds;
-pub use capture_cmds::CaptureArgs;
-
-/// Edit RGBN images (colour + normals) without breaking integrability.
-///
-/// With no command, the editor opens on the demo graph (when built with the `gui` feature).
-#[derive(Parser, Debug)]
-#[command(name = "rgbn", version, about, long_about = None)]
-#[cfg_attr(not(feature = "gui"), command(arg_required_else_help = true))]
-pub struct Cli {
-    #[command(subcommand)]
-    pub command: Option<Command>,
-}
-
-#[derive(Subcommand, Debug)]
-pub enum Command {
-    /// Print size, channels, validation counts and integrability (curl) of an image.
-    Info(InfoArgs),
-    /// Relight an image (or show normals, albedo or curl) to an sRGB PNG.
-    Render(RenderArgs),
-    /// Filter the normals through their gradients with linear kernels.
-    Filter(FilterArgs),
-    /// Evaluate a graph file: bind inputs, set parameters, write outputs.
-    Eval(EvalArgs),
-    /// Run a graph over many files (a glob), continuing past failures.
-    Batch(BatchArgs),
-    /// Validate a graph file without evaluating it.
-    Check(CheckArgs),
-    /// List every operator with its doc, ports and parameters.
-    Ops,
-    /// Photometric stereo: photos + lights → RGBN EXR; or --chrome: chrome-sphere photos → lights.
-    Capture(CaptureArgs),
-    /// Open the editor on a graph file (the demo graph when none is given).
-    #[cfg(feature = "gui")]
-    Edit(EditArgs),
-}
-
-/// Arguments of `rgbn edit`.
-#[cfg(feature = "gui")]
-#[derive(Args, Debug)]
-pub struct EditArgs {
-    /// The graph file to open (default: `graphs/demo.ron`, or the built-in demo graph).
-    pub graph: Option<PathBuf>,
-}
 
 /// Where the input comes from.
 #[derive(Args, Debug, Clone)]
@@ -190,102 +140,6 @@ fn parse_bits(s: &str) -> Result<u8, String> {
     }
 }
 
-/// A failure and the exit code it maps to.
-#[derive(Debug)]
-pub struct Failure {
-    /// Process exit code (1 evaluation failure, 2 usage or input error).
-    pub code: u8,
-    /// One line: what is wrong, then where.
-    pub message: String,
-}
-
-impl From<RgbnError> for Failure {
-    fn from(e: RgbnError) -> Self {
-        let code = match e {
-            RgbnError::InvalidImage(_) => 1,
-            _ => 2,
-        };
-        Failure {
-            code,
-            message: e.to_string(),
-        }
-    }
-}
-
-/// Parses `args` and runs; returns the process exit code. Prints errors on stderr.
-pub fn run<I, T>(args: I) -> u8
-where
-    I: IntoIterator<Item = T>,
-    T: Into<std::ffi::OsString> + Clone,
-{
-    let cli = match Cli::try_parse_from(args) {
-        Ok(c) => c,
-        Err(e) => {
-            let code = if e.use_stderr() { 2 } else { 0 };
-            let _ = e.print();
-            return code;
-        }
-    };
-    let Some(command) = cli.command else {
-        #[cfg(feature = "gui")]
-        {
-            return edit(None);
-        }
-        // `arg_required_else_help` prints help; reached only with global flags and no command.
-        #[cfg(not(feature = "gui"))]
-        {
-            let _ = <Cli as clap::CommandFactory>::command().print_help();
-            return 2;
-        }
-    };
-    let stdout = std::io::stdout();
-    let mut out = stdout.lock();
-    let result = match command {
-        Command::Info(a) => info(&a, &mut out),
-        Command::Render(a) => render_cmd(&a, &mut out),
-        Command::Filter(a) => filter_cmd(&a, &mut out),
-        Command::Eval(a) => graph_cmds::eval_cmd(&a, &mut out),
-        Command::Batch(a) => graph_cmds::batch_cmd(&a, &mut out),
-        Command::Check(a) => graph_cmds::check_cmd(&a, &mut out),
-        Command::Ops => graph_cmds::ops_cmd(&mut out),
-        Command::Capture(a) => capture_cmds::capture_cmd(&a, &mut out),
-        #[cfg(feature = "gui")]
-        Command::Edit(a) => {
-            drop(out);
-            return edit(a.graph);
-        }
-    };
-    match result {
-        Ok(()) => 0,
-        Err(f) => {
-            eprintln!("rgbn: {}", f.message);
-            f.code
-        }
-    }
-}
-
-/// Runs the editor; returns the exit code.
-#[cfg(feature = "gui")]
-fn edit(graph: Option<PathBuf>) -> u8 {
-    match crate::app::run(graph) {
-        Ok(()) => 0,
-        Err(e) => {
-            eprintln!("rgbn: {e}");
-            2
-        }
-    }
-}
-
-/// Writes a line to stdout; a closed pipe (e.g. `| head`) is not an error.
-macro_rules! say {
-    ($out:expr, $($t:tt)*) => {
-        match writeln!($out, $($t)*) {
-            Err(e) if e.kind() == std::io::ErrorKind::BrokenPipe => return Ok(()),
-            _ => {}
-        }
-    };
-}
-
 impl InputArgs {
     fn spec(&self) -> InputSpec {
         InputSpec {
@@ -309,7 +163,7 @@ impl InputArgs {
     }
 
     /// Loads the input (or builds the demo) and reports repairs on stderr.
-    fn load(&self) -> Result<(RgbnImage, String), Failure> {
+    fn load(&self) -> Result<(RgbnImage, String), CliError> {
         if self.demo {
             let mut img = demo_medallion(self.demo_size as usize);
             let spec = self.spec();
@@ -332,12 +186,9 @@ impl InputArgs {
         }
         let spec = self.spec();
         if spec.rgbn.is_none() && spec.normal.is_none() {
-            return Err(Failure {
-                code: 2,
-                message:
-                    "no input: give FILE (an RGBN EXR or a normal map), --normal PATH, or --demo"
-                        .into(),
-            });
+            return Err(usage(
+                "no input: give FILE (an RGBN EXR or a normal map), --normal PATH, or --demo",
+            ));
         }
         let loaded = io::load(&spec, &self.load_options())?;
         let r = loaded.repaired;
@@ -366,7 +217,7 @@ impl InputArgs {
     }
 }
 
-fn info(a: &InfoArgs, out: &mut impl Write) -> Result<(), Failure> {
+pub(super) fn info(a: &InfoArgs, out: &mut Out<'_>) -> Result<(), CliError> {
     let (img, name) = a.input.load()?;
     let v = img.validate();
     // `load` repaired the image; report what the file held.
@@ -385,43 +236,35 @@ fn info(a: &InfoArgs, out: &mut impl Write) -> Result<(), Failure> {
     let g = GradientField::from_normals(&img);
     let c = g.curl_stats(img.mask());
     let (w, h) = (img.width(), img.height());
-    say!(out, "input:       {name}");
-    say!(
-        out,
+    out.line(format_args!("input:       {name}"))?;
+    out.line(format_args!(
         "size:        {w}×{h} ({:.2} Mpx)",
         (w * h) as f64 / 1e6
-    );
-    say!(
-        out,
+    ))?;
+    out.line(format_args!(
         "channels:    colour RGB (linear), normal XYZ, mask {}",
         if img.mask().is_some() { "yes" } else { "no" }
-    );
-    say!(
-        out,
+    ))?;
+    out.line(format_args!(
         "validation:  {} non-finite colour, {} non-finite normals, {} zero-length, {} not unit length, {} back-facing (n_z ≤ 0)",
         before.non_finite_color,
         before.non_finite_normal,
         before.zero_length_normal,
         before.non_unit,
         before.back_facing
-    );
-    say!(
-        out,
+    ))?;
+    out.line(format_args!(
         "gradient:    {} pixels with n_z < 1e-3 clamped; RMS |g| = {:.4}",
-        g.clamped,
-        c.rms_gradient
-    );
-    say!(
-        out,
+        g.clamped, c.rms_gradient
+    ))?;
+    out.line(format_args!(
         "curl:        relative RMS {:.3e} (RMS {:.3e}, max |c| {:.3e})",
-        c.relative,
-        c.rms_curl,
-        c.max_abs_curl
-    );
+        c.relative, c.rms_curl, c.max_abs_curl
+    ))?;
     Ok(())
 }
 
-fn render_cmd(a: &RenderArgs, out: &mut impl Write) -> Result<(), Failure> {
+pub(super) fn render_cmd(a: &RenderArgs, out: &mut Out<'_>) -> Result<(), CliError> {
     io::check_output(&a.output, &a.input.paths())?;
     if Format::of(&a.output)? != Format::Png {
         return Err(RgbnError::UnsupportedFormat {
@@ -449,19 +292,18 @@ fn render_cmd(a: &RenderArgs, out: &mut impl Write) -> Result<(), Failure> {
     let (img, _) = a.input.load()?;
     let rgba = render::render(&img, a.view, &shading)?;
     io::write_raster8(&rgba, img.width(), img.height(), 4, Format::Png, &a.output)?;
-    say!(
-        out,
+    out.line(format_args!(
         "wrote {} ({}×{}, {}): {}",
         a.view.name(),
         img.width(),
         img.height(),
         "sRGB 8-bit",
         a.output.display()
-    );
+    ))?;
     Ok(())
 }
 
-fn filter_cmd(a: &FilterArgs, out: &mut impl Write) -> Result<(), Failure> {
+pub(super) fn filter_cmd(a: &FilterArgs, out: &mut Out<'_>) -> Result<(), CliError> {
     let kernels: Vec<Kernel> = a
         .kernels
         .iter()
@@ -474,13 +316,10 @@ fn filter_cmd(a: &FilterArgs, out: &mut impl Write) -> Result<(), Failure> {
         io::check_output(c, &inputs)?;
         Format::of(c)?;
         if c == &a.output {
-            return Err(Failure {
-                code: 2,
-                message: format!(
-                    "--color-out and --output name the same file: {}",
-                    c.display()
-                ),
-            });
+            return Err(usage(format!(
+                "--color-out and --output name the same file: {}",
+                c.display()
+            )));
         }
     }
     let (img, _) = a.input.load()?;
@@ -507,8 +346,7 @@ fn filter_cmd(a: &FilterArgs, out: &mut impl Write) -> Result<(), Failure> {
         io::save_color(&filtered, c, a.bits)?;
     }
     let names: Vec<String> = kernels.iter().map(ToString::to_string).collect();
-    say!(
-        out,
+    out.line(format_args!(
         "filtered with {} ({} border{}): relative RMS curl {:.3e} → {:.3e}; {} pixels clamped; wrote {}",
         names.join(" then "),
         a.border.name(),
@@ -517,6 +355,6 @@ fn filter_cmd(a: &FilterArgs, out: &mut impl Write) -> Result<(), Failure> {
         report.curl_after.relative,
         report.clamped,
         a.output.display()
-    );
+    ))?;
     Ok(())
 }

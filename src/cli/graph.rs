@@ -1,9 +1,8 @@
 //! The graph commands of the CLI: `eval`, `batch`, `check`, `ops` (a part of [`crate::cli`]).
 
-// Graph errors carry their location (file, node, names) by value; they are cold paths.
-#![allow(clippy::result_large_err)]
-
-use super::{Failure, RgbnError};
+use super::error::{message, usage, CliError};
+use super::out::Out;
+use crate::error::RgbnError;
 use crate::eval::{EvalOptions, EvalResult, Evaluator, Plan, Status};
 use crate::graph::{GraphError, LoadedGraph};
 use crate::ops::params::{ParamKind, ParamValue};
@@ -12,22 +11,8 @@ use crate::ops::{registry, PortType, Value};
 use crate::raster::io::{self, SaveOptions};
 use clap::Args;
 use std::collections::BTreeMap;
-use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::sync::{Arc, Mutex};
-
-impl From<GraphError> for Failure {
-    fn from(e: GraphError) -> Self {
-        Failure {
-            code: e.exit_code(),
-            message: e.to_string(),
-        }
-    }
-}
-
-fn usage(message: String) -> Failure {
-    Failure { code: 2, message }
-}
 
 /// `rgbn eval`.
 #[derive(Args, Debug)]
@@ -94,14 +79,14 @@ pub struct CheckArgs {
     pub graph: PathBuf,
 }
 
-fn split_pair<'a>(s: &'a str, what: &str) -> Result<(&'a str, &'a str), Failure> {
+fn split_pair<'a>(s: &'a str, what: &str) -> Result<(&'a str, &'a str), CliError> {
     match s.split_once('=') {
         Some((a, b)) if !a.is_empty() && !b.is_empty() => Ok((a, b)),
         _ => Err(usage(format!("{what} {s:?} is not of the form NAME=VALUE"))),
     }
 }
 
-fn load_graph(path: &Path, sets: &[String]) -> Result<LoadedGraph, Failure> {
+fn load_graph(path: &Path, sets: &[String]) -> Result<LoadedGraph, CliError> {
     let mut lg = LoadedGraph::load(path)?;
     for s in sets {
         let (lhs, value) = s
@@ -116,7 +101,7 @@ fn load_graph(path: &Path, sets: &[String]) -> Result<LoadedGraph, Failure> {
     Ok(lg)
 }
 
-fn parse_inputs(list: &[String]) -> Result<BTreeMap<String, PathBuf>, Failure> {
+fn parse_inputs(list: &[String]) -> Result<BTreeMap<String, PathBuf>, CliError> {
     let mut m = BTreeMap::new();
     for s in list {
         let (name, path) = split_pair(s, "--input")?;
@@ -125,7 +110,7 @@ fn parse_inputs(list: &[String]) -> Result<BTreeMap<String, PathBuf>, Failure> {
     Ok(m)
 }
 
-fn evaluator(cache_dir: Option<&Path>) -> Result<Evaluator, Failure> {
+fn evaluator(cache_dir: Option<&Path>) -> Result<Evaluator, CliError> {
     let ev = Evaluator::default();
     Ok(match cache_dir {
         Some(d) => ev.with_disk_cache(d)?,
@@ -141,18 +126,6 @@ fn progress_bar(total_hint: u64) -> indicatif::ProgressBar {
             .progress_chars("=> "),
     );
     pb
-}
-
-/// Writes one line; a closed pipe ends output quietly.
-fn line(out: &mut impl Write, s: &str) -> Result<(), Failure> {
-    match writeln!(out, "{s}") {
-        Err(e) if e.kind() == std::io::ErrorKind::BrokenPipe => Ok(()),
-        Err(e) => Err(Failure {
-            code: 1,
-            message: format!("cannot write to stdout: {e}"),
-        }),
-        Ok(()) => Ok(()),
-    }
 }
 
 fn describe_value(v: &Value) -> String {
@@ -182,14 +155,11 @@ fn describe_value(v: &Value) -> String {
     }
 }
 
-fn print_stats(out: &mut impl Write, r: &EvalResult, top: &str) -> Result<(), Failure> {
-    line(
-        out,
-        &format!(
-            "{:<28} {:<18} {:<8} {:>10} {:>10} {:>11}",
-            "node", "op", "cache", "time ms", "MB", "curl rel."
-        ),
-    )?;
+fn print_stats(out: &mut Out<'_>, r: &EvalResult, top: &str) -> Result<(), CliError> {
+    out.line(format_args!(
+        "{:<28} {:<18} {:<8} {:>10} {:>10} {:>11}",
+        "node", "op", "cache", "time ms", "MB", "curl rel."
+    ))?;
     for s in &r.stats {
         let mut node = match (s.at.node, &s.at.name) {
             (Some(id), Some(n)) => format!("{id} {n}"),
@@ -209,32 +179,26 @@ fn print_stats(out: &mut impl Write, r: &EvalResult, top: &str) -> Result<(), Fa
             Status::Miss => "miss",
             Status::Effect => "effect",
         };
-        line(
-            out,
-            &format!(
-                "{:<28} {:<18} {:<8} {:>10.1} {:>10.2} {:>11}",
-                node,
-                s.op,
-                status,
-                s.time.as_secs_f64() * 1e3,
-                s.bytes as f64 / 1e6,
-                s.curl.map_or_else(|| "-".into(), |c| format!("{c:.3e}"))
-            ),
-        )?;
+        out.line(format_args!(
+            "{:<28} {:<18} {:<8} {:>10.1} {:>10.2} {:>11}",
+            node,
+            s.op,
+            status,
+            s.time.as_secs_f64() * 1e3,
+            s.bytes as f64 / 1e6,
+            s.curl.map_or_else(|| "-".into(), |c| format!("{c:.3e}"))
+        ))?;
     }
-    line(
-        out,
-        &format!(
-            "{} nodes: {} hits, {} misses",
-            r.stats.len(),
-            r.hits(),
-            r.misses()
-        ),
-    )
+    out.line(format_args!(
+        "{} nodes: {} hits, {} misses",
+        r.stats.len(),
+        r.hits(),
+        r.misses()
+    ))
 }
 
 /// `rgbn eval`.
-pub fn eval_cmd(a: &EvalArgs, out: &mut impl Write) -> Result<(), Failure> {
+pub fn eval_cmd(a: &EvalArgs, out: &mut Out<'_>) -> Result<(), CliError> {
     let lg = load_graph(&a.graph, &a.sets)?;
     let inputs = parse_inputs(&a.inputs)?;
     let cwd = PathBuf::from(".");
@@ -283,15 +247,16 @@ pub fn eval_cmd(a: &EvalArgs, out: &mut impl Write) -> Result<(), Failure> {
     let r = r?;
     for (name, path) in &requested {
         let v = &r.outputs[name];
-        write_value(v, path, &SaveOptions::default()).map_err(Failure::from)?;
-        line(
-            out,
-            &format!("wrote {name} ({}): {}", describe_value(v), path.display()),
-        )?;
+        write_value(v, path, &SaveOptions::default())?;
+        out.line(format_args!(
+            "wrote {name} ({}): {}",
+            describe_value(v),
+            path.display()
+        ))?;
     }
     if requested.is_empty() {
         for (name, v) in &r.outputs {
-            line(out, &format!("{name}: {}", describe_value(v)))?;
+            out.line(format_args!("{name}: {}", describe_value(v)))?;
         }
     }
     if a.stats {
@@ -309,20 +274,14 @@ fn extension(ty: PortType) -> &'static str {
 }
 
 /// `rgbn batch`.
-pub fn batch_cmd(a: &BatchArgs, out: &mut impl Write) -> Result<(), Failure> {
+pub fn batch_cmd(a: &BatchArgs, out: &mut Out<'_>) -> Result<(), CliError> {
     let lg = load_graph(&a.graph, &a.sets)?;
     let (first, rest) = a
         .inputs
         .split_first()
-        .ok_or_else(|| usage("batch needs --input NAME=GLOB".into()))?;
+        .ok_or_else(|| usage("batch needs --input NAME=GLOB"))?;
     let (name, pattern) = split_pair(first, "--input")?;
     let fixed = parse_inputs(rest)?;
-    if !a.out_dir.is_dir() {
-        return Err(RgbnError::MissingDir {
-            path: a.out_dir.clone(),
-        }
-        .into());
-    }
     let files: Vec<PathBuf> = glob::glob(pattern)
         .map_err(|e| usage(format!("bad glob pattern {pattern:?}: {e}")))?
         .filter_map(Result::ok)
@@ -332,10 +291,18 @@ pub fn batch_cmd(a: &BatchArgs, out: &mut impl Write) -> Result<(), Failure> {
         return Err(usage(format!("no files match {pattern:?}")));
     }
     let ev = evaluator(a.cache_dir.as_deref())?;
+    if !a.out_dir.is_dir() {
+        // As `mkdir -p`; a file in the way (or no permission) is an error naming the folder.
+        std::fs::create_dir_all(&a.out_dir).map_err(|e| RgbnError::Write {
+            detail: format!("cannot create the output folder: {e}"),
+            path: a.out_dir.clone(),
+        })?;
+        out.line(format_args!("created folder {}", a.out_dir.display()))?;
+    }
     let pb = progress_bar(files.len() as u64);
-    let failures: Mutex<Vec<(PathBuf, String)>> = Mutex::new(Vec::new());
+    let failures: Mutex<Vec<PathBuf>> = Mutex::new(Vec::new());
     let written = std::sync::atomic::AtomicUsize::new(0);
-    let run_one = |file: &PathBuf| -> Result<(), Failure> {
+    let run_one = |file: &PathBuf| -> Result<(), CliError> {
         let mut inputs = fixed.clone();
         inputs.insert(name.to_string(), file.clone());
         let plan = Plan::new(&lg, &inputs, Path::new("."))?;
@@ -362,12 +329,12 @@ pub fn batch_cmd(a: &BatchArgs, out: &mut impl Write) -> Result<(), Failure> {
             let (pb, failures, run_one) = (&pb, &failures, &run_one);
             s.spawn(move |_| {
                 pb.set_message(file.display().to_string());
-                if let Err(f) = run_one(file) {
-                    pb.suspend(|| eprintln!("rgbn: {}", f.message));
+                if let Err(e) = run_one(file) {
+                    pb.suspend(|| eprintln!("{}", message(&e)));
                     failures
                         .lock()
                         .unwrap_or_else(std::sync::PoisonError::into_inner)
-                        .push((file.clone(), f.message));
+                        .push(file.clone());
                 }
                 pb.inc(1);
             });
@@ -378,36 +345,26 @@ pub fn batch_cmd(a: &BatchArgs, out: &mut impl Write) -> Result<(), Failure> {
         .into_inner()
         .unwrap_or_else(std::sync::PoisonError::into_inner);
     failures.sort();
-    line(
-        out,
-        &format!(
-            "processed {} files, wrote {} outputs to {}, {} failed",
-            files.len(),
-            written.load(std::sync::atomic::Ordering::Relaxed),
-            a.out_dir.display(),
-            failures.len()
-        ),
-    )?;
+    out.line(format_args!(
+        "processed {} files, wrote {} outputs to {}, {} failed",
+        files.len(),
+        written.load(std::sync::atomic::Ordering::Relaxed),
+        a.out_dir.display(),
+        failures.len()
+    ))?;
     if failures.is_empty() {
         return Ok(());
     }
-    let list: Vec<String> = failures
-        .iter()
-        .map(|(f, _)| f.display().to_string())
-        .collect();
-    Err(Failure {
-        code: 1,
-        message: format!(
-            "{} of {} files failed: {}",
-            failures.len(),
-            files.len(),
-            list.join(", ")
-        ),
+    let list: Vec<String> = failures.iter().map(|f| f.display().to_string()).collect();
+    Err(CliError::Batch {
+        failed: failures.len(),
+        total: files.len(),
+        list: list.join(", "),
     })
 }
 
 /// `rgbn check`.
-pub fn check_cmd(a: &CheckArgs, out: &mut impl Write) -> Result<(), Failure> {
+pub fn check_cmd(a: &CheckArgs, out: &mut Out<'_>) -> Result<(), CliError> {
     let lg = LoadedGraph::load(&a.graph)?;
     let ins: Vec<String> = lg
         .graph
@@ -421,24 +378,21 @@ pub fn check_cmd(a: &CheckArgs, out: &mut impl Write) -> Result<(), Failure> {
         .keys()
         .map(|n| format!("{n} ({})", lg.output_type(n).map_or("?", PortType::name)))
         .collect();
-    line(
-        out,
-        &format!(
-            "ok: {} nodes; inputs: {}; outputs: {}: {}",
-            lg.graph.nodes.len(),
-            if ins.is_empty() {
-                "none".into()
-            } else {
-                ins.join(", ")
-            },
-            if outs.is_empty() {
-                "none".into()
-            } else {
-                outs.join(", ")
-            },
-            a.graph.display()
-        ),
-    )
+    out.line(format_args!(
+        "ok: {} nodes; inputs: {}; outputs: {}: {}",
+        lg.graph.nodes.len(),
+        if ins.is_empty() {
+            "none".into()
+        } else {
+            ins.join(", ")
+        },
+        if outs.is_empty() {
+            "none".into()
+        } else {
+            outs.join(", ")
+        },
+        a.graph.display()
+    ))
 }
 
 fn kind_name(k: &ParamKind) -> String {
@@ -457,23 +411,20 @@ fn kind_name(k: &ParamKind) -> String {
 }
 
 /// `rgbn ops`: every operator with its doc, ports and parameters, from the specs.
-pub fn ops_cmd(out: &mut impl Write) -> Result<(), Failure> {
+pub fn ops_cmd(out: &mut Out<'_>) -> Result<(), CliError> {
     for op in registry() {
         let s = op.spec();
-        line(out, &format!("{} — {} [{}]", s.id, s.title, s.category))?;
-        line(out, &format!("    {}", s.doc))?;
+        out.line(format_args!("{} — {} [{}]", s.id, s.title, s.category))?;
+        out.line(format_args!("    {}", s.doc))?;
         for (dir, ports) in [("in ", &s.inputs), ("out", &s.outputs)] {
             for p in ports {
-                line(
-                    out,
-                    &format!(
-                        "    {dir} {}: {}{} — {}",
-                        p.name,
-                        p.ty.name(),
-                        if p.optional { " (optional)" } else { "" },
-                        p.doc
-                    ),
-                )?;
+                out.line(format_args!(
+                    "    {dir} {}: {}{} — {}",
+                    p.name,
+                    p.ty.name(),
+                    if p.optional { " (optional)" } else { "" },
+                    p.doc
+                ))?;
             }
         }
         for p in op.params() {
@@ -486,26 +437,21 @@ pub fn ops_cmd(out: &mut impl Write) -> Result<(), Failure> {
                 ParamValue::Path(s) | ParamValue::Text(s) if s.is_empty() => "none".into(),
                 v => v.to_string(),
             };
-            line(
-                out,
-                &format!(
-                    "    param {}: {}{}{range}, default {default} — {}",
-                    p.name,
-                    kind_name(&p.kind),
-                    if p.meta.unit.is_empty() {
-                        String::new()
-                    } else {
-                        format!(" ({})", p.meta.unit)
-                    },
-                    p.meta.doc
-                ),
-            )?;
+            out.line(format_args!(
+                "    param {}: {}{}{range}, default {default} — {}",
+                p.name,
+                kind_name(&p.kind),
+                if p.meta.unit.is_empty() {
+                    String::new()
+                } else {
+                    format!(" ({})", p.meta.unit)
+                },
+                p.meta.doc
+            ))?;
         }
-        line(out, "")?;
+        out.line("")?;
     }
-    line(
-        out,
-        &format!(
+    out.line(format_args!(
             "{} — Graph file as a node [graph]\n    Uses another graph file (param path, relative to this file): its inputs, outputs and exposed parameters become the node's ports and parameters.",
             crate::ops::GRAPH_NODE_OP
         ),

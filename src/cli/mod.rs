@@ -1,0 +1,133 @@
+//! The command line (used by the `rgbn` binary).
+//!
+//! - this file: the command tree and [`run`], which dispatches and handles every error once;
+//! - [`error`]: [`CliError`] and the one mapping to exit codes (0 ok, 1 evaluation failure,
+//!   2 bad usage or input); errors are printed once, as one line on stderr:
+//!   `rgbn: <what is wrong>: <file>`;
+//! - [`out`]: the one writer for stdout (a closed pipe is not an error);
+//! - `image`: `info`, `render`, `filter`; `graph`: `eval`, `batch`, `check`, `ops`;
+//!   `capture`: `capture`; `docs`: `completions`, `man`.
+
+use clap::{Parser, Subcommand};
+#[cfg(feature = "gui")]
+use std::path::PathBuf;
+
+mod capture;
+mod docs;
+pub mod error;
+mod graph;
+mod image;
+pub mod out;
+
+pub use capture::CaptureArgs;
+pub use docs::{CompletionsArgs, ManArgs};
+pub use error::{CliError, Exit};
+pub use graph::{BatchArgs, CheckArgs, EvalArgs};
+pub use image::{FilterArgs, InfoArgs, InputArgs, RenderArgs};
+use out::Out;
+
+/// Edit RGBN images (colour + normals) without breaking integrability.
+///
+/// With no command, the editor opens on the demo graph (when built with the `gui` feature).
+#[derive(Parser, Debug)]
+#[command(name = "rgbn", version, about, long_about = None)]
+#[cfg_attr(not(feature = "gui"), command(arg_required_else_help = true))]
+pub struct Cli {
+    #[command(subcommand)]
+    pub command: Option<Command>,
+}
+
+#[derive(Subcommand, Debug)]
+pub enum Command {
+    /// Print size, channels, validation counts and integrability (curl) of an image.
+    Info(InfoArgs),
+    /// Relight an image (or show normals, albedo or curl) to an sRGB PNG.
+    Render(RenderArgs),
+    /// Filter the normals through their gradients with linear kernels.
+    Filter(FilterArgs),
+    /// Evaluate a graph file: bind inputs, set parameters, write outputs.
+    Eval(EvalArgs),
+    /// Run a graph over many files (a glob), continuing past failures.
+    Batch(BatchArgs),
+    /// Validate a graph file without evaluating it.
+    Check(CheckArgs),
+    /// List every operator with its doc, ports and parameters.
+    Ops,
+    /// Photometric stereo: photos + lights → RGBN EXR; or --chrome: chrome-sphere photos → lights.
+    Capture(CaptureArgs),
+    /// Print a shell completion script (bash, zsh, fish, elvish, powershell).
+    Completions(CompletionsArgs),
+    /// Print the man page (roff), or write one page per command into a folder with -o.
+    Man(ManArgs),
+    /// Open the editor on a graph file (the demo graph when none is given).
+    #[cfg(feature = "gui")]
+    Edit(EditArgs),
+}
+
+/// Arguments of `rgbn edit`.
+#[cfg(feature = "gui")]
+#[derive(clap::Args, Debug)]
+pub struct EditArgs {
+    /// The graph file to open (default: `graphs/demo.ron`, or the built-in demo graph).
+    pub graph: Option<PathBuf>,
+}
+
+/// Parses `args` and runs; returns the process exit code. Prints errors on stderr.
+pub fn run<I, T>(args: I) -> Exit
+where
+    I: IntoIterator<Item = T>,
+    T: Into<std::ffi::OsString> + Clone,
+{
+    let result = Cli::try_parse_from(args)
+        .map_err(CliError::from)
+        .and_then(|cli| match cli.command {
+            // The editor prints nothing through `out` (and its threads may print): no lock.
+            #[cfg(feature = "gui")]
+            None => edit(None),
+            #[cfg(feature = "gui")]
+            Some(Command::Edit(a)) => edit(a.graph),
+            #[cfg(not(feature = "gui"))]
+            None => {
+                // `arg_required_else_help` prints help; reached only with global flags.
+                let _ = <Cli as clap::CommandFactory>::command().print_help();
+                Err(error::usage("no command given"))
+            }
+            Some(command) => {
+                let stdout = std::io::stdout();
+                let mut lock = stdout.lock();
+                let mut out = Out::new(&mut lock);
+                run_command(command, &mut out).and_then(|()| out.flush())
+            }
+        });
+    match result {
+        Ok(()) => Exit::Ok,
+        Err(e) => error::report(&e),
+    }
+}
+
+/// Runs one command, printing its results to `out`.
+///
+/// # Errors
+/// Whatever the command fails with; [`CliError::exit`] gives its exit code.
+pub fn run_command(command: Command, out: &mut Out<'_>) -> Result<(), CliError> {
+    match command {
+        Command::Info(a) => image::info(&a, out),
+        Command::Render(a) => image::render_cmd(&a, out),
+        Command::Filter(a) => image::filter_cmd(&a, out),
+        Command::Eval(a) => graph::eval_cmd(&a, out),
+        Command::Batch(a) => graph::batch_cmd(&a, out),
+        Command::Check(a) => graph::check_cmd(&a, out),
+        Command::Ops => graph::ops_cmd(out),
+        Command::Capture(a) => capture::capture_cmd(&a, out),
+        Command::Completions(a) => docs::completions_cmd(&a, out),
+        Command::Man(a) => docs::man_cmd(&a, out),
+        #[cfg(feature = "gui")]
+        Command::Edit(a) => edit(a.graph),
+    }
+}
+
+/// Runs the editor.
+#[cfg(feature = "gui")]
+fn edit(graph: Option<PathBuf>) -> Result<(), CliError> {
+    crate::app::run(graph).map_err(CliError::Editor)
+}
