@@ -35,3 +35,6 @@ mod nodes;
 
 #[path = "it/capture.rs"]
 mod capture;
+
+#[path = "it/readme.rs"]
+mod readme;

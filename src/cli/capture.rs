@@ -131,13 +131,10 @@ pub fn capture_cmd(a: &CaptureArgs, out: &mut Out<'_>) -> Result<(), CliError> {
     let lights = match (&a.lp, &a.lights) {
         (Some(lp), _) => {
             if !crate::capture::lp::is_lp(lp) {
-                return Err(Failure {
-                    code: 2,
-                    message: format!(
-                        "--lp takes an RTI light-position file ending in .lp: {}",
-                        lp.display()
-                    ),
-                });
+                return Err(usage(format!(
+                    "--lp takes an RTI light-position file ending in .lp: {}",
+                    lp.display()
+                )));
             }
             lp.clone()
         }
@@ -153,7 +150,7 @@ pub fn capture_cmd(a: &CaptureArgs, out: &mut Out<'_>) -> Result<(), CliError> {
     };
     let ps = load_inputs(&spec)?;
     for note in &ps.notes {
-        eprintln!("note: {note}");
+        eprintln!("rgbn: note: {note}");
     }
     let params = PhotometricParams {
         method: match a.method {
