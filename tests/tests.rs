@@ -29,3 +29,6 @@ mod nodes;
 
 #[path = "it/capture.rs"]
 mod capture;
+
+#[path = "it/ptm.rs"]
+mod ptm;
