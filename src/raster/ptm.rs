@@ -40,13 +40,13 @@
 //! LRGB layouts, the R/G/B block order) and `ptm.h` (`Ptm::calculateNormal`: the maximum formula
 //! below, and the concavity test `4·a0·a1 − a2² > 0 ∧ a0 < 0`); Marcello Perathoner's `ptmlib.h`
 //! (coefficient order `u², v², uv, u, v, 1`, the format names including the compressed
-//! `PTM_FORMAT_JPEG_*`, and luminance as `r + g + b`); HP Labs' "PTM File Format 1.2"
-//! (PtmFormat12.pdf), which both cite.
+//! `PTM_FORMAT_JPEG_*`, and luminance as `r + g + b`). Both cite HP Labs' "PTM File Format
+//! 1.2" (PtmFormat12.pdf), which was not itself consulted.
 //!
 //! # What rgbn makes of a PTM
 //!
-//! - **Normal**: the maximum of the luminance biquadratic, as RTIViewer and the paper (§3.2)
-//!   compute it: `u0 = (a2·a4 − 2·a1·a3) / (4·a0·a1 − a2²)`,
+//! - **Normal**: the maximum of the luminance biquadratic, as the paper and RTIViewer compute
+//!   it: `u0 = (a2·a4 − 2·a1·a3) / (4·a0·a1 − a2²)`,
 //!   `v0 = (a2·a3 − 2·a0·a4) / (4·a0·a1 − a2²)`, `n = (u0, v0, √(1 − u0² − v0²))`.
 //! - **Mask**: a pixel whose polynomial has no interior maximum — not concave
 //!   (`4·a0·a1 − a2² ≤ 0` or `a0 ≥ 0`, which includes a flat, e.g. black, pixel) or a maximum on
@@ -136,7 +136,7 @@ pub fn eval_biquadratic(a: &Coefficients, u: f64, v: f64) -> f64 {
 }
 
 /// The maximum `(u0, v0)` of the biquadratic if it is strictly concave and its maximum lies
-/// strictly inside the unit disk (Malzbender et al. 2001, eq. 15–16; RTIViewer's
+/// strictly inside the unit disk (Malzbender et al. 2001; RTIViewer's
 /// `calculateNormal`); `None` otherwise.
 #[must_use]
 pub fn biquadratic_maximum(a: &Coefficients) -> Option<(f64, f64)> {
@@ -603,6 +603,7 @@ mod tests {
     use super::*;
 
     /// Solves the 6×6 normal equations of a least-squares biquadratic fit.
+    #[allow(clippy::needless_range_loop)] // matrix indices read best as indices
     fn fit(lights: &[[f64; 3]], intensity: impl Fn(&[f64; 3]) -> f64) -> Coefficients {
         let mut a = [[0.0f64; 7]; 6];
         for l in lights {
@@ -789,9 +790,9 @@ mod tests {
         );
         assert_eq!(img.normal_at(0, 0), [0.0, 0.0, 1.0]);
         assert_eq!(mask[0], 0.0);
-        for i in 0..s.w * s.h {
+        for (i, &m) in mask.iter().enumerate() {
             if s.normal(i % s.w, i / s.w).is_some_and(|n| n[2] >= 0.3) {
-                assert_eq!(mask[i], 1.0, "pixel {i}");
+                assert_eq!(m, 1.0, "pixel {i}");
             }
         }
 
@@ -868,7 +869,7 @@ mod tests {
         let rgb = read_ptm(&p).unwrap();
         for (name, ptm) in [("LRGB", &lrgb), ("RGB", &rgb)] {
             // The biquadratic's maximum of a fitted cosine lobe is only near the true normal
-            // for moderate tilts (Malzbender et al. 2001 §3.2 approximate); with these lights
+            // for moderate tilts (a biquadratic only approximates a cosine lobe); with these lights
             // the model error is ≤ 1.5° up to 30° of tilt and grows beyond (≈ 4° at 35°,
             // ≈ 9° at 40°); steeper pixels get no interior maximum and are masked.
             let (mean, max, count) = errors(&ptm.image, &s, |n| n[2] >= 30f64.to_radians().cos());

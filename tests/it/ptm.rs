@@ -76,6 +76,27 @@ fn info_filter_and_a_graph_read_a_ptm() {
     ]);
     assert!(o.status.success(), "{}", stderr(&o));
     assert!(png.exists());
+
+    // `batch` over a glob of PTMs.
+    let out_dir = d.path().join("batch");
+    std::fs::create_dir(&out_dir).unwrap();
+    let o = rgbn(&[
+        "batch",
+        s(&graph),
+        "--input",
+        &format!("image={}/*.ptm", s(d.path())),
+        "--out-dir",
+        s(&out_dir),
+        "-j",
+        "1",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let made: Vec<_> = std::fs::read_dir(&out_dir).unwrap().flatten().collect();
+    assert!(
+        made.iter()
+            .any(|e| e.file_name().to_string_lossy().starts_with("sphere.")),
+        "{made:?}"
+    );
 }
 
 #[test]
