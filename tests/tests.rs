@@ -38,3 +38,6 @@ mod capture;
 
 #[path = "it/readme.rs"]
 mod readme;
+
+#[path = "it/ptm.rs"]
+mod ptm;

@@ -32,7 +32,9 @@ pub fn write_value(value: &Value, path: &Path, opts: &SaveOptions) -> Result<(),
                     .collect();
                 io::write_raster16(&data, m.width(), m.height(), 1, f, path)
             }
-            Format::Jpeg => Err(unsupported(path, "masks are written as .png, .tif or .exr")),
+            Format::Jpeg | Format::Ptm => {
+                Err(unsupported(path, "masks are written as .png, .tif or .exr"))
+            }
         },
         Value::Scalar(s) => match Format::of(path) {
             Ok(Format::Exr) => write_exr_plane(s, path),
@@ -168,7 +170,13 @@ impl Operator for Save {
         if p.path.is_empty() {
             return Err(RgbnError::param("path", "a file path is required"));
         }
-        Format::of(Path::new(&p.path)).map(|_| ())
+        match Format::of(Path::new(&p.path))? {
+            Format::Ptm => Err(unsupported(
+                Path::new(&p.path),
+                "PTM files are read, not written",
+            )),
+            _ => Ok(()),
+        }
     }
     fn run(p: &SaveParams, i: &Inputs<'_>, ctx: &RunContext) -> Result<Vec<Value>, RgbnError> {
         Self::check(p)?;

@@ -6,6 +6,8 @@
 //! - **Normal maps** PNG/TIFF (8/16 bit) or EXR: `n = v/(2^bits−1)·2−1`, then renormalised;
 //!   OpenGL (`+y` up, the internal frame) or DirectX (`y` flipped) convention.
 //! - **Masks**: any greyscale (or first channel) image, values in [0, 1].
+//! - **PTM** (read only): an uncompressed LRGB or RGB Polynomial Texture Map gives colour, the
+//!   normal at the luminance maximum and a mask of the pixels without one (see [`super::ptm`]).
 //!
 //! Bad normals on load are **repaired, with counts** (see [`RgbnImage::repair`]): non-finite and
 //! zero-length normals become `(0, 0, 1)`, others are renormalised; back-facing normals are kept
@@ -27,6 +29,8 @@ pub enum Format {
     Png,
     Jpeg,
     Tiff,
+    /// Polynomial Texture Map (read only, see [`super::ptm`]).
+    Ptm,
 }
 
 impl Format {
@@ -42,6 +46,13 @@ impl Format {
             "png" => Self::Png,
             "jpg" | "jpeg" => Self::Jpeg,
             "tif" | "tiff" => Self::Tiff,
+            "ptm" => Self::Ptm,
+            "rti" => return Err(RgbnError::UnsupportedFormat {
+                format:
+                    "rti (HSH/RBF RTI files are not read; export an uncompressed LRGB or RGB .ptm)"
+                        .into(),
+                path: path.into(),
+            }),
             _ => {
                 return Err(RgbnError::UnsupportedFormat {
                     format: if ext.is_empty() {
@@ -119,10 +130,10 @@ pub const DEFAULT_ALBEDO: f32 = 0.75;
 pub fn load(spec: &InputSpec, opts: &LoadOptions) -> Result<Loaded, RgbnError> {
     let (mut image, normal_path) = match (&spec.rgbn, &spec.normal) {
         (Some(p), None) | (None, Some(p)) => {
-            let img = if Format::of(p)? == Format::Exr {
-                load_exr(p, opts)?
-            } else {
-                load_normal_map(p, opts)?
+            let img = match Format::of(p)? {
+                Format::Exr => load_exr(p, opts)?,
+                Format::Ptm => super::ptm::load_ptm(p)?,
+                _ => load_normal_map(p, opts)?,
             };
             (img, p.clone())
         }
@@ -252,6 +263,7 @@ fn decode_raster(path: &Path) -> Result<Raster, RgbnError> {
         Format::Jpeg => image::ImageFormat::Jpeg,
         Format::Tiff => image::ImageFormat::Tiff,
         Format::Exr => unreachable!("EXR is decoded by the exr crate"),
+        Format::Ptm => return Err(ptm_not_a_raster(path)),
     };
     let decode_err = |e: image::ImageError| {
         let detail = e.to_string();
@@ -363,6 +375,14 @@ fn decode_png(path: &Path) -> Result<Raster, RgbnError> {
         channels,
         samples,
     })
+}
+
+/// A PTM named where a colour image, mask, normal map or output is expected.
+fn ptm_not_a_raster(path: &Path) -> RgbnError {
+    RgbnError::UnsupportedFormat {
+        format: "ptm (a PTM is read whole, as the RGBN input; it is not written, nor read as a colour image, mask or photo)".into(),
+        path: path.into(),
+    }
 }
 
 /// Splits interleaved samples into `out.len()` planes, mapping each sample through `f`.
@@ -1104,7 +1124,9 @@ fn encode_raster(
                 .write_image(bytes, w as u32, h as u32, ct),
             Format::Jpeg => image::codecs::jpeg::JpegEncoder::new_with_quality(out, 95)
                 .write_image(bytes, w as u32, h as u32, ct),
-            Format::Png | Format::Exr => unreachable!("PNG: encode_png; EXR: the exr crate"),
+            Format::Png | Format::Exr | Format::Ptm => {
+                unreachable!("PNG: encode_png; EXR: the exr crate; PTM: refused by the callers")
+            }
         };
         r.map_err(|e| e.to_string())
     })
@@ -1119,6 +1141,9 @@ pub fn write_raster8(
     fmt: Format,
     path: &Path,
 ) -> Result<(), RgbnError> {
+    if fmt == Format::Ptm {
+        return Err(ptm_not_a_raster(path));
+    }
     if fmt == Format::Png {
         return encode_png(data, w, h, channels, false, path);
     }
@@ -1134,6 +1159,9 @@ pub fn write_raster16(
     fmt: Format,
     path: &Path,
 ) -> Result<(), RgbnError> {
+    if fmt == Format::Ptm {
+        return Err(ptm_not_a_raster(path));
+    }
     if fmt == Format::Jpeg {
         return Err(RgbnError::UnsupportedFormat {
             format: "jpeg (8-bit only; use .png or .tif for 16 bit)".into(),

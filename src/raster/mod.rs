@@ -12,6 +12,7 @@ pub mod gradient;
 pub mod integrate;
 pub mod io;
 pub mod mesh;
+pub mod ptm;
 pub mod sample;
 pub mod smooth;
 
