@@ -12,6 +12,7 @@ pub mod gradient;
 pub mod integrate;
 pub mod io;
 pub mod mesh;
+pub(crate) mod par;
 pub mod sample;
 pub mod smooth;
 
