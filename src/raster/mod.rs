@@ -15,6 +15,7 @@ pub mod mesh;
 pub(crate) mod par;
 pub mod sample;
 pub mod smooth;
+pub mod srgb;
 
 use crate::error::RgbnError;
 use std::sync::Arc;
