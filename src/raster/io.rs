@@ -1,6 +1,6 @@
 //! Reading and writing RGBN images.
 //!
-//! - **EXR** ([`openexr`], exr crate): colour `R,G,B` (linear), normal `N.X,N.Y,N.Z`, mask `A`; f16 or f32.
+//! - **EXR** (exr crate, submodule `openexr`): colour `R,G,B` (linear), normal `N.X,N.Y,N.Z`, mask `A`; f16 or f32.
 //!   By option, an EXR whose `R,G,B` *is* a normal pass (Blender style) is read as normals.
 //! - **Colour** PNG/JPEG/TIFF, 8 or 16 bit, sRGB → linear; EXR colour is already linear.
 //! - **Normal maps** PNG/TIFF (8/16 bit) or EXR: `n = v/(2^bits−1)·2−1`, then renormalised;
