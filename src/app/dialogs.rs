@@ -1,6 +1,7 @@
 //! Modal dialogs: recover autosaved work, unsaved changes (then new / open / quit), about.
 
 use super::files::FilePurpose;
+use super::recent::Recovery;
 use super::state::Document;
 use super::EditorApp;
 use std::path::Path;

@@ -27,7 +27,9 @@ pub enum FilePurpose {
 impl EditorApp {
     /// If the document's recovery file holds newer, different work, asks whether to restore it.
     pub fn offer_recovery(&mut self) {
-        if let Some(r) = recent::recovery_offer(self.session.doc.path.as_deref(), &self.session.doc.graph) {
+        if let Some(r) =
+            recent::recovery_offer(self.session.doc.path.as_deref(), &self.session.doc.graph)
+        {
             self.dialog = Some(Dialog::Recover(Box::new(r)));
         }
     }
@@ -62,6 +64,7 @@ impl EditorApp {
                 .default_file_filter("Graphs (*.ron)"),
             FilePurpose::SaveAs => {
                 let name = self
+                    .session
                     .doc
                     .path
                     .as_deref()
@@ -199,6 +202,7 @@ impl EditorApp {
         // Never over one of the graph's own files (inputs, sub-graphs) or the graph itself.
         let base = self.session.doc.base_dir();
         let mut files: Vec<PathBuf> = self
+            .session
             .doc
             .graph
             .nodes

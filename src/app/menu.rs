@@ -115,7 +115,10 @@ impl EditorApp {
                 }
             });
             ui.menu_button("Edit", |ui| {
-                let (u, r) = (self.session.doc.history.undo_len(), self.session.doc.history.redo_len());
+                let (u, r) = (
+                    self.session.doc.history.undo_len(),
+                    self.session.doc.history.redo_len(),
+                );
                 if ui.add_enabled(u > 0, egui::Button::new("Undo")).clicked() {
                     self.undo();
                     ui.close();

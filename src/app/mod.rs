@@ -40,6 +40,7 @@ use crate::graph::{NodeId, Source};
 use crate::ops::Value;
 use egui::{Color32, RichText, TextureHandle};
 use graph_view::{Action, GraphView, ViewData};
+use menu::ops_doc_ui;
 use prefs::Preferences;
 use preview::Preview;
 use recent::RecentFiles;
@@ -169,6 +170,7 @@ impl EditorApp {
             return Vec::new();
         };
         let new = self
+            .session
             .doc
             .paste(&nodes, [40.0, 60.0], epoch == self.session.doc_epoch);
         self.session.selected = new.last().copied();
@@ -248,7 +250,12 @@ impl EditorApp {
                 if self.session.selected.is_some_and(|s| ids.contains(&s)) {
                     self.session.selected = None;
                 }
-                if self.session.viewed.as_ref().is_some_and(|v| ids.contains(&v.0)) {
+                if self
+                    .session
+                    .viewed
+                    .as_ref()
+                    .is_some_and(|v| ids.contains(&v.0))
+                {
                     self.session.viewed = None;
                     self.preview.clear();
                 }
@@ -266,6 +273,7 @@ impl EditorApp {
             }
             Action::Export(id) => {
                 let port = self
+                    .runtime
                     .ports
                     .get(&id)
                     .and_then(|p| p.outputs.first())
@@ -284,6 +292,7 @@ impl EditorApp {
         self.session.selected = Some(id);
         let base = self.session.doc.base_dir();
         let port = self
+            .session
             .doc
             .graph
             .node_ports(id, &base)
@@ -300,10 +309,15 @@ impl EditorApp {
     /// undo step.
     pub fn add_node_after_selection(&mut self, op: &str) -> NodeId {
         let base = self.session.doc.base_dir();
-        let (pos, after) = match self.session.selected.and_then(|s| self.session.doc.graph.nodes.get(&s)) {
+        let (pos, after) = match self
+            .session
+            .selected
+            .and_then(|s| self.session.doc.graph.nodes.get(&s))
+        {
             Some(n) => ([n.pos[0] + 260.0, n.pos[1] + 40.0], Some(n.id)),
             None => {
                 let x = self
+                    .session
                     .doc
                     .graph
                     .nodes
@@ -321,7 +335,11 @@ impl EditorApp {
             if let (Some(out), Some(inp)) = (out, inp) {
                 if let Some(i) = inp.inputs.first() {
                     if let Some(o) = out.outputs.iter().find(|o| o.ty == i.ty) {
-                        let _ = self.session.doc.graph.connect(a, &o.name, id, &i.name, &base);
+                        let _ = self
+                            .session
+                            .doc
+                            .graph
+                            .connect(a, &o.name, id, &i.name, &base);
                     }
                 }
             }
@@ -351,7 +369,9 @@ impl EditorApp {
     pub fn frame_ui(&mut self, ui: &mut egui::Ui) {
         let t0 = Instant::now();
         let ctx = ui.ctx().clone();
-        if ctx.input(|i| i.viewport().close_requested()) && !self.runtime.allow_close && self.session.doc.is_dirty()
+        if ctx.input(|i| i.viewport().close_requested())
+            && !self.runtime.allow_close
+            && self.session.doc.is_dirty()
         {
             ctx.send_viewport_cmd(egui::ViewportCommand::CancelClose);
             self.dialog = Some(Dialog::Unsaved(Then::Quit));
@@ -378,6 +398,7 @@ impl EditorApp {
             .size_range(300.0..=1400.0)
             .show(ui, |ui| {
                 let tex: BTreeMap<NodeId, TextureHandle> = self
+                    .runtime
                     .thumbs
                     .iter()
                     .map(|(k, (_, t))| (*k, t.clone()))
@@ -419,7 +440,8 @@ impl EditorApp {
         if self.session.doc.history.version() == version && self.session.doc_epoch == epoch {
             let interacting =
                 ctx.input(|i| i.pointer.any_down()) || ctx.egui_wants_keyboard_input();
-            self.session.doc
+            self.session
+                .doc
                 .history
                 .record(&before, &self.session.doc.graph, interacting);
         }
@@ -487,6 +509,7 @@ impl EditorApp {
         ui.heading("Inspector");
         ui.separator();
         let Some(id) = self
+            .session
             .selected
             .filter(|s| self.session.doc.graph.nodes.contains_key(s))
         else {
@@ -525,6 +548,7 @@ impl EditorApp {
                     graph_view::node_title(&self.session.doc.graph, id)
                 ));
                 let outs: Vec<String> = self
+                    .runtime
                     .ports
                     .get(&id)
                     .map(|p| p.outputs.iter().map(|o| o.name.clone()).collect())
@@ -583,11 +607,23 @@ impl EditorApp {
             None => self.preview.clear(),
         }
         let stamp_size = self.session.selected.and_then(|s| {
-            let n = self.session.doc.graph.nodes.get(&s).filter(|n| n.op == "stamp")?;
+            let n = self
+                .session
+                .doc
+                .graph
+                .nodes
+                .get(&s)
+                .filter(|n| n.op == "stamp")?;
             let Source::Node(src, port) = n.inputs.get("stamp")? else {
                 return None;
             };
-            match &self.runtime.outcome.values.get(&(*src, port.clone()))?.value {
+            match &self
+                .runtime
+                .outcome
+                .values
+                .get(&(*src, port.clone()))?
+                .value
+            {
                 Value::Rgbn(img) => Some([img.width(), img.height()]),
                 _ => None,
             }

@@ -2,7 +2,6 @@
 //! outcome, thumbnails, port lists) and frame timing. [`EditorApp::poll`] runs once per frame,
 //! from `eframe::App::logic`.
 
-use super::state::Document;
 use super::worker::{EvalOutcome, EvalRequest, Generations, Worker, WorkerMsg};
 use super::{EditorApp, Status};
 use crate::graph::{Graph, NodeId, NodePorts};
@@ -81,7 +80,8 @@ impl EditorApp {
     /// True while an evaluation is running or a newer graph waits to be sent.
     #[must_use]
     pub fn evaluating(&self) -> bool {
-        self.runtime.in_flight.is_some() || self.runtime.last_sent.as_ref() != Some(&eval_graph(&self.session.doc.graph))
+        self.runtime.in_flight.is_some()
+            || self.runtime.last_sent.as_ref() != Some(&eval_graph(&self.session.doc.graph))
     }
 
     /// Takes worker messages, accepts current results, sends a new request when the graph
@@ -184,6 +184,7 @@ impl EditorApp {
         }
         let base = self.session.doc.base_dir();
         self.runtime.ports = self
+            .session
             .doc
             .graph
             .nodes

@@ -12,15 +12,6 @@ use super::inputs::PhotoStack;
 use crate::error::RgbnError;
 use std::path::PathBuf;
 
-            Some(b)
-        }
-        None => {
-            s.chosen.truncate(before);
-            Some(b0)
-        }
-    }
-}
-
 /// Parameters of [`calibrate_chrome`].
 #[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct ChromeParams {

@@ -2,8 +2,8 @@
 //! lists, photo stacks, and [`load_inputs`], which loads and pairs them up.
 
 use crate::error::RgbnError;
-use crate::raster::buf;
-use crate::raster::{check_size, io};
+use crate::raster::io;
+use rayon::prelude::*;
 use std::path::{Path, PathBuf};
 
 /// How photo files encode light.

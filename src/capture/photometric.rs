@@ -73,6 +73,7 @@ use super::linalg::{condition, gram, solve3, MIN_LIGHT_CONDITION};
 use crate::error::RgbnError;
 use crate::raster::{buf, check_size, RgbnImage};
 use rayon::prelude::*;
+use std::path::PathBuf;
 
 /// The photometric-stereo estimator.
 #[derive(
@@ -511,6 +512,15 @@ fn trimmed_solve(
     s.chosen.extend(s.sel[..hi].iter().copied().filter(lit));
     match solve_subset(&s.chosen[before..], dirs, obs) {
         Some(b) => {
+            s.chosen.drain(..before);
+            Some(b)
+        }
+        None => {
+            s.chosen.truncate(before);
+            Some(b0)
+        }
+    }
+}
 
 #[cfg(test)]
 mod tests {

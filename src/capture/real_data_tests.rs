@@ -40,8 +40,7 @@ fn mean_angle_deg(out: &RgbnImage, gt: &[Vec<f32>; 3], mask: &[f32]) -> f64 {
 #[test]
 fn diligent_ball_to_height_and_mesh() {
     use crate::raster::integrate::{
-        integrate_normals, project_integrable, IntegrateParams, IntegrationMethod,
-        ProjectParams,
+        integrate_normals, project_integrable, IntegrateParams, IntegrationMethod, ProjectParams,
     };
     let Some(d) = data_dir("diligent-ball-subset") else {
         return;
@@ -92,8 +91,7 @@ fn diligent_ball_to_height_and_mesh() {
         .map(|&i| f64::from(z_ps.data()[i] - z_gt.data()[i]))
         .collect();
     let mean = diff.iter().sum::<f64>() / diff.len() as f64;
-    let rmse =
-        (diff.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / diff.len() as f64).sqrt();
+    let rmse = (diff.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / diff.len() as f64).sqrt();
     let (lo, hi) = inside.iter().fold((f32::MAX, f32::MIN), |(lo, hi), &i| {
         (lo.min(z_gt.data()[i]), hi.max(z_gt.data()[i]))
     });
@@ -104,8 +102,7 @@ fn diligent_ball_to_height_and_mesh() {
         rep.relative_residual
     );
     assert!(rmse < 0.05 * f64::from(hi - lo), "{rmse}");
-    let (proj, _, prep) =
-        project_integrable(&ps, &ProjectParams { integrate: params }).unwrap();
+    let (proj, _, prep) = project_integrable(&ps, &ProjectParams { integrate: params }).unwrap();
     eprintln!(
         "DiLiGenT ball projection: relative curl {:.3e} → {:.3e}",
         prep.before.relative, prep.after.relative
@@ -131,8 +128,7 @@ fn diligent_ball_angular_error() {
         return;
     };
     let names = [
-        "001", "008", "019", "023", "041", "045", "048", "052", "068", "071", "089", "093",
-        "096",
+        "001", "008", "019", "023", "041", "045", "048", "052", "068", "071", "089", "093", "096",
     ];
     let spec = diligent_spec(&d, &names);
     let inputs = load_inputs(&spec).unwrap();

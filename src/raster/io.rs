@@ -1,7 +1,8 @@
 //! Reading and writing RGBN images.
 //!
-//! - **EXR** (exr crate, submodule `openexr`): colour `R,G,B` (linear), normal `N.X,N.Y,N.Z`, mask `A`; f16 or f32.
-//!   By option, an EXR whose `R,G,B` *is* a normal pass (Blender style) is read as normals.
+//! - **EXR** (exr crate, submodule `openexr`): colour `R,G,B` (linear), normal `N.X,N.Y,N.Z`,
+//!   mask `A`; f16 or f32. By option, an EXR whose `R,G,B` *is* a normal pass (Blender style)
+//!   is read as normals.
 //! - **Colour** PNG/JPEG/TIFF, 8 or 16 bit, sRGB → linear; EXR colour is already linear.
 //! - **Normal maps** PNG/TIFF (8/16 bit) or EXR: `n = v/(2^bits−1)·2−1`, then renormalised;
 //!   OpenGL (`+y` up, the internal frame) or DirectX (`y` flipped) convention.
@@ -16,7 +17,9 @@
 
 mod openexr;
 
-pub use openexr::{load_exr, save_exr, save_exr_with, save_plane_exr, ExrCompression, ExrPrecision};
+pub use openexr::{
+    load_exr, save_exr, save_exr_with, save_plane_exr, ExrCompression, ExrPrecision,
+};
 
 use super::srgb::{linear_to_srgb, linear_to_srgb8, srgb16_lut, srgb8_lut};
 use super::{check_size, RgbnImage, Validation};
@@ -874,8 +877,8 @@ impl Default for SaveOptions {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::raster::srgb::srgb_to_linear;
     use crate::raster::sample::demo_medallion;
+    use crate::raster::srgb::srgb_to_linear;
 
     fn tmp() -> tempfile::TempDir {
         tempfile::tempdir().unwrap()

@@ -36,8 +36,8 @@ pub(crate) struct ColumnGroup<'a, T> {
     ptr: SharedMut<T>,
     width: usize,
     height: usize,
-    c0: usize,
-    cols: usize,
+    pub(crate) c0: usize,
+    pub(crate) cols: usize,
     _data: std::marker::PhantomData<&'a mut [T]>,
 }
 
@@ -86,4 +86,3 @@ pub(crate) fn par_column_groups<T: Send, S: Send>(
             f(state, &mut cg);
         });
 }
-

@@ -25,8 +25,8 @@ use super::convolve::{
     lane_splat, lanes_to_rows, load_lane, rows_to_lanes, store_lane, BorderMode, Lane, LineFilter,
     LANES,
 };
-use super::par::SharedMut;
 use super::gradient::{gradient_of_normal, normal_of_gradient, CurlSums, NZ_EPSILON};
+use super::par::SharedMut;
 use crate::raster::buf;
 use rayon::prelude::*;
 

@@ -287,10 +287,7 @@ fn capture_chrome_writes_a_light_file_the_capture_reads() {
     let got = rgbn::capture::inputs::read_rows3(&out).unwrap();
     let mut worst = 0.0f64;
     for (g, l) in got.iter().zip(lights()) {
-        worst = worst.max(rgbn::capture::linalg::angle_deg(
-            *g,
-            l.map(|v| v as f32),
-        ));
+        worst = worst.max(rgbn::capture::linalg::angle_deg(*g, l.map(|v| v as f32)));
     }
     eprintln!("chrome calibration of the synthetic lights: worst error {worst:.2}°");
     assert_eq!(got.len(), 6);

@@ -35,10 +35,7 @@ fn frame(ui: &mut egui::Ui, app: &mut EditorApp) {
 fn harness(doc: Document) -> Harness<'static, EditorApp> {
     Harness::builder()
         .with_size([1500.0, 900.0])
-        .build_ui_state(
-            frame,
-            EditorApp::new(doc),
-        )
+        .build_ui_state(frame, EditorApp::new(doc))
 }
 
 /// Steps frames until the worker has evaluated the current graph and the preview is rendered.
@@ -170,7 +167,10 @@ fn add_from_menu_connect_edit_undo_save_load() {
     assert_eq!(h.state().session.doc.graph, graph_before_edit);
     h.key_press_modifiers(Modifiers::COMMAND | Modifiers::SHIFT, Key::Z);
     h.step();
-    assert_eq!(h.state().session.doc.graph.nodes[&2].params["amount"], amount);
+    assert_eq!(
+        h.state().session.doc.graph.nodes[&2].params["amount"],
+        amount
+    );
 
     // Save as … through the file dialog (opened in a temporary folder), then load: the same
     // graph.
@@ -235,10 +235,21 @@ fn recover_autosave_export_any_node_split_and_height_views() {
     h.get_by_label("Recover unsaved work?");
     h.get_by_label("Recover").click();
     h.run_steps(2);
-    assert_eq!(h.state().session.doc.graph, edited, "the autosaved graph is back");
-    assert!(h.state().session.doc.is_dirty(), "recovered work is unsaved");
+    assert_eq!(
+        h.state().session.doc.graph,
+        edited,
+        "the autosaved graph is back"
+    );
+    assert!(
+        h.state().session.doc.is_dirty(),
+        "recovered work is unsaved"
+    );
     h.state_mut().session.doc.undo();
-    assert_eq!(h.state().session.doc.graph, doc.graph, "undo goes back to the file");
+    assert_eq!(
+        h.state().session.doc.graph,
+        doc.graph,
+        "undo goes back to the file"
+    );
     h.state_mut().session.doc.redo();
     settle(&mut h);
 
@@ -253,7 +264,9 @@ fn recover_autosave_export_any_node_split_and_height_views() {
     let out = dir.path().join("node1-image.exr");
     assert!(out.is_file(), "exported: {:?}", h.state().status);
     let back = rgbn::raster::io::load_exr(&out, &Default::default()).unwrap();
-    let rgbn::ops::Value::Rgbn(orig) = &h.state().runtime.outcome.values[&(1, "image".into())].value else {
+    let rgbn::ops::Value::Rgbn(orig) =
+        &h.state().runtime.outcome.values[&(1, "image".into())].value
+    else {
         panic!("node 1 gives an RGBN image")
     };
     assert_eq!((back.width(), back.height()), (orig.width(), orig.height()));
@@ -294,7 +307,11 @@ fn a_pen_stroke_on_the_preview_adds_a_pen_path_evaluates_and_undoes() {
     let before = h.state().session.doc.graph.clone();
     let (requests, renders, steps) = {
         let a = h.state();
-        (a.runtime.requests, a.preview.renders, a.session.doc.history.undo_len())
+        (
+            a.runtime.requests,
+            a.preview.renders,
+            a.session.doc.history.undo_len(),
+        )
     };
     let pan = h.state().preview.pan;
     let path = [[20.0, 20.0], [40.0, 30.0], [60.0, 50.0], [70.0, 70.0]];
@@ -343,13 +360,20 @@ fn a_pen_stroke_on_the_preview_adds_a_pen_path_evaluates_and_undoes() {
     // The edit was evaluated and the preview shows the pen's output.
     settle(&mut h);
     let app = h.state();
-    assert!(app.runtime.requests > requests, "a re-evaluation was requested");
+    assert!(
+        app.runtime.requests > requests,
+        "a re-evaluation was requested"
+    );
     assert!(
         app.runtime.outcome.node_errors.is_empty(),
         "{:?}",
         app.runtime.outcome.node_errors
     );
-    assert!(app.runtime.outcome.values.contains_key(&(pen, "image".into())));
+    assert!(app
+        .runtime
+        .outcome
+        .values
+        .contains_key(&(pen, "image".into())));
     assert!(app.preview.renders > renders, "the preview changed");
 
     // Undo restores the graph exactly.

@@ -80,7 +80,6 @@ pub fn hit_vertex(points: &[[f64; 2]], p: [f64; 2], tol_px: f64) -> Option<usize
 }
 #[cfg(test)]
 mod tests {
-    use super::super::test_util::*;
     use super::super::*;
     use super::*;
 

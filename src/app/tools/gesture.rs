@@ -7,9 +7,9 @@
 use super::coords::{dist, push_simplified};
 use super::graph_edit::{node_points, points_param, set};
 use super::stamp::{StampFrame, StampHandle};
-use crate::app::state::Document;
 use super::stroke::{Stroke, StrokeMode};
-use super::{MIN_SPACING_PX, PICK_RADIUS_PT};
+use super::MIN_SPACING_PX;
+use crate::app::state::Document;
 use crate::graph::{Graph, GraphError, NodeId};
 use crate::ops::params::ParamValue;
 use std::path::Path;
@@ -165,7 +165,6 @@ impl Gesture {
 #[cfg(test)]
 mod tests {
     use super::super::test_util::*;
-    use super::super::*;
     use super::*;
 
     #[test]

@@ -4,6 +4,7 @@
 // Graph errors carry their location by value; they are cold paths.
 #![allow(clippy::result_large_err)]
 
+use super::DEFAULT_STAMP_SIDE;
 use crate::graph::{Graph, GraphError, NodeId, Source};
 use crate::ops::params::ParamValue;
 use crate::ops::PortType;
@@ -172,7 +173,6 @@ pub fn insert_after(
 #[cfg(test)]
 mod tests {
     use super::super::test_util::*;
-    use super::super::*;
     use super::*;
 
     #[test]

@@ -7,9 +7,9 @@ use super::coords::dist;
 use super::gesture::{Gesture, GestureKind, Press};
 use super::graph_edit::{has_own_points, insert_after, node_points, param_f64, set};
 use super::graph_edit::{target, Target};
-use crate::app::state::Document;
 use super::DEFAULT_STAMP_SIDE;
 use super::MIN_STAMP_SCALE;
+use crate::app::state::Document;
 use crate::graph::{Graph, GraphError, NodeId};
 use crate::ops::params::ParamValue;
 
@@ -228,6 +228,7 @@ mod tests {
     use super::super::test_util::*;
     use super::super::*;
     use super::*;
+    use crate::graph::Source;
 
     #[test]
     fn stamp_frame_matches_the_operators_affine_map() {

@@ -7,8 +7,8 @@ use super::coords::dist;
 use super::gesture::{Gesture, GestureKind, Press};
 use super::graph_edit::{has_own_points, insert_after, min_points, node_points, param, set};
 use super::graph_edit::{target, Target};
-use crate::app::state::Document;
 use super::{ToolKind, ToolState};
+use crate::app::state::Document;
 use crate::graph::{Graph, GraphError, NodeId};
 use crate::ops::params::ParamValue;
 use std::path::Path;
@@ -158,6 +158,7 @@ mod tests {
     use super::super::test_util::*;
     use super::super::*;
     use super::*;
+    use crate::graph::Source;
 
     #[test]
     fn a_pen_stroke_inserts_a_pen_after_the_viewed_node_as_one_undo_step() {

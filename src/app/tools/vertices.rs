@@ -41,7 +41,6 @@ pub fn delete_vertex(doc: &mut Document, node: NodeId, index: usize) -> bool {
 #[cfg(test)]
 mod tests {
     use super::super::test_util::*;
-    use super::super::*;
     use super::*;
 
     #[test]

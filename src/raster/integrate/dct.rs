@@ -16,7 +16,7 @@ const DCT_COLUMN_GROUP: usize = 16;
 /// Three passes over one buffer: (1) row pairs: divergence, DCT-II along x; (2) groups of 16
 /// columns gathered into pair buffers: DCT-II along y, division by the eigenvalues, DCT-III
 /// along y, scattered back; (3) row pairs: DCT-III along x.
-fn poisson_dct(g: &GradientField, domain: Option<&[f32]>) -> Plane {
+pub(super) fn poisson_dct(g: &GradientField, domain: Option<&[f32]>) -> Plane {
     let (w, h) = (g.width, g.height);
     let (dw, dh) = (dct_plan(w), dct_plan(h));
     let mut z = buf::zeroed_f32(w * h);
@@ -100,6 +100,7 @@ fn poisson_dct(g: &GradientField, domain: Option<&[f32]>) -> Plane {
 #[cfg(test)]
 mod tests {
     use super::super::test_util::*;
+    use super::super::*;
     use super::*;
 
     #[test]

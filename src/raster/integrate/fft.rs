@@ -7,9 +7,9 @@ use rustfft::{Fft, FftPlanner};
 use std::collections::HashMap;
 use std::sync::{Arc, Mutex, MutexGuard, OnceLock, PoisonError};
 
-type C32 = Complex<f32>;
+pub(super) type C32 = Complex<f32>;
 
-const C_ZERO: C32 = Complex::new(0.0, 0.0);
+pub(super) const C_ZERO: C32 = Complex::new(0.0, 0.0);
 
 /// Plans shared by every call: rustfft's planner (it caches its FFTs) and the DCT twiddles.
 /// Planning a 4K transform costs about as much as running it once, so caching matters for
@@ -37,7 +37,7 @@ fn plans() -> MutexGuard<'static, Plans> {
 }
 
 /// The cached [`PairedDct`] of one length.
-fn dct_plan(len: usize) -> Arc<PairedDct> {
+pub(super) fn dct_plan(len: usize) -> Arc<PairedDct> {
     let mut guard = plans();
     let Plans { planner, dct } = &mut *guard;
     if dct.len() >= MAX_CACHED_DCT_SIZES && !dct.contains_key(&len) {
@@ -49,7 +49,7 @@ fn dct_plan(len: usize) -> Arc<PairedDct> {
 }
 
 /// A cached complex FFT of one length (unnormalised in both directions).
-fn fft_plan(len: usize, inverse: bool) -> Arc<dyn Fft<f32>> {
+pub(super) fn fft_plan(len: usize, inverse: bool) -> Arc<dyn Fft<f32>> {
     let mut guard = plans();
     if inverse {
         guard.planner.plan_fft_inverse(len)
@@ -58,11 +58,10 @@ fn fft_plan(len: usize, inverse: bool) -> Arc<dyn Fft<f32>> {
     }
 }
 
-
 /// Runs `f(r, a, b, buf, scratch)` on pairs of rows (`a` = row `r`, `b` = row `r + 1`, absent
 /// for an odd last row) of a row-major buffer of rows of `len`, pairs in parallel, with one
 /// complex buffer of `len` and one FFT scratch of `scratch_len` per rayon job.
-fn for_row_pairs(
+pub(super) fn for_row_pairs(
     data: &mut [f32],
     len: usize,
     scratch_len: usize,
@@ -91,21 +90,21 @@ fn for_row_pairs(
 /// `A_k = (C_k + C̄_{N−k})/2`, `B_k = (C_k − C̄_{N−k})/2i` — the same work as one real-input FFT
 /// of half length per sequence. The DCT-III here is rustdct's convention
 /// (`X_0/2 + Σ_{k≥1} X_k cos(…)`), so `DCT-III(DCT-II(x)) = N/2 · x`.
-struct PairedDct {
-    len: usize,
-    fwd: Arc<dyn Fft<f32>>,
-    inv: Arc<dyn Fft<f32>>,
+pub(super) struct PairedDct {
+    pub(super) len: usize,
+    pub(super) fwd: Arc<dyn Fft<f32>>,
+    pub(super) inv: Arc<dyn Fft<f32>>,
     /// `e^{−iπk/2N} / 2` (the ½ of the separation folded in).
-    half_twiddle: Vec<C32>,
+    pub(super) half_twiddle: Vec<C32>,
     /// `e^{+iπk/2N} / 2` (the ½ of the DCT-III convention folded in).
-    half_twiddle_inv: Vec<C32>,
+    pub(super) half_twiddle_inv: Vec<C32>,
     /// Makhoul position of sample `n`: `v[pos[n]] = x[n]`.
-    pos: Vec<usize>,
-    scratch_len: usize,
+    pub(super) pos: Vec<usize>,
+    pub(super) scratch_len: usize,
 }
 
 impl PairedDct {
-    fn new(len: usize, planner: &mut FftPlanner<f32>) -> Self {
+    pub(super) fn new(len: usize, planner: &mut FftPlanner<f32>) -> Self {
         let tw = |sign: f64| -> Vec<C32> {
             (0..len)
                 .map(|k| {
@@ -133,7 +132,7 @@ impl PairedDct {
     }
 
     /// Makhoul-reorders `a` (real parts) and `b` (imaginary parts, 0 if absent) into `buf`.
-    fn load(&self, a: &[f32], b: Option<&[f32]>, buf: &mut [C32]) {
+    pub(super) fn load(&self, a: &[f32], b: Option<&[f32]>, buf: &mut [C32]) {
         let n = self.len;
         // lo[m] = x[2m], hi reversed: buf[N−1−m] = x[2m+1].
         let (lo, hi) = buf.split_at_mut(n - n / 2);
@@ -170,7 +169,7 @@ impl PairedDct {
 
     /// From the forward FFT `buf` of a loaded pair: the DCT-II of the real parts into `xa` and
     /// of the imaginary parts into `xb`.
-    fn post2(&self, buf: &[C32], xa: &mut [f32], xb: Option<&mut [f32]>) {
+    pub(super) fn post2(&self, buf: &[C32], xa: &mut [f32], xb: Option<&mut [f32]>) {
         let n = self.len;
         xa[0] = buf[0].re;
         // (C_k, C_{N−k}) for k = 1..N.
@@ -188,7 +187,7 @@ impl PairedDct {
 
     /// The inverse-FFT input whose result holds the reordered DCT-IIIs of `xa` (real parts) and
     /// `xb` (imaginary parts, 0 if absent).
-    fn pre3(&self, xa: &[f32], xb: Option<&[f32]>, buf: &mut [C32]) {
+    pub(super) fn pre3(&self, xa: &[f32], xb: Option<&[f32]>, buf: &mut [C32]) {
         let n = self.len;
         let t = &self.half_twiddle_inv;
         // V_k = t_k·(X_k − i X_{N−k}) (X_N = 0); C = Va + i Vb.
@@ -223,7 +222,7 @@ impl PairedDct {
     }
 
     /// Undoes the Makhoul order of an inverse FFT `buf` into `a` (real parts) and `b`.
-    fn store(&self, buf: &[C32], a: &mut [f32], b: Option<&mut [f32]>) {
+    pub(super) fn store(&self, buf: &[C32], a: &mut [f32], b: Option<&mut [f32]>) {
         let n = self.len;
         let (lo, hi) = buf.split_at(n - n / 2);
         for ((l, u), pa) in lo.iter().zip(hi.iter().rev()).zip(a.chunks_exact_mut(2)) {
@@ -245,14 +244,26 @@ impl PairedDct {
     }
 
     /// In-place DCT-II of `a` and (if present) `b`.
-    fn dct2_pair(&self, a: &mut [f32], b: Option<&mut [f32]>, buf: &mut [C32], s: &mut [C32]) {
+    pub(super) fn dct2_pair(
+        &self,
+        a: &mut [f32],
+        b: Option<&mut [f32]>,
+        buf: &mut [C32],
+        s: &mut [C32],
+    ) {
         self.load(a, b.as_deref(), buf);
         self.fwd.process_with_scratch(buf, s);
         self.post2(buf, a, b);
     }
 
     /// In-place DCT-III (rustdct convention) of `a` and (if present) `b`.
-    fn dct3_pair(&self, a: &mut [f32], b: Option<&mut [f32]>, buf: &mut [C32], s: &mut [C32]) {
+    pub(super) fn dct3_pair(
+        &self,
+        a: &mut [f32],
+        b: Option<&mut [f32]>,
+        buf: &mut [C32],
+        s: &mut [C32],
+    ) {
         self.pre3(a, b.as_deref(), buf);
         self.inv.process_with_scratch(buf, s);
         self.store(buf, a, b);
@@ -260,7 +271,7 @@ impl PairedDct {
 
     /// In-place DCT-II of every row of `data` (rows of `self.len`), rows in parallel.
     #[cfg(test)]
-    fn dct2_rows(&self, data: &mut [f32]) {
+    pub(super) fn dct2_rows(&self, data: &mut [f32]) {
         for_row_pairs(data, self.len, self.scratch_len, |_, a, b, buf, s| {
             self.dct2_pair(a, b, buf, s);
         });
@@ -268,7 +279,7 @@ impl PairedDct {
 
     /// In-place DCT-III (rustdct convention) of every row of `data`.
     #[cfg(test)]
-    fn dct3_rows(&self, data: &mut [f32]) {
+    pub(super) fn dct3_rows(&self, data: &mut [f32]) {
         for_row_pairs(data, self.len, self.scratch_len, |_, a, b, buf, s| {
             self.dct3_pair(a, b, buf, s);
         });

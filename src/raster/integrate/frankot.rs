@@ -17,7 +17,7 @@ const FFT_COLUMN_GROUP: usize = 8;
 /// (2) groups of 8 bins: FFT along y of both, `Ẑ = (ā P̂ + c̄ Q̂)/(|a|² + |c|²)`, inverse FFT
 /// along y; (3) two rows of `Ẑ` (Hermitian along x) per inverse FFT of length `W` give two
 /// height rows. That is the work of scipy's `rfft2` ×2 + `irfft2`, half the complex 2-D FFTs.
-fn frankot_chellappa(g: &GradientField) -> Plane {
+pub(super) fn frankot_chellappa(g: &GradientField) -> Plane {
     let (w, h) = (g.width, g.height);
     let (fw, iw) = (fft_plan(w, false), fft_plan(w, true));
     let (fh, ih) = (fft_plan(h, false), fft_plan(h, true));
@@ -139,6 +139,7 @@ fn frankot_chellappa(g: &GradientField) -> Plane {
 #[cfg(test)]
 mod tests {
     use super::super::test_util::*;
+    use super::super::*;
     use super::*;
 
     #[test]

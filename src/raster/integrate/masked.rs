@@ -43,7 +43,11 @@ fn dot(a: &[f64], b: &[f64]) -> f64 {
 
 /// Masked Poisson by Jacobi-preconditioned CG from the DCT warm start. Returns the height,
 /// iterations and final relative residual.
-fn masked_poisson(g: &GradientField, m: &[f32], params: &IntegrateParams) -> (Plane, u32, f64) {
+pub(super) fn masked_poisson(
+    g: &GradientField,
+    m: &[f32],
+    params: &IntegrateParams,
+) -> (Plane, u32, f64) {
     let (w, h) = (g.width, g.height);
     let n = w * h;
     let warm = poisson_dct(g, Some(m));
@@ -124,6 +128,7 @@ fn masked_poisson(g: &GradientField, m: &[f32], params: &IntegrateParams) -> (Pl
 #[cfg(test)]
 mod tests {
     use super::super::test_util::*;
+    use super::super::*;
     use super::*;
 
     #[test]

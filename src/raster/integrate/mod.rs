@@ -245,7 +245,6 @@ pub fn integrate_normals(
     integrate_gradients(&GradientField::from_normals(img), img.mask(), params)
 }
 
-
 /// differences of `p(x, r−1)`, `p(x, r)`, `q(x, r)`, `q(x+1, r)` read) lies inside the
 /// mask: the curl readout of a masked field, free of values across the silhouette.
 #[must_use]

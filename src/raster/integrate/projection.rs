@@ -67,7 +67,9 @@ pub fn project_integrable(
 #[cfg(test)]
 mod tests {
     use super::super::test_util::*;
+    use super::super::*;
     use super::*;
+    use crate::raster::sample::Surface;
 
     #[test]
     fn projection_keeps_integrable_fields_and_removes_rotation() {

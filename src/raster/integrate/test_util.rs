@@ -5,14 +5,14 @@ use crate::raster::gradient::GradientField;
 use crate::raster::Plane;
 
 /// A rough, non-smooth height (no structure a smooth solver could exploit).
-fn rough(w: usize, h: usize) -> Plane {
+pub(super) fn rough(w: usize, h: usize) -> Plane {
     Plane::from_fn(w, h, |x, r| {
         ((x * 7919 + r * 104_729) % 1000) as f32 * 0.01 + (x as f32 * 0.3).sin() * 3.0
     })
 }
 
 /// Max |a − b − (mean difference)| over `sel` pixels (all if None).
-fn max_err_up_to_constant(a: &Plane, b: &Plane, sel: Option<&[f32]>) -> f64 {
+pub(super) fn max_err_up_to_constant(a: &Plane, b: &Plane, sel: Option<&[f32]>) -> f64 {
     let ins = |i: usize| sel.is_none_or(|m| inside(m[i]));
     let idx: Vec<usize> = (0..a.data().len()).filter(|&i| ins(i)).collect();
     let off = idx
@@ -25,7 +25,7 @@ fn max_err_up_to_constant(a: &Plane, b: &Plane, sel: Option<&[f32]>) -> f64 {
         .fold(0.0, f64::max)
 }
 
-fn rmse_up_to_constant(a: &Plane, b: &Plane, sel: Option<&[f32]>) -> f64 {
+pub(super) fn rmse_up_to_constant(a: &Plane, b: &Plane, sel: Option<&[f32]>) -> f64 {
     let ins = |i: usize| sel.is_none_or(|m| inside(m[i]));
     let idx: Vec<usize> = (0..a.data().len()).filter(|&i| ins(i)).collect();
     let d: Vec<f64> = idx
@@ -37,7 +37,7 @@ fn rmse_up_to_constant(a: &Plane, b: &Plane, sel: Option<&[f32]>) -> f64 {
 }
 
 /// A gradient field with no structure (not integrable), values in about [−2, 2].
-fn rough_field(w: usize, h: usize) -> GradientField {
+pub(super) fn rough_field(w: usize, h: usize) -> GradientField {
     let mut g = GradientField::zeros(w, h);
     for i in 0..w * h {
         g.p[i] = ((i * 7919 + 13) % 1009) as f32 / 250.0 - 2.0;
@@ -48,7 +48,7 @@ fn rough_field(w: usize, h: usize) -> GradientField {
 
 /// Sizes that exercise odd lengths, a single row / column, and column groups that are
 /// partial or end in an unpaired column.
-const ODD_SIZES: [(usize, usize); 11] = [
+pub(super) const ODD_SIZES: [(usize, usize); 11] = [
     (1, 1),
     (1, 7),
     (7, 1),
@@ -63,7 +63,7 @@ const ODD_SIZES: [(usize, usize); 11] = [
 ];
 
 /// `max |got − want| ≤ tol · max |want|` (plus a tiny absolute floor).
-fn assert_close(got: &[f32], want: &[f64], tol: f64, what: &str) {
+pub(super) fn assert_close(got: &[f32], want: &[f64], tol: f64, what: &str) {
     let amp = want.iter().fold(0.0f64, |a, v| a.max(v.abs()));
     let err = got
         .iter()

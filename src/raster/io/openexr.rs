@@ -1,9 +1,10 @@
 //! EXR files (exr crate): colour `R,G,B` (linear), normal `N.X,N.Y,N.Z`, mask `A`; f16 or f32
 //! (module docs of [`super`]).
 
-use super::{check_output, write_atomic, LoadOptions, DEFAULT_ALBEDO};
+use super::{open_check, write_atomic, Format, LoadOptions, DEFAULT_ALBEDO};
 use crate::error::RgbnError;
-use crate::raster::{buf, Plane, RgbnImage};
+use crate::raster::{buf, check_size, Plane, RgbnImage};
+use rayon::prelude::*;
 use std::path::Path;
 
 pub(super) struct ExrChannels {
@@ -32,7 +33,11 @@ impl ExrChannels {
         };
         me.take_three(["R", "G", "B"], path)
     }
-    pub(super) fn take_three(&mut self, names: [&str; 3], path: &Path) -> Result<[Vec<f32>; 3], RgbnError> {
+    pub(super) fn take_three(
+        &mut self,
+        names: [&str; 3],
+        path: &Path,
+    ) -> Result<[Vec<f32>; 3], RgbnError> {
         let have = self.names();
         let mut out = Vec::with_capacity(3);
         for n in names {
