@@ -12,7 +12,7 @@
 //! selection, clipboard) and [`runtime`] (evaluation requests and results, timing; its
 //! [`EditorApp::poll`] runs once per frame from `eframe::App::logic`). Its behaviour is split
 //! by concern: [`files`] (file dialog, open / save / export, autosave and recovery),
-//! [`dialogs`] (modal dialogs), [`menu`] (menu bar, shortcuts); this file holds the frame
+//! [`dialogs`] (modal dialogs), `menu` (menu bar, shortcuts); this file holds the frame
 //! layout, the panels and the graph commands.
 //!
 //! Layout: menu bar; node graph | preview | inspector (resizable); status bar with evaluation

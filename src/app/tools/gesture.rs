@@ -5,10 +5,11 @@
 #![allow(clippy::result_large_err)]
 
 use super::coords::{dist, push_simplified};
-use super::graph_edit::{node_points, points_param, set};
-use super::stamp::{StampFrame, StampHandle};
+use super::graph_edit::set;
+use super::stamp::{drag_handle, StampFrame, StampHandle};
 use super::stroke::{Stroke, StrokeMode};
 use super::MIN_SPACING_PX;
+use super::vertices::drag_vertex;
 use crate::app::state::Document;
 use crate::graph::{Graph, GraphError, NodeId};
 use crate::ops::params::ParamValue;
@@ -83,44 +84,12 @@ impl Gesture {
     ) -> Result<bool, GraphError> {
         let changed = match &mut self.kind {
             GestureKind::Stroke(s) => push_simplified(&mut s.points, p, MIN_SPACING_PX),
-            GestureKind::Vertex { node, index } => {
-                let mut pts = node_points(g, *node).unwrap_or_default();
-                match pts.get_mut(*index) {
-                    Some(q) if *q != p => {
-                        *q = p;
-                        let name = points_param(&g.nodes[node].op).unwrap_or("points");
-                        set(g, *node, name, ParamValue::Points(pts));
-                        true
-                    }
-                    _ => false,
-                }
-            }
+            GestureKind::Vertex { node, index } => drag_vertex(g, *node, *index, p),
             GestureKind::Stamp {
                 node,
                 handle,
                 frame,
-            } => {
-                let before = g.nodes.get(node).map(|n| n.params.clone());
-                match *handle {
-                    StampHandle::Move { index, offset } => {
-                        let mut pts = node_points(g, *node).unwrap_or_default();
-                        if let Some(q) = pts.get_mut(index) {
-                            *q = [p[0] - offset[0], p[1] - offset[1]];
-                        }
-                        set(g, *node, "positions", ParamValue::Points(pts));
-                    }
-                    StampHandle::Rotate => {
-                        let a = frame.angle_for(p, press.gap_px);
-                        set(g, *node, "angle_rad", ParamValue::Float(a));
-                    }
-                    StampHandle::Scale => {
-                        let [sx, sy] = frame.scale_for(p, uniform);
-                        set(g, *node, "scale_x", ParamValue::Float(sx));
-                        set(g, *node, "scale_y", ParamValue::Float(sy));
-                    }
-                }
-                g.nodes.get(node).map(|n| n.params.clone()) != before
-            }
+            } => drag_handle(g, *node, *handle, frame, p, press.gap_px, uniform),
         };
         if write {
             if let GestureKind::Stroke(s) = &mut self.kind {

@@ -15,11 +15,12 @@
 //! and the nodes and graph outputs that read that output read the new node instead (so the
 //! result includes the stroke); the new node is selected and viewed. Each gesture is one undo
 //! step ([`Gesture::finish`]); while it runs the graph is updated as it goes (when
-//! [`ToolState::live`]), so the worker re-evaluates the edited node and its descendants only.//!
-//! Files: [`coords`] (screen ↔ image mapping, point lists), [`graph_edit`] (the node a tool
-//! edits, inserting a node after the viewed output, parameter access), [`gesture`] (a gesture
-//! in progress and its undo step), [`stroke`] (pen and brush strokes), [`stamp`] (placements
-//! and handles), [`vertices`] (dragging and deleting vertices).
+//! [`ToolState::live`]), so the worker re-evaluates the edited node and its descendants only.
+//!
+//! Files: `coords` (screen ↔ image mapping, point lists), `graph_edit` (the node a tool edits,
+//! inserting a node after the viewed output, parameter access), `gesture` (a gesture in
+//! progress and its undo step), `stroke` (pen and brush strokes), `stamp` (placements and
+//! handles), `vertices` (dragging and deleting vertices).
 
 // Graph errors carry their location by value; they are cold paths.
 #![allow(clippy::result_large_err)]

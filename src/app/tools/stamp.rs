@@ -223,6 +223,39 @@ pub fn place_stamp(
     doc.history.commit(before);
     Ok(Some(id))
 }
+/// Drags `handle` of the stamp node `node` (grabbed on `frame`) to image position `p`:
+/// moves the placement, or sets the angle or the scale. True if the node's parameters changed.
+pub(super) fn drag_handle(
+    g: &mut Graph,
+    node: NodeId,
+    handle: StampHandle,
+    frame: &StampFrame,
+    p: [f64; 2],
+    gap_px: f64,
+    uniform: bool,
+) -> bool {
+    let before = g.nodes.get(&node).map(|n| n.params.clone());
+    match handle {
+        StampHandle::Move { index, offset } => {
+            let mut pts = node_points(g, node).unwrap_or_default();
+            if let Some(q) = pts.get_mut(index) {
+                *q = [p[0] - offset[0], p[1] - offset[1]];
+            }
+            set(g, node, "positions", ParamValue::Points(pts));
+        }
+        StampHandle::Rotate => {
+            let a = frame.angle_for(p, gap_px);
+            set(g, node, "angle_rad", ParamValue::Float(a));
+        }
+        StampHandle::Scale => {
+            let [sx, sy] = frame.scale_for(p, uniform);
+            set(g, node, "scale_x", ParamValue::Float(sx));
+            set(g, node, "scale_y", ParamValue::Float(sy));
+        }
+    }
+    g.nodes.get(&node).map(|n| n.params.clone()) != before
+}
+
 #[cfg(test)]
 mod tests {
     use super::super::test_util::*;

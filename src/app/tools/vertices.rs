@@ -2,9 +2,9 @@
 
 use super::coords::hit_vertex;
 use super::gesture::{Gesture, GestureKind, Press};
-use super::graph_edit::{min_points, node_points, points_param};
+use super::graph_edit::{min_points, node_points, points_param, set};
 use crate::app::state::Document;
-use crate::graph::NodeId;
+use crate::graph::{Graph, NodeId};
 use crate::ops::params::ParamValue;
 
 impl Gesture {
@@ -38,6 +38,20 @@ pub fn delete_vertex(doc: &mut Document, node: NodeId, index: usize) -> bool {
     doc.set_param(node, name, ParamValue::Points(pts));
     true
 }
+/// Moves vertex `index` of `node`'s point list to `p`; true if it moved.
+pub(super) fn drag_vertex(g: &mut Graph, node: NodeId, index: usize, p: [f64; 2]) -> bool {
+    let mut pts = node_points(g, node).unwrap_or_default();
+    match pts.get_mut(index) {
+        Some(q) if *q != p => {
+            *q = p;
+            let name = points_param(&g.nodes[&node].op).unwrap_or("points");
+            set(g, node, name, ParamValue::Points(pts));
+            true
+        }
+        _ => false,
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::super::test_util::*;

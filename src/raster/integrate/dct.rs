@@ -8,6 +8,7 @@ use crate::raster::par::par_column_groups;
 use crate::raster::{buf, Plane};
 use rustfft::num_complex::Complex;
 
+/// Columns per group of the column passes: one 64-byte cache line of `f32` per row.
 const DCT_COLUMN_GROUP: usize = 16;
 
 /// Solves `L z = Dᵀ g` (full rectangle, Neumann) with DCTs; the domain restricts the edges of

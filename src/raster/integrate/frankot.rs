@@ -7,6 +7,7 @@ use crate::raster::{buf, Plane};
 use rayon::prelude::*;
 use rustfft::num_complex::Complex;
 
+/// Frequency bins per group of the Frankot–Chellappa column pass (P and Q interleaved: two
 /// 64-byte lines per row).
 const FFT_COLUMN_GROUP: usize = 8;
 

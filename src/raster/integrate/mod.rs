@@ -245,6 +245,7 @@ pub fn integrate_normals(
     integrate_gradients(&GradientField::from_normals(img), img.mask(), params)
 }
 
+/// Pixels whose curl stencil (itself, above, right, above-right: every value the forward
 /// differences of `p(x, r−1)`, `p(x, r)`, `q(x, r)`, `q(x+1, r)` read) lies inside the
 /// mask: the curl readout of a masked field, free of values across the silhouette.
 #[must_use]

@@ -6,6 +6,7 @@ use crate::error::RgbnError;
 use crate::raster::gradient::{CurlStats, GradientField};
 use crate::raster::{Plane, RgbnImage};
 
+/// Parameters of [`project_integrable`].
 #[derive(Clone, Debug, Default, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct ProjectParams {
     /// The integration used for the projection. `MaskedPoisson` projects inside the mask and
