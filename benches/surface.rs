@@ -5,9 +5,8 @@
 //! Run: `CARGO_TARGET_DIR=… cargo bench --no-default-features --bench surface`.
 
 use criterion::{criterion_group, criterion_main, Criterion};
-use rgbn::capture::photometric::{
-    photometric_stereo, Lights, PhotoStack, PhotometricParams, PsMethod,
-};
+use rgbn::capture::inputs::{Lights, PhotoStack};
+use rgbn::capture::photometric::{photometric_stereo, PhotometricParams, PsMethod};
 use rgbn::raster::gradient::GradientField;
 use rgbn::raster::integrate::{
     integrate_gradients, project_integrable, IntegrateParams, IntegrationMethod, ProjectParams,

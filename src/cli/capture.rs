@@ -3,10 +3,9 @@
 
 use super::error::{usage, CliError};
 use super::out::Out;
-use crate::capture::photometric::{
-    calibrate_chrome, load_inputs, photometric_stereo, ChromeParams, PhotoStack, PhotometricParams,
-    PsInputSpec, PsMethod, Transfer,
-};
+use crate::capture::chrome::{calibrate_chrome, ChromeParams};
+use crate::capture::inputs::{load_inputs, PhotoStack, PsInputSpec, Transfer};
+use crate::capture::photometric::{photometric_stereo, PhotometricParams, PsMethod};
 use crate::raster::gradient::GradientField;
 use crate::raster::integrate::curl_interior;
 use crate::raster::io::{self, SaveOptions};

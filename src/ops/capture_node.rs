@@ -8,10 +8,8 @@
 
 use super::params::{Meta, ParamVisitor, Params};
 use super::{Inputs, OpSpec, Operator, PortSpec, PortType, RunContext, Value};
-use crate::capture::photometric::{
-    load_inputs, photometric_stereo, read_name_list, PhotometricParams, PsInputSpec, PsMethod,
-    Transfer,
-};
+use crate::capture::inputs::{load_inputs, read_name_list, PsInputSpec, Transfer};
+use crate::capture::photometric::{photometric_stereo, PhotometricParams, PsMethod};
 use crate::error::RgbnError;
 use crate::raster::gradient::GradientField;
 use crate::raster::integrate::curl_interior;

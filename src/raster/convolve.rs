@@ -19,6 +19,7 @@
 //! is below 1e-3. See the doc of [`gaussian`] for the measured table.
 
 use crate::raster::buf;
+use crate::raster::par::SharedMut;
 use rayon::prelude::*;
 
 /// How samples outside the image are invented.
@@ -396,21 +397,6 @@ impl Deriche {
         }
     }
 }
-
-/// A raw pointer that may be shared between rayon tasks writing disjoint elements.
-#[derive(Clone, Copy)]
-pub(crate) struct SharedMut(pub(crate) *mut f32);
-
-impl SharedMut {
-    /// The pointer. A method (not field access) so closures capture the whole `Sync` wrapper.
-    pub(crate) fn get(self) -> *mut f32 {
-        self.0
-    }
-}
-// SAFETY: used only to write disjoint column groups from parallel tasks (see `filter_columns`
-// and `smooth::smooth_normals`).
-unsafe impl Send for SharedMut {}
-unsafe impl Sync for SharedMut {}
 
 /// Reads `cols ≤ LANES` floats from `src` into a lane (the rest zero). A whole lane is one
 /// 64-byte load instead of a `memmove` call of variable length.

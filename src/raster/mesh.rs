@@ -18,7 +18,7 @@
 //! - Wavefront Technologies, "Object files (.obj)", Advanced Visualizer manual, appendix B.
 
 use super::gradient::NZ_EPSILON;
-use super::{io, Plane, RgbnImage};
+use super::{io, srgb, Plane, RgbnImage};
 use crate::error::RgbnError;
 use rayon::prelude::*;
 use std::io::Write;
@@ -184,7 +184,7 @@ pub fn build_mesh(
                 } else {
                     [0.0, 0.0, 1.0]
                 };
-                colr[k] = [0, 1, 2].map(|c| io::linear_to_srgb8(col[c][i]));
+                colr[k] = [0, 1, 2].map(|c| srgb::linear_to_srgb8(col[c][i]));
                 k += 1;
             }
         });

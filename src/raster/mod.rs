@@ -12,9 +12,11 @@ pub mod gradient;
 pub mod integrate;
 pub mod io;
 pub mod mesh;
+pub(crate) mod par;
 pub mod ptm;
 pub mod sample;
 pub mod smooth;
+pub mod srgb;
 
 use crate::error::RgbnError;
 use std::sync::Arc;

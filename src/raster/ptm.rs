@@ -82,7 +82,8 @@
 
 use super::{check_size, RgbnImage};
 use crate::error::RgbnError;
-use crate::raster::io::{srgb_to_linear, write_atomic};
+use crate::raster::io::write_atomic;
+use crate::raster::srgb::srgb_to_linear;
 use rayon::prelude::*;
 use std::io::{BufRead, Read, Write};
 use std::path::Path;

@@ -23,9 +23,10 @@
 
 use super::convolve::{
     lane_splat, lanes_to_rows, load_lane, rows_to_lanes, store_lane, BorderMode, Lane, LineFilter,
-    SharedMut, LANES,
+    LANES,
 };
 use super::gradient::{gradient_of_normal, normal_of_gradient, CurlSums, NZ_EPSILON};
+use super::par::SharedMut;
 use crate::raster::buf;
 use rayon::prelude::*;
 
@@ -228,7 +229,7 @@ impl<F: LineFilter> Sweep<'_, F> {
         &self,
         s: &mut ColumnScratch,
         g: usize,
-        out: [SharedMut; 3],
+        out: [SharedMut<f32>; 3],
     ) -> (CurlSums, Vec<Seam>) {
         #[cfg(target_arch = "x86_64")]
         if std::arch::is_x86_feature_detected!("avx2") {
@@ -249,7 +250,7 @@ impl<F: LineFilter> Sweep<'_, F> {
         &self,
         s: &mut ColumnScratch,
         g: usize,
-        out: [SharedMut; 3],
+        out: [SharedMut<f32>; 3],
     ) -> (CurlSums, Vec<Seam>) {
         // SAFETY: the caller's contract.
         unsafe { self.group_portable(s, g, out) }
@@ -262,7 +263,7 @@ impl<F: LineFilter> Sweep<'_, F> {
         &self,
         s: &mut ColumnScratch,
         g: usize,
-        out: [SharedMut; 3],
+        out: [SharedMut<f32>; 3],
     ) -> (CurlSums, Vec<Seam>) {
         let (w, h) = (self.w, self.h);
         let c0 = g * LANES;

@@ -5,7 +5,7 @@
 use crate::error::RgbnError;
 use crate::raster::buf;
 use crate::raster::gradient::GradientField;
-use crate::raster::io::{srgb8_lut_encode, SRGB8_LUT_SIZE};
+use crate::raster::srgb::{srgb8_lut_encode, SRGB8_LUT_SIZE};
 use crate::raster::RgbnImage;
 use rayon::prelude::*;
 
@@ -397,7 +397,7 @@ impl RelightKernel<'_> {
 }
 
 /// Table index (into [`srgb8_lut_encode`]) of a linear value:
-/// [`crate::raster::io::srgb8_index`] but rounding ties to even (through [`ROUND`], which
+/// [`crate::raster::srgb::srgb8_index`] but rounding ties to even (through [`ROUND`], which
 /// vectorises); [`pack_rgba`]'s mask keeps even a NaN's index inside the table.
 #[inline(always)]
 fn srgb8_table_index(v: f32) -> u32 {
@@ -526,7 +526,7 @@ fn map_pixels(out: &mut [u8], f: impl Fn(usize) -> [u8; 4] + Sync) {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::raster::io::linear_to_srgb;
+    use crate::raster::srgb::linear_to_srgb;
 
     #[test]
     fn lambert_matches_cosine_law() {

@@ -118,7 +118,7 @@ fn sphere_error(img: &RgbnImage, min_nz: f32) -> (f64, usize) {
         if tm[i] < 0.5 || t[2] < min_nz || m.is_some_and(|m| m[i] < 0.5) {
             continue;
         }
-        sum += rgbn::capture::photometric::angle_deg(img.normal_at(x, r), t);
+        sum += rgbn::capture::linalg::angle_deg(img.normal_at(x, r), t);
         count += 1;
     }
     (sum / count.max(1) as f64, count)
@@ -397,13 +397,10 @@ fn capture_chrome_writes_a_light_file_the_capture_reads() {
     args.extend(["--mask", &mask_path, "-o", out.to_str().unwrap()]);
     let o = rgbn(&args);
     assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
-    let got = rgbn::capture::photometric::read_rows3(&out).unwrap();
+    let got = rgbn::capture::inputs::read_rows3(&out).unwrap();
     let mut worst = 0.0f64;
     for (g, l) in got.iter().zip(lights()) {
-        worst = worst.max(rgbn::capture::photometric::angle_deg(
-            *g,
-            l.map(|v| v as f32),
-        ));
+        worst = worst.max(rgbn::capture::linalg::angle_deg(*g, l.map(|v| v as f32)));
     }
     eprintln!("chrome calibration of the synthetic lights: worst error {worst:.2}°");
     assert_eq!(got.len(), 6);
@@ -468,7 +465,7 @@ fn capture_cli_on_the_diligent_ball() {
             if gt[2] == 0.0 {
                 continue;
             }
-            sum += rgbn::capture::photometric::angle_deg(img.normal_at(x, r), gt);
+            sum += rgbn::capture::linalg::angle_deg(img.normal_at(x, r), gt);
             count += 1;
         }
     }

@@ -26,13 +26,16 @@ fn small_demo() -> Document {
     d
 }
 
+/// One editor frame as eframe runs it: `App::logic` (the worker is polled) then `App::ui`.
+fn frame(ui: &mut egui::Ui, app: &mut EditorApp) {
+    app.poll(ui.ctx());
+    app.frame_ui(ui);
+}
+
 fn harness(doc: Document) -> Harness<'static, EditorApp> {
     Harness::builder()
         .with_size([1500.0, 900.0])
-        .build_ui_state(
-            |ui, app: &mut EditorApp| app.frame_ui(ui),
-            EditorApp::new(doc),
-        )
+        .build_ui_state(frame, EditorApp::new(doc))
 }
 
 /// Steps frames until the worker has evaluated the current graph and the preview is rendered.
@@ -56,14 +59,14 @@ fn editor_opens_the_demo_and_previews_it() {
     settle(&mut h);
     let app = h.state();
     assert!(
-        app.outcome.node_errors.is_empty(),
+        app.runtime.outcome.node_errors.is_empty(),
         "{:?}",
-        app.outcome.node_errors
+        app.runtime.outcome.node_errors
     );
-    assert_eq!(app.viewed, Some((3, "image".to_string())));
+    assert_eq!(app.session.viewed, Some((3, "image".to_string())));
     assert!(app.preview.renders >= 1, "the preview rendered");
-    assert!(app.first_preview.is_some());
-    assert!(app.outcome.thumbs.contains_key(&1));
+    assert!(app.runtime.first_preview.is_some());
+    assert!(app.runtime.outcome.thumbs.contains_key(&1));
     // The layout: menus, panels, node titles from the graph.
     for menu in ["File", "Edit", "Add", "View", "Help"] {
         h.get_by_role_and_label(Role::Button, menu);
@@ -79,14 +82,14 @@ fn editor_opens_the_demo_and_previews_it() {
 fn add_from_menu_connect_edit_undo_save_load() {
     let mut h = harness(small_demo());
     settle(&mut h);
-    let n0 = h.state().doc.graph.nodes.len();
+    let n0 = h.state().session.doc.graph.nodes.len();
 
     // Add a node from the menu: it goes after the selected node (3, "detail"), connected.
     h.get_by_label("Add").click();
     h.run_steps(2);
     h.get_by_label("Normalize").click();
     h.run_steps(2);
-    let g = h.state().doc.graph.clone();
+    let g = h.state().session.doc.graph.clone();
     assert_eq!(g.nodes.len(), n0 + 1);
     let new = *g.nodes.keys().next_back().unwrap();
     assert_eq!(g.nodes[&new].op, "normalize");
@@ -97,6 +100,7 @@ fn add_from_menu_connect_edit_undo_save_load() {
     settle(&mut h);
     assert!(h
         .state()
+        .runtime
         .outcome
         .values
         .contains_key(&(new, "image".into())));
@@ -109,18 +113,18 @@ fn add_from_menu_connect_edit_undo_save_load() {
         port: "image".into(),
     });
     assert_eq!(
-        h.state().doc.graph.nodes[&new].inputs["image"],
+        h.state().session.doc.graph.nodes[&new].inputs["image"],
         Source::Node(2, "image".into())
     );
     // ... and refuses a bad one, saying why, with the graph unchanged.
-    let before = h.state().doc.graph.clone();
+    let before = h.state().session.doc.graph.clone();
     h.state_mut().apply(Action::Connect {
         from: 4,
         from_port: "picture".into(),
         to: new,
         port: "image".into(),
     });
-    assert_eq!(h.state().doc.graph, before);
+    assert_eq!(h.state().session.doc.graph, before);
     assert!(h.state().status.error);
     h.step();
     h.get_by_label_contains("connection refused");
@@ -130,9 +134,9 @@ fn add_from_menu_connect_edit_undo_save_load() {
     h.state_mut().view_node(2);
     h.run_steps(2);
     let renders = h.state().preview.renders;
-    let requests = h.state().requests;
-    let key_before = h.state().outcome.values[&(2, "image".into())].key;
-    let graph_before_edit = h.state().doc.graph.clone();
+    let requests = h.state().runtime.requests;
+    let key_before = h.state().runtime.outcome.values[&(2, "image".into())].key;
+    let graph_before_edit = h.state().session.doc.graph.clone();
     h.get_by_role_and_label(Role::Slider, "amount").focus();
     h.step();
     h.key_press(Key::ArrowRight);
@@ -142,7 +146,7 @@ fn add_from_menu_connect_edit_undo_save_load() {
     // Leave the slider (ends the interaction: one undo step).
     h.key_press(Key::Escape);
     h.step();
-    let amount = h.state().doc.graph.nodes[&2].params["amount"].clone();
+    let amount = h.state().session.doc.graph.nodes[&2].params["amount"].clone();
     assert_ne!(
         amount,
         ParamValue::Float(1.0),
@@ -150,26 +154,29 @@ fn add_from_menu_connect_edit_undo_save_load() {
     );
     settle(&mut h);
     assert!(
-        h.state().requests > requests,
+        h.state().runtime.requests > requests,
         "a re-evaluation was requested"
     );
-    let key_after = h.state().outcome.values[&(2, "image".into())].key;
+    let key_after = h.state().runtime.outcome.values[&(2, "image".into())].key;
     assert_ne!(key_before, key_after, "the node's output changed");
     assert!(h.state().preview.renders > renders, "the preview changed");
 
     // Undo restores the graph from before the edit.
     h.key_press_modifiers(Modifiers::COMMAND, Key::Z);
     h.step();
-    assert_eq!(h.state().doc.graph, graph_before_edit);
+    assert_eq!(h.state().session.doc.graph, graph_before_edit);
     h.key_press_modifiers(Modifiers::COMMAND | Modifiers::SHIFT, Key::Z);
     h.step();
-    assert_eq!(h.state().doc.graph.nodes[&2].params["amount"], amount);
+    assert_eq!(
+        h.state().session.doc.graph.nodes[&2].params["amount"],
+        amount
+    );
 
     // Save as … through the file dialog (opened in a temporary folder), then load: the same
     // graph.
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("edited.ron");
-    h.state_mut().dialog_dir = Some(dir.path().to_path_buf());
+    h.state_mut().prefs.dialog_dir = Some(dir.path().to_path_buf());
     h.get_by_label("File").click();
     h.run_steps(2);
     h.get_by_label("Save As…").click();
@@ -195,9 +202,9 @@ fn add_from_menu_connect_edit_undo_save_load() {
     h.run_steps(3);
     assert!(path.is_file(), "saved: {:?}", h.state().status);
     assert!(!h.state().file_dialog_open());
-    assert!(!h.state().doc.is_dirty());
+    assert!(!h.state().session.doc.is_dirty());
     let back = Document::open(&path).unwrap();
-    assert_eq!(back.graph, h.state().doc.graph);
+    assert_eq!(back.graph, h.state().session.doc.graph);
 }
 
 #[test]
@@ -223,21 +230,32 @@ fn recover_autosave_export_any_node_split_and_height_views() {
     app.offer_recovery();
     let mut h = Harness::builder()
         .with_size([1500.0, 900.0])
-        .build_ui_state(|ui, app: &mut EditorApp| app.frame_ui(ui), app);
+        .build_ui_state(frame, app);
     h.run_steps(2);
     h.get_by_label("Recover unsaved work?");
     h.get_by_label("Recover").click();
     h.run_steps(2);
-    assert_eq!(h.state().doc.graph, edited, "the autosaved graph is back");
-    assert!(h.state().doc.is_dirty(), "recovered work is unsaved");
-    h.state_mut().doc.undo();
-    assert_eq!(h.state().doc.graph, doc.graph, "undo goes back to the file");
-    h.state_mut().doc.redo();
+    assert_eq!(
+        h.state().session.doc.graph,
+        edited,
+        "the autosaved graph is back"
+    );
+    assert!(
+        h.state().session.doc.is_dirty(),
+        "recovered work is unsaved"
+    );
+    h.state_mut().session.doc.undo();
+    assert_eq!(
+        h.state().session.doc.graph,
+        doc.graph,
+        "undo goes back to the file"
+    );
+    h.state_mut().session.doc.redo();
     settle(&mut h);
 
     // Export node 1 (not the viewed one) from its menu: the file dialog opens in the graph's
     // folder with a name from the node and port.
-    assert_ne!(h.state().viewed.as_ref().map(|v| v.0), Some(1));
+    assert_ne!(h.state().session.viewed.as_ref().map(|v| v.0), Some(1));
     h.state_mut().apply(Action::Export(1));
     h.run_steps(3);
     assert!(h.state().file_dialog_open());
@@ -246,7 +264,9 @@ fn recover_autosave_export_any_node_split_and_height_views() {
     let out = dir.path().join("node1-image.exr");
     assert!(out.is_file(), "exported: {:?}", h.state().status);
     let back = rgbn::raster::io::load_exr(&out, &Default::default()).unwrap();
-    let rgbn::ops::Value::Rgbn(orig) = &h.state().outcome.values[&(1, "image".into())].value else {
+    let rgbn::ops::Value::Rgbn(orig) =
+        &h.state().runtime.outcome.values[&(1, "image".into())].value
+    else {
         panic!("node 1 gives an RGBN image")
     };
     assert_eq!((back.width(), back.height()), (orig.width(), orig.height()));
@@ -284,10 +304,14 @@ fn a_pen_stroke_on_the_preview_adds_a_pen_path_evaluates_and_undoes() {
     h.run_steps(2);
     assert_eq!(h.state().tools.state.kind, ToolKind::Pen);
 
-    let before = h.state().doc.graph.clone();
+    let before = h.state().session.doc.graph.clone();
     let (requests, renders, steps) = {
         let a = h.state();
-        (a.requests, a.preview.renders, a.doc.history.undo_len())
+        (
+            a.runtime.requests,
+            a.preview.renders,
+            a.session.doc.history.undo_len(),
+        )
     };
     let pan = h.state().preview.pan;
     let path = [[20.0, 20.0], [40.0, 30.0], [60.0, 50.0], [70.0, 70.0]];
@@ -295,14 +319,14 @@ fn a_pen_stroke_on_the_preview_adds_a_pen_path_evaluates_and_undoes() {
     // Press, drag through the points, release: simulated pointer events.
     press_and_move(&mut h, &screen);
     // While drawing: the stroke is already in the graph (live), not yet an undo step.
-    assert_ne!(h.state().doc.graph, before);
+    assert_ne!(h.state().session.doc.graph, before);
     h.drop_at(*screen.last().unwrap());
     h.step();
     h.step();
 
     let app = h.state();
     assert_eq!(app.preview.pan, pan, "a pen drag does not pan");
-    let g = &app.doc.graph;
+    let g = &app.session.doc.graph;
     assert_eq!(g.nodes.len(), before.nodes.len() + 1);
     let pen = *g.nodes.keys().next_back().unwrap();
     assert_eq!(g.nodes[&pen].op, "pen");
@@ -326,29 +350,36 @@ fn a_pen_stroke_on_the_preview_adds_a_pen_path_evaluates_and_undoes() {
         );
     }
     assert_eq!(
-        app.doc.history.undo_len(),
+        app.session.doc.history.undo_len(),
         steps + 1,
         "one stroke, one step"
     );
-    assert_eq!(app.selected, Some(pen));
-    assert_eq!(app.viewed, Some((pen, "image".to_string())));
+    assert_eq!(app.session.selected, Some(pen));
+    assert_eq!(app.session.viewed, Some((pen, "image".to_string())));
 
     // The edit was evaluated and the preview shows the pen's output.
     settle(&mut h);
     let app = h.state();
-    assert!(app.requests > requests, "a re-evaluation was requested");
     assert!(
-        app.outcome.node_errors.is_empty(),
-        "{:?}",
-        app.outcome.node_errors
+        app.runtime.requests > requests,
+        "a re-evaluation was requested"
     );
-    assert!(app.outcome.values.contains_key(&(pen, "image".into())));
+    assert!(
+        app.runtime.outcome.node_errors.is_empty(),
+        "{:?}",
+        app.runtime.outcome.node_errors
+    );
+    assert!(app
+        .runtime
+        .outcome
+        .values
+        .contains_key(&(pen, "image".into())));
     assert!(app.preview.renders > renders, "the preview changed");
 
     // Undo restores the graph exactly.
     h.key_press_modifiers(Modifiers::COMMAND, Key::Z);
     h.step();
-    assert_eq!(h.state().doc.graph, before);
+    assert_eq!(h.state().session.doc.graph, before);
 }
 
 /// Screen positions of image-pixel points under the preview's last drawn transform.
@@ -378,7 +409,7 @@ fn press_and_move(h: &mut Harness<'_, EditorApp>, screen: &[Pos2]) {
 fn shift_drag_on_the_image_moves_the_light_without_panning() {
     let mut h = harness(small_demo());
     settle(&mut h);
-    let (light0, pan0) = (h.state().settings.light, h.state().preview.pan);
+    let (light0, pan0) = (h.state().prefs.settings.light, h.state().preview.pan);
     // From the image centre towards its right edge: the light tilts towards +x.
     let screen = screen_points(
         &h,
@@ -392,7 +423,7 @@ fn shift_drag_on_the_image_moves_the_light_without_panning() {
     h.step();
     let app = h.state();
     assert_eq!(app.preview.pan, pan0, "a Shift-drag does not pan");
-    let l = app.settings.light;
+    let l = app.prefs.settings.light;
     assert_ne!(l, light0, "the light moved");
     assert!(l[0] > 0.5 && l[1].abs() < 0.05, "light towards +x: {l:?}");
     let len = (l[0] * l[0] + l[1] * l[1] + l[2] * l[2]).sqrt();

@@ -1,0 +1,247 @@
+//! File handling: the file dialog, new / open / save / export, autosave and recovery.
+
+use super::dialogs::Dialog;
+use super::recent::{self, Recovery};
+use super::session::default_view;
+use super::state::Document;
+use super::worker::EvalOutcome;
+use super::EditorApp;
+use crate::graph::NodeId;
+use crate::ops::Value;
+use std::path::{Path, PathBuf};
+use std::time::{Duration, Instant};
+
+/// What a file picked in the file dialog is for.
+#[derive(Clone, Debug, PartialEq)]
+pub enum FilePurpose {
+    /// Open this graph.
+    Open,
+    /// Save the graph here.
+    SaveAs,
+    /// Write this node's output port here.
+    Export(NodeId, String),
+    /// Set this path parameter of this node.
+    Param(NodeId, String),
+}
+
+impl EditorApp {
+    /// If the document's recovery file holds newer, different work, asks whether to restore it.
+    pub fn offer_recovery(&mut self) {
+        if let Some(r) =
+            recent::recovery_offer(self.session.doc.path.as_deref(), &self.session.doc.graph)
+        {
+            self.dialog = Some(Dialog::Recover(Box::new(r)));
+        }
+    }
+
+    /// Replaces the graph with the recovered one (one undo step back to the file's graph); the
+    /// document stays unsaved until the user saves.
+    pub fn recover(&mut self, r: &Recovery) {
+        let before = self.session.doc.graph.clone();
+        self.session.doc.graph = r.graph.clone();
+        self.session.doc.history.commit(before);
+        self.say(format!("recovered unsaved work from {}", r.path.display()));
+    }
+
+    /// True while the file dialog is open.
+    #[must_use]
+    pub fn file_dialog_open(&self) -> bool {
+        self.files.is_some()
+    }
+
+    /// Opens the file dialog for `purpose`.
+    pub fn browse(&mut self, purpose: FilePurpose) {
+        use egui_file_dialog::FileDialog;
+        let dir = match &self.prefs.dialog_dir {
+            Some(d) if d.is_dir() => d.clone(),
+            _ => recent::absolute(&self.session.doc.base_dir()),
+        };
+        let d = FileDialog::new().initial_directory(dir);
+        let mut d = match &purpose {
+            FilePurpose::Open => d
+                .title("Open graph")
+                .add_file_filter_extensions("Graphs (*.ron)", vec!["ron"])
+                .default_file_filter("Graphs (*.ron)"),
+            FilePurpose::SaveAs => {
+                let name = self
+                    .session
+                    .doc
+                    .path
+                    .as_deref()
+                    .and_then(Path::file_name)
+                    .map_or_else(|| "graph.ron".to_string(), |n| n.to_string_lossy().into());
+                d.title("Save graph as").default_file_name(&name)
+            }
+            FilePurpose::Export(id, port) => {
+                let ext = match self.runtime.outcome.values.get(&(*id, port.clone())) {
+                    Some(v) if matches!(v.value, Value::Rgbn(_)) => "exr",
+                    _ => "png",
+                };
+                d.title("Export output")
+                    .default_file_name(&format!("node{id}-{port}.{ext}"))
+            }
+            FilePurpose::Param(_, name) => d.title(&format!("Choose {name}")),
+        };
+        match purpose {
+            FilePurpose::Open | FilePurpose::Param(..) => d.pick_file(),
+            FilePurpose::SaveAs | FilePurpose::Export(..) => d.save_file(),
+        }
+        self.files = Some((d, purpose));
+    }
+
+    /// Acts on a file picked for `purpose`.
+    pub fn picked(&mut self, path: &Path, purpose: FilePurpose) {
+        self.prefs.dialog_dir = path.parent().map(Path::to_path_buf);
+        match purpose {
+            FilePurpose::Open => self.open_path(path),
+            FilePurpose::SaveAs => {
+                self.save_to(path);
+            }
+            FilePurpose::Export(id, port) => self.export(path, id, &port),
+            FilePurpose::Param(id, name) => {
+                let base = recent::absolute(&self.session.doc.base_dir());
+                let rel = path.strip_prefix(&base).unwrap_or(path);
+                let v = crate::ops::params::ParamValue::Path(rel.to_string_lossy().into_owned());
+                self.session.doc.set_param(id, &name, v);
+                self.say(format!("#{id}.{name} = {}", rel.display()));
+            }
+        }
+    }
+
+    pub(super) fn file_dialog_ui(&mut self, ctx: &egui::Context) {
+        let Some((d, _)) = &mut self.files else {
+            return;
+        };
+        d.update(ctx);
+        match d.state() {
+            egui_file_dialog::DialogState::Open => {}
+            egui_file_dialog::DialogState::Picked(p) => {
+                let p = p.clone();
+                if let Some((_, purpose)) = self.files.take() {
+                    self.picked(&p, purpose);
+                }
+            }
+            _ => self.files = None,
+        }
+    }
+
+    pub(super) fn new_doc(&mut self, doc: Document) {
+        self.cancel();
+        self.session.doc_epoch += 1;
+        self.session.doc = doc;
+        self.session.viewed = default_view(&self.session.doc.graph);
+        self.session.selected = self.session.viewed.as_ref().map(|v| v.0);
+        self.preview.clear();
+        self.runtime.outcome = EvalOutcome::default();
+        self.runtime.thumbs.clear();
+        self.runtime.last_sent = None;
+        self.runtime.in_flight = None; // its result will be stale
+        self.view.frame_pending = 3;
+    }
+
+    /// Opens a graph file (no unsaved-changes check).
+    pub fn open_path(&mut self, path: &Path) {
+        match Document::open(path) {
+            Ok(d) => {
+                self.new_doc(d);
+                self.say(format!("opened {}", path.display()));
+                if let Err(e) = self.prefs.recent.push(path) {
+                    tracing::warn!("recent files not saved: {e}");
+                }
+                self.offer_recovery();
+            }
+            Err(e) => {
+                if !path.exists() {
+                    let _ = self.prefs.recent.remove(path);
+                }
+                self.fail(e.to_string());
+            }
+        }
+    }
+
+    /// Saves to `path`.
+    pub fn save_to(&mut self, path: &Path) -> bool {
+        let old_recovery = self.recovery_path();
+        match self.session.doc.save_as(path) {
+            Ok(()) => {
+                let _ = std::fs::remove_file(old_recovery);
+                let _ = std::fs::remove_file(self.recovery_path());
+                self.say(format!("saved {}", path.display()));
+                if let Err(e) = self.prefs.recent.push(path) {
+                    tracing::warn!("recent files not saved: {e}");
+                }
+                true
+            }
+            Err(e) => {
+                self.fail(e.to_string());
+                false
+            }
+        }
+    }
+
+    pub(super) fn save(&mut self) -> bool {
+        match self.session.doc.path.clone() {
+            Some(p) => self.save_to(&p),
+            None => {
+                self.browse(FilePurpose::SaveAs);
+                false
+            }
+        }
+    }
+
+    /// Writes output `port` of node `id` to `path` (format from the extension; atomic; never
+    /// over one of the graph's input files).
+    pub fn export(&mut self, path: &Path, id: NodeId, port: &str) {
+        let Some(v) = self.runtime.outcome.values.get(&(id, port.to_string())) else {
+            self.fail(format!(
+                "nothing to export: node #{id} has no value on {port:?} yet (still evaluating, or it failed)"
+            ));
+            return;
+        };
+        let v = v.value.clone();
+        // Never over one of the graph's own files (inputs, sub-graphs) or the graph itself.
+        let base = self.session.doc.base_dir();
+        let mut files: Vec<PathBuf> = self
+            .session
+            .doc
+            .graph
+            .nodes
+            .values()
+            .flat_map(|n| n.params.values())
+            .filter_map(|p| match p {
+                crate::ops::params::ParamValue::Path(p) if !p.is_empty() => Some(base.join(p)),
+                _ => None,
+            })
+            .collect();
+        files.extend(self.session.doc.path.clone());
+        let inputs: Vec<&Path> = files.iter().map(PathBuf::as_path).collect();
+        if let Err(e) = crate::raster::io::check_output(path, &inputs) {
+            self.fail(e.to_string());
+            return;
+        }
+        match crate::ops::save::write_value(&v, path, &crate::raster::io::SaveOptions::default()) {
+            Ok(()) => self.say(format!("exported {}", path.display())),
+            Err(e) => self.fail(e.to_string()),
+        }
+    }
+
+    /// Where unsaved work is kept: beside the file (`.NAME.autosave.ron`), or in the temporary
+    /// folder for an untitled graph.
+    #[must_use]
+    pub fn recovery_path(&self) -> PathBuf {
+        recent::recovery_path(self.session.doc.path.as_deref())
+    }
+
+    /// Every 30 s with unsaved changes, writes the graph to the recovery file.
+    pub(super) fn autosave(&mut self) {
+        if self.session.last_autosave.elapsed() < Duration::from_secs(30) {
+            return;
+        }
+        self.session.last_autosave = Instant::now();
+        if self.session.doc.is_dirty() {
+            if let Err(e) = self.session.doc.graph.save(&self.recovery_path()) {
+                self.fail(format!("autosave failed: {e}"));
+            }
+        }
+    }
+}

@@ -1,0 +1,244 @@
+//! The menu bar, keyboard shortcuts and the Help ▸ Operators window.
+
+use super::dialogs::{Dialog, Then};
+use super::files::FilePurpose;
+use super::graph_view::{self, Action};
+use super::preview;
+use super::EditorApp;
+use crate::graph::NodeId;
+use egui::{Key, KeyboardShortcut, Modifiers, RichText};
+
+impl EditorApp {
+    pub(super) fn shortcuts(&mut self, ctx: &egui::Context) {
+        let typing = ctx.egui_wants_keyboard_input();
+        let sc = |m, k| KeyboardShortcut::new(m, k);
+        let hit = |s: KeyboardShortcut| ctx.input_mut(|i| i.consume_shortcut(&s));
+        if hit(sc(Modifiers::COMMAND | Modifiers::SHIFT, Key::Z))
+            || hit(sc(Modifiers::COMMAND, Key::Y))
+        {
+            self.redo();
+        }
+        if hit(sc(Modifiers::COMMAND, Key::Z)) {
+            self.undo();
+        }
+        if hit(sc(Modifiers::COMMAND, Key::S)) {
+            self.save();
+        }
+        if hit(sc(Modifiers::COMMAND, Key::O)) {
+            self.guarded(Then::Open(String::new()));
+        }
+        if hit(sc(Modifiers::COMMAND, Key::N)) {
+            self.guarded(Then::New);
+        }
+        if !typing && self.files.is_none() {
+            let (copy, paste) = ctx.input(|i| {
+                (
+                    i.events.iter().any(|e| matches!(e, egui::Event::Copy)),
+                    i.events.iter().any(|e| matches!(e, egui::Event::Paste(_))),
+                )
+            });
+            if copy {
+                let sel = self.view.selected(ctx);
+                self.copy(&sel);
+            }
+            if paste {
+                self.paste();
+            }
+            let sel = self.view.selected(ctx);
+            if !sel.is_empty() {
+                if hit(sc(Modifiers::COMMAND, Key::D)) {
+                    self.apply(Action::Duplicate(sel.clone()));
+                }
+                if hit(sc(Modifiers::NONE, Key::Delete)) || hit(sc(Modifiers::NONE, Key::Backspace))
+                {
+                    self.apply(Action::Delete(sel));
+                }
+            }
+        }
+    }
+
+    pub(super) fn menu_ui(&mut self, ui: &mut egui::Ui, actions: &mut Vec<Action>) {
+        egui::MenuBar::new().ui(ui, |ui| {
+            ui.menu_button("File", |ui| {
+                if ui.button("New").clicked() {
+                    self.guarded(Then::New);
+                    ui.close();
+                }
+                if ui.button("Open…").clicked() {
+                    self.guarded(Then::Open(String::new()));
+                    ui.close();
+                }
+                ui.menu_button("Open recent", |ui| {
+                    if self.prefs.recent.paths.is_empty() {
+                        ui.weak("no recent files");
+                    }
+                    for p in self.prefs.recent.paths.clone() {
+                        let name = p.file_name().map_or_else(
+                            || p.display().to_string(),
+                            |n| n.to_string_lossy().into(),
+                        );
+                        if ui
+                            .button(name)
+                            .on_hover_text(p.display().to_string())
+                            .clicked()
+                        {
+                            self.guarded(Then::Open(p.display().to_string()));
+                            ui.close();
+                        }
+                    }
+                });
+                if ui.button("Save").clicked() {
+                    self.save();
+                    ui.close();
+                }
+                if ui.button("Save As…").clicked() {
+                    self.browse(FilePurpose::SaveAs);
+                    ui.close();
+                }
+                let viewed = self.session.viewed.clone();
+                if ui
+                    .add_enabled(viewed.is_some(), egui::Button::new("Export viewed output…"))
+                    .on_hover_text(
+                        "Write the previewed node's output to EXR/PNG (any node: right-click it)",
+                    )
+                    .clicked()
+                {
+                    if let Some((id, port)) = viewed {
+                        self.browse(FilePurpose::Export(id, port));
+                    }
+                    ui.close();
+                }
+                ui.separator();
+                if ui.button("Quit").clicked() {
+                    self.guarded(Then::Quit);
+                    ui.close();
+                }
+            });
+            ui.menu_button("Edit", |ui| {
+                let (u, r) = (
+                    self.session.doc.history.undo_len(),
+                    self.session.doc.history.redo_len(),
+                );
+                if ui.add_enabled(u > 0, egui::Button::new("Undo")).clicked() {
+                    self.undo();
+                    ui.close();
+                }
+                if ui.add_enabled(r > 0, egui::Button::new("Redo")).clicked() {
+                    self.redo();
+                    ui.close();
+                }
+                ui.separator();
+                let sel: Vec<NodeId> = {
+                    let s = self.view.selected(ui.ctx());
+                    if s.is_empty() {
+                        self.session.selected.into_iter().collect()
+                    } else {
+                        s
+                    }
+                };
+                if ui
+                    .add_enabled(!sel.is_empty(), egui::Button::new("Delete"))
+                    .clicked()
+                {
+                    actions.push(Action::Delete(sel.clone()));
+                    ui.close();
+                }
+                if ui
+                    .add_enabled(!sel.is_empty(), egui::Button::new("Duplicate"))
+                    .clicked()
+                {
+                    actions.push(Action::Duplicate(sel.clone()));
+                    ui.close();
+                }
+                if ui
+                    .add_enabled(!sel.is_empty(), egui::Button::new("Copy"))
+                    .clicked()
+                {
+                    self.copy(&sel);
+                    ui.close();
+                }
+                if ui
+                    .add_enabled(self.session.clipboard.is_some(), egui::Button::new("Paste"))
+                    .clicked()
+                {
+                    self.paste();
+                    ui.close();
+                }
+            });
+            ui.menu_button("Add", |ui| {
+                if let Some(op) = graph_view::add_node_menu_ui(ui, &mut self.view.search) {
+                    self.add_node_after_selection(op);
+                }
+            });
+            ui.menu_button("View", |ui| {
+                for v in preview::Mode::ALL {
+                    if ui
+                        .selectable_label(self.prefs.settings.view == v, v.name())
+                        .clicked()
+                    {
+                        self.prefs.settings.view = v;
+                        ui.close();
+                    }
+                }
+                ui.separator();
+                if ui.button("Frame graph").clicked() {
+                    self.view.frame_pending = 2;
+                    ui.close();
+                }
+                if ui.button("Frame image (preview)").clicked() {
+                    self.preview.zoom = None;
+                    self.preview.pan = egui::Vec2::ZERO;
+                    ui.close();
+                }
+                if ui.button("Actual pixels (1:1)").clicked() {
+                    self.preview.zoom = Some(1.0);
+                    ui.close();
+                }
+            });
+            ui.menu_button("Help", |ui| {
+                if ui.button("Operators…").clicked() {
+                    self.show_ops = true;
+                    ui.close();
+                }
+                if ui.button("About rgbn").clicked() {
+                    self.dialog = Some(Dialog::About);
+                    ui.close();
+                }
+            });
+            ui.separator();
+            ui.label(RichText::new(self.session.doc.title()).weak());
+        });
+    }
+}
+
+/// Every operator's documentation: doc, ports, parameters.
+pub(super) fn ops_doc_ui(ui: &mut egui::Ui) {
+    egui::ScrollArea::vertical().show(ui, |ui| {
+        for op in crate::ops::registry() {
+            let s = op.spec();
+            egui::CollapsingHeader::new(format!("{} — {} ({})", s.title, s.id, s.category)).show(
+                ui,
+                |ui| {
+                    ui.label(s.doc);
+                    for p in &s.inputs {
+                        ui.label(format!("in  {} : {} — {}", p.name, p.ty.name(), p.doc));
+                    }
+                    for p in &s.outputs {
+                        ui.label(format!("out {} : {} — {}", p.name, p.ty.name(), p.doc));
+                    }
+                    for p in op.params() {
+                        let range = p
+                            .meta
+                            .range
+                            .map(|(a, b)| format!(" [{a}, {b}]"))
+                            .unwrap_or_default();
+                        ui.label(format!(
+                            "param {} = {}{} {}{} — {}",
+                            p.name, p.default, "", p.meta.unit, range, p.meta.doc
+                        ));
+                    }
+                },
+            );
+        }
+    });
+}

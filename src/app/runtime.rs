@@ -1,0 +1,205 @@
+//! The runtime: evaluation on the worker thread (requests, generations, progress, the accepted
+//! outcome, thumbnails, port lists) and frame timing. [`EditorApp::poll`] runs once per frame,
+//! from `eframe::App::logic`.
+
+use super::worker::{EvalOutcome, EvalRequest, Generations, Worker, WorkerMsg};
+use super::{EditorApp, Status};
+use crate::graph::{Graph, NodeId, NodePorts};
+use egui::{TextureHandle, TextureOptions};
+use std::collections::BTreeMap;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{Arc, OnceLock};
+use std::time::{Duration, Instant};
+
+/// The running evaluation.
+pub(super) struct InFlight {
+    pub(super) cancel: Arc<AtomicBool>,
+    pub(super) started: Instant,
+}
+
+/// Evaluation state and results, and frame timing.
+pub struct Runtime {
+    pub(super) worker: Worker,
+    /// The egui context, for the worker to wake the UI (set by the first [`EditorApp::poll`]).
+    pub(super) wake_ctx: Arc<OnceLock<egui::Context>>,
+    pub(super) gens: Generations,
+    pub(super) in_flight: Option<InFlight>,
+    /// The evaluation-relevant graph of the last request (positions zeroed).
+    pub(super) last_sent: Option<Graph>,
+    /// Progress of the running evaluation (done, total).
+    pub progress: Option<(usize, usize)>,
+    /// The latest accepted evaluation.
+    pub outcome: EvalOutcome,
+    pub(super) thumbs: BTreeMap<NodeId, (Arc<crate::ops::Picture>, TextureHandle)>,
+    pub(super) ports: BTreeMap<NodeId, NodePorts>,
+    pub(super) ports_for: Option<Graph>,
+    /// Evaluation requests sent (tests).
+    pub requests: u64,
+    pub(super) started: Instant,
+    /// Time from start to the first preview texture.
+    pub first_preview: Option<Duration>,
+    pub(super) frame_ms: f64,
+    /// Frame times (ms) while the current evaluation runs: count, sum, max.
+    pub(super) eval_frames: (u32, f64, f64),
+    /// Quit confirmed: the next close request is not intercepted.
+    pub(super) allow_close: bool,
+}
+
+impl Runtime {
+    /// Starts the worker thread.
+    pub(super) fn new() -> Self {
+        let wake_ctx: Arc<OnceLock<egui::Context>> = Arc::new(OnceLock::new());
+        let w = wake_ctx.clone();
+        let worker = Worker::spawn(Arc::new(move || {
+            if let Some(ctx) = w.get() {
+                ctx.request_repaint();
+            }
+        }));
+        Self {
+            worker,
+            wake_ctx,
+            gens: Generations::default(),
+            in_flight: None,
+            last_sent: None,
+            progress: None,
+            outcome: EvalOutcome::default(),
+            thumbs: BTreeMap::new(),
+            ports: BTreeMap::new(),
+            ports_for: None,
+            requests: 0,
+            started: Instant::now(),
+            first_preview: None,
+            frame_ms: 0.0,
+            eval_frames: (0, 0.0, 0.0),
+            allow_close: false,
+        }
+    }
+}
+
+impl EditorApp {
+    /// True while an evaluation is running or a newer graph waits to be sent.
+    #[must_use]
+    pub fn evaluating(&self) -> bool {
+        self.runtime.in_flight.is_some()
+            || self.runtime.last_sent.as_ref() != Some(&eval_graph(&self.session.doc.graph))
+    }
+
+    /// Takes worker messages, accepts current results, sends a new request when the graph
+    /// changed and none is running. Never blocks.
+    pub fn poll(&mut self, ctx: &egui::Context) {
+        let _ = self.runtime.wake_ctx.set(ctx.clone());
+        while let Some(msg) = self.runtime.worker.poll() {
+            match msg {
+                WorkerMsg::Progress {
+                    generation,
+                    done,
+                    total,
+                } => {
+                    if generation == self.runtime.gens.latest() {
+                        self.runtime.progress = Some((done, total));
+                    }
+                }
+                WorkerMsg::Done(out) => {
+                    if self.runtime.gens.accept(out.generation) {
+                        self.runtime.in_flight = None;
+                        self.runtime.progress = None;
+                        if self.prefs.timing {
+                            let (n, sum, max) = self.runtime.eval_frames;
+                            eprintln!(
+                                "rgbn editor: evaluation {} took {:.0} ms ({} computed); {n} UI frames meanwhile, mean {:.2} ms, max {:.2} ms",
+                                out.generation,
+                                out.elapsed.as_secs_f64() * 1e3,
+                                out.computed,
+                                if n > 0 { sum / f64::from(n) } else { 0.0 },
+                                max
+                            );
+                        }
+                        self.runtime.eval_frames = (0, 0.0, 0.0);
+                        if out.cancelled {
+                            self.say("evaluation cancelled");
+                        } else {
+                            self.accept_outcome(ctx, *out);
+                        }
+                    }
+                }
+            }
+        }
+        let want = eval_graph(&self.session.doc.graph);
+        if self.runtime.in_flight.is_none() && self.runtime.last_sent.as_ref() != Some(&want) {
+            let cancel = Arc::new(AtomicBool::new(false));
+            self.runtime.worker.send(EvalRequest {
+                generation: self.runtime.gens.new_request(),
+                graph: self.session.doc.graph.clone(),
+                base_dir: self.session.doc.base_dir(),
+                cancel: cancel.clone(),
+            });
+            self.runtime.requests += 1;
+            self.tools.request_sent();
+            self.runtime.in_flight = Some(InFlight {
+                cancel,
+                started: Instant::now(),
+            });
+            self.runtime.last_sent = Some(want);
+        }
+    }
+
+    pub(super) fn accept_outcome(&mut self, ctx: &egui::Context, out: EvalOutcome) {
+        // Thumbnail textures: re-upload only the pictures that changed.
+        let mut thumbs = BTreeMap::new();
+        for (id, pic) in &out.thumbs {
+            let tex = match self.runtime.thumbs.remove(id) {
+                Some((old, tex)) if Arc::ptr_eq(&old, pic) || *old == **pic => tex,
+                _ => ctx.load_texture(
+                    format!("thumb-{id}"),
+                    egui::ColorImage::from_rgba_unmultiplied([pic.width, pic.height], &pic.rgba),
+                    TextureOptions::LINEAR,
+                ),
+            };
+            thumbs.insert(*id, (pic.clone(), tex));
+        }
+        self.runtime.thumbs = thumbs;
+        if let Some(e) = &out.error {
+            self.fail(e.clone());
+        } else if !out.node_errors.is_empty() {
+            let (id, e) = out.node_errors.iter().next().expect("not empty");
+            self.fail(format!(
+                "{} node(s) failed; #{id}: {e}",
+                out.node_errors.len()
+            ));
+        } else if self.status.error {
+            self.status = Status::default();
+        }
+        self.runtime.outcome = out;
+    }
+
+    pub(super) fn cancel(&mut self) {
+        if let Some(f) = &self.runtime.in_flight {
+            f.cancel.store(true, Ordering::Relaxed);
+        }
+    }
+
+    pub(super) fn refresh_ports(&mut self) {
+        if self.runtime.ports_for.as_ref() == Some(&self.session.doc.graph) {
+            return;
+        }
+        let base = self.session.doc.base_dir();
+        self.runtime.ports = self
+            .session
+            .doc
+            .graph
+            .nodes
+            .keys()
+            .filter_map(|id| Some((*id, self.session.doc.graph.node_ports(*id, &base).ok()?)))
+            .collect();
+        self.runtime.ports_for = Some(self.session.doc.graph.clone());
+    }
+}
+
+/// The graph as far as evaluation cares: positions do not matter.
+pub(super) fn eval_graph(g: &Graph) -> Graph {
+    let mut g = g.clone();
+    for n in g.nodes.values_mut() {
+        n.pos = [0.0, 0.0];
+    }
+    g
+}
