@@ -1,11 +1,13 @@
 //! The README's examples, run as written.
 //!
-//! Every line of a fenced `sh` block in README.md that starts with `rgbn ` (continuation lines
-//! ending in `\` joined, comments left to the shell) runs through `sh -c`, in order, in one
-//! temporary folder holding a fresh copy of `graphs/`, with the built `rgbn` first on `PATH` and
-//! `RGBN_DATA` pointing at the third-party data. A command must exit 0 and every file it names
-//! with `-o`/`--output` (or `NAME=FILE`) must exist afterwards; `--out-dir` folders must be
-//! non-empty. Commands that use `$RGBN_DATA` are skipped (with a note) when the data is absent;
+//! Every line of a fenced `sh` block in README.md that starts with `rgbn ` or `mkdir `
+//! (continuation lines ending in `\` joined, comments left to the shell) runs through `sh -c`, in
+//! order, in one temporary folder holding a fresh copy of `graphs/`, with the built `rgbn` first
+//! on `PATH`, `HOME` a temporary folder too (examples that install completions or man pages write
+//! there, never into the user's home) and `RGBN_DATA` pointing at the third-party data. A command
+//! must exit 0 and every file it names with `-o`/`--output` (or `NAME=FILE`) or redirects to with
+//! `>` must exist and be non-empty afterwards; `--out-dir` folders must be non-empty. (`cargo`
+//! lines are the newcomer's build and test commands, run by CI itself.) Commands that use `$RGBN_DATA` are skipped (with a note) when the data is absent;
 //! under `RGBN_REQUIRE_DATA=1` (CI) the absence fails the test instead.
 
 use crate::common::*;
@@ -43,7 +45,7 @@ fn examples(markdown: &str) -> Vec<Example> {
         if let Some(p) = pending.as_mut() {
             p.command.push('\n');
             p.command.push_str(raw);
-        } else if line.starts_with("rgbn ") {
+        } else if line.starts_with("rgbn ") || line.starts_with("mkdir ") {
             pending = Some(Example {
                 line: i + 1,
                 command: line.to_string(),
@@ -75,6 +77,7 @@ fn named_outputs(command: &str) -> Vec<(String, bool)> {
                 out.push((v.trim_matches('\'').to_string(), false));
             }
             "--out-dir" => out.push((pair[1].trim_matches('\'').to_string(), true)),
+            ">" => out.push((pair[1].to_string(), false)),
             _ => {}
         }
     }
@@ -99,9 +102,14 @@ fn copy_dir(from: &Path, to: &Path) {
 
 #[test]
 fn the_extractor_finds_commands_continuations_and_outputs() {
-    let md = "text `rgbn inline`\n```sh\ncargo test\n# rgbn comment\nrgbn a -o x.png  # note\nrgbn b \\\n    --out-dir out -o y=z.exr\n```\n```ron\nrgbn not shell\n```\n";
+    let md = "text `rgbn inline`\n```sh\ncargo test\n# rgbn comment\nrgbn a -o x.png  # note\nrgbn b \\\n    --out-dir out -o y=z.exr\n```\n```ron\nrgbn not shell\n```\n```sh\nmkdir -p d\nrgbn c > d/f.txt\n```\n";
     let ex = examples(md);
-    assert_eq!(ex.len(), 2, "{ex:?}");
+    assert_eq!(ex.len(), 4, "{ex:?}");
+    assert_eq!(ex[2].command, "mkdir -p d");
+    assert_eq!(
+        named_outputs(&ex[3].command),
+        vec![("d/f.txt".into(), false)]
+    );
     assert_eq!(ex[0].line, 5);
     assert_eq!(ex[0].command, "rgbn a -o x.png  # note");
     assert_eq!(ex[1].command, "rgbn b \\\n    --out-dir out -o y=z.exr");
@@ -123,6 +131,7 @@ fn readme_examples_run_as_written() {
     );
     let tmp = tempfile::tempdir().unwrap();
     copy_dir(&root().join("graphs"), &tmp.path().join("graphs"));
+    let home = tempfile::tempdir().unwrap();
     let bin = PathBuf::from(env!("CARGO_BIN_EXE_rgbn"));
     let path = std::env::join_paths(std::iter::once(bin.parent().unwrap().to_path_buf()).chain(
         std::env::split_paths(&std::env::var_os("PATH").unwrap_or_default()),
@@ -145,6 +154,7 @@ fn readme_examples_run_as_written() {
             .arg(&ex.command)
             .current_dir(tmp.path())
             .env("PATH", &path)
+            .env("HOME", home.path())
             .env_remove("RGBN_CACHE_DIR");
         if let Some(d) = &data {
             cmd.env("RGBN_DATA", d);
@@ -162,7 +172,10 @@ fn readme_examples_run_as_written() {
             continue;
         }
         for (f, is_dir) in named_outputs(&ex.command) {
-            let p = tmp.path().join(&f);
+            let p = match f.strip_prefix("~/") {
+                Some(rest) => home.path().join(rest),
+                None => tmp.path().join(&f),
+            };
             let ok = if is_dir {
                 std::fs::read_dir(&p).is_ok_and(|mut d| d.next().is_some())
             } else {
