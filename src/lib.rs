@@ -9,8 +9,10 @@
 //! - [`raster`]: the image model ([`RgbnImage`]), file I/O, gradient maths and curl,
 //!   convolution kernels, built-in sample and analytic surfaces.
 //! - [`capture`]: photometric stereo and light calibration (photos → RGBN).
-//! - [`ops`]: operators (filters, …) and their node form: [`ops::Operator`], [`ops::OpSpec`],
-//!   typed ports, parameters declared once ([`ops::params`]), the registry.
+//! - [`ops`]: the pure operators (filters, combines, pen, …; no graph types) and their
+//!   parameters, declared once ([`ops::params`]).
+//! - [`nodes`]: each operator's node form ([`nodes::Operator`], [`nodes::OpSpec`], typed ports)
+//!   and the registry.
 //! - [`graph`]: graphs of nodes, the versioned RON file format, validation.
 //! - [`eval`]: the lazy, content-keyed, cached evaluator.
 //! - [`render`]: relighting and the diagnostic views.
@@ -26,6 +28,7 @@ pub mod cli;
 pub mod error;
 pub mod eval;
 pub mod graph;
+pub mod nodes;
 pub mod ops;
 pub mod raster;
 pub mod render;

@@ -88,6 +88,25 @@ impl Band {
         }
     }
 
+    /// The kind, σ (the finer σ of a band-pass) and coarser σ (4 px when unused) of the band:
+    /// the parameter form of [`BandKind::band`].
+    #[must_use]
+    pub fn parts(&self) -> (BandKind, f64, f64) {
+        match *self {
+            Band::LowPass { sigma_px } => (BandKind::LowPass, f64::from(sigma_px), 4.0),
+            Band::HighPass { sigma_px } => (BandKind::HighPass, f64::from(sigma_px), 4.0),
+            Band::BandPass {
+                sigma_fine_px,
+                sigma_coarse_px,
+            } => (
+                BandKind::BandPass,
+                f64::from(sigma_fine_px),
+                f64::from(sigma_coarse_px),
+            ),
+            Band::LoG { sigma_px } => (BandKind::LoG, f64::from(sigma_px), 4.0),
+        }
+    }
+
     /// The band as a [`Kernel`] of [`super::filter`].
     #[must_use]
     pub fn kernel(&self) -> Kernel {
@@ -106,41 +125,103 @@ impl Band {
     }
 }
 
-/// Keep the band or remove it.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
-pub enum BandOp {
-    /// `B ∗ g`.
-    #[default]
-    Keep,
-    /// `g − B ∗ g`: the base without the band.
-    Remove,
-}
-
-/// Parameters of [`band_filter`].
-#[derive(Clone, Debug, Default, PartialEq, serde::Serialize, serde::Deserialize)]
-pub struct BandParams {
-    pub band: Band,
-    pub op: BandOp,
-    pub border: BorderMode,
-}
-
-impl BandParams {
-    /// Checks every parameter.
-    pub fn validate(&self) -> Result<(), RgbnError> {
-        self.band.validate()
+crate::choice_enum! {
+    /// The kind of a [`Band`].
+    pub enum BandKind {
+        /// Low-pass `G_σ`.
+        LowPass = "lowpass",
+        /// High-pass `I − G_σ`.
+        HighPass = "highpass",
+        /// Band-pass `G_σ − G_coarse` (DoG).
+        BandPass = "bandpass",
+        /// Scale-normalised Laplacian of Gaussian `−σ²∇²G_σ`.
+        LoG = "log",
     }
 }
 
-/// `B ∗ g` (Keep) or `g − B ∗ g` (Remove) of a gradient field (module docs).
+impl BandKind {
+    /// The band of this kind with σ `sigma_px` (the finer σ of a band-pass) and, for a
+    /// band-pass, the coarser σ `sigma_coarse_px`, checked; errors name `sigma_px` and
+    /// `sigma_coarse_px`.
+    pub fn band(self, sigma_px: f64, sigma_coarse_px: f64) -> Result<Band, RgbnError> {
+        let (s, c) = (sigma_px as f32, sigma_coarse_px as f32);
+        let band = match self {
+            BandKind::LowPass => Band::LowPass { sigma_px: s },
+            BandKind::HighPass => Band::HighPass { sigma_px: s },
+            BandKind::BandPass => Band::BandPass {
+                sigma_fine_px: s,
+                sigma_coarse_px: c,
+            },
+            BandKind::LoG => Band::LoG { sigma_px: s },
+        };
+        band.validate().map_err(|e| match e {
+            RgbnError::InvalidParam { name, detail } if name == "sigma_fine_px" => {
+                RgbnError::param("sigma_px", detail)
+            }
+            other => other,
+        })?;
+        Ok(band)
+    }
+}
+
+crate::choice_enum! {
+    /// Keep the band or remove it.
+    pub enum BandOp {
+        /// `B ∗ g`: the band only.
+        Keep = "keep",
+        /// `g − B ∗ g`: the base without the band.
+        Remove = "remove",
+    }
+}
+
+crate::params! {
+    /// Parameters of [`band_filter`].
+    #[derive(Clone, Debug, PartialEq)]
+    pub struct BandParams {
+        /// Which band: lowpass G_σ, highpass I − G_σ, bandpass G_σ − G_coarse (DoG), log −σ²∇²G_σ.
+        pub band: BandKind = BandKind::BandPass => choice,
+        /// σ of the band (low-pass, high-pass, LoG), or the finer σ of a band-pass.
+        pub sigma_px: f64 = 1.0 => float.unit("px").range(0.05, 4096.0),
+        /// The coarser σ of a band-pass (must exceed sigma_px); unused by the others.
+        pub sigma_coarse_px: f64 = 4.0 => float.unit("px").range(0.05, 4096.0),
+        /// keep: B * g (the band only); remove: g − B * g (everything but the band).
+        pub op: BandOp = BandOp::Keep => choice,
+        /// How the image is extended beyond its border.
+        pub border: BorderMode = BorderMode::Mirror => choice,
+    }
+}
+
+impl BandParams {
+    /// The band, checked.
+    pub fn band(&self) -> Result<Band, RgbnError> {
+        self.band.band(self.sigma_px, self.sigma_coarse_px)
+    }
+    /// Checks every parameter.
+    pub fn validate(&self) -> Result<(), RgbnError> {
+        self.band().map(|_| ())
+    }
+}
+
+/// `B ∗ g` (Keep) or `g − B ∗ g` (Remove) of a gradient field for [`BandParams`].
 pub fn band_filter(g: &GradientField, params: &BandParams) -> Result<GradientField, RgbnError> {
-    params.validate()?;
+    apply_band(g, &params.band()?, params.op, params.border)
+}
+
+/// `B ∗ g` (Keep) or `g − B ∗ g` (Remove) of a gradient field (module docs).
+pub fn apply_band(
+    g: &GradientField,
+    band: &Band,
+    op: BandOp,
+    border: BorderMode,
+) -> Result<GradientField, RgbnError> {
+    band.validate()?;
     let mut b = g.clone();
     let opts = FilterOptions {
-        border: params.border,
+        border,
         mask_aware: false,
     };
-    filter_gradients(&mut b, &[params.band.kernel()], &opts, None)?;
-    if params.op == BandOp::Remove {
+    filter_gradients(&mut b, &[band.kernel()], &opts, None)?;
+    if op == BandOp::Remove {
         for (out, orig) in [(&mut b.p, &g.p), (&mut b.q, &g.q)] {
             out.par_iter_mut()
                 .zip(orig.par_iter())
@@ -156,14 +237,7 @@ pub fn split_band(
     band: &Band,
     border: BorderMode,
 ) -> Result<(GradientField, GradientField), RgbnError> {
-    let keep = band_filter(
-        g,
-        &BandParams {
-            band: band.clone(),
-            op: BandOp::Keep,
-            border,
-        },
-    )?;
+    let keep = apply_band(g, band, BandOp::Keep, border)?;
     let mut rest = g.clone();
     for (r, k) in [(&mut rest.p, &keep.p), (&mut rest.q, &keep.q)] {
         r.par_iter_mut()
@@ -220,14 +294,8 @@ mod tests {
     fn removal_plus_band_is_the_original() {
         let g = bumpy(128);
         for band in all_bands() {
-            let mut p = BandParams {
-                band: band.clone(),
-                op: BandOp::Keep,
-                border: BorderMode::Mirror,
-            };
-            let keep = band_filter(&g, &p).unwrap();
-            p.op = BandOp::Remove;
-            let rest = band_filter(&g, &p).unwrap();
+            let keep = apply_band(&g, &band, BandOp::Keep, BorderMode::Mirror).unwrap();
+            let rest = apply_band(&g, &band, BandOp::Remove, BorderMode::Mirror).unwrap();
             let err = (0..g.p.len())
                 .map(|i| {
                     (keep.p[i] + rest.p[i] - g.p[i])
@@ -260,12 +328,7 @@ mod tests {
         };
         let (fine, coarse) = (field(6.0), field(96.0));
         let run = |g: &GradientField, band: Band| {
-            let p = BandParams {
-                band,
-                op: BandOp::Keep,
-                border: BorderMode::Wrap,
-            };
-            energy(&band_filter(g, &p).unwrap()) / energy(g)
+            energy(&apply_band(g, &band, BandOp::Keep, BorderMode::Wrap).unwrap()) / energy(g)
         };
         // 2-D sinusoid: the energy gain is ĝ(k)⁴ (both axes), ĝ(k) = exp(−σ²k²/2).
         let low = Band::LowPass { sigma_px: 4.0 };
@@ -291,15 +354,7 @@ mod tests {
         let g = bumpy(160);
         for band in all_bands() {
             for op in [BandOp::Keep, BandOp::Remove] {
-                let out = band_filter(
-                    &g,
-                    &BandParams {
-                        band: band.clone(),
-                        op,
-                        border: BorderMode::Mirror,
-                    },
-                )
-                .unwrap();
+                let out = apply_band(&g, &band, op, BorderMode::Mirror).unwrap();
                 let rel = out.relative_rms_curl(None);
                 assert!(rel < 1e-3, "{band:?} {op:?}: {rel:e}");
             }
@@ -344,16 +399,27 @@ mod tests {
                 "greater than sigma_fine_px",
             ),
         ] {
-            let e = band_filter(
+            let e = apply_band(
                 &GradientField::zeros(4, 4),
-                &BandParams {
-                    band: b,
-                    ..BandParams::default()
-                },
+                &b,
+                BandOp::Keep,
+                BorderMode::Mirror,
             )
             .unwrap_err()
             .to_string();
             assert!(e.contains(needle), "{e}");
         }
+        // Through the params: the finer σ is called sigma_px.
+        let p = BandParams {
+            sigma_px: 5.0,
+            ..BandParams::default()
+        };
+        let e = band_filter(&GradientField::zeros(4, 4), &p)
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("sigma_coarse_px") && e.contains("sigma_fine_px = 5"),
+            "{e}"
+        );
     }
 }

@@ -9,7 +9,7 @@
 //! `n̂(P) = normalize( Σ_Q w_s(P,Q) · w_c(P,Q) · w_n(P,Q) · n(Q) )`
 //!
 //! - spatial `w_s = exp(−|P−Q|² / 2σ_s²)` (precomputed per offset),
-//! - colour `w_c = exp(−|c(P) − c(Q)|² / 2σ_c²)` (linear RGB; skipped when `σ_c` is `None`),
+//! - colour `w_c = exp(−|c(P) − c(Q)|² / 2σ_c²)` (linear RGB; skipped when `σ_c` is 0),
 //! - normal similarity `w_n = exp(−δ² / 2σ_n²)` with `δ` the angle between the normals
 //!   ([`NormalMetric::Angle`], radians) or `1 − n·n′` ([`NormalMetric::OneMinusDot`]).
 //!
@@ -32,7 +32,7 @@
 //! - C. Tomasi, R. Manduchi, "Bilateral filtering for gray and color images", ICCV 1998.
 //! - T. Pereira, L. Velho, "RGBN image editing", SIBGRAPI 2011, §VII.
 
-use super::rotate::{normalize3, Frame};
+use super::rotate::{normalize3, Frame, FrameKind};
 use crate::error::RgbnError;
 use crate::raster::buf;
 use crate::raster::gradient::{CurlStats, GradientField};
@@ -42,49 +42,64 @@ use rayon::prelude::*;
 /// Largest spatial σ accepted (pixels): the window is `(4σ+1)²` taps per pixel.
 pub const MAX_BILATERAL_SIGMA_PX: f32 = 64.0;
 
-/// How normal similarity is measured.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
-pub enum NormalMetric {
-    /// `δ = angle(n, n′)` in radians.
-    #[default]
-    Angle,
-    /// `δ = 1 − n·n′` (cheaper, ≈ angle²/2).
-    OneMinusDot,
+crate::choice_enum! {
+    /// How normal similarity is measured.
+    pub enum NormalMetric {
+        /// `δ = angle(n, n′)` in radians.
+        Angle = "angle",
+        /// `δ = 1 − n·n′` (cheaper, ≈ angle²/2).
+        OneMinusDot = "one_minus_dot",
+    }
 }
 
-/// Parameters of [`bilateral`] and [`split`].
-#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
-pub struct BilateralParams {
-    /// Spatial σ in pixels, in (0, 64].
-    pub sigma_spatial_px: f32,
-    /// Colour σ (linear RGB distance); `None` ignores colour.
-    pub sigma_color: Option<f32>,
-    /// Normal-similarity σ (radians for Angle, unitless for OneMinusDot); `None` ignores normals.
-    pub sigma_normal: Option<f32>,
-    pub normal_metric: NormalMetric,
-    /// Also smooth the colour with the same weights.
-    pub filter_color: bool,
-    /// Frame of the detail in [`split`].
-    pub frame: Frame,
-}
-
-impl Default for BilateralParams {
-    fn default() -> Self {
-        Self {
-            sigma_spatial_px: 3.0,
-            sigma_color: None,
-            sigma_normal: Some(0.3),
-            normal_metric: NormalMetric::Angle,
-            filter_color: false,
-            frame: Frame::MinimalRotation,
-        }
+crate::params! {
+    /// Parameters of [`bilateral`] and [`split`].
+    #[derive(Clone, Debug, PartialEq)]
+    pub struct BilateralParams {
+        /// Spatial σ; the window has radius ⌈2σ⌉.
+        pub sigma_spatial_px: f64 = 3.0
+            => float.unit("px").range(0.05, f64::from(MAX_BILATERAL_SIGMA_PX)),
+        /// Colour σ (linear RGB distance); 0 ignores colour.
+        pub sigma_color: f64 = 0.0 => float.range(0.0, 1e6),
+        /// Normal-similarity σ (radians for angle, unitless for one_minus_dot); 0 ignores normals.
+        pub sigma_normal: f64 = f64::from(0.3f32) => float.range(0.0, 1e6),
+        /// Normal similarity: the angle between the normals, or 1 − n·n′ (≈ angle²/2).
+        pub normal_metric: NormalMetric = NormalMetric::Angle => choice,
+        /// Also smooth the base's colour with the same weights.
+        pub filter_color: bool = false => bool,
+        /// Tangent frame of the base normal: minimal (shortest-arc rotation from +z; Blend = RNM) or oriented (tangent = orientation projected on the tangent plane).
+        pub frame: FrameKind = FrameKind::Minimal => choice,
+        /// Orientation vector of the oriented frame (x right, y up, z to the viewer).
+        pub orientation: [f64; 3] = [1.0, 0.0, 0.0] => vec3.range(-1e6, 1e6),
     }
 }
 
 impl BilateralParams {
+    /// The colour σ, `None` when colour is ignored (σ = 0).
+    #[must_use]
+    pub fn color_sigma(&self) -> Option<f32> {
+        (self.sigma_color != 0.0).then_some(self.sigma_color as f32)
+    }
+    /// The normal σ, `None` when normals are ignored (σ = 0).
+    #[must_use]
+    pub fn normal_sigma(&self) -> Option<f32> {
+        (self.sigma_normal != 0.0).then_some(self.sigma_normal as f32)
+    }
+    /// The frame of the detail in [`split`].
+    #[must_use]
+    pub fn detail_frame(&self) -> Frame {
+        self.frame.frame(self.orientation)
+    }
+    /// These parameters with the detail frame `frame`.
+    #[must_use]
+    pub fn with_frame(mut self, frame: &Frame) -> Self {
+        (self.frame, self.orientation) = FrameKind::of(frame, self.orientation);
+        self
+    }
+
     /// Checks every parameter.
     pub fn validate(&self) -> Result<(), RgbnError> {
-        let s = self.sigma_spatial_px;
+        let s = self.sigma_spatial_px as f32;
         if !(s.is_finite() && s > 0.0 && s <= MAX_BILATERAL_SIGMA_PX) {
             return Err(RgbnError::param(
                 "sigma_spatial_px",
@@ -92,19 +107,19 @@ impl BilateralParams {
             ));
         }
         for (name, v) in [
-            ("sigma_color", self.sigma_color),
-            ("sigma_normal", self.sigma_normal),
+            ("sigma_color", self.color_sigma()),
+            ("sigma_normal", self.normal_sigma()),
         ] {
             if let Some(v) = v {
                 if !(v.is_finite() && v > 0.0 && v <= 1e6) {
                     return Err(RgbnError::param(
                         name,
-                        format!("{v} must be in (0, 1e6] (or None to ignore)"),
+                        format!("{v} must be in (0, 1e6] (or 0 to ignore)"),
                     ));
                 }
             }
         }
-        self.frame.validate()
+        self.detail_frame().validate()
     }
 }
 
@@ -122,17 +137,18 @@ pub fn bilateral(
 ) -> Result<(RgbnImage, BilateralReport), RgbnError> {
     params.validate()?;
     let (w, h) = (img.width(), img.height());
-    let rad = (2.0 * params.sigma_spatial_px).ceil() as isize;
+    let sigma_spatial_px = params.sigma_spatial_px as f32;
+    let rad = (2.0 * sigma_spatial_px).ceil() as isize;
     let side = (2 * rad + 1) as usize;
-    let inv2s = 1.0 / (2.0 * params.sigma_spatial_px * params.sigma_spatial_px);
+    let inv2s = 1.0 / (2.0 * sigma_spatial_px * sigma_spatial_px);
     let spatial: Vec<f32> = (0..side * side)
         .map(|k| {
             let (dx, dy) = ((k % side) as isize - rad, (k / side) as isize - rad);
             (-((dx * dx + dy * dy) as f32) * inv2s).exp()
         })
         .collect();
-    let inv2c = params.sigma_color.map(|s| 1.0 / (2.0 * s * s));
-    let inv2n = params.sigma_normal.map(|s| 1.0 / (2.0 * s * s));
+    let inv2c = params.color_sigma().map(|s| 1.0 / (2.0 * s * s));
+    let inv2n = params.normal_sigma().map(|s| 1.0 / (2.0 * s * s));
     let metric = params.normal_metric;
     let (nrm, col, mask) = (img.normal(), img.color(), img.mask());
     let n = w * h;
@@ -243,12 +259,13 @@ pub fn bilateral(
 }
 
 /// Splits an image into `(base, detail)` (module docs): base = [`bilateral`], detail normals =
-/// `Fᵀ(n̂) n` in the base's frame (`params.frame`), detail colour = the input's.
+/// `Fᵀ(n̂) n` in the base's frame (`params.frame`, `params.orientation`), detail colour = the input's.
 pub fn split(
     img: &RgbnImage,
     params: &BilateralParams,
 ) -> Result<(RgbnImage, RgbnImage, BilateralReport), RgbnError> {
     let (base, report) = bilateral(img, params)?;
+    let frame = params.detail_frame();
     let (bn, on) = (base.normal(), img.normal());
     let n = img.len();
     let mut d = [buf::zeroed_f32(n), buf::zeroed_f32(n), buf::zeroed_f32(n)];
@@ -268,7 +285,7 @@ pub fn split(
                 f64::from(on[1][i]),
                 f64::from(on[2][i]),
             ]);
-            let t = params.frame.to_tangent(b, o);
+            let t = frame.to_tangent(b, o);
             (*x, *y, *z) = (t[0] as f32, t[1] as f32, t[2] as f32);
         });
     let detail = img.with_normals(d)?;
@@ -316,10 +333,10 @@ mod tests {
         ] {
             let params = BilateralParams {
                 sigma_spatial_px: 2.5,
-                sigma_normal: Some(0.4),
-                frame: frame.clone(),
+                sigma_normal: 0.4,
                 ..BilateralParams::default()
-            };
+            }
+            .with_frame(&frame);
             let (base, detail, rep) = split(&img, &params).unwrap();
             println!("bilateral base curl: {:?}", rep.curl_after);
             assert!(rep.curl_after.rms_curl.is_finite());
@@ -330,10 +347,10 @@ mod tests {
                 None,
                 &RotateParams {
                     mode: CombineMode::Blend,
-                    frame,
                     saturate: false,
                     ..RotateParams::default()
-                },
+                }
+                .with_frame(&frame),
             )
             .unwrap();
             let err = (0..img.len())
@@ -354,7 +371,7 @@ mod tests {
     fn base_is_smoother_than_the_input_and_keeps_the_dome() {
         let img = textured(64);
         let p = BilateralParams {
-            sigma_normal: Some(1.5),
+            sigma_normal: 1.5,
             ..BilateralParams::default()
         };
         let (base, _) = bilateral(&img, &p).unwrap();
@@ -406,8 +423,8 @@ mod tests {
         }
         let p = BilateralParams {
             sigma_spatial_px: 3.0,
-            sigma_color: Some(0.1),
-            sigma_normal: None,
+            sigma_color: 0.1,
+            sigma_normal: 0.0,
             filter_color: true,
             ..BilateralParams::default()
         };
@@ -417,7 +434,7 @@ mod tests {
         let (blurred, _) = bilateral(
             &img,
             &BilateralParams {
-                sigma_color: None,
+                sigma_color: 0.0,
                 ..p
             },
         )
@@ -438,14 +455,14 @@ mod tests {
             ),
             (
                 BilateralParams {
-                    sigma_color: Some(f32::NAN),
+                    sigma_color: f64::NAN,
                     ..BilateralParams::default()
                 },
                 "sigma_color",
             ),
             (
                 BilateralParams {
-                    sigma_normal: Some(0.0),
+                    sigma_normal: -1.0,
                     ..BilateralParams::default()
                 },
                 "(0, 1e6]",
@@ -463,8 +480,8 @@ mod tests {
         };
         let p = BilateralParams {
             sigma_spatial_px: 3.0,
-            sigma_color: Some(0.1),
-            sigma_normal: Some(0.2),
+            sigma_color: 0.1,
+            sigma_normal: 0.2,
             ..BilateralParams::default()
         };
         let (base, detail, rep) = split(&img, &p).unwrap();

@@ -24,7 +24,8 @@
 //! - T. Pereira, L. Velho, "RGBN image editing", SIBGRAPI 2011, §IV.
 //! - C. Barré-Brisebois, S. Hill, "Blending in Detail", 2012.
 
-use super::band::{band_filter, Band, BandOp, BandParams};
+use super::band::{apply_band, Band, BandKind, BandOp};
+use super::params::Choice;
 use crate::error::RgbnError;
 use crate::raster::convolve::BorderMode;
 use crate::raster::gradient::{CurlStats, GradientField};
@@ -34,43 +35,85 @@ use rayon::prelude::*;
 /// Largest |α| accepted.
 pub const MAX_ALPHA: f32 = 1000.0;
 
-/// Parameters of [`linear_combine`].
-#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
-pub struct LinearCombineParams {
-    /// Amount of detail `α` (1 = as is, negative inverts the relief), `|α| ≤ 1000`.
-    pub alpha: f32,
-    /// Replace this band of the base by the detail's band (None = plain addition).
-    pub replace_band: Option<Band>,
-    /// Border handling of the band kernels.
-    pub border: BorderMode,
+crate::choice_enum! {
+    /// The band of the base a linear combine replaces by the detail's.
+    pub enum ReplaceBand {
+        /// None: plain addition.
+        None = "none",
+        /// Low-pass `G_σ`.
+        LowPass = "lowpass",
+        /// High-pass `I − G_σ`.
+        HighPass = "highpass",
+        /// Band-pass `G_σ − G_coarse` (DoG).
+        BandPass = "bandpass",
+        /// Laplacian of Gaussian `−σ²∇²G_σ`.
+        LoG = "log",
+    }
 }
 
-impl Default for LinearCombineParams {
-    fn default() -> Self {
-        Self {
-            alpha: 1.0,
-            replace_band: None,
-            border: BorderMode::Mirror,
+impl ReplaceBand {
+    /// The band kind (`None` for plain addition).
+    #[must_use]
+    pub fn kind(self) -> Option<BandKind> {
+        match self {
+            ReplaceBand::None => None,
+            ReplaceBand::LowPass => Some(BandKind::LowPass),
+            ReplaceBand::HighPass => Some(BandKind::HighPass),
+            ReplaceBand::BandPass => Some(BandKind::BandPass),
+            ReplaceBand::LoG => Some(BandKind::LoG),
         }
     }
 }
 
+crate::params! {
+    /// Parameters of [`linear_combine`].
+    #[derive(Clone, Debug, PartialEq)]
+    pub struct LinearCombineParams {
+        /// Amount of detail α (1 = as is, negative inverts the detail's relief).
+        pub alpha: f64 = 1.0 => float.range(-1000.0, 1000.0),
+        /// none: w = ∇b + α·m·∇h; otherwise the base loses this band where the detail goes and
+        /// gets the detail's band: w = ∇b − m·B(∇b) + α·m·B(∇h).
+        pub replace_band: ReplaceBand = ReplaceBand::None => choice,
+        /// σ of the band (low-pass, high-pass, LoG), or the finer σ of a band-pass.
+        pub sigma_px: f64 = 1.0 => float.unit("px").range(0.05, 4096.0),
+        /// The coarser σ of a band-pass (must exceed sigma_px); unused by the others.
+        pub sigma_coarse_px: f64 = 4.0 => float.unit("px").range(0.05, 4096.0),
+        /// How the image is extended beyond its border.
+        pub border: BorderMode = BorderMode::Mirror => choice,
+    }
+}
+
 impl LinearCombineParams {
+    /// The band replaced (`None` = plain addition), checked.
+    pub fn band(&self) -> Result<Option<Band>, RgbnError> {
+        self.replace_band
+            .kind()
+            .map(|k| k.band(self.sigma_px, self.sigma_coarse_px))
+            .transpose()
+    }
+
+    /// These parameters replacing `band` (`None` = plain addition).
+    #[must_use]
+    pub fn with_band(mut self, band: Option<&Band>) -> Self {
+        self.replace_band = ReplaceBand::None;
+        if let Some(b) = band {
+            let (kind, s, c) = b.parts();
+            self.replace_band = ReplaceBand::from_name(kind.name()).unwrap_or_default();
+            (self.sigma_px, self.sigma_coarse_px) = (s, c);
+        }
+        self
+    }
+
     /// Checks every parameter.
     pub fn validate(&self) -> Result<(), RgbnError> {
-        if !(self.alpha.is_finite() && self.alpha.abs() <= MAX_ALPHA) {
+        let alpha = self.alpha as f32;
+        if !(alpha.is_finite() && alpha.abs() <= MAX_ALPHA) {
             return Err(RgbnError::param(
                 "alpha",
-                format!(
-                    "{} must be finite, in [-{MAX_ALPHA}, {MAX_ALPHA}]",
-                    self.alpha
-                ),
+                format!("{alpha} must be finite, in [-{MAX_ALPHA}, {MAX_ALPHA}]"),
             ));
         }
-        if let Some(b) = &self.replace_band {
-            b.validate()?;
-        }
-        Ok(())
+        self.band().map(|_| ())
     }
 }
 
@@ -122,18 +165,14 @@ pub fn linear_combine(
     if let Some(m) = weight {
         check_weight(m, size)?;
     }
-    let (base_band, det) = match &params.replace_band {
+    let (base_band, det) = match &params.band()? {
         Some(band) => {
-            let p = BandParams {
-                band: band.clone(),
-                op: BandOp::Keep,
-                border: params.border,
-            };
-            (Some(band_filter(base, &p)?), band_filter(detail, &p)?)
+            let keep = |g| apply_band(g, band, BandOp::Keep, params.border);
+            (Some(keep(base)?), keep(detail)?)
         }
         None => (None, detail.clone()),
     };
-    let alpha = params.alpha;
+    let alpha = params.alpha as f32;
     let mut out = base.clone();
     for (k, o) in [&mut out.p, &mut out.q].into_iter().enumerate() {
         let d = if k == 0 { &det.p } else { &det.q };
@@ -177,38 +216,24 @@ pub fn linear_combine_height(
     }
     let mut h = detail_height.clone();
     let mut out = base.clone();
-    if let Some(band) = &params.replace_band {
+    if let Some(band) = &params.band()? {
         let filter_plane = |data: &mut Plane| -> Result<(), RgbnError> {
             // A plane filtered as the p-component of a field (q unused).
             let mut g = GradientField::zeros(data.width(), data.height());
             g.p.copy_from_slice(data.data());
-            let f = band_filter(
-                &g,
-                &BandParams {
-                    band: band.clone(),
-                    op: BandOp::Keep,
-                    border: params.border,
-                },
-            )?;
+            let f = apply_band(&g, band, BandOp::Keep, params.border)?;
             data.data_mut().copy_from_slice(&f.p);
             Ok(())
         };
         filter_plane(&mut h)?;
-        let bb = band_filter(
-            base,
-            &BandParams {
-                band: band.clone(),
-                op: BandOp::Keep,
-                border: params.border,
-            },
-        )?;
+        let bb = apply_band(base, band, BandOp::Keep, params.border)?;
         for (o, b) in [(&mut out.p, &bb.p), (&mut out.q, &bb.q)] {
             o.par_iter_mut().enumerate().for_each(|(i, v)| {
                 *v -= weight.map_or(1.0, |m| m.data()[i]) * b[i];
             });
         }
     }
-    let alpha = params.alpha;
+    let alpha = params.alpha as f32;
     if let Some(m) = weight {
         h.data_mut()
             .par_iter_mut()
@@ -337,9 +362,10 @@ mod tests {
         ] {
             let p = LinearCombineParams {
                 alpha: 0.7,
-                replace_band,
                 border: BorderMode::Wrap,
-            };
+                ..LinearCombineParams::default()
+            }
+            .with_band(replace_band.as_ref());
             let w = linear_combine(&base, &detail, None, &p).unwrap();
             let rel = w.relative_rms_curl(None);
             println!(
@@ -395,24 +421,12 @@ mod tests {
         let size = 96;
         let g = height_field(&Surface::gaussians_for(size), size);
         let band = Band::HighPass { sigma_px: 2.0 };
-        let p = LinearCombineParams {
-            alpha: 1.0,
-            replace_band: Some(band.clone()),
-            border: BorderMode::Mirror,
-        };
+        let p = LinearCombineParams::default().with_band(Some(&band));
         let same = linear_combine(&g, &g, None, &p).unwrap();
         assert!(same.p.iter().zip(&g.p).all(|(a, b)| (a - b).abs() < 1e-5));
         let removed =
             linear_combine(&g, &g, None, &LinearCombineParams { alpha: 0.0, ..p }).unwrap();
-        let want = band_filter(
-            &g,
-            &BandParams {
-                band,
-                op: BandOp::Remove,
-                border: BorderMode::Mirror,
-            },
-        )
-        .unwrap();
+        let want = apply_band(&g, &band, BandOp::Remove, BorderMode::Mirror).unwrap();
         assert!(removed
             .q
             .iter()
@@ -428,7 +442,7 @@ mod tests {
             &g,
             None,
             &LinearCombineParams {
-                alpha: f32::NAN,
+                alpha: f64::NAN,
                 ..LinearCombineParams::default()
             },
         )

@@ -465,12 +465,15 @@ fn smooth_plane(
     }
 }
 
-/// Options shared by every kernel.
-#[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize, serde::Deserialize)]
-pub struct FilterOptions {
-    pub border: BorderMode,
-    /// Normalised convolution inside the image's mask (no effect without a mask).
-    pub mask_aware: bool,
+crate::params! {
+    /// Options shared by every kernel.
+    #[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+    pub struct FilterOptions {
+        /// How the image is extended beyond its border.
+        pub border: BorderMode = BorderMode::Mirror => choice,
+        /// Filter inside the image's mask only (normalised convolution).
+        pub mask_aware: bool = false => bool,
+    }
 }
 
 /// What a filter run measured.

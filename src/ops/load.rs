@@ -1,376 +1,59 @@
-//! Source nodes: files (RGBN EXR, colour + normal map + mask), the built-in demo medallion,
-//! analytic surfaces; and masks (load one, apply one to an image).
-//!
-//! File paths in graph files are relative to the graph file's folder. The evaluator keys loaded
-//! files by the hash of their bytes, so editing a file on disk invalidates its dependants and
-//! moving it does not.
+//! Parameters of the source nodes ([`crate::nodes::load`]) that have choices; the images come
+//! from [`crate::raster::io`] and [`crate::raster::sample`].
 
-use super::params::{Meta, ParamVisitor, Params};
-use super::{Inputs, OpSpec, Operator, PortSpec, PortType, RunContext, Value};
-use crate::error::RgbnError;
-use crate::raster::io::{self, InputSpec, LoadOptions, NormalConvention};
-use crate::raster::sample::{demo_medallion, Surface};
-use crate::raster::{check_size, Plane};
-use std::path::PathBuf;
-use std::sync::Arc;
+use crate::raster::sample::Surface;
 
-/// Parameters of [`Demo`].
-#[derive(Clone, Debug, PartialEq)]
-pub struct DemoParams {
-    /// Side in pixels.
-    pub size: i64,
-}
-
-impl Default for DemoParams {
-    fn default() -> Self {
-        Self { size: 256 }
+crate::choice_enum! {
+    /// The analytic surfaces offered by the `surface` node.
+    pub enum SurfaceShape {
+        /// A spherical cap of radius `radius_px`.
+        Sphere = "sphere",
+        /// `z = −curvature·(u² + v²)`.
+        Paraboloid = "paraboloid",
+        /// A sinusoid of `amplitude_px` and `period_px`.
+        Sinusoid = "sinusoid",
+        /// Three Gaussian bumps scaled to the image.
+        Gaussians = "gaussians",
     }
 }
 
-impl Params for DemoParams {
-    fn visit(&mut self, v: &mut dyn ParamVisitor) {
-        v.int(
-            "size",
-            &mut self.size,
-            &Meta::new("Side of the square image.")
-                .unit("px")
-                .range(16.0, 16384.0),
-        );
+crate::params! {
+    /// Parameters of the analytic-surface source.
+    #[derive(Clone, Debug, PartialEq)]
+    pub struct SurfaceParams {
+        /// Which analytic surface (gaussians: three bumps scaled to the image).
+        pub shape: SurfaceShape = SurfaceShape::Sphere => choice,
+        /// Image size.
+        pub width: i64 = 128 => int.unit("px").range(1.0, 16384.0),
+        /// Image size.
+        pub height: i64 = 128 => int.unit("px").range(1.0, 16384.0),
+        /// Sphere radius.
+        pub radius_px: f64 = 48.0 => float.unit("px").range(0.5, 1e5),
+        /// Paraboloid z = −curvature·(u² + v²).
+        pub curvature: f64 = 0.005 => float.unit("1/px").range(-10.0, 10.0),
+        /// Sinusoid amplitude.
+        pub amplitude_px: f64 = 4.0 => float.unit("px").range(-1e4, 1e4),
+        /// Sinusoid period.
+        pub period_px: f64 = 32.0 => float.unit("px").range(0.5, 1e5),
     }
 }
 
-/// The built-in demo medallion ([`demo_medallion`]).
-pub struct Demo;
-
-impl Operator for Demo {
-    type Params = DemoParams;
-    fn spec() -> OpSpec {
-        OpSpec::new(
-            "demo",
-            "Demo medallion",
-            "input",
-            "The built-in procedural RGBN demo: a relief medallion with exact normals, no files needed.",
-        )
-        .output(PortSpec::new("image", PortType::Rgbn, "The demo image."))
-    }
-    fn run(p: &DemoParams, _: &Inputs<'_>, _: &RunContext) -> Result<Vec<Value>, RgbnError> {
-        let s = p.size as usize;
-        check_size(s, s, "demo")?;
-        Ok(vec![Value::Rgbn(demo_medallion(s))])
-    }
-}
-
-/// Parameters of [`SurfaceOp`].
-#[derive(Clone, Debug, PartialEq)]
-pub struct SurfaceParams {
-    /// `sphere`, `paraboloid`, `sinusoid` or `gaussians`.
-    pub shape: &'static str,
-    /// Columns.
-    pub width: i64,
-    /// Rows.
-    pub height: i64,
-    /// Sphere radius.
-    pub radius_px: f64,
-    /// Paraboloid curvature.
-    pub curvature: f64,
-    /// Sinusoid amplitude.
-    pub amplitude_px: f64,
-    /// Sinusoid period.
-    pub period_px: f64,
-}
-
-impl Default for SurfaceParams {
-    fn default() -> Self {
-        Self {
-            shape: "sphere",
-            width: 128,
-            height: 128,
-            radius_px: 48.0,
-            curvature: 0.005,
-            amplitude_px: 4.0,
-            period_px: 32.0,
-        }
-    }
-}
-
-impl Params for SurfaceParams {
-    fn visit(&mut self, v: &mut dyn ParamVisitor) {
-        v.choice(
-            "shape",
-            &mut self.shape,
-            &["sphere", "paraboloid", "sinusoid", "gaussians"],
-            &Meta::new("Which analytic surface (gaussians: three bumps scaled to the image)."),
-        );
-        let size = Meta::new("Image size.").unit("px").range(1.0, 16384.0);
-        v.int("width", &mut self.width, &size);
-        v.int("height", &mut self.height, &size);
-        v.float(
-            "radius_px",
-            &mut self.radius_px,
-            &Meta::new("Sphere radius.").unit("px").range(0.5, 1e5),
-        );
-        v.float(
-            "curvature",
-            &mut self.curvature,
-            &Meta::new("Paraboloid z = −curvature·(u² + v²).")
-                .unit("1/px")
-                .range(-10.0, 10.0),
-        );
-        v.float(
-            "amplitude_px",
-            &mut self.amplitude_px,
-            &Meta::new("Sinusoid amplitude.").unit("px").range(-1e4, 1e4),
-        );
-        v.float(
-            "period_px",
-            &mut self.period_px,
-            &Meta::new("Sinusoid period.").unit("px").range(0.5, 1e5),
-        );
-    }
-}
-
-/// An analytic surface ([`Surface`]) with exact normals and its height.
-pub struct SurfaceOp;
-
-impl Operator for SurfaceOp {
-    type Params = SurfaceParams;
-    fn spec() -> OpSpec {
-        OpSpec::new(
-            "surface",
-            "Analytic surface",
-            "input",
-            "An analytic height field (sphere, paraboloid, sinusoid, Gaussian bumps) sampled with exact normals, grey albedo, and its height.",
-        )
-        .output(PortSpec::new(
-            "image",
-            PortType::Rgbn,
-            "Exact normals; masked where the slope is undefined.",
-        ))
-        .output(PortSpec::new(
-            "height",
-            PortType::Scalar,
-            "Height in pixels (y up).",
-        ))
-    }
-    fn run(p: &SurfaceParams, _: &Inputs<'_>, _: &RunContext) -> Result<Vec<Value>, RgbnError> {
-        let (w, h) = (p.width as usize, p.height as usize);
-        check_size(w, h, "surface")?;
-        let s = match p.shape {
-            "sphere" => Surface::Sphere {
-                radius_px: p.radius_px,
+impl SurfaceParams {
+    /// The surface on a `w × h` image.
+    #[must_use]
+    pub fn surface(&self, w: usize, h: usize) -> Surface {
+        match self.shape {
+            SurfaceShape::Sphere => Surface::Sphere {
+                radius_px: self.radius_px,
             },
-            "paraboloid" => Surface::Paraboloid {
-                curvature: p.curvature,
+            SurfaceShape::Paraboloid => Surface::Paraboloid {
+                curvature: self.curvature,
             },
-            "sinusoid" => Surface::Sinusoid {
-                amplitude_px: p.amplitude_px,
-                period_px: p.period_px,
+            SurfaceShape::Sinusoid => Surface::Sinusoid {
+                amplitude_px: self.amplitude_px,
+                period_px: self.period_px,
             },
-            _ => Surface::gaussians_for(w.min(h)),
-        };
-        let (img, z) = s.render(w, h);
-        Ok(vec![Value::Rgbn(img), Value::Scalar(Arc::new(z))])
-    }
-}
-
-/// Parameters of [`Load`].
-#[derive(Clone, Debug, Default, PartialEq)]
-pub struct LoadParams {
-    /// RGBN EXR or normal map.
-    pub path: String,
-    /// Optional colour image.
-    pub color: String,
-    /// Optional mask image.
-    pub mask: String,
-    /// DirectX normal maps.
-    pub dx: bool,
-    /// EXR R,G,B is a normal pass.
-    pub exr_rgb_is_normal: bool,
-    /// Refuse bad normals.
-    pub strict: bool,
-}
-
-impl Params for LoadParams {
-    fn visit(&mut self, v: &mut dyn ParamVisitor) {
-        v.path(
-            "path",
-            &mut self.path,
-            &Meta::new("RGBN EXR (R,G,B + N.X,N.Y,N.Z [+ A]) or a normal map (PNG/TIFF/EXR)."),
-        );
-        v.path(
-            "color",
-            &mut self.color,
-            &Meta::new("Colour image (sRGB PNG/JPEG/TIFF or linear EXR); empty: none.").optional(),
-        );
-        v.path(
-            "mask",
-            &mut self.mask,
-            &Meta::new("Coverage mask (greyscale); empty: none.").optional(),
-        );
-        v.bool(
-            "dx",
-            &mut self.dx,
-            &Meta::new("Normal maps use the DirectX convention (green = −y)."),
-        );
-        v.bool(
-            "exr_rgb_is_normal",
-            &mut self.exr_rgb_is_normal,
-            &Meta::new("Read an EXR's R,G,B as the normal (Blender-style normal pass)."),
-        );
-        v.bool(
-            "strict",
-            &mut self.strict,
-            &Meta::new("Refuse NaN/inf/zero-length normals instead of repairing them."),
-        );
-    }
-}
-
-/// Loads an RGBN image from files.
-pub struct Load;
-
-fn opt_path(s: &str) -> Option<PathBuf> {
-    (!s.is_empty()).then(|| PathBuf::from(s))
-}
-
-impl Operator for Load {
-    type Params = LoadParams;
-    fn spec() -> OpSpec {
-        OpSpec::new(
-            "load",
-            "Load image",
-            "input",
-            "Loads an RGBN EXR, or a normal map with an optional colour image and mask; bad normals are repaired (or refused with strict).",
-        )
-        .output(PortSpec::new("image", PortType::Rgbn, "The loaded image."))
-    }
-    fn check(p: &LoadParams) -> Result<(), RgbnError> {
-        if p.path.is_empty() {
-            return Err(RgbnError::param("path", "a file path is required"));
+            SurfaceShape::Gaussians => Surface::gaussians_for(w.min(h)),
         }
-        Ok(())
-    }
-    fn run(p: &LoadParams, _: &Inputs<'_>, _: &RunContext) -> Result<Vec<Value>, RgbnError> {
-        Self::check(p)?;
-        let path = PathBuf::from(&p.path);
-        let is_rgbn = io::Format::of(&path)? == io::Format::Exr && !p.exr_rgb_is_normal;
-        let spec = InputSpec {
-            rgbn: is_rgbn.then(|| path.clone()),
-            normal: (!is_rgbn).then(|| path.clone()),
-            color: opt_path(&p.color),
-            mask: opt_path(&p.mask),
-        };
-        let opts = LoadOptions {
-            convention: if p.dx {
-                NormalConvention::DirectX
-            } else {
-                NormalConvention::OpenGl
-            },
-            exr_rgb_is_normal: p.exr_rgb_is_normal,
-            strict: p.strict,
-        };
-        Ok(vec![Value::Rgbn(io::load(&spec, &opts)?.image)])
-    }
-}
-
-/// Parameters of [`LoadMask`].
-#[derive(Clone, Debug, Default, PartialEq)]
-pub struct LoadMaskParams {
-    /// Greyscale image.
-    pub path: String,
-}
-
-impl Params for LoadMaskParams {
-    fn visit(&mut self, v: &mut dyn ParamVisitor) {
-        v.path(
-            "path",
-            &mut self.path,
-            &Meta::new("Greyscale image: white = covered, black = not."),
-        );
-    }
-}
-
-/// Loads a mask from a greyscale image.
-pub struct LoadMask;
-
-impl Operator for LoadMask {
-    type Params = LoadMaskParams;
-    fn spec() -> OpSpec {
-        OpSpec::new(
-            "load_mask",
-            "Load mask",
-            "input",
-            "Loads a coverage mask from a greyscale image (values in [0, 1]).",
-        )
-        .output(PortSpec::new("mask", PortType::Mask, "The mask."))
-    }
-    fn check(p: &LoadMaskParams) -> Result<(), RgbnError> {
-        if p.path.is_empty() {
-            return Err(RgbnError::param("path", "a file path is required"));
-        }
-        Ok(())
-    }
-    fn run(p: &LoadMaskParams, _: &Inputs<'_>, _: &RunContext) -> Result<Vec<Value>, RgbnError> {
-        Self::check(p)?;
-        let (w, h, m) = io::load_mask(std::path::Path::new(&p.path))?;
-        Ok(vec![Value::Mask(Arc::new(Plane::from_vec(w, h, m)?))])
-    }
-}
-
-/// Parameters of [`ApplyMask`].
-#[derive(Clone, Debug, Default, PartialEq)]
-pub struct ApplyMaskParams {
-    /// Use `1 − mask`.
-    pub invert: bool,
-}
-
-impl Params for ApplyMaskParams {
-    fn visit(&mut self, v: &mut dyn ParamVisitor) {
-        v.bool(
-            "invert",
-            &mut self.invert,
-            &Meta::new("Use 1 − mask (cover what the mask leaves out)."),
-        );
-    }
-}
-
-/// Replaces an image's mask.
-pub struct ApplyMask;
-
-impl Operator for ApplyMask {
-    type Params = ApplyMaskParams;
-    fn spec() -> OpSpec {
-        OpSpec::new(
-            "apply_mask",
-            "Apply mask",
-            "input",
-            "Sets the image's coverage mask (mask-aware operators then work inside it); without a mask input, removes the mask.",
-        )
-        .input(PortSpec::new("image", PortType::Rgbn, "The image."))
-        .input(PortSpec::new("mask", PortType::Mask, "The new mask (same size).").optional())
-        .output(PortSpec::new("image", PortType::Rgbn, "The image with the mask."))
-    }
-    fn run(p: &ApplyMaskParams, i: &Inputs<'_>, _: &RunContext) -> Result<Vec<Value>, RgbnError> {
-        let mut img = i.rgbn("image")?.clone();
-        match i.mask("mask")? {
-            None => img.set_mask(None)?,
-            Some(m) => {
-                if (m.width(), m.height()) != (img.width(), img.height()) {
-                    return Err(RgbnError::InvalidImage(format!(
-                        "mask is {}×{} but the image is {}×{}",
-                        m.width(),
-                        m.height(),
-                        img.width(),
-                        img.height()
-                    )));
-                }
-                let data = if p.invert {
-                    m.data().iter().map(|v| 1.0 - v).collect()
-                } else {
-                    m.data().to_vec()
-                };
-                img.set_mask(Some(data))?;
-            }
-        }
-        Ok(vec![Value::Rgbn(img)])
     }
 }

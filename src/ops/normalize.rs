@@ -14,32 +14,22 @@
 //! - A. Agrawal, R. Chellappa, R. Raskar, "An algebraic approach to surface reconstruction from
 //!   gradient fields", ICCV 2005.
 
-use super::params::{Meta, ParamVisitor, Params};
 use super::rotate::saturate;
-use super::{Inputs, OpSpec, Operator, PortSpec, PortType, RunContext, Value};
 use crate::error::RgbnError;
 use crate::raster::gradient::{CurlStats, GradientField};
 use crate::raster::{Plane, RgbnImage, Validation};
 use rayon::prelude::*;
 
-/// Parameters of [`normalize`].
-#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
-pub struct NormalizeParams {
-    /// Also repair non-finite / zero-length normals and non-finite colour (default true).
-    pub repair: bool,
-    /// Lift normals with `n_z < min_z` to `n_z = min_z` (default false).
-    pub lift_back_facing: bool,
-    /// Threshold for `lift_back_facing`, in `[0, 1)` (default 0.05).
-    pub min_z: f32,
-}
-
-impl Default for NormalizeParams {
-    fn default() -> Self {
-        Self {
-            repair: true,
-            lift_back_facing: false,
-            min_z: 0.05,
-        }
+crate::params! {
+    /// Parameters of [`normalize`].
+    #[derive(Clone, Debug, PartialEq)]
+    pub struct NormalizeParams {
+        /// Replace non-finite or zero-length normals by (0,0,1) and non-finite colour by 0.
+        pub repair: bool = true => bool,
+        /// Lift normals with n_z < min_z to n_z = min_z, keeping their azimuth.
+        pub lift_back_facing: bool = false => bool,
+        /// Threshold on n_z for lift_back_facing.
+        pub min_z: f64 = f64::from(0.05f32) => float.range(0.0, 0.999),
     }
 }
 
@@ -81,7 +71,8 @@ pub fn normalize(
     out.normalize();
     let mut lifted = 0;
     if params.lift_back_facing {
-        let mz = f64::from(params.min_z);
+        // Rounded through f32 as the node always did (same results as before).
+        let mz = f64::from(params.min_z as f32);
         let [nx, ny, nz] = out.normal_mut();
         lifted = (nx.par_iter_mut(), ny.par_iter_mut(), nz.par_iter_mut())
             .into_par_iter()
@@ -127,101 +118,6 @@ pub fn curl_readout_gradients(
 #[must_use]
 pub fn curl_readout(img: &RgbnImage, with_map: bool) -> CurlReadout {
     curl_readout_gradients(&GradientField::from_normals(img), img.mask(), with_map)
-}
-
-/// Parameters of the [`Normalize`] node (the graph form of [`NormalizeParams`]).
-#[derive(Clone, Debug, PartialEq)]
-pub struct NormalizeNodeParams {
-    /// See [`NormalizeParams::repair`].
-    pub repair: bool,
-    /// See [`NormalizeParams::lift_back_facing`].
-    pub lift_back_facing: bool,
-    /// See [`NormalizeParams::min_z`].
-    pub min_z: f64,
-}
-
-impl Default for NormalizeNodeParams {
-    fn default() -> Self {
-        let d = NormalizeParams::default();
-        Self {
-            repair: d.repair,
-            lift_back_facing: d.lift_back_facing,
-            min_z: f64::from(d.min_z),
-        }
-    }
-}
-
-impl Params for NormalizeNodeParams {
-    fn visit(&mut self, v: &mut dyn ParamVisitor) {
-        v.bool(
-            "repair",
-            &mut self.repair,
-            &Meta::new(
-                "Replace non-finite or zero-length normals by (0,0,1) and non-finite colour by 0.",
-            ),
-        );
-        v.bool(
-            "lift_back_facing",
-            &mut self.lift_back_facing,
-            &Meta::new("Lift normals with n_z < min_z to n_z = min_z, keeping their azimuth."),
-        );
-        v.float(
-            "min_z",
-            &mut self.min_z,
-            &Meta::new("Threshold on n_z for lift_back_facing.").range(0.0, 0.999),
-        );
-    }
-}
-
-/// The [`normalize`] node.
-pub struct Normalize;
-
-impl Operator for Normalize {
-    type Params = NormalizeNodeParams;
-    fn spec() -> OpSpec {
-        OpSpec::new(
-            "normalize",
-            "Normalize",
-            "filter",
-            "Rescales every normal to unit length (idempotent); optionally repairs bad normals and lifts back-facing ones. Colour and mask are unchanged except for repairs.",
-        )
-        .version(2)
-        .input(PortSpec::new("image", PortType::Rgbn, "Image."))
-        .output(PortSpec::new(
-            "image",
-            PortType::Rgbn,
-            "Image with unit normals.",
-        ))
-        .output(PortSpec::new(
-            "invalid",
-            PortType::Number,
-            "Input values that were not finite or normals of zero length (repaired when repair is on).",
-        ))
-        .output(PortSpec::new(
-            "lifted",
-            PortType::Number,
-            "Normals lifted to n_z = min_z.",
-        ))
-    }
-    fn run(
-        p: &NormalizeNodeParams,
-        i: &Inputs<'_>,
-        _: &RunContext,
-    ) -> Result<Vec<Value>, RgbnError> {
-        let params = NormalizeParams {
-            repair: p.repair,
-            lift_back_facing: p.lift_back_facing,
-            min_z: p.min_z as f32,
-        };
-        let (img, rep) = normalize(i.rgbn("image")?, &params)?;
-        let b = rep.before;
-        let invalid = b.non_finite_normal + b.zero_length_normal + b.non_finite_color;
-        Ok(vec![
-            Value::Rgbn(img),
-            Value::Number(invalid as f64),
-            Value::Number(rep.lifted as f64),
-        ])
-    }
 }
 
 #[cfg(test)]

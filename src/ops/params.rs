@@ -300,6 +300,161 @@ pub trait Params: Default + Clone + Send + Sync + 'static {
     fn visit(&mut self, v: &mut dyn ParamVisitor);
 }
 
+/// An enum parameter: a fixed list of named variants, each with a doc line. Declared with
+/// [`choice_enum!`](crate::choice_enum); visited through [`ParamVisitor::choice`] (by name), so
+/// files keep storing [`ParamValue::Choice`] and an unknown name is refused with a suggestion.
+pub trait Choice: Copy + PartialEq + Send + Sync + 'static {
+    /// Every variant, in menu order.
+    const ALL: &'static [Self];
+    /// The name used in files, `--set` and menus.
+    fn name(self) -> &'static str;
+    /// One-line documentation of the variant.
+    fn doc(self) -> &'static str;
+    /// Every name, in [`Choice::ALL`] order.
+    #[must_use]
+    fn names() -> Vec<&'static str> {
+        Self::ALL.iter().map(|c| c.name()).collect()
+    }
+    /// The variant called `name`.
+    #[must_use]
+    fn from_name(name: &str) -> Option<Self> {
+        Self::ALL.iter().copied().find(|c| c.name() == name)
+    }
+}
+
+/// Visits a [`Choice`] field through [`ParamVisitor::choice`] by its name.
+pub fn visit_choice<C: Choice>(
+    v: &mut dyn ParamVisitor,
+    name: &'static str,
+    value: &mut C,
+    meta: &Meta,
+) {
+    let names = C::names();
+    let mut s = value.name();
+    v.choice(name, &mut s, &names, meta);
+    if let Some(c) = C::from_name(s) {
+        *value = c;
+    }
+}
+
+/// Declares an enum implementing [`Choice`]: each variant with its doc comment and file name.
+///
+/// ```
+/// rgbn::choice_enum! {
+///     /// Keep the band or remove it.
+///     pub enum Op {
+///         /// The band only.
+///         Keep = "keep",
+///         /// Everything but the band.
+///         Remove = "remove",
+///     }
+/// }
+/// use rgbn::ops::params::Choice;
+/// assert_eq!(Op::from_name("remove"), Some(Op::Remove));
+/// assert_eq!(Op::default(), Op::Keep); // the first variant
+/// assert_eq!(Op::Keep.doc(), "The band only.");
+/// ```
+#[macro_export]
+macro_rules! choice_enum {
+    ($(#[$m:meta])* $vis:vis enum $name:ident {
+        $(#[doc = $fdoc:expr])* $first:ident = $first_name:literal,
+        $($(#[doc = $vdoc:expr])* $variant:ident = $vname:literal,)*
+    }) => {
+        $(#[$m])*
+        #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+        $vis enum $name {
+            $(#[doc = $fdoc])*
+            #[default]
+            $first,
+            $($(#[doc = $vdoc])* $variant,)*
+        }
+        impl $crate::ops::params::Choice for $name {
+            const ALL: &'static [Self] = &[Self::$first, $(Self::$variant,)*];
+            fn name(self) -> &'static str {
+                match self {
+                    Self::$first => $first_name,
+                    $(Self::$variant => $vname,)*
+                }
+            }
+            fn doc(self) -> &'static str {
+                match self {
+                    Self::$first => concat!($($fdoc),*).trim_ascii(),
+                    $(Self::$variant => concat!($($vdoc),*).trim_ascii(),)*
+                }
+            }
+        }
+    };
+}
+
+/// Declares a params struct, its [`Default`] and its [`Params::visit`] from one field list:
+/// each field's doc comment is its documentation (inspector tooltip, `rgbn ops`), then
+/// `name: type = default => kind` with the [`Meta`] builder calls (`unit`, `range`, `output`,
+/// `optional`). `kind` is a [`ParamVisitor`] method (`float`, `int`, `bool`, `text`, `path`,
+/// `vec3`, `floats`, `profile`, `points`) or `choice` for a [`Choice`] enum.
+///
+/// ```
+/// rgbn::params! {
+///     /// Parameters of a blur.
+///     #[derive(Clone, Debug, PartialEq)]
+///     pub struct Blur {
+///         /// Gaussian σ.
+///         pub sigma_px: f64 = 2.0 => float.unit("px").range(0.01, 4096.0),
+///         /// Filter inside the mask only.
+///         pub mask_aware: bool = false => bool,
+///     }
+/// }
+/// let info = rgbn::ops::params::describe::<Blur>();
+/// assert_eq!((info[0].name, info[0].meta.doc, info[0].meta.unit), ("sigma_px", "Gaussian σ.", "px"));
+/// ```
+#[macro_export]
+macro_rules! params {
+    ($(#[$m:meta])* $vis:vis struct $name:ident {
+        $($(#[doc = $doc:expr])* $fvis:vis $field:ident : $ty:ty = $default:expr
+            => $kind:ident $(. $mc:ident ( $($ma:expr),* ))* ,)*
+    }) => {
+        $(#[$m])*
+        $vis struct $name {
+            $($(#[doc = $doc])* $fvis $field: $ty,)*
+        }
+        impl Default for $name {
+            fn default() -> Self {
+                Self { $($field: $default,)* }
+            }
+        }
+        impl $crate::ops::params::Params for $name {
+            fn visit(&mut self, v: &mut dyn $crate::ops::params::ParamVisitor) {
+                $(
+                    let meta = $crate::ops::params::Meta::new(concat!($($doc),*).trim_ascii())
+                        $(. $mc ( $($ma),* ))*;
+                    $crate::params!(@visit $kind, v, stringify!($field), &mut self.$field, &meta);
+                )*
+            }
+        }
+    };
+    (@visit choice, $v:ident, $n:expr, $f:expr, $meta:expr) => {
+        $crate::ops::params::visit_choice($v, $n, $f, $meta)
+    };
+    (@visit $kind:ident, $v:ident, $n:expr, $f:expr, $meta:expr) => {
+        $v.$kind($n, $f, $meta)
+    };
+}
+
+impl Choice for crate::raster::convolve::BorderMode {
+    const ALL: &'static [Self] = &Self::ALL;
+    fn name(self) -> &'static str {
+        Self::name(self)
+    }
+    fn doc(self) -> &'static str {
+        use crate::raster::convolve::BorderMode as B;
+        match self {
+            B::Mirror => "Half-sample symmetric reflection (no artificial edge).",
+            B::Clamp => "Repeat the edge sample.",
+            B::Wrap => "Periodic (tiles seamlessly).",
+            B::Zero => "Zero outside (the surface is flat outside the image).",
+        }
+    }
+}
+
 /// No parameters.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct NoParams;

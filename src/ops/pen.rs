@@ -190,57 +190,122 @@ impl Profile {
     }
 }
 
-/// How the stroke coordinates and the gradient are computed.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
-pub enum PenMode {
-    /// Exact projections; the analytic height `h` is sampled at pixel centres and
-    /// differentiated with forward differences: integrable everywhere by construction (curl 0
-    /// to rounding, also on medial axes), gradient = `h′(u)∇u` up to the `O(h²)` midpoint
-    /// error of a forward difference.
-    #[default]
-    Integrable,
-    /// Exact projections, the analytic gradient `h′(u)∇u + …` sampled at the staggered points
-    /// (curl `O(h²)` where `φ` is smooth, `O(1)` on medial-axis lines — which for a polyline
-    /// include the bisectors at every vertex on its concave side).
-    Analytic,
-    /// Euclidean distance transform of the rasterised path; integrable everywhere (T shapes,
-    /// self-intersections), quantised to the raster.
-    DistanceTransform,
+crate::choice_enum! {
+    /// How the stroke coordinates and the gradient are computed.
+    pub enum PenMode {
+        /// Exact projections; the analytic height `h` is sampled at pixel centres and
+        /// differentiated with forward differences: integrable everywhere by construction (curl 0
+        /// to rounding, also on medial axes), gradient = `h′(u)∇u` up to the `O(h²)` midpoint
+        /// error of a forward difference.
+        Integrable = "integrable",
+        /// Exact projections, the analytic gradient `h′(u)∇u + …` sampled at the staggered points
+        /// (curl `O(h²)` where `φ` is smooth, `O(1)` on medial-axis lines — which for a polyline
+        /// include the bisectors at every vertex on its concave side).
+        Analytic = "analytic",
+        /// Euclidean distance transform of the rasterised path; integrable everywhere (T shapes,
+        /// self-intersections), quantised to the raster.
+        DistanceTransform = "distance_transform",
+    }
 }
 
-/// Parameters of [`pen_field`].
-#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
-pub struct PenParams {
-    /// Path vertices in pixel coordinates `(x, row)` (x right, row down).
-    pub points: Vec<[f32; 2]>,
-    /// Join the last point back to the first (needs ≥ 3 distinct points).
-    pub closed: bool,
-    /// Full stroke width in pixels (`u = ±1` at `±width_px/2`).
-    pub width_px: f32,
-    pub profile: Profile,
-    /// Length over which an open path's relief fades in/out at each end (0 = none).
-    pub taper_px: f32,
-    pub mode: PenMode,
+crate::choice_enum! {
+    /// The kind of a [`Profile`] (its parameter form, with `height_px` and `samples_px`).
+    pub enum ProfileKind {
+        /// Smooth bump `A·(1 + cos πu)/2`.
+        Bump = "bump",
+        /// Sharp ridge (tent) `A·(1 − |u|)`.
+        Ridge = "ridge",
+        /// V-shaped crease `−D·(1 − |u|)`.
+        Crease = "crease",
+        /// A groove with raised lips.
+        Scratch = "scratch",
+        /// Level change (closed paths only).
+        Step = "step",
+        /// Samples, linearly interpolated.
+        Custom = "custom",
+    }
 }
 
-impl Default for PenParams {
-    fn default() -> Self {
-        Self {
-            points: vec![[16.0, 16.0], [112.0, 112.0]],
-            closed: false,
-            width_px: 8.0,
-            profile: Profile::default(),
-            taper_px: 16.0,
-            mode: PenMode::Integrable,
-        }
+crate::params! {
+    /// Parameters of [`pen_field`].
+    #[derive(Clone, Debug, PartialEq)]
+    pub struct PenParams {
+        /// Path vertices in pixels (x, row): ≥ 2 for an open path, ≥ 3 distinct for a closed one.
+        pub points: Vec<[f64; 2]> = vec![[16.0, 16.0], [112.0, 112.0]] => points.unit("px"),
+        /// Join the last point back to the first; the profile's inside is then the enclosed region.
+        pub closed: bool = false => bool,
+        /// Full stroke width (u = ±1 at ±width/2).
+        pub width_px: f64 = 8.0 => float.unit("px").range(0.01, 10_000.0),
+        /// Height across the stroke, u ∈ [−1, 1]: bump A(1+cos πu)/2, ridge A(1−|u|), crease −D(1−|u|), scratch (groove with lips), step A·S((u+1)/2) (closed paths only: raises the inside), custom (samples_px).
+        pub profile: ProfileKind = ProfileKind::Bump => choice,
+        /// Amplitude: the height A of bump, ridge and step, the depth D of crease and scratch (negative inverts).
+        pub height_px: f64 = 2.0 => float.unit("px").range(-10_000.0, 10_000.0),
+        /// Custom profile: heights at equally spaced u from −1 to 1 (≥ 2 samples, linearly interpolated); an open path needs equal first and last samples.
+        pub samples_px: Vec<f64> = vec![0.0, 1.0, 0.0] => profile.unit("px"),
+        /// Length over which an open path's relief fades in and out at its ends.
+        pub taper_px: f64 = 16.0 => float.unit("px").range(0.0, 10_000.0),
+        /// integrable: forward differences of the analytic height (curl 0); analytic: the analytic gradient (curl on medial axes); distance_transform: EDT of the rasterised path (integrable, no taper).
+        pub mode: PenMode = PenMode::Integrable => choice,
     }
 }
 
 impl PenParams {
-    /// Checks every parameter, including the open-path level condition of the module docs.
+    /// The profile across the stroke.
+    #[must_use]
+    pub fn shape(&self) -> Profile {
+        let a = self.height_px as f32;
+        match self.profile {
+            ProfileKind::Bump => Profile::Bump { height_px: a },
+            ProfileKind::Ridge => Profile::Ridge { height_px: a },
+            ProfileKind::Crease => Profile::Crease { depth_px: a },
+            ProfileKind::Scratch => Profile::Scratch { depth_px: a },
+            ProfileKind::Step => Profile::Step { height_px: a },
+            ProfileKind::Custom => Profile::Custom {
+                samples_px: self.samples_px.iter().map(|v| *v as f32).collect(),
+            },
+        }
+    }
+
+    /// These parameters with the profile `profile`.
+    #[must_use]
+    pub fn with_profile(mut self, profile: &Profile) -> Self {
+        let (kind, a) = match profile {
+            Profile::Bump { height_px } => (ProfileKind::Bump, *height_px),
+            Profile::Ridge { height_px } => (ProfileKind::Ridge, *height_px),
+            Profile::Crease { depth_px } => (ProfileKind::Crease, *depth_px),
+            Profile::Scratch { depth_px } => (ProfileKind::Scratch, *depth_px),
+            Profile::Step { height_px } => (ProfileKind::Step, *height_px),
+            Profile::Custom { samples_px } => {
+                self.samples_px = samples_px.iter().map(|v| f64::from(*v)).collect();
+                (ProfileKind::Custom, self.height_px as f32)
+            }
+        };
+        self.profile = kind;
+        self.height_px = f64::from(a);
+        self
+    }
+
+    /// The path vertices as `f32`.
+    fn points_f32(&self) -> Vec<[f32; 2]> {
+        self.points.iter().map(|p| p.map(|v| v as f32)).collect()
+    }
+
+    /// Checks every parameter, including the open-path level condition of the module docs;
+    /// errors name these parameters.
     pub fn validate(&self) -> Result<(), RgbnError> {
-        check_points("points", &self.points, if self.closed { 3 } else { 2 })?;
-        let pl = Polyline::new(&self.points, self.closed);
+        self.validate_inner().map_err(|e| match e {
+            RgbnError::InvalidParam { name, detail } if name == "depth_px" => {
+                RgbnError::param("height_px", detail)
+            }
+            other => other,
+        })
+    }
+
+    fn validate_inner(&self) -> Result<(), RgbnError> {
+        let points = self.points_f32();
+        let (width_px, taper_px) = (self.width_px as f32, self.taper_px as f32);
+        check_points("points", &points, if self.closed { 3 } else { 2 })?;
+        let pl = Polyline::new(&points, self.closed);
         if pl.length_px() <= 0.0 {
             return Err(RgbnError::param(
                 "points",
@@ -253,21 +318,22 @@ impl PenParams {
                 "a closed path needs at least 3 distinct points",
             ));
         }
-        if !(self.width_px.is_finite() && self.width_px > 0.0 && self.width_px <= MAX_PEN_PX) {
+        if !(width_px.is_finite() && width_px > 0.0 && width_px <= MAX_PEN_PX) {
             return Err(RgbnError::param(
                 "width_px",
-                format!("{} must be in (0, {MAX_PEN_PX}] pixels", self.width_px),
+                format!("{width_px} must be in (0, {MAX_PEN_PX}] pixels"),
             ));
         }
-        if !(self.taper_px.is_finite() && (0.0..=MAX_PEN_PX).contains(&self.taper_px)) {
+        if !(taper_px.is_finite() && (0.0..=MAX_PEN_PX).contains(&taper_px)) {
             return Err(RgbnError::param(
                 "taper_px",
-                format!("{} must be in [0, {MAX_PEN_PX}] pixels", self.taper_px),
+                format!("{taper_px} must be in [0, {MAX_PEN_PX}] pixels"),
             ));
         }
-        self.profile.validate()?;
+        let profile = self.shape();
+        profile.validate()?;
         if !self.closed {
-            let (lo, hi) = (self.profile.eval(-1.0).0, self.profile.eval(1.0).0);
+            let (lo, hi) = (profile.eval(-1.0).0, profile.eval(1.0).0);
             let scale = lo.abs().max(hi.abs()).max(1.0);
             if (hi - lo).abs() > 1e-6 * scale {
                 return Err(RgbnError::param(
@@ -365,12 +431,14 @@ impl Stroke<'_> {
 pub fn pen_field(width: usize, height: usize, params: &PenParams) -> Result<PenOutput, RgbnError> {
     params.validate()?;
     crate::raster::check_size(width, height, "pen")?;
+    let profile = params.shape();
+    // Lengths as f32, as the node always passed them (same results as before).
     let stroke = Stroke {
-        pl: Polyline::new(&params.points, params.closed),
-        half_w: f64::from(params.width_px) / 2.0,
-        taper: f64::from(params.taper_px),
-        profile: &params.profile,
-        f0: params.profile.eval(-1.0).0,
+        pl: Polyline::new(&params.points_f32(), params.closed),
+        half_w: f64::from(params.width_px as f32) / 2.0,
+        taper: f64::from(params.taper_px as f32),
+        profile: &profile,
+        f0: profile.eval(-1.0).0,
         closed: params.closed,
     };
     match params.mode {
@@ -382,7 +450,7 @@ pub fn pen_field(width: usize, height: usize, params: &PenParams) -> Result<PenO
                 |x: f64, r: f64| x >= b[0] - m && x <= b[2] + m && r >= b[1] - m && r <= b[3] + m;
             let outside_level = |x: f64, r: f64| {
                 if stroke.closed && stroke.pl.contains([x, r]) {
-                    params.profile.eval(1.0).0
+                    profile.eval(1.0).0
                 } else {
                     stroke.f0
                 }
@@ -434,7 +502,7 @@ pub fn pen_field(width: usize, height: usize, params: &PenParams) -> Result<PenO
                     } else {
                         sigma
                     };
-                    *v = params.profile.eval(u.clamp(-1.0, 1.0)).0 as f32;
+                    *v = profile.eval(u.clamp(-1.0, 1.0)).0 as f32;
                 }
             });
             let height_plane = Plane::from_vec(width, height, z)?;
@@ -446,16 +514,19 @@ pub fn pen_field(width: usize, height: usize, params: &PenParams) -> Result<PenO
     }
 }
 
-/// What [`apply_pen`] measured.
-#[derive(Clone, Copy, Debug, Default, PartialEq)]
+/// What [`apply_pen`] made and measured.
+#[derive(Clone, Debug, PartialEq)]
 pub struct PenReport {
+    /// The pen's height in pixels (its gradients are what was added).
+    pub height: Plane,
     /// Curl of the pen's own field (≈ 0 away from the medial axis; see module docs).
     pub curl_pen: CurlStats,
     /// Curl of the edited image's gradients.
     pub curl_after: CurlStats,
 }
 
-/// Adds the pen's relief to an image's gradients (colour and mask kept).
+/// Adds the pen's relief to an image's gradients (colour and mask kept); the report holds the
+/// pen's height.
 pub fn apply_pen(img: &RgbnImage, params: &PenParams) -> Result<(RgbnImage, PenReport), RgbnError> {
     let pen = pen_field(img.width(), img.height(), params)?;
     let mut g = GradientField::from_normals(img);
@@ -471,6 +542,7 @@ pub fn apply_pen(img: &RgbnImage, params: &PenParams) -> Result<(RgbnImage, PenR
         out,
         PenReport {
             curl_pen: pen.gradients.curl_stats(None),
+            height: pen.height,
             curl_after: g.curl_stats(img.mask()),
         },
     ))
@@ -480,11 +552,11 @@ pub fn apply_pen(img: &RgbnImage, params: &PenParams) -> Result<(RgbnImage, PenR
 mod tests {
     use super::*;
 
-    fn circle(cx: f32, cy: f32, r: f32, n: usize) -> Vec<[f32; 2]> {
+    fn circle(cx: f32, cy: f32, r: f32, n: usize) -> Vec<[f64; 2]> {
         (0..n)
             .map(|k| {
                 let a = k as f32 / n as f32 * std::f32::consts::TAU;
-                [cx + r * a.cos(), cy + r * a.sin()]
+                [cx + r * a.cos(), cy + r * a.sin()].map(f64::from)
             })
             .collect()
     }
@@ -501,13 +573,14 @@ mod tests {
             },
         ] {
             let p = PenParams {
-                points: vec![[c as f32, -100.0], [c as f32, 200.0]],
+                points: vec![[f64::from(c as f32), -100.0], [f64::from(c as f32), 200.0]],
                 closed: false,
                 width_px: 16.0,
-                profile: profile.clone(),
                 taper_px: 0.0,
                 mode: PenMode::Analytic,
-            };
+                ..PenParams::default()
+            }
+            .with_profile(&profile.clone());
             let out = pen_field(w, h, &p).unwrap();
             // Travelling down the screen, the left side is +x: u = (x − c)/8.
             let mut max_err = 0.0f64;
@@ -541,10 +614,11 @@ mod tests {
                 points: circle(64.0, 64.0, 30.0, n),
                 closed: true,
                 width_px: 10.0,
-                profile: Profile::Step { height_px: 3.0 },
                 taper_px: 0.0,
                 mode,
-            };
+                ..PenParams::default()
+            }
+            .with_profile(&Profile::Step { height_px: 3.0 });
             let out = pen_field(size, size, &p).unwrap();
             // Integrate p along row 64 from the left border to the centre: z(64) − z(0).
             let rise: f32 = (0..64).map(|x| out.gradients.p[64 * size + x]).sum();
@@ -565,10 +639,7 @@ mod tests {
             let low = pen_field(
                 size,
                 size,
-                &PenParams {
-                    profile: Profile::Step { height_px: -2.0 },
-                    ..p
-                },
+                &PenParams { ..p }.with_profile(&Profile::Step { height_px: -2.0 }),
             )
             .unwrap();
             let rise: f32 = (0..64).map(|x| low.gradients.p[64 * size + x]).sum();
@@ -593,13 +664,14 @@ mod tests {
             Profile::Crease { depth_px: 2.0 },
         ] {
             let p = PenParams {
-                points: arc.clone(),
+                points: arc.iter().map(|p| p.map(f64::from)).collect(),
                 closed: false,
                 width_px: 14.0,
-                profile: profile.clone(),
                 taper_px: 20.0,
                 mode: PenMode::Integrable,
-            };
+                ..PenParams::default()
+            }
+            .with_profile(&profile.clone());
             let out = pen_field(size, size, &p).unwrap();
             let rel = out.gradients.relative_rms_curl(None);
             assert!(rel < 1e-6, "{profile:?}: {rel:e}");
@@ -658,10 +730,11 @@ mod tests {
             points: vec![[10.0, 20.0], [86.0, 20.0], [48.0, 20.0], [48.0, 85.0]],
             closed: false,
             width_px: 12.0,
-            profile: Profile::Bump { height_px: 3.0 },
             taper_px: 0.0,
             mode: PenMode::DistanceTransform,
-        };
+            ..PenParams::default()
+        }
+        .with_profile(&Profile::Bump { height_px: 3.0 });
         let out = pen_field(size, size, &p).unwrap();
         let rel = out.gradients.relative_rms_curl(None);
         println!("pen EDT T-shape: relative RMS curl {rel:.3e}");
@@ -689,9 +762,9 @@ mod tests {
             &PenParams {
                 points: circle(48.0, 48.0, 25.0, 90),
                 closed: true,
-                profile: Profile::Step { height_px: 2.0 },
                 ..p
-            },
+            }
+            .with_profile(&Profile::Step { height_px: 2.0 }),
         )
         .unwrap();
         assert!((c.height.at(48, 48) - 2.0).abs() < 1e-6 && c.height.at(1, 1).abs() < 1e-6);
@@ -704,10 +777,7 @@ mod tests {
         assert!(ok.validate().is_ok());
         let cases = [
             (
-                PenParams {
-                    profile: Profile::Step { height_px: 1.0 },
-                    ..ok.clone()
-                },
+                PenParams { ..ok.clone() }.with_profile(&Profile::Step { height_px: 1.0 }),
                 "h(-1) = h(1)",
             ),
             (
@@ -733,23 +803,20 @@ mod tests {
             ),
             (
                 PenParams {
-                    width_px: f32::NAN,
+                    width_px: f64::NAN,
                     ..ok.clone()
                 },
                 "(0, 10000]",
             ),
             (
-                PenParams {
-                    profile: Profile::Custom {
-                        samples_px: vec![1.0],
-                    },
-                    ..ok.clone()
-                },
+                PenParams { ..ok.clone() }.with_profile(&Profile::Custom {
+                    samples_px: vec![1.0],
+                }),
                 "samples_px",
             ),
             (
                 PenParams {
-                    points: vec![[0.0, f32::INFINITY], [1.0, 1.0]],
+                    points: vec![[0.0, f64::INFINITY], [1.0, 1.0]],
                     ..ok.clone()
                 },
                 "finite",
@@ -770,13 +837,11 @@ mod tests {
             };
             assert!(e.contains(needle), "{needle}: {e}");
         }
-        let e = PenParams {
-            profile: Profile::Step { height_px: 1.0 },
-            ..ok
-        }
-        .validate()
-        .unwrap_err()
-        .to_string();
+        let e = PenParams { ..ok }
+            .with_profile(&Profile::Step { height_px: 1.0 })
+            .validate()
+            .unwrap_err()
+            .to_string();
         assert!(e.contains("only valid on closed paths"), "{e}");
     }
 
@@ -797,13 +862,14 @@ mod tests {
                 _ => Profile::Custom { samples_px: vec![0.0, amp, -amp, 0.0] },
             };
             let p = PenParams {
-                points: pts.iter().map(|&(x, y)| [x, y]).collect(),
+                points: pts.iter().map(|&(x, y)| [f64::from(x), f64::from(y)]).collect(),
                 closed,
-                width_px: width,
-                profile,
-                taper_px: taper,
+                width_px: f64::from(width),
+                taper_px: f64::from(taper),
                 mode: [PenMode::Integrable, PenMode::Analytic, PenMode::DistanceTransform][mode],
-            };
+                ..PenParams::default()
+            }
+            .with_profile(&profile);
             if let Ok(out) = pen_field(40, 40, &p) {
                 proptest::prop_assert!(out.gradients.p.iter().chain(&out.gradients.q).all(|v| v.is_finite()));
                 proptest::prop_assert!(out.height.data().iter().all(|v| v.is_finite()));

@@ -197,68 +197,110 @@ impl Frame {
     }
 }
 
-/// How base and detail combine (module docs).
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
-pub enum CombineMode {
-    /// `F d` inside the region (`w ≥ ½`), the base elsewhere.
-    Replace,
-    /// `F slerp(e_z, d, w)`: detail with a smooth falloff weight.
-    #[default]
-    Blend,
-    /// `F R_d Fᵀ e`: rotate an existing normal by the detail's rotation in the base frame.
-    Rotate,
-    /// Reoriented normal mapping (Barré-Brisebois & Hill), in the image frame.
-    Rnm,
-    /// Unreal Developer Network blend `normalize(n_xy + d_xy, n_z)`.
-    Udn,
-    /// Whiteout blend `normalize(n_xy + d_xy, n_z d_z)`.
-    Whiteout,
-    /// Partial-derivative blend = sum of gradients.
-    PartialDerivative,
+crate::choice_enum! {
+    /// How the tangent frame of a base normal is chosen (the parameter form of [`Frame`]).
+    pub enum FrameKind {
+        /// Shortest-arc rotation from +z ([`Frame::MinimalRotation`]; Blend = RNM).
+        Minimal = "minimal",
+        /// Tangent = orientation projected on the tangent plane ([`Frame::Oriented`]).
+        Oriented = "oriented",
+    }
 }
 
-/// Parameters of [`rotation_combine`].
-#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
-pub struct RotateParams {
-    pub mode: CombineMode,
-    /// Frame used by Replace / Blend / Rotate (the industry modes ignore it).
-    pub frame: Frame,
-    /// Global weight multiplying the per-pixel weight, in `[0, 1]`.
-    pub strength: f32,
-    /// Move results below `min_z` back to `z = min_z` along the great arc (module docs).
-    pub saturate: bool,
-    /// Saturation threshold on `n_z`, in `[0, 1)`. Default 0.05 (≈ 87° from the viewer).
-    pub min_z: f32,
-}
+impl FrameKind {
+    /// The kind and orientation vector of `frame` (`orientation` is kept for a minimal frame):
+    /// the parameter form of a [`Frame`].
+    #[must_use]
+    pub fn of(frame: &Frame, orientation: [f64; 3]) -> (FrameKind, [f64; 3]) {
+        match frame {
+            Frame::MinimalRotation => (FrameKind::Minimal, orientation),
+            Frame::Oriented { orientation } => (FrameKind::Oriented, orientation.map(f64::from)),
+        }
+    }
 
-impl Default for RotateParams {
-    fn default() -> Self {
-        Self {
-            mode: CombineMode::Blend,
-            frame: Frame::MinimalRotation,
-            strength: 1.0,
-            saturate: true,
-            min_z: 0.05,
+    /// The frame of this kind with orientation vector `orientation` (unused by `Minimal`),
+    /// not checked (see [`Frame::validate`]).
+    #[must_use]
+    pub fn frame(self, orientation: [f64; 3]) -> Frame {
+        match self {
+            FrameKind::Minimal => Frame::MinimalRotation,
+            FrameKind::Oriented => Frame::Oriented {
+                orientation: orientation.map(|x| x as f32),
+            },
         }
     }
 }
 
+crate::choice_enum! {
+    /// How base and detail combine (module docs).
+    pub enum CombineMode {
+        /// `F d` inside the region (`w ≥ ½`), the base elsewhere.
+        Replace = "replace",
+        /// `F slerp(e_z, d, w)`: detail with a smooth falloff weight.
+        Blend = "blend",
+        /// `F R_d Fᵀ e`: rotate an existing normal by the detail's rotation in the base frame.
+        Rotate = "rotate",
+        /// Reoriented normal mapping (Barré-Brisebois & Hill), in the image frame.
+        Rnm = "rnm",
+        /// Unreal Developer Network blend `normalize(n_xy + d_xy, n_z)`.
+        Udn = "udn",
+        /// Whiteout blend `normalize(n_xy + d_xy, n_z d_z)`.
+        Whiteout = "whiteout",
+        /// Partial-derivative blend = sum of gradients.
+        PartialDerivative = "partial_derivative",
+    }
+}
+
+crate::params! {
+    /// Parameters of [`rotation_combine`].
+    #[derive(Clone, Debug, PartialEq)]
+    pub struct RotateParams {
+        /// replace: F d where w ≥ ½; blend: F slerp(e_z, d, w); rotate: rotate the existing normal by the detail's rotation in the base frame; rnm, udn, whiteout, partial_derivative: the blends of Barré-Brisebois & Hill.
+        pub mode: CombineMode = CombineMode::Blend => choice,
+        /// Tangent frame of the base normal: minimal (shortest-arc rotation from +z; Blend = RNM) or oriented (tangent = orientation projected on the tangent plane).
+        pub frame: FrameKind = FrameKind::Minimal => choice,
+        /// Orientation vector of the oriented frame (x right, y up, z to the viewer).
+        pub orientation: [f64; 3] = [1.0, 0.0, 0.0] => vec3.range(-1e6, 1e6),
+        /// Global weight multiplying the per-pixel weight.
+        pub strength: f64 = 1.0 => float.range(0.0, 1.0),
+        /// Move results with n_z < min_z back along the great arc to n_z = min_z.
+        pub saturate: bool = true => bool,
+        /// Saturation threshold on n_z.
+        pub min_z: f64 = f64::from(0.05f32) => float.range(0.0, 0.999),
+    }
+}
+
 impl RotateParams {
+    /// The tangent frame (used by Replace / Blend / Rotate; the industry modes ignore it).
+    #[must_use]
+    pub fn tangent_frame(&self) -> Frame {
+        self.frame.frame(self.orientation)
+    }
+
+    /// These parameters with tangent frame `frame`.
+    #[must_use]
+    pub fn with_frame(mut self, frame: &Frame) -> Self {
+        (self.frame, self.orientation) = FrameKind::of(frame, self.orientation);
+        self
+    }
+
     /// Checks every parameter.
     pub fn validate(&self) -> Result<(), RgbnError> {
-        if !(self.strength.is_finite() && (0.0..=1.0).contains(&self.strength)) {
+        let strength = self.strength as f32;
+        if !(strength.is_finite() && (0.0..=1.0).contains(&strength)) {
             return Err(RgbnError::param(
                 "strength",
-                format!("{} must be in [0, 1]", self.strength),
+                format!("{strength} must be in [0, 1]"),
             ));
         }
-        if !(self.min_z.is_finite() && (0.0..1.0).contains(&self.min_z)) {
+        let min_z = self.min_z as f32;
+        if !(min_z.is_finite() && (0.0..1.0).contains(&min_z)) {
             return Err(RgbnError::param(
                 "min_z",
-                format!("{} must be in [0, 1)", self.min_z),
+                format!("{min_z} must be in [0, 1)"),
             ));
         }
-        self.frame.validate()
+        self.tangent_frame().validate()
     }
 }
 
@@ -336,21 +378,24 @@ pub fn combine_one(
 ) -> ([f32; 3], bool) {
     let n = normalize3(to64(n));
     let d = normalize3(to64(d));
-    let w = f64::from((w * params.strength).clamp(0.0, 1.0));
+    let w = f64::from((w * params.strength as f32).clamp(0.0, 1.0));
+    let frame = params.tangent_frame();
+    // As f32, as the node always passed it (same results as before).
+    let min_z = f64::from(params.min_z as f32);
     let dw = attenuate(d, w);
     let r = match params.mode {
         CombineMode::Replace => {
             if w >= 0.5 {
-                params.frame.to_world(n, d)
+                frame.to_world(n, d)
             } else {
                 n
             }
         }
-        CombineMode::Blend => params.frame.to_world(n, dw),
+        CombineMode::Blend => frame.to_world(n, dw),
         CombineMode::Rotate => {
             let e = normalize3(to64(e));
-            let local = params.frame.to_tangent(n, e);
-            params.frame.to_world(n, min_rotation_apply(dw, local))
+            let local = frame.to_tangent(n, e);
+            frame.to_world(n, min_rotation_apply(dw, local))
         }
         CombineMode::Rnm => {
             let t = [n[0], n[1], n[2] + 1.0];
@@ -370,14 +415,14 @@ pub fn combine_one(
         ]),
     };
     let r = normalize3(r);
-    if params.saturate && r[2] < f64::from(params.min_z) {
+    if params.saturate && r[2] < min_z {
         // The arc starts where the rotation starts: the existing normal for Rotate.
         let from = if params.mode == CombineMode::Rotate {
             normalize3(to64(e))
         } else {
             n
         };
-        (to32(saturate(from, r, f64::from(params.min_z))), true)
+        (to32(saturate(from, r, min_z)), true)
     } else {
         (to32(r), false)
     }
@@ -557,7 +602,7 @@ mod tests {
         assert!(rnm[2] < 0.0 && close(rnm, r, 1e-5), "{rnm:?}");
         let p = RotateParams::default();
         let (r, s) = combine_one(n, det, n, 1.0, &p);
-        assert!(s && (r[2] - p.min_z).abs() < 1e-5, "{r:?}");
+        assert!(s && (r[2] - p.min_z as f32).abs() < 1e-5, "{r:?}");
         assert!(r[0] > 0.99 && r[1].abs() < 1e-6, "on the arc: {r:?}");
         // Off-plane: the saturated result lies on the great circle through base and raw result.
         let det = [0.3f32, 0.4, 0.866];
@@ -572,7 +617,7 @@ mod tests {
             },
         );
         let (sat, s) = combine_one(n, det, n, 1.0, &p);
-        assert!(s && (sat[2] - p.min_z).abs() < 1e-5);
+        assert!(s && (sat[2] - p.min_z as f32).abs() < 1e-5);
         let c = cross(to64(n), to64(raw_r));
         assert!(dot(c, to64(sat)).abs() < 1e-5, "coplanar");
     }
@@ -607,7 +652,7 @@ mod tests {
         for (p, needle) in [
             (
                 RotateParams {
-                    strength: f32::NAN,
+                    strength: f64::NAN,
                     ..RotateParams::default()
                 },
                 "strength",
@@ -658,12 +703,12 @@ mod tests {
             let (r, _) = combine_one(n, d, e, w, &p);
             let l = r.iter().map(|v| v * v).sum::<f32>().sqrt();
             prop_assert!((l - 1.0).abs() < 1e-5);
-            prop_assert!(r[2] >= p.min_z - 1e-5, "{:?}", r);
+            prop_assert!(r[2] >= p.min_z as f32 - 1e-5, "{:?}", r);
             // w = 0: the base (or the existing normal, for Rotate) is returned.
             let (r0, _) = combine_one(n, d, e, 0.0, &p);
             let want = if mode == CombineMode::Rotate { to32(normalize3(to64(e))) }
                 else { to32(normalize3(to64(n))) };
-            if want[2] >= p.min_z {
+            if want[2] >= p.min_z as f32 {
                 prop_assert!((0..3).all(|k| (r0[k] - want[k]).abs() < 1e-5), "{:?} {:?}", r0, want);
             }
         }

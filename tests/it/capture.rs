@@ -296,6 +296,57 @@ fn capture_graph_equals_the_cli_result_and_is_accurate() {
 }
 
 #[test]
+fn capture_graph_from_an_lp_file_equals_the_list_and_light_file_graph() {
+    // graphs/capture_lp.ron names the photos and lights by graphs/data/ps/capture.lp alone.
+    let ev = Evaluator::default();
+    let run = |name: &str| {
+        let lg = LoadedGraph::load(&graph_path(name)).unwrap_or_else(|e| panic!("{e}"));
+        let r = eval_all(&ev, &lg, std::env::temp_dir().as_path());
+        let Value::Rgbn(img) = &r.outputs["image"] else {
+            panic!("image output")
+        };
+        img.clone()
+    };
+    let (lp, list) = (run("capture_lp.ron"), run("capture.ron"));
+    let (e, n) = sphere_error(&lp, 0.3);
+    eprintln!(
+        "synthetic sphere, graphs/capture_lp.ron: mean angular error {e:.3}° over {n} pixels"
+    );
+    assert!(e < 0.5 && n > 1500, "{e}° over {n}");
+    // The same directions (to 6 decimals, renormalised): the same normals to f32 rounding.
+    let worst = (0..SIZE * SIZE)
+        .filter(|&i| list.mask().unwrap()[i] > 0.5)
+        .map(|i| {
+            let (x, r) = (i % SIZE, i / SIZE);
+            rgbn::capture::linalg::angle_deg(lp.normal_at(x, r), list.normal_at(x, r))
+        })
+        .fold(0.0, f64::max);
+    assert!(worst < 0.01, "{worst}°");
+}
+
+#[test]
+fn capture_node_with_an_lp_file_refuses_a_lights_file_too() {
+    // The graph in a temporary folder, its data paths made absolute.
+    let tmp = tempfile::tempdir().unwrap();
+    let data = format!("Path(\"{}/", graph_path("data").display());
+    let text = std::fs::read_to_string(graph_path("capture_lp.ron"))
+        .unwrap()
+        .replace(
+            "\"photos\": Path(\"data/ps/capture.lp\"),",
+            "\"photos\": Path(\"data/ps/capture.lp\"), \"lights\": Path(\"data/ps/lights.txt\"),",
+        )
+        .replace("Path(\"data/", &data);
+    let g = write(tmp.path(), "both.ron", &text);
+    let o = rgbn(&["check", g.to_str().unwrap()]);
+    let e = stderr(&o);
+    assert_eq!(o.status.code(), Some(2), "{e}");
+    assert!(
+        e.contains("lights") && e.contains(".lp") && e.trim().lines().count() == 1,
+        "{e}"
+    );
+}
+
+#[test]
 fn capture_cli_refuses_bad_input_with_one_line_naming_the_file() {
     let dir = ps_dir();
     let out = tempfile::tempdir().unwrap();

@@ -175,6 +175,63 @@ fn node_level_errors() {
 }
 
 #[test]
+fn unknown_choice_names_are_refused_with_the_closest_name() {
+    // Choices are enums behind `Choice`: a misspelt name is an error naming the parameter, the
+    // node and the nearest name (it used to fall back to the default silently).
+    let d = tempfile::tempdir().unwrap();
+    let img = "inputs: { \"image\": Node(1, \"image\") }";
+    let two = "inputs: { \"base\": Node(1, \"image\"), \"detail\": Node(1, \"image\") }";
+    for (op, param, given, want, inputs) in [
+        ("band", "op", "remve", "remove", img),
+        ("band", "band", "hihgpass", "highpass", img),
+        ("pen", "profile", "scrach", "scratch", img),
+        ("pen", "mode", "analytc", "analytic", img),
+        (
+            "bilateral",
+            "normal_metric",
+            "one_minus_dt",
+            "one_minus_dot",
+            img,
+        ),
+        (
+            "combine.rotation",
+            "mode",
+            "partial_derivativ",
+            "partial_derivative",
+            two,
+        ),
+        ("combine.linear", "replace_band", "bandpas", "bandpass", two),
+    ] {
+        let name = format!("choice_{}.ron", op.replace('.', "_"));
+        let text = graph(&format!(
+            "{SRC}(id: 2, op: \"{op}\", params: {{ \"{param}\": Choice(\"{given}\") }}, {inputs}),"
+        ));
+        let (_, m) = load_err(d.path(), &name, &text);
+        has(
+            &m,
+            &[
+                &format!("\"{param}\""),
+                &format!("\"{given}\""),
+                &format!("did you mean \"{want}\""),
+                "node 2",
+            ],
+        );
+    }
+    // The same through --set.
+    let p = write(
+        d.path(),
+        "band_set.ron",
+        &graph(&format!(
+            "{SRC}(id: 2, op: \"band\", inputs: {{ \"image\": Node(1, \"image\") }}),"
+        )),
+    );
+    let mut lg = LoadedGraph::load(&p).unwrap();
+    let m = lg.set_param("2", "op", "kepp").unwrap_err().to_string();
+    has(&m, &["\"op\"", "did you mean \"keep\"", "node 2"]);
+    lg.set_param("2", "op", "remove").unwrap();
+}
+
+#[test]
 fn graph_file_cycle_and_bad_exposed_param() {
     let d = tempfile::tempdir().unwrap();
     let a = "(version: 1, next_id: 2, inputs: { \"image\": (ty: Rgbn) }, outputs: { \"image\": (node: 1, port: \"image\") }, nodes: [(id: 1, op: \"graph\", params: { \"path\": Path(\"b.ron\") }, inputs: { \"image\": Input(\"image\") })])";

@@ -42,10 +42,10 @@ fn pen_graph_equals_two_apply_pen_calls() {
         &PenParams {
             points: vec![[12.0, 110.0], [40.0, 90.0], [80.0, 100.0], [116.0, 80.0]],
             width_px: 10.0,
-            profile: Profile::Bump { height_px: 3.0 },
             taper_px: 12.0,
             ..PenParams::default()
-        },
+        }
+        .with_profile(&Profile::Bump { height_px: 3.0 }),
     )
     .unwrap();
     let (b, rep) = apply_pen(
@@ -54,9 +54,9 @@ fn pen_graph_equals_two_apply_pen_calls() {
             points: vec![[16.0, 16.0], [56.0, 12.0], [60.0, 48.0], [20.0, 52.0]],
             closed: true,
             width_px: 8.0,
-            profile: Profile::Step { height_px: 2.0 },
             ..PenParams::default()
-        },
+        }
+        .with_profile(&Profile::Step { height_px: 2.0 }),
     )
     .unwrap();
     assert_eq!(image(&r.outputs["image"]), &b);
@@ -106,8 +106,8 @@ fn bilateral_graph_equals_split() {
         &demo_medallion(96),
         &BilateralParams {
             sigma_spatial_px: 2.5,
-            sigma_normal: Some(0.25),
-            sigma_color: Some(0.2),
+            sigma_normal: 0.25,
+            sigma_color: 0.2,
             filter_color: true,
             ..BilateralParams::default()
         },

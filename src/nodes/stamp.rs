@@ -1,11 +1,11 @@
-//! The stamp of [`super::stamp`] as a node: place an RGBN stamp at positions with an affine map
+//! The stamp of [`crate::ops::stamp`] as a node: place an RGBN stamp at positions with an affine map
 //! ([`stamp_image`]).
 
-use super::node_kit::curl_port;
-use super::params::{Meta, ParamVisitor, Params};
-use super::stamp::{stamp_image, StampColor, StampParams};
+use super::kit::curl_port;
 use super::{Inputs, OpSpec, Operator, PortSpec, PortType, RunContext, Value};
 use crate::error::RgbnError;
+use crate::ops::params::{Meta, ParamVisitor, Params};
+use crate::ops::stamp::{stamp_image, StampColor, StampParams};
 
 /// Parameters of [`StampNode`].
 #[derive(Clone, Debug, PartialEq)]

@@ -1,90 +1,25 @@
 //! Integration as nodes: normals → height ([`integrate_normals`]), the integrability projection
 //! ([`project_integrable`]), and two writers: a height to EXR (`save.height`) and a height +
 //! image to a mesh (`save.mesh`, [`save_mesh`]). The pure functions live in
-//! [`crate::raster::integrate`] and [`crate::raster::mesh`]; the node layer stays in `ops`.
+//! [`crate::raster::integrate`] and [`crate::raster::mesh`], the parameters in
+//! [`crate::ops::integrate`].
 
-use super::params::{Meta, ParamVisitor, Params};
 use super::save::write_value;
 use super::{Inputs, OpSpec, Operator, PortSpec, PortType, RunContext, Value};
 use crate::error::RgbnError;
-use crate::raster::integrate::{
-    integrate_normals, project_integrable, IntegrateParams, IntegrationMethod, ProjectParams,
-};
+use crate::ops::integrate::{IntegrateSettings, SaveMeshSettings};
+use crate::ops::params::{Meta, ParamVisitor, Params};
+use crate::raster::integrate::{integrate_normals, project_integrable, ProjectParams};
 use crate::raster::io::{self, SaveOptions};
-use crate::raster::mesh::{save_mesh, MeshFormat, MeshParams};
+use crate::raster::mesh::save_mesh;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
-
-/// Method names, in [`IntegrationMethod`] order.
-pub const METHODS: [&str; 3] = ["poisson_dct", "frankot_chellappa", "masked_poisson"];
-
-/// Parameters of [`IntegrateNode`] and [`ProjectNode`].
-#[derive(Clone, Debug, PartialEq)]
-pub struct IntegrateNodeParams {
-    /// Method name ([`METHODS`]).
-    pub method: &'static str,
-    /// CG iteration cap.
-    pub max_iterations: i64,
-    /// CG tolerance.
-    pub tolerance: f64,
-}
-
-impl Default for IntegrateNodeParams {
-    fn default() -> Self {
-        let d = IntegrateParams::default();
-        Self {
-            method: "poisson_dct",
-            max_iterations: i64::from(d.max_iterations),
-            tolerance: d.tolerance,
-        }
-    }
-}
-
-impl Params for IntegrateNodeParams {
-    fn visit(&mut self, v: &mut dyn ParamVisitor) {
-        v.choice(
-            "method",
-            &mut self.method,
-            &METHODS,
-            &Meta::new("poisson_dct: least squares, Neumann borders, DCT solver (mask ignored); frankot_chellappa: periodic borders, FFT; masked_poisson: only edges inside the image's mask, conjugate gradients."),
-        );
-        v.int(
-            "max_iterations",
-            &mut self.max_iterations,
-            &Meta::new("Conjugate-gradient iteration cap (masked_poisson only).").range(1.0, 1e7),
-        );
-        v.float(
-            "tolerance",
-            &mut self.tolerance,
-            &Meta::new("Stop when ‖b − Lz‖ ≤ tolerance·‖b‖ (masked_poisson only).")
-                .range(1e-12, 0.5),
-        );
-    }
-}
-
-impl IntegrateNodeParams {
-    fn to_params(&self) -> Result<IntegrateParams, RgbnError> {
-        let method = match self.method {
-            "frankot_chellappa" => IntegrationMethod::FrankotChellappa,
-            "masked_poisson" => IntegrationMethod::MaskedPoisson,
-            _ => IntegrationMethod::PoissonDct,
-        };
-        let p = IntegrateParams {
-            method,
-            max_iterations: u32::try_from(self.max_iterations)
-                .map_err(|_| RgbnError::param("max_iterations", "out of range"))?,
-            tolerance: self.tolerance,
-        };
-        p.validate()?;
-        Ok(p)
-    }
-}
 
 /// Normals → height.
 pub struct IntegrateNode;
 
 impl Operator for IntegrateNode {
-    type Params = IntegrateNodeParams;
+    type Params = IntegrateSettings;
     fn spec() -> OpSpec {
         OpSpec::new(
             "integrate",
@@ -100,15 +35,11 @@ impl Operator for IntegrateNode {
             "RMS over the domain's edges of ∇z − g in pixels per pixel: how far the field is from integrable.",
         ))
     }
-    fn check(p: &IntegrateNodeParams) -> Result<(), RgbnError> {
-        p.to_params().map(|_| ())
+    fn check(p: &IntegrateSettings) -> Result<(), RgbnError> {
+        p.params().map(|_| ())
     }
-    fn run(
-        p: &IntegrateNodeParams,
-        i: &Inputs<'_>,
-        _: &RunContext,
-    ) -> Result<Vec<Value>, RgbnError> {
-        let (z, rep) = integrate_normals(i.rgbn("image")?, &p.to_params()?)?;
+    fn run(p: &IntegrateSettings, i: &Inputs<'_>, _: &RunContext) -> Result<Vec<Value>, RgbnError> {
+        let (z, rep) = integrate_normals(i.rgbn("image")?, &p.params()?)?;
         Ok(vec![
             Value::Scalar(Arc::new(z)),
             Value::Number(rep.rms_residual),
@@ -120,7 +51,7 @@ impl Operator for IntegrateNode {
 pub struct ProjectNode;
 
 impl Operator for ProjectNode {
-    type Params = IntegrateNodeParams;
+    type Params = IntegrateSettings;
     fn spec() -> OpSpec {
         OpSpec::new(
             "project",
@@ -146,16 +77,12 @@ impl Operator for ProjectNode {
             "Relative RMS curl of the output (≈ 0).",
         ))
     }
-    fn check(p: &IntegrateNodeParams) -> Result<(), RgbnError> {
-        p.to_params().map(|_| ())
+    fn check(p: &IntegrateSettings) -> Result<(), RgbnError> {
+        p.params().map(|_| ())
     }
-    fn run(
-        p: &IntegrateNodeParams,
-        i: &Inputs<'_>,
-        _: &RunContext,
-    ) -> Result<Vec<Value>, RgbnError> {
+    fn run(p: &IntegrateSettings, i: &Inputs<'_>, _: &RunContext) -> Result<Vec<Value>, RgbnError> {
         let params = ProjectParams {
-            integrate: p.to_params()?,
+            integrate: p.params()?,
         };
         let (img, z, rep) = project_integrable(i.rgbn("image")?, &params)?;
         Ok(vec![
@@ -234,81 +161,11 @@ impl Operator for SaveHeight {
     }
 }
 
-/// Mesh format names.
-pub const MESH_FORMATS: [&str; 3] = ["ply", "ply_ascii", "obj"];
-
-/// Parameters of [`SaveMesh`].
-#[derive(Clone, Debug, PartialEq)]
-pub struct SaveMeshParams {
-    /// Output file.
-    pub path: String,
-    /// Format name ([`MESH_FORMATS`]).
-    pub format: &'static str,
-    /// Height multiplier.
-    pub z_scale: f64,
-    /// Pixel spacing.
-    pub pixel_size: f64,
-}
-
-impl Default for SaveMeshParams {
-    fn default() -> Self {
-        Self {
-            path: String::new(),
-            format: "ply",
-            z_scale: 1.0,
-            pixel_size: 1.0,
-        }
-    }
-}
-
-impl Params for SaveMeshParams {
-    fn visit(&mut self, v: &mut dyn ParamVisitor) {
-        v.path(
-            "path",
-            &mut self.path,
-            &Meta::new("Output mesh (.ply or .obj).").output(),
-        );
-        v.choice(
-            "format",
-            &mut self.format,
-            &MESH_FORMATS,
-            &Meta::new("ply (binary little-endian), ply_ascii, or obj (v x y z r g b, vn, f)."),
-        );
-        v.float(
-            "z_scale",
-            &mut self.z_scale,
-            &Meta::new("Multiplies the height (relief exaggeration; not 0).").range(-1e6, 1e6),
-        );
-        v.float(
-            "pixel_size",
-            &mut self.pixel_size,
-            &Meta::new("World size of one pixel.").range(1e-9, 1e9),
-        );
-    }
-}
-
-impl SaveMeshParams {
-    fn to_params(&self) -> Result<MeshParams, RgbnError> {
-        let format = match self.format {
-            "ply_ascii" => MeshFormat::PlyAscii,
-            "obj" => MeshFormat::Obj,
-            _ => MeshFormat::PlyBinary,
-        };
-        let p = MeshParams {
-            format,
-            z_scale: self.z_scale as f32,
-            pixel_size: self.pixel_size as f32,
-        };
-        p.validate()?;
-        Ok(p)
-    }
-}
-
 /// Writes a grid mesh of a height and an image.
 pub struct SaveMesh;
 
 impl Operator for SaveMesh {
-    type Params = SaveMeshParams;
+    type Params = SaveMeshSettings;
     fn spec() -> OpSpec {
         OpSpec::new(
             "save.mesh",
@@ -326,14 +183,18 @@ impl Operator for SaveMesh {
         .output(PortSpec::new("triangles", PortType::Number, "Triangles written."))
         .side_effect()
     }
-    fn check(p: &SaveMeshParams) -> Result<(), RgbnError> {
+    fn check(p: &SaveMeshSettings) -> Result<(), RgbnError> {
         if p.path.is_empty() {
             return Err(RgbnError::param("path", "a file path is required"));
         }
-        p.to_params().map(|_| ())
+        p.params().map(|_| ())
     }
-    fn run(p: &SaveMeshParams, i: &Inputs<'_>, ctx: &RunContext) -> Result<Vec<Value>, RgbnError> {
-        let params = p.to_params()?;
+    fn run(
+        p: &SaveMeshSettings,
+        i: &Inputs<'_>,
+        ctx: &RunContext,
+    ) -> Result<Vec<Value>, RgbnError> {
+        let params = p.params()?;
         let path = check_output(&p.path, ctx)?;
         let height = i
             .scalar("height")?

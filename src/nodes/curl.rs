@@ -1,9 +1,9 @@
 //! Integrability readout: the discrete curl `c = ∂p/∂y − ∂q/∂x` of an image's gradient field
 //! (see [`crate::raster::gradient`]) as a scalar field, and its relative RMS.
 
-use super::params::NoParams;
 use super::{Inputs, OpSpec, Operator, PortSpec, PortType, RunContext, Value};
 use crate::error::RgbnError;
+use crate::ops::params::NoParams;
 use crate::raster::gradient::GradientField;
 use std::sync::Arc;
 

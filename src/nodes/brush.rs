@@ -1,13 +1,13 @@
-//! The local filter brush of [`super::brush`] as a node: one linear kernel applied inside a
+//! The local filter brush of [`crate::ops::brush`] as a node: one linear kernel applied inside a
 //! stroke (a polyline swept by a disc with a feather) and/or a mask input ([`brush_image`]).
 //! Several strokes: chain brush nodes, or paint them into a mask.
 
-use super::brush::{brush_image, BrushParams, BrushStroke};
-use super::filter::{FilterOptions, Kernel};
-use super::node_kit::{border_mode, curl_port, visit_border};
-use super::params::{Meta, ParamVisitor, Params};
+use super::kit::{border_mode, curl_port, visit_border};
 use super::{Inputs, OpSpec, Operator, PortSpec, PortType, RunContext, Value};
 use crate::error::RgbnError;
+use crate::ops::brush::{brush_image, BrushParams, BrushStroke};
+use crate::ops::filter::{FilterOptions, Kernel};
+use crate::ops::params::{Meta, ParamVisitor, Params};
 use std::sync::Arc;
 
 /// Kernel names offered by the brush.

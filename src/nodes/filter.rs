@@ -1,13 +1,12 @@
-//! The linear gradient filters of [`super::filter`] as graph nodes: one node type per
+//! The linear gradient filters of [`crate::ops::filter`] as graph nodes: one node type per
 //! [`Kernel`] variant (`filter.gaussian`, `filter.sharpen`, …), each with the kernel's own
 //! parameters plus `border` and `mask_aware`. The node adds no maths: it calls
 //! [`filter_normals`] with a one-kernel list.
 
-use super::filter::{filter_normals, FilterOptions, Kernel};
-use super::params::{Meta, ParamVisitor, Params};
 use super::{Inputs, OpSpec, Operator, PortSpec, PortType, RunContext, Value};
 use crate::error::RgbnError;
-use crate::raster::convolve::BorderMode;
+use crate::ops::filter::{filter_normals, FilterOptions, Kernel};
+use crate::ops::params::{Meta, ParamVisitor, Params};
 use std::marker::PhantomData;
 
 /// The kernel-specific half of a filter node's parameters.
@@ -22,56 +21,20 @@ pub trait KernelNode: Params {
     fn kernel(&self) -> Kernel;
 }
 
-/// Parameters of a filter node: the kernel's, then the border mode and mask awareness.
-#[derive(Clone, Debug, PartialEq)]
+/// Parameters of a filter node: the kernel's, then the options (border mode and mask
+/// awareness).
+#[derive(Clone, Debug, Default, PartialEq)]
 pub struct FilterParams<K> {
     /// Kernel parameters.
     pub kernel: K,
-    /// Border mode name (`mirror`, `clamp`, `wrap`, `zero`).
-    pub border: &'static str,
-    /// Normalised convolution inside the mask.
-    pub mask_aware: bool,
+    /// Border mode and mask awareness.
+    pub options: FilterOptions,
 }
-
-impl<K: Default> Default for FilterParams<K> {
-    fn default() -> Self {
-        Self {
-            kernel: K::default(),
-            border: "mirror",
-            mask_aware: false,
-        }
-    }
-}
-
-const BORDERS: [&str; 4] = ["mirror", "clamp", "wrap", "zero"];
 
 impl<K: KernelNode> Params for FilterParams<K> {
     fn visit(&mut self, v: &mut dyn ParamVisitor) {
         self.kernel.visit(v);
-        v.choice(
-            "border",
-            &mut self.border,
-            &BORDERS,
-            &Meta::new("How the image is extended beyond its border."),
-        );
-        v.bool(
-            "mask_aware",
-            &mut self.mask_aware,
-            &Meta::new("Filter inside the image's mask only (normalised convolution)."),
-        );
-    }
-}
-
-impl<K> FilterParams<K> {
-    fn options(&self) -> FilterOptions {
-        let border = BorderMode::ALL
-            .into_iter()
-            .find(|b| b.name() == self.border)
-            .unwrap_or_default();
-        FilterOptions {
-            border,
-            mask_aware: self.mask_aware,
-        }
+        self.options.visit(v);
     }
 }
 
@@ -93,7 +56,7 @@ impl<K: KernelNode> Operator for FilterOp<K> {
         p.kernel.kernel().validate()
     }
     fn run(p: &FilterParams<K>, i: &Inputs<'_>, _: &RunContext) -> Result<Vec<Value>, RgbnError> {
-        let (out, _) = filter_normals(i.rgbn("image")?, &[p.kernel.kernel()], &p.options())?;
+        let (out, _) = filter_normals(i.rgbn("image")?, &[p.kernel.kernel()], &p.options)?;
         Ok(vec![Value::Rgbn(out)])
     }
 }

@@ -1,0 +1,41 @@
+//! Pieces shared by several nodes: the `relative_rms_curl` output that nonlinear (and any
+//! other) editing nodes report.
+
+use super::{PortSpec, PortType};
+use crate::ops::params::{Meta, ParamVisitor};
+use crate::raster::convolve::BorderMode;
+
+/// Border mode names, in [`BorderMode::ALL`] order.
+pub const BORDERS: [&str; 4] = ["mirror", "clamp", "wrap", "zero"];
+
+/// Declares a `border` choice parameter.
+pub fn visit_border(v: &mut dyn ParamVisitor, border: &mut &'static str) {
+    v.choice(
+        "border",
+        border,
+        &BORDERS,
+        &Meta::new("How the image is extended beyond its border."),
+    );
+}
+
+/// The border mode called `name` (the default for an unknown name, which the visitor refuses).
+#[must_use]
+pub fn border_mode(name: &str) -> BorderMode {
+    BorderMode::ALL
+        .into_iter()
+        .find(|b| b.name() == name)
+        .unwrap_or_default()
+}
+
+/// The `relative_rms_curl` output port.
+#[must_use]
+pub fn curl_port(what: &str) -> PortSpec {
+    PortSpec {
+        name: "relative_rms_curl".into(),
+        ty: PortType::Number,
+        doc: format!(
+            "RMS(curl) / RMS(|g|) of the {what} inside the mask: the integrability readout (0 for the gradients of a height)."
+        ),
+        optional: false,
+    }
+}

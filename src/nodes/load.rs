@@ -1,0 +1,296 @@
+//! Source nodes: files (RGBN EXR, colour + normal map + mask), the built-in demo medallion,
+//! analytic surfaces; and masks (load one, apply one to an image).
+//!
+//! File paths in graph files are relative to the graph file's folder. The evaluator keys loaded
+//! files by the hash of their bytes, so editing a file on disk invalidates its dependants and
+//! moving it does not.
+
+use super::{Inputs, OpSpec, Operator, PortSpec, PortType, RunContext, Value};
+use crate::error::RgbnError;
+use crate::ops::load::SurfaceParams;
+use crate::ops::params::{Meta, ParamVisitor, Params};
+use crate::raster::io::{self, InputSpec, LoadOptions, NormalConvention};
+use crate::raster::sample::demo_medallion;
+use crate::raster::{check_size, Plane};
+use std::path::PathBuf;
+use std::sync::Arc;
+
+/// Parameters of [`Demo`].
+#[derive(Clone, Debug, PartialEq)]
+pub struct DemoParams {
+    /// Side in pixels.
+    pub size: i64,
+}
+
+impl Default for DemoParams {
+    fn default() -> Self {
+        Self { size: 256 }
+    }
+}
+
+impl Params for DemoParams {
+    fn visit(&mut self, v: &mut dyn ParamVisitor) {
+        v.int(
+            "size",
+            &mut self.size,
+            &Meta::new("Side of the square image.")
+                .unit("px")
+                .range(16.0, 16384.0),
+        );
+    }
+}
+
+/// The built-in demo medallion ([`demo_medallion`]).
+pub struct Demo;
+
+impl Operator for Demo {
+    type Params = DemoParams;
+    fn spec() -> OpSpec {
+        OpSpec::new(
+            "demo",
+            "Demo medallion",
+            "input",
+            "The built-in procedural RGBN demo: a relief medallion with exact normals, no files needed.",
+        )
+        .output(PortSpec::new("image", PortType::Rgbn, "The demo image."))
+    }
+    fn run(p: &DemoParams, _: &Inputs<'_>, _: &RunContext) -> Result<Vec<Value>, RgbnError> {
+        let s = p.size as usize;
+        check_size(s, s, "demo")?;
+        Ok(vec![Value::Rgbn(demo_medallion(s))])
+    }
+}
+
+/// An analytic surface ([`Surface`]) with exact normals and its height.
+pub struct SurfaceOp;
+
+impl Operator for SurfaceOp {
+    type Params = SurfaceParams;
+    fn spec() -> OpSpec {
+        OpSpec::new(
+            "surface",
+            "Analytic surface",
+            "input",
+            "An analytic height field (sphere, paraboloid, sinusoid, Gaussian bumps) sampled with exact normals, grey albedo, and its height.",
+        )
+        .output(PortSpec::new(
+            "image",
+            PortType::Rgbn,
+            "Exact normals; masked where the slope is undefined.",
+        ))
+        .output(PortSpec::new(
+            "height",
+            PortType::Scalar,
+            "Height in pixels (y up).",
+        ))
+    }
+    fn run(p: &SurfaceParams, _: &Inputs<'_>, _: &RunContext) -> Result<Vec<Value>, RgbnError> {
+        let (w, h) = (p.width as usize, p.height as usize);
+        check_size(w, h, "surface")?;
+        let s = p.surface(w, h);
+        let (img, z) = s.render(w, h);
+        Ok(vec![Value::Rgbn(img), Value::Scalar(Arc::new(z))])
+    }
+}
+
+/// Parameters of [`Load`].
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct LoadParams {
+    /// RGBN EXR or normal map.
+    pub path: String,
+    /// Optional colour image.
+    pub color: String,
+    /// Optional mask image.
+    pub mask: String,
+    /// DirectX normal maps.
+    pub dx: bool,
+    /// EXR R,G,B is a normal pass.
+    pub exr_rgb_is_normal: bool,
+    /// Refuse bad normals.
+    pub strict: bool,
+}
+
+impl Params for LoadParams {
+    fn visit(&mut self, v: &mut dyn ParamVisitor) {
+        v.path(
+            "path",
+            &mut self.path,
+            &Meta::new("RGBN EXR (R,G,B + N.X,N.Y,N.Z [+ A]) or a normal map (PNG/TIFF/EXR)."),
+        );
+        v.path(
+            "color",
+            &mut self.color,
+            &Meta::new("Colour image (sRGB PNG/JPEG/TIFF or linear EXR); empty: none.").optional(),
+        );
+        v.path(
+            "mask",
+            &mut self.mask,
+            &Meta::new("Coverage mask (greyscale); empty: none.").optional(),
+        );
+        v.bool(
+            "dx",
+            &mut self.dx,
+            &Meta::new("Normal maps use the DirectX convention (green = −y)."),
+        );
+        v.bool(
+            "exr_rgb_is_normal",
+            &mut self.exr_rgb_is_normal,
+            &Meta::new("Read an EXR's R,G,B as the normal (Blender-style normal pass)."),
+        );
+        v.bool(
+            "strict",
+            &mut self.strict,
+            &Meta::new("Refuse NaN/inf/zero-length normals instead of repairing them."),
+        );
+    }
+}
+
+/// Loads an RGBN image from files.
+pub struct Load;
+
+fn opt_path(s: &str) -> Option<PathBuf> {
+    (!s.is_empty()).then(|| PathBuf::from(s))
+}
+
+impl Operator for Load {
+    type Params = LoadParams;
+    fn spec() -> OpSpec {
+        OpSpec::new(
+            "load",
+            "Load image",
+            "input",
+            "Loads an RGBN EXR, or a normal map with an optional colour image and mask; bad normals are repaired (or refused with strict).",
+        )
+        .output(PortSpec::new("image", PortType::Rgbn, "The loaded image."))
+    }
+    fn check(p: &LoadParams) -> Result<(), RgbnError> {
+        if p.path.is_empty() {
+            return Err(RgbnError::param("path", "a file path is required"));
+        }
+        Ok(())
+    }
+    fn run(p: &LoadParams, _: &Inputs<'_>, _: &RunContext) -> Result<Vec<Value>, RgbnError> {
+        Self::check(p)?;
+        let path = PathBuf::from(&p.path);
+        let is_rgbn = io::Format::of(&path)? == io::Format::Exr && !p.exr_rgb_is_normal;
+        let spec = InputSpec {
+            rgbn: is_rgbn.then(|| path.clone()),
+            normal: (!is_rgbn).then(|| path.clone()),
+            color: opt_path(&p.color),
+            mask: opt_path(&p.mask),
+        };
+        let opts = LoadOptions {
+            convention: if p.dx {
+                NormalConvention::DirectX
+            } else {
+                NormalConvention::OpenGl
+            },
+            exr_rgb_is_normal: p.exr_rgb_is_normal,
+            strict: p.strict,
+        };
+        Ok(vec![Value::Rgbn(io::load(&spec, &opts)?.image)])
+    }
+}
+
+/// Parameters of [`LoadMask`].
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct LoadMaskParams {
+    /// Greyscale image.
+    pub path: String,
+}
+
+impl Params for LoadMaskParams {
+    fn visit(&mut self, v: &mut dyn ParamVisitor) {
+        v.path(
+            "path",
+            &mut self.path,
+            &Meta::new("Greyscale image: white = covered, black = not."),
+        );
+    }
+}
+
+/// Loads a mask from a greyscale image.
+pub struct LoadMask;
+
+impl Operator for LoadMask {
+    type Params = LoadMaskParams;
+    fn spec() -> OpSpec {
+        OpSpec::new(
+            "load_mask",
+            "Load mask",
+            "input",
+            "Loads a coverage mask from a greyscale image (values in [0, 1]).",
+        )
+        .output(PortSpec::new("mask", PortType::Mask, "The mask."))
+    }
+    fn check(p: &LoadMaskParams) -> Result<(), RgbnError> {
+        if p.path.is_empty() {
+            return Err(RgbnError::param("path", "a file path is required"));
+        }
+        Ok(())
+    }
+    fn run(p: &LoadMaskParams, _: &Inputs<'_>, _: &RunContext) -> Result<Vec<Value>, RgbnError> {
+        Self::check(p)?;
+        let (w, h, m) = io::load_mask(std::path::Path::new(&p.path))?;
+        Ok(vec![Value::Mask(Arc::new(Plane::from_vec(w, h, m)?))])
+    }
+}
+
+/// Parameters of [`ApplyMask`].
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct ApplyMaskParams {
+    /// Use `1 − mask`.
+    pub invert: bool,
+}
+
+impl Params for ApplyMaskParams {
+    fn visit(&mut self, v: &mut dyn ParamVisitor) {
+        v.bool(
+            "invert",
+            &mut self.invert,
+            &Meta::new("Use 1 − mask (cover what the mask leaves out)."),
+        );
+    }
+}
+
+/// Replaces an image's mask.
+pub struct ApplyMask;
+
+impl Operator for ApplyMask {
+    type Params = ApplyMaskParams;
+    fn spec() -> OpSpec {
+        OpSpec::new(
+            "apply_mask",
+            "Apply mask",
+            "input",
+            "Sets the image's coverage mask (mask-aware operators then work inside it); without a mask input, removes the mask.",
+        )
+        .input(PortSpec::new("image", PortType::Rgbn, "The image."))
+        .input(PortSpec::new("mask", PortType::Mask, "The new mask (same size).").optional())
+        .output(PortSpec::new("image", PortType::Rgbn, "The image with the mask."))
+    }
+    fn run(p: &ApplyMaskParams, i: &Inputs<'_>, _: &RunContext) -> Result<Vec<Value>, RgbnError> {
+        let mut img = i.rgbn("image")?.clone();
+        match i.mask("mask")? {
+            None => img.set_mask(None)?,
+            Some(m) => {
+                if (m.width(), m.height()) != (img.width(), img.height()) {
+                    return Err(RgbnError::InvalidImage(format!(
+                        "mask is {}×{} but the image is {}×{}",
+                        m.width(),
+                        m.height(),
+                        img.width(),
+                        img.height()
+                    )));
+                }
+                let data = if p.invert {
+                    m.data().iter().map(|v| 1.0 - v).collect()
+                } else {
+                    m.data().to_vec()
+                };
+                img.set_mask(Some(data))?;
+            }
+        }
+        Ok(vec![Value::Rgbn(img)])
+    }
+}

@@ -1,0 +1,523 @@
+//! Operators as typed graph nodes. Each file `src/nodes/<name>.rs` is the node form of the pure
+//! operator `src/ops/<name>.rs` (or of code living elsewhere: `load`, `save`, `render`,
+//! `integrate`, `capture`): an [`Operator`] whose spec names the ports and whose `run` adapts
+//! the input values to the pure function and its results to output values, nothing else.
+//!
+//! This module holds the graph types ([`Operator`], [`OpSpec`], [`PortSpec`], [`PortType`],
+//! [`Value`], [`Inputs`], [`RunContext`]) and the [`registry`]: the single list an operator is
+//! added to; registering it puts it under test (every registered operator must appear in some
+//! `graphs/*.ron` and document itself and each parameter). See `CONTRIBUTING.md`.
+//!
+//! ## Wrapping a pure function as a node
+//!
+//! Given a pure function such as `emboss` below (normally in `src/ops/emboss.rs`, with tests)
+//! and its parameters declared once, the node is a spec and a one-line `run`:
+//!
+//! ```
+//! use rgbn::error::RgbnError;
+//! use rgbn::nodes::{Inputs, OpSpec, Operator, PortSpec, PortType, RunContext, Value};
+//! use rgbn::RgbnImage;
+//!
+//! rgbn::params! {
+//!     /// Parameters of [`emboss`].
+//!     #[derive(Clone, Debug, PartialEq)]
+//!     pub struct EmbossParams {
+//!         /// How much.
+//!         pub strength: f64 = 1.0 => float.range(0.0, 10.0),
+//!     }
+//! }
+//!
+//! /// The pure function.
+//! pub fn emboss(img: &RgbnImage, p: &EmbossParams) -> Result<RgbnImage, RgbnError> {
+//!     let mut out = img.clone();
+//!     for v in &mut out.normal_mut()[0] {
+//!         *v *= p.strength as f32;
+//!     }
+//!     out.normalize();
+//!     Ok(out)
+//! }
+//!
+//! /// The node (`src/nodes/emboss.rs`).
+//! pub struct EmbossNode;
+//! impl Operator for EmbossNode {
+//!     type Params = EmbossParams;
+//!     fn spec() -> OpSpec {
+//!         OpSpec::new("emboss", "Emboss", "filter", "Embosses the relief.")
+//!             .input(PortSpec::new("image", PortType::Rgbn, "Input."))
+//!             .output(PortSpec::new("image", PortType::Rgbn, "Embossed."))
+//!     }
+//!     fn run(p: &EmbossParams, i: &Inputs, _: &RunContext) -> Result<Vec<Value>, RgbnError> {
+//!         Ok(vec![Value::Rgbn(emboss(i.rgbn("image")?, p)?)])
+//!     }
+//! }
+//! # let img = RgbnImage::flat(4, 4, [0.5; 3]);
+//! # let spec = EmbossNode::spec();
+//! # let v = [Some(Value::Rgbn(img.clone()))];
+//! # let out = EmbossNode::run(&EmbossParams::default(), &Inputs::new(&spec.inputs, &v), &RunContext::default()).unwrap();
+//! # assert_eq!(out, vec![Value::Rgbn(img)]);
+//! ```
+//!
+//! then add `EmbossNode` to [`registry`] and an example `graphs/emboss.ron`. Bump
+//! [`OpSpec::version`] whenever the maths changes, so cached results are not reused.
+
+pub mod band;
+pub mod bilateral;
+pub mod brush;
+pub mod capture;
+pub mod combine;
+pub mod curl;
+pub mod filter;
+pub mod integrate;
+pub mod kit;
+pub mod load;
+pub mod normalize;
+pub mod pen;
+pub mod render;
+pub mod rotate;
+pub mod save;
+pub mod stamp;
+
+use crate::error::RgbnError;
+use crate::ops::params::{self, ParamError, ParamInfo, ParamValue, Params};
+use crate::raster::{Plane, RgbnImage};
+use std::collections::BTreeMap;
+use std::marker::PhantomData;
+use std::path::PathBuf;
+use std::sync::{Arc, OnceLock};
+
+/// The type of a port; connections are checked against it.
+#[derive(
+    Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord, serde::Serialize, serde::Deserialize,
+)]
+pub enum PortType {
+    /// An RGBN image (colour, normals, optional mask).
+    Rgbn,
+    /// A coverage mask in [0, 1].
+    Mask,
+    /// A scalar field (height, curl).
+    Scalar,
+    /// A display picture: sRGB 8-bit RGBA (renders, views).
+    Picture,
+    /// A single number (statistics).
+    Number,
+}
+
+impl PortType {
+    /// Every port type.
+    pub const ALL: [PortType; 5] = [
+        PortType::Rgbn,
+        PortType::Mask,
+        PortType::Scalar,
+        PortType::Picture,
+        PortType::Number,
+    ];
+    /// Lower-case name.
+    #[must_use]
+    pub fn name(self) -> &'static str {
+        match self {
+            PortType::Rgbn => "rgbn",
+            PortType::Mask => "mask",
+            PortType::Scalar => "scalar",
+            PortType::Picture => "picture",
+            PortType::Number => "number",
+        }
+    }
+}
+
+/// An sRGB 8-bit RGBA picture, row-major, row 0 at the top.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Picture {
+    /// Columns.
+    pub width: usize,
+    /// Rows.
+    pub height: usize,
+    /// `4 · width · height` bytes.
+    pub rgba: Vec<u8>,
+}
+
+/// A value flowing along an edge. Cloning is cheap (reference counted).
+#[derive(Clone, Debug, PartialEq)]
+pub enum Value {
+    /// An RGBN image (its planes are shared, copy-on-write).
+    Rgbn(RgbnImage),
+    /// A mask.
+    Mask(Arc<Plane>),
+    /// A scalar field.
+    Scalar(Arc<Plane>),
+    /// A display picture.
+    Picture(Arc<Picture>),
+    /// A number.
+    Number(f64),
+}
+
+impl Value {
+    /// The port type this value fits.
+    #[must_use]
+    pub fn port_type(&self) -> PortType {
+        match self {
+            Value::Rgbn(_) => PortType::Rgbn,
+            Value::Mask(_) => PortType::Mask,
+            Value::Scalar(_) => PortType::Scalar,
+            Value::Picture(_) => PortType::Picture,
+            Value::Number(_) => PortType::Number,
+        }
+    }
+    /// Bytes of pixel data held.
+    #[must_use]
+    pub fn byte_size(&self) -> usize {
+        match self {
+            Value::Rgbn(i) => i.byte_size(),
+            Value::Mask(p) | Value::Scalar(p) => p.data().len() * 4,
+            Value::Picture(p) => p.rgba.len(),
+            Value::Number(_) => 8,
+        }
+    }
+}
+
+/// One input or output port.
+#[derive(Clone, Debug, PartialEq)]
+pub struct PortSpec {
+    /// Name, unique among the node's inputs (or outputs).
+    pub name: String,
+    /// Type.
+    pub ty: PortType,
+    /// One-sentence doc.
+    pub doc: String,
+    /// Inputs only: may stay unconnected.
+    pub optional: bool,
+}
+
+impl PortSpec {
+    /// A required port.
+    #[must_use]
+    pub fn new(name: &str, ty: PortType, doc: &str) -> Self {
+        Self {
+            name: name.into(),
+            ty,
+            doc: doc.into(),
+            optional: false,
+        }
+    }
+    /// Marks an input as optional.
+    #[must_use]
+    pub fn optional(mut self) -> Self {
+        self.optional = true;
+        self
+    }
+}
+
+/// What an operator is: identity, documentation, ports.
+#[derive(Clone, Debug, PartialEq)]
+pub struct OpSpec {
+    /// Stable id used in graph files (`filter.gaussian`).
+    pub id: &'static str,
+    /// Human title.
+    pub title: &'static str,
+    /// Menu category (`input`, `filter`, `render`, `analysis`, `output`).
+    pub category: &'static str,
+    /// Documentation (first sentence is the summary).
+    pub doc: &'static str,
+    /// Bumped when the output for the same inputs and params changes (invalidates caches).
+    pub version: u32,
+    /// Input ports.
+    pub inputs: Vec<PortSpec>,
+    /// Output ports.
+    pub outputs: Vec<PortSpec>,
+    /// The node has an effect outside the graph (writes a file): it is never cached.
+    pub side_effect: bool,
+}
+
+impl OpSpec {
+    /// A spec with no ports, version 1.
+    #[must_use]
+    pub fn new(
+        id: &'static str,
+        title: &'static str,
+        category: &'static str,
+        doc: &'static str,
+    ) -> Self {
+        Self {
+            id,
+            title,
+            category,
+            doc,
+            version: 1,
+            inputs: Vec::new(),
+            outputs: Vec::new(),
+            side_effect: false,
+        }
+    }
+    /// Adds an input port.
+    #[must_use]
+    pub fn input(mut self, p: PortSpec) -> Self {
+        self.inputs.push(p);
+        self
+    }
+    /// Adds an output port.
+    #[must_use]
+    pub fn output(mut self, p: PortSpec) -> Self {
+        self.outputs.push(p);
+        self
+    }
+    /// Sets the version.
+    #[must_use]
+    pub fn version(mut self, v: u32) -> Self {
+        self.version = v;
+        self
+    }
+    /// Marks the node as writing outside the graph.
+    #[must_use]
+    pub fn side_effect(mut self) -> Self {
+        self.side_effect = true;
+        self
+    }
+}
+
+/// What a running node may know about its surroundings.
+#[derive(Clone, Debug, Default)]
+pub struct RunContext {
+    /// Files read by the graph; writing nodes refuse to overwrite them.
+    pub protected: Vec<PathBuf>,
+}
+
+/// The values on a node's input ports, by name (unconnected optional inputs are `None`).
+pub struct Inputs<'a> {
+    ports: &'a [PortSpec],
+    values: &'a [Option<Value>],
+}
+
+impl<'a> Inputs<'a> {
+    /// Wraps values in port order.
+    #[must_use]
+    pub fn new(ports: &'a [PortSpec], values: &'a [Option<Value>]) -> Self {
+        Self { ports, values }
+    }
+    /// The value on port `name`, if connected.
+    #[must_use]
+    pub fn get(&self, name: &str) -> Option<&'a Value> {
+        let i = self.ports.iter().position(|p| p.name == name)?;
+        self.values.get(i)?.as_ref()
+    }
+    fn missing(name: &str) -> RgbnError {
+        RgbnError::InvalidImage(format!(
+            "input {name:?} is not connected or has the wrong type"
+        ))
+    }
+    /// The RGBN image on port `name`.
+    pub fn rgbn(&self, name: &str) -> Result<&'a RgbnImage, RgbnError> {
+        match self.get(name) {
+            Some(Value::Rgbn(i)) => Ok(i),
+            _ => Err(Self::missing(name)),
+        }
+    }
+    /// The RGBN image on port `name`, `None` when unconnected (optional inputs).
+    pub fn rgbn_opt(&self, name: &str) -> Result<Option<&'a RgbnImage>, RgbnError> {
+        match self.get(name) {
+            Some(Value::Rgbn(i)) => Ok(Some(i)),
+            None => Ok(None),
+            _ => Err(Self::missing(name)),
+        }
+    }
+    /// The scalar field on port `name`, `None` when unconnected.
+    pub fn scalar(&self, name: &str) -> Result<Option<&'a Plane>, RgbnError> {
+        match self.get(name) {
+            Some(Value::Scalar(p)) => Ok(Some(p)),
+            None => Ok(None),
+            _ => Err(Self::missing(name)),
+        }
+    }
+    /// The mask on port `name`, `None` when unconnected.
+    pub fn mask(&self, name: &str) -> Result<Option<&'a Plane>, RgbnError> {
+        match self.get(name) {
+            Some(Value::Mask(m)) => Ok(Some(m)),
+            None => Ok(None),
+            _ => Err(Self::missing(name)),
+        }
+    }
+}
+
+/// A typed node. See the module docs for how to wrap a pure function.
+pub trait Operator: Send + Sync + 'static {
+    /// Parameters, declared once through [`Params::visit`].
+    type Params: Params;
+    /// Identity, doc and ports.
+    fn spec() -> OpSpec;
+    /// Checks combinations of parameters beyond the per-parameter ranges (called when a graph
+    /// is validated, before evaluation).
+    fn check(_params: &Self::Params) -> Result<(), RgbnError> {
+        Ok(())
+    }
+    /// Computes the outputs, in the order of `spec().outputs`.
+    fn run(
+        params: &Self::Params,
+        inputs: &Inputs<'_>,
+        ctx: &RunContext,
+    ) -> Result<Vec<Value>, RgbnError>;
+}
+
+/// The object-safe face of an [`Operator`], as held by the registry.
+pub trait DynOp: Send + Sync {
+    /// The spec.
+    fn spec(&self) -> &OpSpec;
+    /// Every parameter with doc, range and default.
+    fn params(&self) -> &[ParamInfo];
+    /// Applies `values` over the defaults, checks them, and returns the complete canonical map
+    /// (every parameter present), which is what cache keys hash.
+    fn canonical(
+        &self,
+        values: &BTreeMap<String, ParamValue>,
+    ) -> Result<BTreeMap<String, ParamValue>, ParamError>;
+    /// Runs on canonical params.
+    fn run(
+        &self,
+        values: &BTreeMap<String, ParamValue>,
+        inputs: &[Option<Value>],
+        ctx: &RunContext,
+    ) -> Result<Vec<Value>, RgbnError>;
+}
+
+struct Entry<T: Operator> {
+    spec: OpSpec,
+    params: Vec<ParamInfo>,
+    _op: PhantomData<fn() -> T>,
+}
+
+impl<T: Operator> Entry<T> {
+    fn boxed() -> Box<dyn DynOp> {
+        Box::new(Self {
+            spec: T::spec(),
+            params: params::describe::<T::Params>(),
+            _op: PhantomData,
+        })
+    }
+}
+
+impl<T: Operator> DynOp for Entry<T> {
+    fn spec(&self) -> &OpSpec {
+        &self.spec
+    }
+    fn params(&self) -> &[ParamInfo] {
+        &self.params
+    }
+    fn canonical(
+        &self,
+        values: &BTreeMap<String, ParamValue>,
+    ) -> Result<BTreeMap<String, ParamValue>, ParamError> {
+        let p: T::Params = params::from_values(values)?;
+        T::check(&p).map_err(|e| match e {
+            RgbnError::InvalidParam { name, detail } => ParamError::Range { name, detail },
+            // Not about one parameter (checks report `InvalidParam`): name the operator.
+            other => ParamError::Range {
+                name: self.spec.id.to_string(),
+                detail: other.to_string(),
+            },
+        })?;
+        Ok(params::to_values(&p))
+    }
+    fn run(
+        &self,
+        values: &BTreeMap<String, ParamValue>,
+        inputs: &[Option<Value>],
+        ctx: &RunContext,
+    ) -> Result<Vec<Value>, RgbnError> {
+        let p: T::Params = params::from_values(values)?;
+        let out = T::run(&p, &Inputs::new(&self.spec.inputs, inputs), ctx)?;
+        debug_assert_eq!(out.len(), self.spec.outputs.len());
+        Ok(out)
+    }
+}
+
+/// Every registered operator, in menu order. **Adding an operator = one line here** (plus its
+/// pure file, its node file and an example graph under `graphs/`; see `CONTRIBUTING.md`).
+pub fn registry() -> &'static [Box<dyn DynOp>] {
+    static REGISTRY: OnceLock<Vec<Box<dyn DynOp>>> = OnceLock::new();
+    REGISTRY.get_or_init(|| {
+        use filter::*;
+        vec![
+            // input
+            Entry::<load::Demo>::boxed(),
+            Entry::<load::SurfaceOp>::boxed(),
+            Entry::<load::Load>::boxed(),
+            Entry::<load::LoadMask>::boxed(),
+            Entry::<load::ApplyMask>::boxed(),
+            Entry::<capture::PhotometricStereoNode>::boxed(),
+            // filter
+            Entry::<FilterOp<GaussianK>>::boxed(),
+            Entry::<FilterOp<BoxK>>::boxed(),
+            Entry::<FilterOp<SharpenK>>::boxed(),
+            Entry::<FilterOp<EdgeK>>::boxed(),
+            Entry::<FilterOp<HighPassK>>::boxed(),
+            Entry::<FilterOp<DogK>>::boxed(),
+            Entry::<FilterOp<LogK>>::boxed(),
+            Entry::<FilterOp<ScaleK>>::boxed(),
+            Entry::<FilterOp<SeparableK>>::boxed(),
+            Entry::<FilterOp<DenseK>>::boxed(),
+            Entry::<normalize::Normalize>::boxed(),
+            Entry::<band::BandNode>::boxed(),
+            Entry::<brush::BrushNode>::boxed(),
+            Entry::<bilateral::BilateralNode>::boxed(),
+            Entry::<integrate::ProjectNode>::boxed(),
+            // combine and draw
+            Entry::<combine::LinearCombineNode>::boxed(),
+            Entry::<rotate::RotationCombineNode>::boxed(),
+            Entry::<stamp::StampNode>::boxed(),
+            Entry::<pen::PenNode>::boxed(),
+            // render and analysis
+            Entry::<render::Relight>::boxed(),
+            Entry::<render::ViewOp>::boxed(),
+            Entry::<curl::CurlOp>::boxed(),
+            Entry::<integrate::IntegrateNode>::boxed(),
+            // output
+            Entry::<save::Save>::boxed(),
+            Entry::<integrate::SaveHeight>::boxed(),
+            Entry::<integrate::SaveMesh>::boxed(),
+        ]
+    })
+}
+
+/// The operator with id `id`.
+#[must_use]
+pub fn find(id: &str) -> Option<&'static dyn DynOp> {
+    registry()
+        .iter()
+        .find(|o| o.spec().id == id)
+        .map(|b| b.as_ref())
+}
+
+/// The id of the reusable-graph node (a graph file used as a node; see [`crate::graph`]).
+pub const GRAPH_NODE_OP: &str = "graph";
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn registry_ids_unique_ports_named_uniquely() {
+        let mut ids: Vec<&str> = registry().iter().map(|o| o.spec().id).collect();
+        let n = ids.len();
+        ids.sort_unstable();
+        ids.dedup();
+        assert_eq!(ids.len(), n, "duplicate operator ids");
+        assert!(!ids.contains(&GRAPH_NODE_OP));
+        for op in registry() {
+            let s = op.spec();
+            for ports in [&s.inputs, &s.outputs] {
+                let mut names: Vec<&str> = ports.iter().map(|p| p.name.as_str()).collect();
+                names.sort_unstable();
+                names.dedup();
+                assert_eq!(names.len(), ports.len(), "{}", s.id);
+            }
+            // Defaults pass their own validation, once required file paths are given.
+            let mut given = BTreeMap::new();
+            for p in op.params() {
+                if p.kind == params::ParamKind::Path && !p.meta.optional {
+                    given.insert(p.name.to_string(), ParamValue::Path("x.exr".into()));
+                }
+            }
+            if !given.is_empty() {
+                assert!(op.canonical(&BTreeMap::new()).is_err(), "{}", s.id);
+            }
+            assert!(op.canonical(&given).is_ok(), "{}", s.id);
+        }
+    }
+}

@@ -1,0 +1,47 @@
+//! The pen of [`crate::ops::pen`] as a node: sculpt a relief along an open or closed path with a
+//! profile ([`apply_pen`]).
+
+use super::kit::curl_port;
+use super::{Inputs, OpSpec, Operator, PortSpec, PortType, RunContext, Value};
+use crate::error::RgbnError;
+use crate::ops::pen::{apply_pen, PenParams};
+use std::sync::Arc;
+
+/// Pen.
+pub struct PenNode;
+
+impl Operator for PenNode {
+    type Params = PenParams;
+    fn spec() -> OpSpec {
+        OpSpec::new(
+            "pen",
+            "Pen",
+            "draw",
+            "Sculpts a relief along a path (Pereira & Velho §V–VI): a profile across an open or closed polyline, added to the image's gradients. Open paths must end at the level they start (bump, ridge, crease, scratch); a step raises the inside of a closed path.",
+        )
+        .input(PortSpec::new("image", PortType::Rgbn, "Image to draw on."))
+        .output(PortSpec::new(
+            "image",
+            PortType::Rgbn,
+            "Image with the relief added; colour and mask unchanged.",
+        ))
+        .output(PortSpec::new(
+            "height",
+            PortType::Scalar,
+            "The pen's height in pixels (its gradients are what was added).",
+        ))
+        .output(curl_port("result's gradients"))
+    }
+    fn check(p: &PenParams) -> Result<(), RgbnError> {
+        p.validate()
+    }
+    fn run(p: &PenParams, i: &Inputs<'_>, _: &RunContext) -> Result<Vec<Value>, RgbnError> {
+        let (out, rep) = apply_pen(i.rgbn("image")?, p)?;
+        let curl = rep.curl_after.relative;
+        Ok(vec![
+            Value::Rgbn(out),
+            Value::Scalar(Arc::new(rep.height)),
+            Value::Number(curl),
+        ])
+    }
+}

@@ -1,0 +1,119 @@
+//! Writing values to files: the `save` node and [`write_value`], which the CLI uses for graph
+//! outputs (`-o NAME=PATH`). Writes are atomic (temporary file + rename) and never overwrite a
+//! file the graph reads.
+
+use super::{Inputs, OpSpec, Operator, PortSpec, PortType, RunContext, Value};
+use crate::error::RgbnError;
+use crate::ops::save::SaveParams;
+use crate::raster::io::{self, Format, SaveOptions};
+use crate::raster::Plane;
+use std::path::{Path, PathBuf};
+
+/// Writes `value` to `path` by its type and the path's extension:
+/// RGBN → `.exr` (everything) or `.png`/`.tif` (normal map); picture → `.png`/`.tif`;
+/// mask → `.png`/`.tif` (16-bit grey) or `.exr`; scalar field → `.exr` (`Y` channel, f32);
+/// number → a text file with the value.
+pub fn write_value(value: &Value, path: &Path, opts: &SaveOptions) -> Result<(), RgbnError> {
+    match value {
+        Value::Rgbn(img) => io::save(img, path, opts),
+        Value::Picture(p) => match Format::of(path)? {
+            f @ (Format::Png | Format::Tiff) => {
+                io::write_raster8(&p.rgba, p.width, p.height, 4, f, path)
+            }
+            _ => Err(unsupported(path, "pictures are written as .png or .tif")),
+        },
+        Value::Mask(m) => match Format::of(path)? {
+            Format::Exr => write_exr_plane(m, path),
+            f @ (Format::Png | Format::Tiff) => {
+                let data: Vec<u16> = m
+                    .data()
+                    .iter()
+                    .map(|v| (v.clamp(0.0, 1.0) * 65535.0).round() as u16)
+                    .collect();
+                io::write_raster16(&data, m.width(), m.height(), 1, f, path)
+            }
+            Format::Jpeg | Format::Ptm => {
+                Err(unsupported(path, "masks are written as .png, .tif or .exr"))
+            }
+        },
+        Value::Scalar(s) => match Format::of(path) {
+            Ok(Format::Exr) => write_exr_plane(s, path),
+            _ => Err(unsupported(path, "scalar fields are written as .exr")),
+        },
+        Value::Number(x) => io::write_atomic(path, |w| {
+            use std::io::Write;
+            writeln!(w, "{x}").map_err(|e| e.to_string())
+        }),
+    }
+}
+
+fn unsupported(path: &Path, why: &str) -> RgbnError {
+    RgbnError::UnsupportedFormat {
+        format: format!(
+            "{} ({why})",
+            path.extension()
+                .map(|e| e.to_string_lossy().into_owned())
+                .unwrap_or_default()
+        ),
+        path: path.into(),
+    }
+}
+
+/// Writes one plane as a single-channel (`Y`) f32 EXR.
+fn write_exr_plane(p: &Plane, path: &Path) -> Result<(), RgbnError> {
+    use exr::prelude::*;
+    let list = vec![AnyChannel::new("Y", FlatSamples::F32(p.data().to_vec()))];
+    let layer = Layer::new(
+        (p.width(), p.height()),
+        LayerAttributes::named("rgbn"),
+        Encoding {
+            compression: Compression::ZIP16,
+            blocks: Blocks::ScanLines,
+            line_order: LineOrder::Increasing,
+        },
+        AnyChannels::sort(SmallVec::from_vec(list)),
+    );
+    let image = Image::from_layer(layer);
+    io::write_atomic(path, |out| {
+        image.write().to_buffered(out).map_err(|e| e.to_string())
+    })
+}
+
+/// Writes its input to a file when evaluated and passes it through. Never cached.
+pub struct Save;
+
+impl Operator for Save {
+    type Params = SaveParams;
+    fn spec() -> OpSpec {
+        OpSpec::new(
+            "save",
+            "Save image",
+            "output",
+            "Writes the image to a file (atomically; never over a file the graph reads) and passes it through; runs whenever its output is requested.",
+        )
+        .input(PortSpec::new("image", PortType::Rgbn, "Image to write."))
+        .output(PortSpec::new("image", PortType::Rgbn, "The same image."))
+        .side_effect()
+    }
+    fn check(p: &SaveParams) -> Result<(), RgbnError> {
+        if p.path.is_empty() {
+            return Err(RgbnError::param("path", "a file path is required"));
+        }
+        match Format::of(Path::new(&p.path))? {
+            Format::Ptm => Err(unsupported(
+                Path::new(&p.path),
+                "PTM files are read, not written",
+            )),
+            _ => Ok(()),
+        }
+    }
+    fn run(p: &SaveParams, i: &Inputs<'_>, ctx: &RunContext) -> Result<Vec<Value>, RgbnError> {
+        Self::check(p)?;
+        let img = i.rgbn("image")?;
+        let path = PathBuf::from(&p.path);
+        let protected: Vec<&Path> = ctx.protected.iter().map(PathBuf::as_path).collect();
+        io::check_output(&path, &protected)?;
+        io::save(img, &path, &p.options())?;
+        Ok(vec![Value::Rgbn(img.clone())])
+    }
+}
