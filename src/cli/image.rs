@@ -18,7 +18,8 @@ use std::path::{Path, PathBuf};
 /// Where the input comes from.
 #[derive(Args, Debug, Clone)]
 pub struct InputArgs {
-    /// RGBN EXR (colour R,G,B + normal N.X,N.Y,N.Z [+ mask A]) or a normal map (PNG/TIFF/EXR).
+    /// RGBN EXR (colour R,G,B + normal N.X,N.Y,N.Z [+ mask A]), a normal map (PNG/TIFF/EXR) or
+    /// a Polynomial Texture Map (.ptm: LRGB or RGB, normals from the luminance maximum).
     pub file: Option<PathBuf>,
     /// Use the built-in demo medallion instead of a file.
     #[arg(long, conflicts_with_all = ["file", "normal"])]
@@ -187,7 +188,7 @@ impl InputArgs {
         let spec = self.spec();
         if spec.rgbn.is_none() && spec.normal.is_none() {
             return Err(usage(
-                "no input: give FILE (an RGBN EXR or a normal map), --normal PATH, or --demo",
+                "no input: give FILE (an RGBN EXR, a normal map or a .ptm), --normal PATH, or --demo",
             ));
         }
         let loaded = io::load(&spec, &self.load_options())?;
