@@ -17,11 +17,16 @@ fn main() -> ExitCode {
 
 /// Warnings and errors logged by the library (e.g. "disk cache write failed") go to stderr as
 /// `rgbn: warning: …` lines. `RUST_LOG` selects more (`RUST_LOG=debug`, `RUST_LOG=rgbn=info`);
-/// the default is `warn`.
+/// the default is `warn` for rgbn and `error` for the libraries it uses.
 fn init_logging() {
-    let filter = EnvFilter::builder()
-        .with_default_directive(LevelFilter::WARN.into())
-        .from_env_lossy();
+    // Without RUST_LOG: rgbn's own warnings, and only errors from the libraries beneath it
+    // (winit and eframe warn about things a user cannot act on, e.g. a virtual display's size).
+    let filter = match std::env::var("RUST_LOG") {
+        Ok(v) if !v.trim().is_empty() => EnvFilter::builder()
+            .with_default_directive(LevelFilter::WARN.into())
+            .parse_lossy(v),
+        _ => EnvFilter::new("error,rgbn=warn"),
+    };
     let _ = tracing_subscriber::fmt()
         .with_env_filter(filter)
         .with_writer(std::io::stderr)
