@@ -7,8 +7,7 @@
 use super::save::write_value;
 use super::{Inputs, OpSpec, Operator, PortSpec, PortType, RunContext, Value};
 use crate::error::RgbnError;
-use crate::ops::integrate::{IntegrateSettings, SaveMeshSettings};
-use crate::ops::params::{Meta, ParamVisitor, Params};
+use crate::ops::integrate::{IntegrateSettings, SaveHeightParams, SaveMeshSettings};
 use crate::raster::integrate::{integrate_normals, project_integrable, ProjectParams};
 use crate::raster::io::{self, SaveOptions};
 use crate::raster::mesh::save_mesh;
@@ -102,23 +101,6 @@ fn check_output(path: &str, ctx: &RunContext) -> Result<PathBuf, RgbnError> {
     let protected: Vec<&Path> = ctx.protected.iter().map(PathBuf::as_path).collect();
     io::check_output(&path, &protected)?;
     Ok(path)
-}
-
-/// Parameters of [`SaveHeight`].
-#[derive(Clone, Debug, Default, PartialEq)]
-pub struct SaveHeightParams {
-    /// Output `.exr`.
-    pub path: String,
-}
-
-impl Params for SaveHeightParams {
-    fn visit(&mut self, v: &mut dyn ParamVisitor) {
-        v.path(
-            "path",
-            &mut self.path,
-            &Meta::new("Output .exr (one f32 channel Y).").output(),
-        );
-    }
 }
 
 /// Writes a height (any scalar field) to EXR.

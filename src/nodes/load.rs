@@ -7,38 +7,12 @@
 
 use super::{Inputs, OpSpec, Operator, PortSpec, PortType, RunContext, Value};
 use crate::error::RgbnError;
-use crate::ops::load::SurfaceParams;
-use crate::ops::params::{Meta, ParamVisitor, Params};
+use crate::ops::load::{ApplyMaskParams, DemoParams, LoadMaskParams, LoadParams, SurfaceParams};
 use crate::raster::io::{self, InputSpec, LoadOptions, NormalConvention};
 use crate::raster::sample::demo_medallion;
 use crate::raster::{check_size, Plane};
 use std::path::PathBuf;
 use std::sync::Arc;
-
-/// Parameters of [`Demo`].
-#[derive(Clone, Debug, PartialEq)]
-pub struct DemoParams {
-    /// Side in pixels.
-    pub size: i64,
-}
-
-impl Default for DemoParams {
-    fn default() -> Self {
-        Self { size: 256 }
-    }
-}
-
-impl Params for DemoParams {
-    fn visit(&mut self, v: &mut dyn ParamVisitor) {
-        v.int(
-            "size",
-            &mut self.size,
-            &Meta::new("Side of the square image.")
-                .unit("px")
-                .range(16.0, 16384.0),
-        );
-    }
-}
 
 /// The built-in demo medallion ([`demo_medallion`]).
 pub struct Demo;
@@ -93,58 +67,6 @@ impl Operator for SurfaceOp {
     }
 }
 
-/// Parameters of [`Load`].
-#[derive(Clone, Debug, Default, PartialEq)]
-pub struct LoadParams {
-    /// RGBN EXR or normal map.
-    pub path: String,
-    /// Optional colour image.
-    pub color: String,
-    /// Optional mask image.
-    pub mask: String,
-    /// DirectX normal maps.
-    pub dx: bool,
-    /// EXR R,G,B is a normal pass.
-    pub exr_rgb_is_normal: bool,
-    /// Refuse bad normals.
-    pub strict: bool,
-}
-
-impl Params for LoadParams {
-    fn visit(&mut self, v: &mut dyn ParamVisitor) {
-        v.path(
-            "path",
-            &mut self.path,
-            &Meta::new("RGBN EXR (R,G,B + N.X,N.Y,N.Z [+ A]) or a normal map (PNG/TIFF/EXR)."),
-        );
-        v.path(
-            "color",
-            &mut self.color,
-            &Meta::new("Colour image (sRGB PNG/JPEG/TIFF or linear EXR); empty: none.").optional(),
-        );
-        v.path(
-            "mask",
-            &mut self.mask,
-            &Meta::new("Coverage mask (greyscale); empty: none.").optional(),
-        );
-        v.bool(
-            "dx",
-            &mut self.dx,
-            &Meta::new("Normal maps use the DirectX convention (green = −y)."),
-        );
-        v.bool(
-            "exr_rgb_is_normal",
-            &mut self.exr_rgb_is_normal,
-            &Meta::new("Read an EXR's R,G,B as the normal (Blender-style normal pass)."),
-        );
-        v.bool(
-            "strict",
-            &mut self.strict,
-            &Meta::new("Refuse NaN/inf/zero-length normals instead of repairing them."),
-        );
-    }
-}
-
 /// Loads an RGBN image from files.
 pub struct Load;
 
@@ -192,23 +114,6 @@ impl Operator for Load {
     }
 }
 
-/// Parameters of [`LoadMask`].
-#[derive(Clone, Debug, Default, PartialEq)]
-pub struct LoadMaskParams {
-    /// Greyscale image.
-    pub path: String,
-}
-
-impl Params for LoadMaskParams {
-    fn visit(&mut self, v: &mut dyn ParamVisitor) {
-        v.path(
-            "path",
-            &mut self.path,
-            &Meta::new("Greyscale image: white = covered, black = not."),
-        );
-    }
-}
-
 /// Loads a mask from a greyscale image.
 pub struct LoadMask;
 
@@ -233,23 +138,6 @@ impl Operator for LoadMask {
         Self::check(p)?;
         let (w, h, m) = io::load_mask(std::path::Path::new(&p.path))?;
         Ok(vec![Value::Mask(Arc::new(Plane::from_vec(w, h, m)?))])
-    }
-}
-
-/// Parameters of [`ApplyMask`].
-#[derive(Clone, Debug, Default, PartialEq)]
-pub struct ApplyMaskParams {
-    /// Use `1 − mask`.
-    pub invert: bool,
-}
-
-impl Params for ApplyMaskParams {
-    fn visit(&mut self, v: &mut dyn ParamVisitor) {
-        v.bool(
-            "invert",
-            &mut self.invert,
-            &Meta::new("Use 1 − mask (cover what the mask leaves out)."),
-        );
     }
 }
 

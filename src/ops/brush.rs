@@ -24,6 +24,7 @@ use super::combine::check_weight;
 use super::filter::{filter_gradients, FilterOptions, Kernel};
 use super::geom::{check_points, smoothstep, Polyline};
 use crate::error::RgbnError;
+use crate::raster::convolve::BorderMode;
 use crate::raster::gradient::{CurlStats, GradientField};
 use crate::raster::{Plane, RgbnImage};
 use rayon::prelude::*;
@@ -110,6 +111,122 @@ impl BrushParams {
             s.validate()?;
         }
         Ok(())
+    }
+}
+
+crate::choice_enum! {
+    /// The one linear kernel a [`SimpleBrushParams`] paints (as the `filter.*` nodes).
+    pub enum BrushKernel {
+        /// Gaussian blur of σ `sigma_px`.
+        Gaussian = "gaussian",
+        /// Box blur of half-width `box_radius_px`.
+        Box = "box",
+        /// Unsharp masking: σ `sigma_px`, `amount`.
+        Sharpen = "sharpen",
+        /// Edge enhancement (DoG boost): σ `sigma_px` and `sigma_coarse_px`, `amount`.
+        Edge = "edge",
+        /// High-pass `I − G_σ` of σ `sigma_px`.
+        HighPass = "highpass",
+        /// Difference of Gaussians of σ `sigma_px` and `sigma_coarse_px`.
+        DoG = "dog",
+        /// Scale-normalised Laplacian of Gaussian of σ `sigma_px`.
+        LoG = "log",
+        /// Depth scale by the factor `amount`.
+        Scale = "scale",
+    }
+}
+
+crate::params! {
+    /// One kernel painted along one stroke and/or a mask (the brush node's parameters), adapted
+    /// to [`BrushParams`] by [`SimpleBrushParams::to_params`].
+    #[derive(Clone, Debug, PartialEq)]
+    pub struct SimpleBrushParams {
+        /// The linear filter painted with the brush (as the filter.* nodes): gaussian, box, sharpen, edge, highpass, dog, log, scale.
+        pub kernel: BrushKernel = BrushKernel::Gaussian => choice,
+        /// σ of the kernel (the finer σ of edge and dog).
+        pub sigma_px: f64 = 3.0 => float.unit("px").range(0.05, 4096.0),
+        /// Coarser σ of edge and dog (must exceed sigma_px).
+        pub sigma_coarse_px: f64 = 6.0 => float.unit("px").range(0.05, 4096.0),
+        /// Amount of sharpen and edge; the depth factor of scale.
+        pub amount: f64 = 1.0 => float.range(-100.0, 100.0),
+        /// Half-width of the box kernel.
+        pub box_radius_px: i64 = 2 => int.unit("px").range(1.0, 4096.0),
+        /// The stroke: a polyline in pixels (x, row); one point is a dab; empty when only the mask input paints the region.
+        pub points: Vec<[f64; 2]> = vec![[32.0, 32.0]] => points.unit("px"),
+        /// Full-strength radius around the stroke.
+        pub radius_px: f64 = 8.0 => float.unit("px").range(0.0, 10_000.0),
+        /// Width of the smooth (quintic) fade beyond the radius.
+        pub feather_px: f64 = 4.0 => float.unit("px").range(0.0, 10_000.0),
+        /// How the image is extended beyond its border.
+        pub border: BorderMode = BorderMode::Mirror => choice,
+        /// Filter inside the image's own mask only (normalised convolution).
+        pub mask_aware: bool = false => bool,
+    }
+}
+
+impl SimpleBrushParams {
+    /// The kernel chosen, with its parameters.
+    #[must_use]
+    pub fn kernel(&self) -> Kernel {
+        let (s, c, a) = (
+            self.sigma_px as f32,
+            self.sigma_coarse_px as f32,
+            self.amount as f32,
+        );
+        match self.kernel {
+            BrushKernel::Gaussian => Kernel::Gaussian { sigma_px: s },
+            BrushKernel::Box => Kernel::Box {
+                radius_px: self.box_radius_px.clamp(0, i64::from(u32::MAX)) as u32,
+            },
+            BrushKernel::Sharpen => Kernel::Sharpen {
+                sigma_px: s,
+                amount: a,
+            },
+            BrushKernel::Edge => Kernel::EdgeEnhance {
+                sigma_fine_px: s,
+                sigma_coarse_px: c,
+                amount: a,
+            },
+            BrushKernel::HighPass => Kernel::HighPass { sigma_px: s },
+            BrushKernel::DoG => Kernel::DoG {
+                sigma_fine_px: s,
+                sigma_coarse_px: c,
+            },
+            BrushKernel::LoG => Kernel::LoG { sigma_px: s },
+            BrushKernel::Scale => Kernel::DepthScale { scale: a },
+        }
+    }
+
+    /// The [`brush_filter`] parameters (one kernel, at most one stroke), checked; errors name
+    /// these parameters.
+    pub fn to_params(&self) -> Result<BrushParams, RgbnError> {
+        let strokes = if self.points.is_empty() {
+            Vec::new()
+        } else {
+            vec![BrushStroke {
+                points: self.points.iter().map(|p| p.map(|v| v as f32)).collect(),
+                radius_px: self.radius_px as f32,
+                feather_px: self.feather_px as f32,
+            }]
+        };
+        let p = BrushParams {
+            kernels: vec![self.kernel()],
+            strokes,
+            filter: FilterOptions {
+                border: self.border,
+                mask_aware: self.mask_aware,
+            },
+        };
+        p.validate().map_err(|e| match e {
+            RgbnError::InvalidParam { name, detail } if name == "sigma_fine_px" => {
+                RgbnError::param("sigma_px", detail)
+            }
+            RgbnError::InvalidParam { name, detail } if name == "scale" => {
+                RgbnError::param("amount", detail)
+            }
+            other => other,
+        })?;
+        Ok(p)
     }
 }
 

@@ -105,3 +105,12 @@ impl SaveMeshSettings {
         Ok(p)
     }
 }
+
+crate::params! {
+    /// Parameters of writing a height (any scalar field) to EXR.
+    #[derive(Clone, Debug, PartialEq)]
+    pub struct SaveHeightParams {
+        /// Output .exr (one f32 channel Y).
+        pub path: String = String::new() => path.output(),
+    }
+}

@@ -1,5 +1,5 @@
-//! Parameters of the source nodes ([`crate::nodes::load`]) that have choices; the images come
-//! from [`crate::raster::io`] and [`crate::raster::sample`].
+//! Parameters of the source nodes ([`crate::nodes::load`]): files, the demo, analytic surfaces
+//! and masks; the images come from [`crate::raster::io`] and [`crate::raster::sample`].
 
 use crate::raster::sample::Surface;
 
@@ -55,5 +55,51 @@ impl SurfaceParams {
             },
             SurfaceShape::Gaussians => Surface::gaussians_for(w.min(h)),
         }
+    }
+}
+
+crate::params! {
+    /// Parameters of the demo medallion ([`crate::raster::sample::demo_medallion`]).
+    #[derive(Clone, Debug, PartialEq)]
+    pub struct DemoParams {
+        /// Side of the square image.
+        pub size: i64 = 256 => int.unit("px").range(16.0, 16384.0),
+    }
+}
+
+crate::params! {
+    /// Parameters of the image loader ([`crate::raster::io::load`]).
+    #[derive(Clone, Debug, PartialEq)]
+    pub struct LoadParams {
+        /// RGBN EXR (R,G,B + N.X,N.Y,N.Z [+ A]) or a normal map (PNG/TIFF/EXR).
+        pub path: String = String::new() => path,
+        /// Colour image (sRGB PNG/JPEG/TIFF or linear EXR); empty: none.
+        pub color: String = String::new() => path.optional(),
+        /// Coverage mask (greyscale); empty: none.
+        pub mask: String = String::new() => path.optional(),
+        /// Normal maps use the DirectX convention (green = −y).
+        pub dx: bool = false => bool,
+        /// Read an EXR's R,G,B as the normal (Blender-style normal pass).
+        pub exr_rgb_is_normal: bool = false => bool,
+        /// Refuse NaN/inf/zero-length normals instead of repairing them.
+        pub strict: bool = false => bool,
+    }
+}
+
+crate::params! {
+    /// Parameters of the mask loader ([`crate::raster::io::load_mask`]).
+    #[derive(Clone, Debug, PartialEq)]
+    pub struct LoadMaskParams {
+        /// Greyscale image: white = covered, black = not.
+        pub path: String = String::new() => path,
+    }
+}
+
+crate::params! {
+    /// Parameters of replacing an image's mask.
+    #[derive(Clone, Debug, PartialEq)]
+    pub struct ApplyMaskParams {
+        /// Use 1 − mask (cover what the mask leaves out).
+        pub invert: bool = false => bool,
     }
 }

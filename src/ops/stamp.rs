@@ -53,50 +53,29 @@ pub const MIN_AFFINE_DET: f64 = 1e-4;
 /// Most placements per call.
 pub const MAX_POSITIONS: usize = 100_000;
 
-/// How the stamp's colour is used.
-#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
-pub enum StampColor {
-    /// Relief only; the target's colour is kept.
-    None,
-    /// Composite the stamp's colour over the target with `α = opacity · window · mask`.
-    Over { opacity: f32 },
-}
-
-impl Default for StampColor {
-    fn default() -> Self {
-        StampColor::Over { opacity: 1.0 }
-    }
-}
-
-/// Parameters of the stamp operator (module docs).
-#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
-pub struct StampParams {
-    /// Where the stamp's centre goes, pixel coordinates `(x, row)`.
-    pub positions: Vec<[f32; 2]>,
-    /// Scale along the stamp's own `u`, `v` axes (may be negative: a mirror).
-    pub scale: [f32; 2],
-    /// Rotation, counter-clockwise on screen, radians.
-    pub angle_rad: f32,
-    /// Shear `u += shear · v` in the stamp frame (before rotation).
-    pub shear: f32,
-    /// Multiplies the relief (1 = as is, −1 = engraved instead of embossed).
-    pub height_scale: f32,
-    /// Width of the window's fade at each stamp edge, in stamp pixels (0 = hard edge).
-    pub falloff_px: f32,
-    pub color: StampColor,
-}
-
-impl Default for StampParams {
-    fn default() -> Self {
-        Self {
-            positions: vec![[64.0, 64.0]],
-            scale: [1.0, 1.0],
-            angle_rad: 0.0,
-            shear: 0.0,
-            height_scale: 1.0,
-            falloff_px: 4.0,
-            color: StampColor::default(),
-        }
+crate::params! {
+    /// Parameters of the stamp operator (module docs). Computations use these values rounded
+    /// to `f32`.
+    #[derive(Clone, Debug, PartialEq)]
+    pub struct StampParams {
+        /// Where the stamp's centre goes, in pixels (x, row); at least one.
+        pub positions: Vec<[f64; 2]> = vec![[64.0, 64.0]] => points.unit("px"),
+        /// Scale along the stamp's own u axis (negative mirrors).
+        pub scale_x: f64 = 1.0 => float.range(-1e4, 1e4),
+        /// Scale along the stamp's own v axis (negative mirrors).
+        pub scale_y: f64 = 1.0 => float.range(-1e4, 1e4),
+        /// Rotation, counter-clockwise on screen.
+        pub angle_rad: f64 = 0.0 => float.range(-1e4, 1e4).unit("rad"),
+        /// Shear u += shear·v in the stamp frame (before the rotation).
+        pub shear: f64 = 0.0 => float.range(-1e4, 1e4),
+        /// Multiplies the relief (−1 engraves instead of embossing).
+        pub height_scale: f64 = 1.0 => float.range(-1e4, 1e4),
+        /// Width of the fade at each stamp edge, in stamp pixels (0 = hard edge).
+        pub falloff_px: f64 = 4.0 => float.unit("px").range(0.0, 1e4),
+        /// Composite the stamp's colour over the image (else relief only).
+        pub color: bool = true => bool,
+        /// Opacity of the stamp's colour.
+        pub opacity: f64 = 1.0 => float.range(0.0, 1.0),
     }
 }
 
@@ -111,17 +90,32 @@ fn finite_in(name: &str, v: f32, lo: f32, hi: f32) -> Result<(), RgbnError> {
 }
 
 impl StampParams {
+    /// The positions as used (`f32`).
+    fn positions_f32(&self) -> Vec<[f32; 2]> {
+        self.positions.iter().map(|p| p.map(|v| v as f32)).collect()
+    }
+
+    /// The width of the window's fade as used (`f32`).
+    fn falloff(&self) -> f32 {
+        self.falloff_px as f32
+    }
+
+    /// The colour's opacity when the colour is composited.
+    fn color_opacity(&self) -> Option<f32> {
+        self.color.then_some(self.opacity as f32)
+    }
+
     /// The map `A` (y-up, `[[a, b], [c, d]]` row-major) of the module docs.
     #[must_use]
     pub fn affine(&self) -> [[f64; 2]; 2] {
         let (c, s) = (
-            f64::from(self.angle_rad).cos(),
-            f64::from(self.angle_rad).sin(),
+            f64::from(self.angle_rad as f32).cos(),
+            f64::from(self.angle_rad as f32).sin(),
         );
         let (sx, sy, k) = (
-            f64::from(self.scale[0]),
-            f64::from(self.scale[1]),
-            f64::from(self.shear),
+            f64::from(self.scale_x as f32),
+            f64::from(self.scale_y as f32),
+            f64::from(self.shear as f32),
         );
         // Sh · S = [[sx, k·sy], [0, sy]]; then R.
         let m = [[sx, k * sy], [0.0, sy]];
@@ -142,21 +136,21 @@ impl StampParams {
                 ),
             ));
         }
-        super::geom::check_points("positions", &self.positions, 1)?;
-        finite_in("scale", self.scale[0], -1e4, 1e4)?;
-        finite_in("scale", self.scale[1], -1e4, 1e4)?;
-        finite_in("angle_rad", self.angle_rad, -1e4, 1e4)?;
-        finite_in("shear", self.shear, -1e4, 1e4)?;
-        finite_in("height_scale", self.height_scale, -1e4, 1e4)?;
-        finite_in("falloff_px", self.falloff_px, 0.0, 1e4)?;
-        if let StampColor::Over { opacity } = self.color {
+        super::geom::check_points("positions", &self.positions_f32(), 1)?;
+        finite_in("scale_x", self.scale_x as f32, -1e4, 1e4)?;
+        finite_in("scale_y", self.scale_y as f32, -1e4, 1e4)?;
+        finite_in("angle_rad", self.angle_rad as f32, -1e4, 1e4)?;
+        finite_in("shear", self.shear as f32, -1e4, 1e4)?;
+        finite_in("height_scale", self.height_scale as f32, -1e4, 1e4)?;
+        finite_in("falloff_px", self.falloff(), 0.0, 1e4)?;
+        if let Some(opacity) = self.color_opacity() {
             finite_in("opacity", opacity, 0.0, 1.0)?;
         }
         let a = self.affine();
         let det = a[0][0] * a[1][1] - a[0][1] * a[1][0];
         if det.is_nan() || det.abs() < MIN_AFFINE_DET {
             return Err(RgbnError::param(
-                "scale",
+                "scale_x",
                 format!(
                     "the affine map has zero area (det = {det:e}); |scale_x·scale_y| must be ≥ {MIN_AFFINE_DET}"
                 ),
@@ -281,11 +275,11 @@ pub fn stamp_height_field(
     check_stamp_size(sw, sh)?;
     let a = params.affine();
     let ainv = inverse(a);
-    let hs = params.height_scale;
+    let hs = params.height_scale as f32;
     let boxes: Vec<_> = params
-        .positions
-        .iter()
-        .map(|&t| (t, placement_box(&a, t, sw, sh, width, height)))
+        .positions_f32()
+        .into_iter()
+        .map(|t| (t, placement_box(&a, t, sw, sh, width, height)))
         .collect();
     Ok(Plane::from_fn_rows(width, height, |r, out| {
         out.fill(0.0);
@@ -341,7 +335,7 @@ pub fn stamp_image(
 ) -> Result<(RgbnImage, StampReport), RgbnError> {
     params.validate()?;
     let (w, h) = (target.width(), target.height());
-    let prepared = stamp_height_from_normals(stamp, params.falloff_px)?;
+    let prepared = stamp_height_from_normals(stamp, params.falloff())?;
     let sg = stamp_gradients(w, h, &prepared, params)?;
     let mut g = GradientField::from_normals(target);
     g.p.par_iter_mut()
@@ -352,9 +346,9 @@ pub fn stamp_image(
         .for_each(|(a, b)| *a += b);
     let mut out = target.clone();
     g.write_normals(&mut out);
-    if let StampColor::Over { opacity } = params.color {
+    if let Some(opacity) = params.color_opacity() {
         let (sw, sh) = (stamp.width(), stamp.height());
-        let win = stamp_window(sw, sh, params.falloff_px);
+        let win = stamp_window(sw, sh, params.falloff());
         let alpha_src: Vec<f32> = match stamp.mask() {
             Some(m) => win.data().iter().zip(m).map(|(a, b)| a * b).collect(),
             None => win.into_vec(),
@@ -363,9 +357,9 @@ pub fn stamp_image(
         let ainv = inverse(a);
         let sc = stamp.color();
         let boxes: Vec<_> = params
-            .positions
-            .iter()
-            .map(|&t| (t, placement_box(&a, t, sw, sh, w, h)))
+            .positions_f32()
+            .into_iter()
+            .map(|t| (t, placement_box(&a, t, sw, sh, w, h)))
             .collect();
         let color = out.color_mut();
         let [cr, cg, cb] = color;
@@ -483,7 +477,8 @@ mod tests {
     fn transform_gradient_is_the_inverse_transpose() {
         let p = StampParams {
             angle_rad: 0.7,
-            scale: [1.5, 0.6],
+            scale_x: 1.5,
+            scale_y: 0.6,
             shear: 0.3,
             ..StampParams::default()
         };
@@ -510,7 +505,7 @@ mod tests {
         let prepared = prepare_stamp_height(&stamp_plane(&two_bumps(), n), 4.0);
         let p = StampParams {
             positions: vec![[40.0, 40.0]],
-            angle_rad: std::f32::consts::FRAC_PI_2,
+            angle_rad: f64::from(std::f32::consts::FRAC_PI_2),
             ..StampParams::default()
         };
         let got = stamp_gradients(80, 80, &prepared, &p).unwrap();
@@ -554,9 +549,10 @@ mod tests {
         ] {
             let p = StampParams {
                 positions: vec![[80.0, 80.0]],
-                angle_rad,
-                scale,
-                shear,
+                angle_rad: f64::from(angle_rad),
+                scale_x: f64::from(scale[0]),
+                scale_y: f64::from(scale[1]),
+                shear: f64::from(shear),
                 ..StampParams::default()
             };
             let got = stamp_gradients(size, size, &prepared, &p).unwrap();
@@ -600,7 +596,8 @@ mod tests {
             &prepared,
             &StampParams {
                 positions: vec![[80.0, 80.0]],
-                scale: [2.0, 2.0],
+                scale_x: 2.0,
+                scale_y: 2.0,
                 ..StampParams::default()
             },
         )
@@ -623,7 +620,8 @@ mod tests {
         let p = StampParams {
             positions: vec![[40.0, 40.0], [90.0, 80.0]],
             angle_rad: 0.4,
-            scale: [1.3, 1.3],
+            scale_x: 1.3,
+            scale_y: 1.3,
             ..StampParams::default()
         };
         let (out, rep) = stamp_image(&target, &stamp, &p).unwrap();
@@ -667,7 +665,8 @@ mod tests {
         let p = StampParams {
             positions: vec![[50.0, 50.0], [110.0, 100.0]],
             angle_rad: 0.8,
-            scale: [1.2, 0.9],
+            scale_x: 1.2,
+            scale_y: 0.9,
             falloff_px: 6.0,
             ..StampParams::default()
         };
@@ -691,10 +690,11 @@ mod tests {
         ) {
             let prepared = prepare_stamp_height(&stamp_plane(&two_bumps(), 25), 3.0);
             let p = StampParams {
-                positions: vec![[x, r]],
-                angle_rad: angle,
-                scale: [sx, sy],
-                shear,
+                positions: vec![[f64::from(x), f64::from(r)]],
+                angle_rad: f64::from(angle),
+                scale_x: f64::from(sx),
+                scale_y: f64::from(sy),
+                shear: f64::from(shear),
                 ..StampParams::default()
             };
             let g = stamp_gradients(96, 96, &prepared, &p).unwrap();
@@ -709,14 +709,14 @@ mod tests {
         for (p, needle) in [
             (
                 StampParams {
-                    scale: [0.0, 1.0],
+                    scale_x: 0.0,
                     ..ok.clone()
                 },
                 "zero area",
             ),
             (
                 StampParams {
-                    scale: [f32::NAN, 1.0],
+                    scale_x: f64::NAN,
                     ..ok.clone()
                 },
                 "scale",
@@ -737,7 +737,7 @@ mod tests {
             ),
             (
                 StampParams {
-                    color: StampColor::Over { opacity: 2.0 },
+                    opacity: 2.0,
                     ..ok.clone()
                 },
                 "[0, 1]",

@@ -274,7 +274,8 @@ mod tests {
             size: [20.0, 10.0],
         };
         let a = crate::ops::stamp::StampParams {
-            scale: [1.5, -0.8],
+            scale_x: 1.5,
+            scale_y: -0.8,
             angle_rad: 0.7,
             shear: 0.3,
             ..Default::default()
