@@ -81,7 +81,7 @@ impl Operator for Load {
             "load",
             "Load image",
             "input",
-            "Loads an RGBN EXR, or a normal map with an optional colour image and mask; bad normals are repaired (or refused with strict).",
+            "Loads an RGBN EXR, a PTM, or a normal map with an optional colour image and mask; bad normals are repaired (or refused with strict).",
         )
         .output(PortSpec::new("image", PortType::Rgbn, "The loaded image."))
     }

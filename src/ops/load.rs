@@ -71,7 +71,7 @@ crate::params! {
     /// Parameters of the image loader ([`crate::raster::io::load`]).
     #[derive(Clone, Debug, PartialEq)]
     pub struct LoadParams {
-        /// RGBN EXR (R,G,B + N.X,N.Y,N.Z [+ A]) or a normal map (PNG/TIFF/EXR).
+        /// RGBN EXR (R,G,B + N.X,N.Y,N.Z [+ A]), a normal map (PNG/TIFF/EXR) or a Polynomial Texture Map (.ptm, LRGB or RGB).
         pub path: String = String::new() => path,
         /// Colour image (sRGB PNG/JPEG/TIFF or linear EXR); empty: none.
         pub color: String = String::new() => path.optional(),
