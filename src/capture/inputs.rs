@@ -97,7 +97,15 @@ pub struct Lights {
 /// # Errors
 /// [`RgbnError::NotFound`]/[`RgbnError::Read`] and [`RgbnError::Parse`] naming the line.
 pub fn read_rows3(path: &Path) -> Result<Vec<[f32; 3]>, RgbnError> {
-    let text = std::fs::read_to_string(path).map_err(|e| {
+    parse_rows3(&read_text(path)?, path)
+}
+
+/// A text input file (light files, `.lp` files) as a string.
+///
+/// # Errors
+/// [`RgbnError::NotFound`] when it does not exist, [`RgbnError::Read`] otherwise.
+pub(crate) fn read_text(path: &Path) -> Result<String, RgbnError> {
+    std::fs::read_to_string(path).map_err(|e| {
         if e.kind() == std::io::ErrorKind::NotFound {
             RgbnError::NotFound { path: path.into() }
         } else {
@@ -106,8 +114,7 @@ pub fn read_rows3(path: &Path) -> Result<Vec<[f32; 3]>, RgbnError> {
                 source: e,
             }
         }
-    })?;
-    parse_rows3(&text, path)
+    })
 }
 
 /// [`read_rows3`] on text already in memory (`path` only names it in errors).

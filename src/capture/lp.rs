@@ -49,17 +49,7 @@ pub fn is_lp(path: &Path) -> bool {
 /// [`RgbnError::NotFound`] / [`RgbnError::Read`] for the file, [`RgbnError::Parse`] naming the
 /// line for a bad count, a bad direction or a count that disagrees with the photo lines.
 pub fn read_lp(path: &Path) -> Result<LpFile, RgbnError> {
-    let text = std::fs::read_to_string(path).map_err(|e| {
-        if e.kind() == std::io::ErrorKind::NotFound {
-            RgbnError::NotFound { path: path.into() }
-        } else {
-            RgbnError::Read {
-                path: path.into(),
-                source: e,
-            }
-        }
-    })?;
-    let mut lp = parse_lp(&text, path)?;
+    let mut lp = parse_lp(&super::inputs::read_text(path)?, path)?;
     let dir = path.parent().unwrap_or(Path::new(""));
     lp.photos = lp.photos.iter().map(|p| resolve_photo(dir, p)).collect();
     Ok(lp)

@@ -432,7 +432,11 @@ impl<T: Operator> DynOp for Entry<T> {
 pub fn registry() -> &'static [Box<dyn DynOp>] {
     static REGISTRY: OnceLock<Vec<Box<dyn DynOp>>> = OnceLock::new();
     REGISTRY.get_or_init(|| {
-        use filter::*;
+        use crate::ops::filter::{
+            BoxParams, DenseParams, DogParams, EdgeParams, GaussianParams, HighPassParams,
+            LogParams, ScaleParams, SeparableParams, SharpenParams,
+        };
+        use filter::FilterOp;
         vec![
             // input
             Entry::<load::Demo>::boxed(),
@@ -442,16 +446,16 @@ pub fn registry() -> &'static [Box<dyn DynOp>] {
             Entry::<load::ApplyMask>::boxed(),
             Entry::<capture::PhotometricStereoNode>::boxed(),
             // filter
-            Entry::<FilterOp<GaussianK>>::boxed(),
-            Entry::<FilterOp<BoxK>>::boxed(),
-            Entry::<FilterOp<SharpenK>>::boxed(),
-            Entry::<FilterOp<EdgeK>>::boxed(),
-            Entry::<FilterOp<HighPassK>>::boxed(),
-            Entry::<FilterOp<DogK>>::boxed(),
-            Entry::<FilterOp<LogK>>::boxed(),
-            Entry::<FilterOp<ScaleK>>::boxed(),
-            Entry::<FilterOp<SeparableK>>::boxed(),
-            Entry::<FilterOp<DenseK>>::boxed(),
+            Entry::<FilterOp<GaussianParams>>::boxed(),
+            Entry::<FilterOp<BoxParams>>::boxed(),
+            Entry::<FilterOp<SharpenParams>>::boxed(),
+            Entry::<FilterOp<EdgeParams>>::boxed(),
+            Entry::<FilterOp<HighPassParams>>::boxed(),
+            Entry::<FilterOp<DogParams>>::boxed(),
+            Entry::<FilterOp<LogParams>>::boxed(),
+            Entry::<FilterOp<ScaleParams>>::boxed(),
+            Entry::<FilterOp<SeparableParams>>::boxed(),
+            Entry::<FilterOp<DenseParams>>::boxed(),
             Entry::<normalize::Normalize>::boxed(),
             Entry::<band::BandNode>::boxed(),
             Entry::<brush::BrushNode>::boxed(),

@@ -591,6 +591,211 @@ pub fn filter_normals_general(
     ))
 }
 
+/// The parameters of one kernel as a graph node shows them (`filter.gaussian`, …): declared once
+/// with [`crate::params!`], each with the [`Kernel`] it describes. The node form
+/// (`crate::nodes::filter`) adds the operator id, title and doc, and the shared
+/// [`FilterOptions`].
+pub trait KernelParams: crate::ops::params::Params {
+    /// The kernel these parameters describe (validated by [`Kernel::validate`]).
+    fn kernel(&self) -> Kernel;
+}
+
+fn f32s(v: &[f64]) -> Vec<f32> {
+    v.iter().map(|x| *x as f32).collect()
+}
+
+crate::params! {
+    /// Gaussian blur.
+    #[derive(Clone, Debug, PartialEq)]
+    pub struct GaussianParams {
+        /// Standard deviation of the Gaussian.
+        pub sigma_px: f64 = 2.0 => float.unit("px").range(0.05, 4096.0),
+    }
+}
+
+impl KernelParams for GaussianParams {
+    fn kernel(&self) -> Kernel {
+        Kernel::Gaussian {
+            sigma_px: self.sigma_px as f32,
+        }
+    }
+}
+
+crate::params! {
+    /// Box filter.
+    #[derive(Clone, Debug, PartialEq)]
+    pub struct BoxParams {
+        /// Half-width: the mean over a (2r+1)² window.
+        pub radius_px: i64 = 2 => int.unit("px").range(1.0, 4096.0),
+    }
+}
+
+impl KernelParams for BoxParams {
+    fn kernel(&self) -> Kernel {
+        Kernel::Box {
+            radius_px: self.radius_px.clamp(0, i64::from(u32::MAX)) as u32,
+        }
+    }
+}
+
+crate::params! {
+    /// Unsharp masking.
+    #[derive(Clone, Debug, PartialEq)]
+    pub struct SharpenParams {
+        /// σ of the Gaussian whose residual is added.
+        pub sigma_px: f64 = 2.0 => float.unit("px").range(0.05, 4096.0),
+        /// How much of the high-pass is added.
+        pub amount: f64 = 1.0 => float.range(-100.0, 100.0),
+    }
+}
+
+impl KernelParams for SharpenParams {
+    fn kernel(&self) -> Kernel {
+        Kernel::Sharpen {
+            sigma_px: self.sigma_px as f32,
+            amount: self.amount as f32,
+        }
+    }
+}
+
+crate::params! {
+    /// Band-pass enhancement.
+    #[derive(Clone, Debug, PartialEq)]
+    pub struct EdgeParams {
+        /// σ of the finer Gaussian.
+        pub sigma_fine_px: f64 = 1.0 => float.unit("px").range(0.05, 4096.0),
+        /// σ of the coarser Gaussian.
+        pub sigma_coarse_px: f64 = 4.0 => float.unit("px").range(0.05, 4096.0),
+        /// How much of the band-pass is added.
+        pub amount: f64 = 1.0 => float.range(-100.0, 100.0),
+    }
+}
+
+impl KernelParams for EdgeParams {
+    fn kernel(&self) -> Kernel {
+        Kernel::EdgeEnhance {
+            sigma_fine_px: self.sigma_fine_px as f32,
+            sigma_coarse_px: self.sigma_coarse_px as f32,
+            amount: self.amount as f32,
+        }
+    }
+}
+
+crate::params! {
+    /// High-pass.
+    #[derive(Clone, Debug, PartialEq)]
+    pub struct HighPassParams {
+        /// σ of the Gaussian removed.
+        pub sigma_px: f64 = 4.0 => float.unit("px").range(0.05, 4096.0),
+    }
+}
+
+impl KernelParams for HighPassParams {
+    fn kernel(&self) -> Kernel {
+        Kernel::HighPass {
+            sigma_px: self.sigma_px as f32,
+        }
+    }
+}
+
+crate::params! {
+    /// Difference of Gaussians.
+    #[derive(Clone, Debug, PartialEq)]
+    pub struct DogParams {
+        /// σ of the finer Gaussian.
+        pub sigma_fine_px: f64 = 1.0 => float.unit("px").range(0.05, 4096.0),
+        /// σ of the coarser Gaussian.
+        pub sigma_coarse_px: f64 = 4.0 => float.unit("px").range(0.05, 4096.0),
+    }
+}
+
+impl KernelParams for DogParams {
+    fn kernel(&self) -> Kernel {
+        Kernel::DoG {
+            sigma_fine_px: self.sigma_fine_px as f32,
+            sigma_coarse_px: self.sigma_coarse_px as f32,
+        }
+    }
+}
+
+crate::params! {
+    /// Laplacian of Gaussian.
+    #[derive(Clone, Debug, PartialEq)]
+    pub struct LogParams {
+        /// σ of the Gaussian.
+        pub sigma_px: f64 = 2.0 => float.unit("px").range(0.05, 4096.0),
+    }
+}
+
+impl KernelParams for LogParams {
+    fn kernel(&self) -> Kernel {
+        Kernel::LoG {
+            sigma_px: self.sigma_px as f32,
+        }
+    }
+}
+
+crate::params! {
+    /// Depth scale.
+    #[derive(Clone, Debug, PartialEq)]
+    pub struct ScaleParams {
+        /// Factor on the gradients.
+        pub scale: f64 = 2.0 => float.range(-100.0, 100.0),
+    }
+}
+
+impl KernelParams for ScaleParams {
+    fn kernel(&self) -> Kernel {
+        Kernel::DepthScale {
+            scale: self.scale as f32,
+        }
+    }
+}
+
+crate::params! {
+    /// A separable user kernel.
+    #[derive(Clone, Debug, PartialEq)]
+    pub struct SeparableParams {
+        /// Taps (odd count ≤ 63), applied as given.
+        pub row: Vec<f64> = vec![0.25, 0.5, 0.25] => floats.range(-1e6, 1e6),
+        /// Taps (odd count ≤ 63), applied as given.
+        pub col: Vec<f64> = vec![0.25, 0.5, 0.25] => floats.range(-1e6, 1e6),
+    }
+}
+
+impl KernelParams for SeparableParams {
+    fn kernel(&self) -> Kernel {
+        Kernel::Separable {
+            row: f32s(&self.row),
+            col: f32s(&self.col),
+        }
+    }
+}
+
+crate::params! {
+    /// A dense user kernel.
+    #[derive(Clone, Debug, PartialEq)]
+    pub struct DenseParams {
+        /// Kernel size (odd).
+        pub width: i64 = 3 => int.unit("px").range(1.0, 63.0),
+        /// Kernel size (odd).
+        pub height: i64 = 3 => int.unit("px").range(1.0, 63.0),
+        /// width × height weights, row-major, row 0 at the top.
+        pub weights: Vec<f64> = vec![0.0, 0.125, 0.0, 0.125, 0.5, 0.125, 0.0, 0.125, 0.0]
+            => floats.range(-1e6, 1e6),
+    }
+}
+
+impl KernelParams for DenseParams {
+    fn kernel(&self) -> Kernel {
+        Kernel::Dense {
+            width: self.width.max(0) as usize,
+            height: self.height.max(0) as usize,
+            weights: f32s(&self.weights),
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
