@@ -20,6 +20,9 @@ mod graph_errors;
 #[path = "it/cache.rs"]
 mod cache;
 
+#[path = "it/combine.rs"]
+mod combine;
+
 #[path = "it/cli.rs"]
 mod cli;
 

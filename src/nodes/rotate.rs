@@ -27,7 +27,7 @@ impl Operator for RotationCombineNode {
             PortSpec::new(
                 "existing",
                 PortType::Rgbn,
-                "Rotate mode: the normals rotated (the base when unconnected).",
+                "The normals being edited, fine detail included (§VII's a): replace, blend and rotate act on them; the base when unconnected.",
             )
             .optional(),
         )

@@ -12,30 +12,43 @@
 //!   `o` (e.g. the image's `x` axis or a brush direction), `b = n × t`; falls back to the
 //!   minimal frame where `o ∥ n`.
 //!
-//! # Modes (per pixel; base `n`, detail `d` expressed in the base's frame, weight `w ∈ [0,1]`)
+//! # Modes (per pixel; base `n`, detail `d` expressed in the base's frame, existing normal `a`,
+//! weight `w ∈ [0,1]`)
 //!
-//! The weight first *attenuates* the detail along its great arc to the pole:
-//! `d_w = slerp(e_z, d, w)` (so `w = 0` means "no detail").
-//! - [`CombineMode::Replace`]: `F d` where `w ≥ ½`, else `n` (a hard region).
-//! - [`CombineMode::Blend`]: `F d_w` = `slerp(n, F d, w)` (rotations preserve great arcs): a
-//!   smooth falloff to the base.
-//! - [`CombineMode::Rotate`]: apply the rotation `R_d` that takes `e_z` to `d_w`, expressed in
-//!   the base's frame, to a third *existing* normal `e`: `F R_d Fᵀ e`. When `e = n` this equals
-//!   Blend.
-//! - Industry blends of Barré-Brisebois & Hill (2012) on `(n, d_w)` in the image frame:
-//!   [`CombineMode::Rnm`] (reoriented normal mapping: equals Blend in the minimal frame),
-//!   [`CombineMode::Udn`] `normalize(n_xy + d_xy, n_z)`, [`CombineMode::Whiteout`]
-//!   `normalize(n_xy + d_xy, n_z d_z)`, and [`CombineMode::PartialDerivative`]
-//!   `normalize(n_xy d_z + d_xy n_z, n_z d_z)`, i.e. the sum of the gradients (= the linear
-//!   combine of [`super::combine`]).
+//! The three modes of §VII edit the *existing* normal `a` — the image before the edit, fine
+//! detail included (the `existing` input; the base `n` when it is not connected). The detail,
+//! taken to the image frame, is the new normal `b = F d`. §VII: "This strategy fails when b has
+//! a negative z value. In this case we … replace b by a saturated vector k": with saturation
+//! on, a `b` with `b_z < min_z` is first moved back along the great arc from `n` to `b`, to the
+//! first point `k` where `z = min_z` (see Saturation).
+//! - [`CombineMode::Replace`]: `a ← b` where `w ≥ ½`, else `a` (a hard region).
+//! - [`CombineMode::Blend`]: `slerp(a, b, w)`: a smooth falloff back to the existing normal.
+//! - [`CombineMode::Rotate`]: the weight first *attenuates* the detail along its great arc to
+//!   the pole, `d_w = slerp(e_z, d, w)`, `b = F d_w` (saturated to `k`); then `a` is rotated by
+//!   the shortest-arc rotation taking `n` to `b` (axis `n × b`, angle `∠(n, b)`): the existing
+//!   normal turns by the direction and angle the detail specifies. A base at 80°, a detail of
+//!   30° and an existing normal at 50°, all tilted about `y`: `b` would be at 110°, `k` is at
+//!   `acos(min_z)` = 87.13°, and the result is at 50° + 7.13° = 57.13°.
+//!
+//! With `a = n` (existing not connected) Blend and Rotate both give `F d_w`, the detail on the
+//! base.
+//! - Industry blends of Barré-Brisebois & Hill (2012) on `(n, d_w)` in the image frame (they
+//!   ignore `a`): [`CombineMode::Rnm`] (reoriented normal mapping: equals Blend in the minimal
+//!   frame with `a = n`), [`CombineMode::Udn`] `normalize(n_xy + d_xy, n_z)`,
+//!   [`CombineMode::Whiteout`] `normalize(n_xy + d_xy, n_z d_z)`, and
+//!   [`CombineMode::PartialDerivative`] `normalize(n_xy d_z + d_xy n_z, n_z d_z)`, i.e. the sum
+//!   of the gradients (= the linear combine of [`super::combine`]).
 //!
 //! # Saturation
 //!
 //! Rotating a tilted base by a tilted detail can push a normal over the horizon (RNM gives
-//! `z < 0` for a base at 80° and a 30° detail in the same direction). With saturation on,
-//! a result with `z < min_z` is moved back along the great arc from the base normal `n` (the
-//! existing normal `e` in Rotate mode) to the result, to the first point where `z = min_z` (the rotation "stops" at the threshold);
-//! if the base itself is below `min_z`, along the meridian (keeping the azimuth).
+//! `z < 0` for a base at 80° and a 30° detail in the same direction). With saturation on, a
+//! vector with `z < min_z` is moved back along the great arc from where the rotation starts to
+//! it, to the first point where `z = min_z` (the rotation "stops" at the threshold); if the
+//! start itself is below `min_z`, along the meridian (keeping the azimuth). The §VII modes
+//! saturate `b` (arc from `n`) and then, should the edited normal still fall below `min_z`
+//! (a rotated `a` already near the horizon), the result (arc from `a`); the industry blends
+//! saturate their result (arc from `n`).
 //!
 //! # References
 //! - T. Pereira, L. Velho, "RGBN image editing", SIBGRAPI 2011, §VII.
@@ -234,11 +247,13 @@ impl FrameKind {
 crate::choice_enum! {
     /// How base and detail combine (module docs).
     pub enum CombineMode {
-        /// `F d` inside the region (`w ≥ ½`), the base elsewhere.
+        /// The existing normal becomes the detail on the base, `b = F d`, inside the region
+        /// (`w ≥ ½`); elsewhere it is kept (§VII "replace the existing normal a with b").
         Replace = "replace",
-        /// `F slerp(e_z, d, w)`: detail with a smooth falloff weight.
+        /// `slerp(a, b, w)`: the existing normal blended towards the detail on the base.
         Blend = "blend",
-        /// `F R_d Fᵀ e`: rotate an existing normal by the detail's rotation in the base frame.
+        /// The existing normal rotated by the rotation taking the base to `b` (§VII), with
+        /// `b` saturated first.
         Rotate = "rotate",
         /// Reoriented normal mapping (Barré-Brisebois & Hill), in the image frame.
         Rnm = "rnm",
@@ -255,7 +270,7 @@ crate::params! {
     /// Parameters of [`rotation_combine`].
     #[derive(Clone, Debug, PartialEq)]
     pub struct RotateParams {
-        /// replace: F d where w ≥ ½; blend: F slerp(e_z, d, w); rotate: rotate the existing normal by the detail's rotation in the base frame; rnm, udn, whiteout, partial_derivative: the blends of Barré-Brisebois & Hill.
+        /// replace: the existing normal a becomes the detail on the base, b = F d, where w ≥ ½; blend: slerp(a, b, w); rotate: a rotated by the rotation taking the base to b (§VII); rnm, udn, whiteout, partial_derivative: the blends of Barré-Brisebois & Hill (on the base, ignoring a).
         pub mode: CombineMode = CombineMode::Blend => choice,
         /// Tangent frame of the base normal: minimal (shortest-arc rotation from +z; Blend = RNM) or oriented (tangent = orientation projected on the tangent plane).
         pub frame: FrameKind = FrameKind::Minimal => choice,
@@ -263,7 +278,8 @@ crate::params! {
         pub orientation: [f64; 3] = [1.0, 0.0, 0.0] => vec3.range(-1e6, 1e6),
         /// Global weight multiplying the per-pixel weight.
         pub strength: f64 = 1.0 => float.range(0.0, 1.0),
-        /// Move results with n_z < min_z back along the great arc to n_z = min_z.
+        /// Move vectors with n_z < min_z back along the great arc to n_z = min_z (§VII's
+        /// saturated vector k).
         pub saturate: bool = true => bool,
         /// Saturation threshold on n_z.
         pub min_z: f64 = f64::from(0.05f32) => float.range(0.0, 0.999),
@@ -365,14 +381,68 @@ pub fn saturate(from: V3, r: V3, min_z: f64) -> V3 {
     normalize3(add(scale(from, phi.cos()), scale(e, phi.sin())))
 }
 
+/// `slerp(a, b, w)` for unit `a`, `b` (the shortest great arc; for antipodal vectors the arc
+/// through the pole-ward direction perpendicular to `a`).
+#[must_use]
+pub fn slerp(a: V3, b: V3, w: f64) -> V3 {
+    if w <= 0.0 {
+        return a;
+    }
+    if w >= 1.0 {
+        return b;
+    }
+    let c = dot(a, b).clamp(-1.0, 1.0);
+    let theta = c.acos();
+    let s = theta.sin();
+    if s < 1e-9 {
+        if c > 0.0 {
+            return normalize3(add(scale(a, 1.0 - w), scale(b, w)));
+        }
+        // Antipodal: any perpendicular works; take the one towards +z (or +x).
+        let mut p = add([0.0, 0.0, 1.0], scale(a, -a[2]));
+        if dot(p, p) < 1e-18 {
+            p = add([1.0, 0.0, 0.0], scale(a, -a[0]));
+        }
+        let p = normalize3(p);
+        let t = w * std::f64::consts::PI;
+        return normalize3(add(scale(a, t.cos()), scale(p, t.sin())));
+    }
+    let ka = ((1.0 - w) * theta).sin() / s;
+    let kb = (w * theta).sin() / s;
+    normalize3(add(scale(a, ka), scale(b, kb)))
+}
+
+/// The shortest-arc rotation taking unit `from` to unit `to`, applied to `x` (Rodrigues with
+/// `v = from × to`, `c = from · to`: `R x = c x + v × x + v (v·x)/(1 + c)`). For antipodal
+/// vectors the rotation by π about an axis perpendicular to `from` (towards +z, or +x).
+#[must_use]
+pub fn rotate_between(from: V3, to: V3, x: V3) -> V3 {
+    let c = dot(from, to);
+    if 1.0 + c < ANTIPODAL_EPS {
+        let mut p = add([0.0, 0.0, 1.0], scale(from, -from[2]));
+        if dot(p, p) < 1e-18 {
+            p = add([1.0, 0.0, 0.0], scale(from, -from[0]));
+        }
+        let p = normalize3(p);
+        // Rotation by π about p: x ↦ 2 (p·x) p − x.
+        return add(scale(p, 2.0 * dot(p, x)), scale(x, -1.0));
+    }
+    let v = cross(from, to);
+    add(
+        add(scale(x, c), cross(v, x)),
+        scale(v, dot(v, x) / (1.0 + c)),
+    )
+}
+
 /// Combines one base normal `n`, detail `d` (in the base's frame for Replace/Blend/Rotate,
-/// in the image frame for the industry blends), existing normal `e` (Rotate only) with weight
-/// `w`. Inputs need not be normalised; the output is unit. Returns `(normal, saturated)`.
+/// in the image frame for the industry blends), existing normal `a` (the §VII modes) with
+/// weight `w` (module docs). Inputs need not be normalised; the output is unit. Returns
+/// `(normal, saturated)`.
 #[must_use]
 pub fn combine_one(
     n: [f32; 3],
     d: [f32; 3],
-    e: [f32; 3],
+    a: [f32; 3],
     w: f32,
     params: &RotateParams,
 ) -> ([f32; 3], bool) {
@@ -380,52 +450,66 @@ pub fn combine_one(
     let d = normalize3(to64(d));
     let w = f64::from((w * params.strength as f32).clamp(0.0, 1.0));
     let frame = params.tangent_frame();
-    // As f32, as the node always passed it (same results as before).
+    // As f32, as the node always passed it.
     let min_z = f64::from(params.min_z as f32);
     let dw = attenuate(d, w);
-    let r = match params.mode {
-        CombineMode::Replace => {
-            if w >= 0.5 {
-                frame.to_world(n, d)
-            } else {
-                n
-            }
+    let sat = |from: V3, v: V3| {
+        if params.saturate && v[2] < min_z {
+            (saturate(from, v, min_z), true)
+        } else {
+            (v, false)
         }
-        CombineMode::Blend => frame.to_world(n, dw),
-        CombineMode::Rotate => {
-            let e = normalize3(to64(e));
-            let local = frame.to_tangent(n, e);
-            frame.to_world(n, min_rotation_apply(dw, local))
+    };
+    let (r, start, b_saturated) = match params.mode {
+        CombineMode::Replace | CombineMode::Blend | CombineMode::Rotate => {
+            let a = normalize3(to64(a));
+            let detail = if params.mode == CombineMode::Rotate {
+                dw
+            } else {
+                d
+            };
+            let (b, b_saturated) = sat(n, frame.to_world(n, detail));
+            let r = match params.mode {
+                CombineMode::Replace => {
+                    if w >= 0.5 {
+                        b
+                    } else {
+                        a
+                    }
+                }
+                CombineMode::Blend => slerp(a, b, w),
+                _ => rotate_between(n, b, a),
+            };
+            (r, a, b_saturated)
         }
         CombineMode::Rnm => {
             let t = [n[0], n[1], n[2] + 1.0];
             let u = [-dw[0], -dw[1], dw[2]];
-            if t[2] < ANTIPODAL_EPS {
+            let r = if t[2] < ANTIPODAL_EPS {
                 min_rotation_apply(n, dw)
             } else {
                 normalize3(add(scale(t, dot(t, u) / t[2]), scale(u, -1.0)))
-            }
+            };
+            (r, n, false)
         }
-        CombineMode::Udn => normalize3([n[0] + dw[0], n[1] + dw[1], n[2]]),
-        CombineMode::Whiteout => normalize3([n[0] + dw[0], n[1] + dw[1], n[2] * dw[2]]),
-        CombineMode::PartialDerivative => normalize3([
-            n[0] * dw[2] + dw[0] * n[2],
-            n[1] * dw[2] + dw[1] * n[2],
-            n[2] * dw[2],
-        ]),
+        CombineMode::Udn => (normalize3([n[0] + dw[0], n[1] + dw[1], n[2]]), n, false),
+        CombineMode::Whiteout => (
+            normalize3([n[0] + dw[0], n[1] + dw[1], n[2] * dw[2]]),
+            n,
+            false,
+        ),
+        CombineMode::PartialDerivative => (
+            normalize3([
+                n[0] * dw[2] + dw[0] * n[2],
+                n[1] * dw[2] + dw[1] * n[2],
+                n[2] * dw[2],
+            ]),
+            n,
+            false,
+        ),
     };
-    let r = normalize3(r);
-    if params.saturate && r[2] < min_z {
-        // The arc starts where the rotation starts: the existing normal for Rotate.
-        let from = if params.mode == CombineMode::Rotate {
-            normalize3(to64(e))
-        } else {
-            n
-        };
-        (to32(saturate(from, r, min_z)), true)
-    } else {
-        (to32(r), false)
-    }
+    let (r, r_saturated) = sat(start, normalize3(r));
+    (to32(r), b_saturated || r_saturated)
 }
 
 /// What [`rotation_combine`] measured.
@@ -458,7 +542,7 @@ fn check_size(
 }
 
 /// Rotation combine of two images (module docs): colour and mask come from `base`; `existing`
-/// (Rotate mode; default = `base`) is the normal being rotated; `weight` (default 1) is the
+/// (default = `base`) holds the normals the §VII modes edit; `weight` (default 1) is the
 /// per-pixel region/falloff weight in `[0, 1]`.
 pub fn rotation_combine(
     base: &RgbnImage,
@@ -704,10 +788,9 @@ mod tests {
             let l = r.iter().map(|v| v * v).sum::<f32>().sqrt();
             prop_assert!((l - 1.0).abs() < 1e-5);
             prop_assert!(r[2] >= p.min_z as f32 - 1e-5, "{:?}", r);
-            // w = 0: the base (or the existing normal, for Rotate) is returned.
+            // w = 0: the existing normal is returned by the §VII modes, the base by the blends.
             let (r0, _) = combine_one(n, d, e, 0.0, &p);
-            let want = if mode == CombineMode::Rotate { to32(normalize3(to64(e))) }
-                else { to32(normalize3(to64(n))) };
+            let want = if m < 3 { to32(normalize3(to64(e))) } else { to32(normalize3(to64(n))) };
             if want[2] >= p.min_z as f32 {
                 prop_assert!((0..3).all(|k| (r0[k] - want[k]).abs() < 1e-5), "{:?} {:?}", r0, want);
             }
