@@ -6,6 +6,7 @@ use crate::error::RgbnError;
 use crate::ops::filter::{filter_normals, FilterOptions, Kernel};
 use crate::raster::convolve::BorderMode;
 use crate::raster::gradient::GradientField;
+use crate::raster::integrate::green_convention_fractions;
 use crate::raster::io::{
     self, ExrPrecision, Format, InputSpec, LoadOptions, NormalConvention, SaveOptions,
 };
@@ -262,6 +263,25 @@ pub(super) fn info(a: &InfoArgs, out: &mut Out<'_>) -> Result<(), CliError> {
         "curl:        relative RMS {:.3e} (RMS {:.3e}, max |c| {:.3e})",
         c.relative, c.rms_curl, c.max_abs_curl
     ))?;
+    let [as_read, flipped] = green_convention_fractions(&img)?;
+    out.line(format_args!(
+        "integrability: non-integrable fraction F = {as_read:.3e} (0: the normals of a surface; ≈ 0.7: noise)"
+    ))?;
+    let (this, other) = if a.input.dx {
+        ("DirectX (-y)", "OpenGL (+y)")
+    } else {
+        ("OpenGL (+y)", "DirectX (-y)")
+    };
+    if as_read <= flipped {
+        out.line(format_args!(
+            "green:       {this} most likely: F = {as_read:.3e} read as {this}, {flipped:.3e} read as {other}"
+        ))?;
+    } else {
+        let hint = if a.input.dx { "without" } else { "with" };
+        out.line(format_args!(
+            "green:       {other} most likely: F = {flipped:.3e} read as {other}, {as_read:.3e} read as {this} — load it {hint} --dx"
+        ))?;
+    }
     Ok(())
 }
 

@@ -245,6 +245,56 @@ pub fn integrate_normals(
     integrate_gradients(&GradientField::from_normals(img), img.mask(), params)
 }
 
+/// The non-integrable fraction `F = ‖g − D z*‖ / ‖g‖` over the edge equations of the module
+/// docs, `z*` the least-squares height: [`IntegrationMethod::PoissonDct`] (Neumann borders), or
+/// [`IntegrationMethod::MaskedPoisson`] over the mask where there is one. `D z*` is the
+/// orthogonal projection of `g` onto the discrete gradients, so `F ∈ [0, 1]`: 0 for the
+/// gradient of a height (to rounding), ≈ 0.71 for white noise (a random field has as much
+/// energy in the curl part as in the gradient part), 1 for a pure curl field. Scale-free:
+/// unlike the relative curl it does not fall when an edit only adds gradient energy. A zero
+/// field reads 0.
+///
+/// # Errors
+/// As [`integrate_gradients`] (a mask of the wrong size, or with no pixel inside).
+pub fn non_integrable_fraction(g: &GradientField, mask: Option<&[f32]>) -> Result<f64, RgbnError> {
+    let method = if mask.is_some() {
+        IntegrationMethod::MaskedPoisson
+    } else {
+        IntegrationMethod::PoissonDct
+    };
+    let (_, report) = integrate_gradients(
+        g,
+        mask,
+        &IntegrateParams {
+            method,
+            ..IntegrateParams::default()
+        },
+    )?;
+    let norm = edge_rms(None, g, mask);
+    Ok(if norm > 0.0 {
+        (report.rms_residual / norm).min(1.0)
+    } else {
+        0.0
+    })
+}
+
+/// The non-integrable fraction of an image's normals read as stored (`[0]`) and with `n_y`
+/// negated (`[1]`, the other green convention: OpenGL ↔ DirectX). The height-derived reading
+/// is the one with the lower `F`: a normal map read in the wrong convention is the gradient
+/// field `(p, −q)`, which belongs to no surface unless the relief is symmetric.
+///
+/// # Errors
+/// As [`non_integrable_fraction`].
+pub fn green_convention_fractions(img: &RgbnImage) -> Result<[f64; 2], RgbnError> {
+    let g = GradientField::from_normals(img);
+    let as_read = non_integrable_fraction(&g, img.mask())?;
+    let flipped = GradientField {
+        q: g.q.iter().map(|v| -v).collect(),
+        ..g
+    };
+    Ok([as_read, non_integrable_fraction(&flipped, img.mask())?])
+}
+
 /// Pixels whose curl stencil (itself, above, right, above-right: every value the forward
 /// differences of `p(x, r−1)`, `p(x, r)`, `q(x, r)`, `q(x+1, r)` read) lies inside the
 /// mask: the curl readout of a masked field, free of values across the silhouette.
@@ -316,8 +366,13 @@ pub fn gradients_of_height(
 
 /// RMS of `D z − g` over the edges (inside the domain if given).
 fn edge_residual_rms(z: &Plane, g: &GradientField, domain: Option<&[f32]>) -> f64 {
+    edge_rms(Some(z.data()), g, domain)
+}
+
+/// RMS over the domain's edge equations of `D z − g`, or of `g` itself when `z` is `None`.
+fn edge_rms(z: Option<&[f32]>, g: &GradientField, domain: Option<&[f32]>) -> f64 {
     let (w, h) = (g.width, g.height);
-    let d = z.data();
+    let dz = |i: usize, j: usize| z.map_or(0.0, |d| d[j] - d[i]);
     let ins = |i: usize| domain.is_none_or(|m| inside(m[i]));
     let (s, n) = (0..h)
         .into_par_iter()
@@ -326,12 +381,12 @@ fn edge_residual_rms(z: &Plane, g: &GradientField, domain: Option<&[f32]>) -> f6
             for x in 0..w {
                 let i = r * w + x;
                 if x + 1 < w && ins(i) && ins(i + 1) {
-                    let e = f64::from(d[i + 1] - d[i] - g.p[i]);
+                    let e = f64::from(dz(i, i + 1) - g.p[i]);
                     s += e * e;
                     n += 1;
                 }
                 if r >= 1 && ins(i) && ins(i - w) {
-                    let e = f64::from(d[i - w] - d[i] - g.q[i]);
+                    let e = f64::from(dz(i, i - w) - g.q[i]);
                     s += e * e;
                     n += 1;
                 }
@@ -406,6 +461,115 @@ mod tests {
     use super::test_util::*;
     use super::*;
     use crate::raster::sample::Surface;
+
+    /// A deterministic uniform noise field in [−1, 1] (64-bit LCG).
+    fn noise_field(w: usize, h: usize, seed: u64) -> GradientField {
+        let mut state = seed;
+        let mut next = || {
+            state = state
+                .wrapping_mul(6_364_136_223_846_793_005)
+                .wrapping_add(1_442_695_040_888_963_407);
+            ((state >> 40) as f32 / (1u64 << 24) as f32) * 2.0 - 1.0
+        };
+        let p = (0..w * h).map(|_| next()).collect();
+        let q = (0..w * h).map(|_| next()).collect();
+        GradientField {
+            width: w,
+            height: h,
+            p,
+            q,
+            clamped: 0,
+        }
+    }
+
+    fn disc_mask(w: usize, h: usize) -> Vec<f32> {
+        (0..w * h)
+            .map(|i| {
+                let (x, r) = (
+                    (i % w) as f64 - w as f64 / 2.0,
+                    (i / w) as f64 - h as f64 / 2.0,
+                );
+                f32::from(u8::from(x * x + 1.5 * r * r < (w as f64 * 0.4).powi(2)))
+            })
+            .collect()
+    }
+
+    #[test]
+    fn non_integrable_fraction_is_zero_for_a_height_and_near_root_half_for_noise() {
+        let (w, h) = (96, 80);
+        let s = Surface::gaussians_for(96);
+        let z = Plane::from_fn(w, h, |x, r| {
+            s.height(x as f64 - 48.0, 40.0 - r as f64) as f32
+        });
+        let g = GradientField::from_height(&z);
+        let m = disc_mask(w, h);
+        for mask in [None, Some(&m[..])] {
+            let f = non_integrable_fraction(&g, mask).unwrap();
+            assert!(f < 1e-4, "height, mask {}: F = {f}", mask.is_some());
+            // White noise: half of the edge space is gradients, half curl: F ≈ √½ (a little
+            // less: the gradients have N − 1 dimensions of the 2N − W − H edges).
+            let n = noise_field(w, h, 7);
+            let f = non_integrable_fraction(&n, mask).unwrap();
+            assert!(
+                (0.62..0.72).contains(&f),
+                "noise, mask {}: F = {f}",
+                mask.is_some()
+            );
+            // Scale-free, unlike the relative curl when gradient energy is added.
+            let scaled = GradientField {
+                p: n.p.iter().map(|v| v * 8.0).collect(),
+                q: n.q.iter().map(|v| v * 8.0).collect(),
+                ..n.clone()
+            };
+            let fs = non_integrable_fraction(&scaled, mask).unwrap();
+            assert!((fs - f).abs() < 1e-4, "{fs} vs {f}");
+        }
+        // The sum of a surface and noise of equal energy: between the two.
+        let n = noise_field(w, h, 9);
+        let rms =
+            |v: &[f32]| (v.iter().map(|a| f64::from(a * a)).sum::<f64>() / v.len() as f64).sqrt();
+        let k = (rms(&g.p) + rms(&g.q)) / (rms(&n.p) + rms(&n.q));
+        let mixed = GradientField {
+            p: g.p
+                .iter()
+                .zip(&n.p)
+                .map(|(a, b)| a + k as f32 * b)
+                .collect(),
+            q: g.q
+                .iter()
+                .zip(&n.q)
+                .map(|(a, b)| a + k as f32 * b)
+                .collect(),
+            ..g.clone()
+        };
+        let f = non_integrable_fraction(&mixed, None).unwrap();
+        assert!((0.3..0.62).contains(&f), "mixed F = {f}");
+        assert_eq!(
+            non_integrable_fraction(&GradientField::zeros(8, 8), None).unwrap(),
+            0.0
+        );
+    }
+
+    #[test]
+    fn the_wrong_green_convention_reads_as_non_integrable() {
+        let (w, h) = (96, 96);
+        let s = Surface::gaussians_for(96);
+        let z = Plane::from_fn(w, h, |x, r| {
+            s.height(x as f64 - 48.0, 48.0 - r as f64) as f32
+        });
+        let g = GradientField::from_height(&z);
+        let mut img = RgbnImage::flat(w, h, [0.5; 3]);
+        g.write_normals(&mut img);
+        let [gl, dx] = green_convention_fractions(&img).unwrap();
+        assert!(gl < 1e-3 && dx > 0.1, "as stored {gl}, flipped {dx}");
+        // The same image stored the other way round reads the other way round.
+        let [x, y, zz] = img.normal();
+        let flipped = img
+            .with_normals([x.to_vec(), y.iter().map(|v| -v).collect(), zz.to_vec()])
+            .unwrap();
+        let [a, b] = green_convention_fractions(&flipped).unwrap();
+        assert!((a - dx).abs() < 1e-6 && (b - gl).abs() < 1e-6, "{a} {b}");
+    }
 
     #[test]
     fn analytic_surfaces_are_recovered_at_the_staggered_position() {
