@@ -44,6 +44,15 @@
 //!   `u = +d/(W/2)` for open paths (the profile's half `u ∈ [0, 1]`, mirrored) and `±` by the
 //!   inside test for closed paths.
 //!
+//! **End caps.** Beyond an end of an open path (the closest point is the end) the stroke
+//! finishes in a cap of radius `W/2`. There `u = s/(W/2)` with `s` the signed distance to the
+//! line of the last segment (continuous across its extension, so an asymmetric profile has no
+//! seam there), `a` the distance beyond the end (`a² + s² = |P − C|²`), and
+//! `h = f₀ + t·k·(f(u) − f₀)` with `k = 1 − a/√((W/2)² − s²)`: 1 where the cap meets the
+//! stroke, 0 on its round rim. For a profile with `f(±1) = f₀` and steepest slope `σ` (height
+//! per pixel) the cap is never steeper than `σ` along either axis (`|f − f₀| ≤ σ(W/2 − |s|)`
+//! bounds the `∂k` terms). With a taper the cap is flat (`t = 0` at the ends).
+//!
 //! **Level changes.** Outside the stroke the gradient is zero, so the two sides of an open path
 //! must be at the same level, `f(−1) = f(1)` (i.e. `∫f′du = 0`): otherwise the surface would
 //! have to tear around the path's ends. This is validated; the [`Profile::Step`] (and any
@@ -390,6 +399,9 @@ impl Stroke<'_> {
             let level = self.profile.eval(u.signum()).0;
             return (level, [0.0, 0.0]);
         }
+        if let Some(cap) = self.end_cap(&pr) {
+            return cap;
+        }
         let (f, df) = self.profile.eval(u);
         let (t, dt) = if self.closed || self.taper <= 0.0 {
             (1.0, 0.0)
@@ -424,6 +436,64 @@ impl Stroke<'_> {
                 t * df * grad_u[1] + k * grad_v[1],
             ],
         )
+    }
+}
+
+impl Stroke<'_> {
+    /// Height and y-up gradient beyond an end of an open path (module docs, "End caps"), or
+    /// `None` where the closest point is not an end. `pr` is the projection of a point within
+    /// `W/2` of the path.
+    fn end_cap(&self, pr: &super::geom::Projection) -> Option<(f64, [f64; 2])> {
+        let l = self.pl.length_px();
+        if self.closed || pr.interior || l <= 0.0 {
+            return None;
+        }
+        // Outward along the path at this end: −tangent at the start, +tangent at the end.
+        let out = if pr.arclength_px <= 0.0 {
+            -1.0
+        } else if pr.arclength_px >= l {
+            1.0
+        } else {
+            return None;
+        };
+        let [tx, trow] = pr.tangent;
+        // `side` is the signed distance to the path's line (continuous across its extension);
+        // `a` the distance beyond the end along it: d² = a² + side².
+        let perp = pr.side;
+        let a = (pr.dist_px * pr.dist_px - perp * perp).max(0.0).sqrt();
+        let r = self.half_w;
+        let dd = (r * r - perp * perp).max(1e-300);
+        let sd = dd.sqrt();
+        let k = (1.0 - a / sd).max(0.0);
+        let u = (perp / r).clamp(-1.0, 1.0);
+        let (f, df) = self.profile.eval(u);
+        // The taper at this end (0 when tapered, so the cap is flat there).
+        let t = if self.taper <= 0.0 {
+            1.0
+        } else {
+            let (v, tau) = (pr.arclength_px, self.taper);
+            smoothstep(0.0, tau, v) * smoothstep(0.0, tau, l - v)
+        };
+        let h = self.f0 + t * k * (f - self.f0);
+        if k <= 0.0 {
+            return Some((h, [0.0, 0.0]));
+        }
+        // y-up gradients: ∇perp = (t_row, t_x) (the left normal), ∇a = out · (t_x, −t_row).
+        let g_perp = [trow, tx];
+        let g_a = [out * tx, -out * trow];
+        // k = 1 − a/√D, D = R² − perp²: ∂k/∂a = −1/√D, ∂k/∂perp = −a·perp/D^{3/2}.
+        let dk_da = -1.0 / sd;
+        let dk_dp = -a * perp / (dd * sd);
+        let df_dp = df / r;
+        let c_p = t * (df_dp * k + (f - self.f0) * dk_dp);
+        let c_a = t * (f - self.f0) * dk_da;
+        Some((
+            h,
+            [
+                c_p * g_perp[0] + c_a * g_a[0],
+                c_p * g_perp[1] + c_a * g_a[1],
+            ],
+        ))
     }
 }
 
@@ -600,6 +670,106 @@ mod tests {
             let rel = out.gradients.relative_rms_curl(None);
             assert!(rel < 1e-5, "{profile:?}: {rel:e}");
         }
+    }
+
+    /// Issue 13's case: an asymmetric custom profile, width 16, no taper. Before the cap used
+    /// the side of the path (which flips across the extension of the last segment), rows on
+    /// either side of that line jumped by 2.0 → 0.97. Now no step between neighbouring pixels
+    /// is steeper than the profile itself (its steepest slope times 1 px), in both modes,
+    /// along any direction of the path.
+    #[test]
+    fn end_caps_of_asymmetric_profiles_have_no_cliff() {
+        let samples = vec![0.0, 1.0, -0.5, 2.0, 0.0];
+        let profile = Profile::Custom {
+            samples_px: samples.clone(),
+        };
+        // Steepest slope of the piecewise-linear profile: samples 0.5 apart in u = 4 px.
+        let half_w = 8.0;
+        let step_px = 2.0 * half_w / (samples.len() - 1) as f64;
+        let slope = samples
+            .windows(2)
+            .map(|w| f64::from((w[1] - w[0]).abs()) / step_px)
+            .fold(0.0, f64::max);
+        assert!((slope - 0.625).abs() < 1e-12);
+        let size = 64;
+        for (from, to) in [
+            ([12.3, 31.7], [50.2, 31.7]),
+            ([50.6, 12.2], [13.1, 49.5]),
+            ([31.9, 52.4], [31.9, 9.6]),
+        ] {
+            for mode in [PenMode::Integrable, PenMode::Analytic] {
+                let p = PenParams {
+                    points: vec![from, to],
+                    closed: false,
+                    width_px: 2.0 * half_w,
+                    taper_px: 0.0,
+                    mode,
+                    ..PenParams::default()
+                }
+                .with_profile(&profile);
+                let out = pen_field(size, size, &p).unwrap();
+                let z = &out.height;
+                let mut worst = 0.0f64;
+                for r in 0..size {
+                    for x in 0..size {
+                        let h = f64::from(z.at(x, r));
+                        if x + 1 < size {
+                            worst = worst.max((f64::from(z.at(x + 1, r)) - h).abs());
+                        }
+                        if r + 1 < size {
+                            worst = worst.max((f64::from(z.at(x, r + 1)) - h).abs());
+                        }
+                    }
+                }
+                assert!(
+                    worst <= slope * (1.0 + 1e-4),
+                    "{from:?}→{to:?} {mode:?}: largest step {worst} > {slope}"
+                );
+            }
+        }
+    }
+
+    #[test]
+    fn analytic_end_cap_gradient_is_the_derivative_of_its_height() {
+        // Central differences of the cap's height against the analytic gradient, at points
+        // beyond both ends of a slanted stroke.
+        let profile = Profile::Custom {
+            samples_px: vec![0.0, 1.0, -0.5, 2.0, 0.0],
+        };
+        let shape = profile.clone();
+        let stroke = Stroke {
+            pl: Polyline::new(&[[20.0, 30.0], [44.0, 22.0]], false),
+            half_w: 8.0,
+            taper: 0.0,
+            profile: &shape,
+            f0: 0.0,
+            closed: false,
+        };
+        let e = 1e-5;
+        let mut checked = 0;
+        for &(x, r) in &[
+            (15.3, 31.2),
+            (16.1, 27.4),
+            (14.0, 33.9),
+            (48.2, 21.5),
+            (47.1, 17.9),
+            (49.5, 24.4),
+        ] {
+            let (_, g) = stroke.eval(x, r);
+            // y-up: ∂/∂y = −∂/∂row.
+            let dx = (stroke.eval(x + e, r).0 - stroke.eval(x - e, r).0) / (2.0 * e);
+            let dy = -(stroke.eval(x, r + e).0 - stroke.eval(x, r - e).0) / (2.0 * e);
+            assert!(
+                (g[0] - dx).abs() < 1e-5 && (g[1] - dy).abs() < 1e-5,
+                "({x}, {r}): {g:?} vs ({dx}, {dy})"
+            );
+            checked += usize::from(
+                stroke
+                    .end_cap(&stroke.pl.project([x, r]).unwrap())
+                    .is_some(),
+            );
+        }
+        assert_eq!(checked, 6, "every point is in a cap");
     }
 
     #[test]
