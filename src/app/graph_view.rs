@@ -216,17 +216,32 @@ impl GraphView {
     /// [`placement::DEFAULT_NODE_SIZE`] at its position when it was not drawn yet.
     #[must_use]
     pub fn node_rects(&self, graph: &Graph) -> Vec<(NodeId, PlaceRect)> {
+        let drawn = self.drawn_rects(graph);
         graph
             .nodes
             .values()
             .map(|n| {
-                let r = match self.measured.get(&n.id) {
-                    Some((off, size)) => {
-                        PlaceRect::new([n.pos[0] + off[0], n.pos[1] + off[1]], *size)
-                    }
-                    None => PlaceRect::new(n.pos, placement::DEFAULT_NODE_SIZE),
-                };
+                let r = drawn
+                    .get(&n.id)
+                    .copied()
+                    .unwrap_or_else(|| PlaceRect::new(n.pos, placement::DEFAULT_NODE_SIZE));
                 (n.id, r)
+            })
+            .collect()
+    }
+
+    /// The rectangles of the nodes of `graph` that were drawn, at their current positions.
+    #[must_use]
+    pub fn drawn_rects(&self, graph: &Graph) -> BTreeMap<NodeId, PlaceRect> {
+        graph
+            .nodes
+            .values()
+            .filter_map(|n| {
+                let (off, size) = self.measured.get(&n.id)?;
+                Some((
+                    n.id,
+                    PlaceRect::new([n.pos[0] + off[0], n.pos[1] + off[1]], *size),
+                ))
             })
             .collect()
     }

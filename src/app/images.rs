@@ -11,6 +11,9 @@ use crate::raster::io::Format;
 use egui::{Align2, Color32, FontId, Id, LayerId, Order};
 use std::path::Path;
 
+/// The size to expect of a node showing an error (see `graph_view`'s node body).
+const ERROR_NODE_SIZE: [f32; 2] = [360.0, 150.0];
+
 /// What the editor opens, for messages.
 const OPENS: &str = "an image (PNG, JPEG, TIFF, EXR, PTM) or a graph (.ron)";
 
@@ -22,13 +25,86 @@ impl EditorApp {
         self.view.node_rects(&self.session.doc.graph)
     }
 
-    /// Where a new node of operator `op` goes: `preferred` if it overlaps no node there, else
-    /// the nearest free spot ([`placement::free_position`]).
+    /// The rectangles of the nodes drawn in the graph view (graph coordinates).
     #[must_use]
-    pub fn place_node(&self, op: &str, preferred: [f32; 2]) -> [f32; 2] {
+    pub fn drawn_node_rects(&self) -> std::collections::BTreeMap<NodeId, Rect> {
+        self.view.drawn_rects(&self.session.doc.graph)
+    }
+
+    /// Where a new node of operator `op` goes: `preferred` if it overlaps no node there, else
+    /// the nearest free spot ([`placement::free_position`]). `connected`: its inputs will be
+    /// wired (else a node with a required input shows an error, which makes it wider).
+    #[must_use]
+    pub fn place_node(&self, op: &str, preferred: [f32; 2], connected: bool) -> [f32; 2] {
         let rects: Vec<Rect> = self.node_rects().into_iter().map(|(_, r)| r).collect();
-        let size = self.view.size_hint(&self.session.doc.graph, op);
+        let mut size = self.view.size_hint(&self.session.doc.graph, op);
+        let needs_input =
+            crate::ops::find(op).is_some_and(|o| o.spec().inputs.iter().any(|p| !p.optional));
+        if !connected && needs_input {
+            size = [
+                size[0].max(ERROR_NODE_SIZE[0]),
+                size[1].max(ERROR_NODE_SIZE[1]),
+            ];
+        }
         placement::free_position(&rects, size, preferred)
+    }
+
+    /// Keeps node `id` (just placed by the editor) clear of others until it is drawn with its
+    /// evaluated content ([`keep_placed_clear`](Self::keep_placed_clear)).
+    pub(super) fn watch_placed(&mut self, id: NodeId) {
+        if let Some(n) = self.session.doc.graph.nodes.get(&id) {
+            self.placed.insert(id, (n.pos, 3));
+        }
+    }
+
+    /// A node's size is known only once drawn, and it changes when its thumbnail or error
+    /// arrives: a node the editor placed that now overlaps another is moved to the nearest
+    /// free spot. It is watched until it has been drawn evaluated for a few frames, or until
+    /// it is moved by hand (or deleted).
+    pub(super) fn keep_placed_clear(&mut self) {
+        if self.placed.is_empty() {
+            return;
+        }
+        let graph = &self.session.doc.graph;
+        self.placed
+            .retain(|id, (p, _)| graph.nodes.get(id).is_some_and(|n| n.pos == *p));
+        let evaluating = self.runtime.in_flight.is_some();
+        let ids: Vec<NodeId> = self.placed.keys().copied().collect();
+        for id in ids {
+            let drawn = self.view.drawn_rects(&self.session.doc.graph);
+            let Some(r) = drawn.get(&id).copied() else {
+                continue;
+            };
+            let others: Vec<Rect> = self
+                .node_rects()
+                .into_iter()
+                .filter(|(o, _)| *o != id)
+                .map(|(_, r)| r)
+                .collect();
+            if others.iter().any(|o| r.overlaps(o, 0.0)) {
+                let Some(n) = self.session.doc.graph.nodes.get_mut(&id) else {
+                    continue;
+                };
+                let off = [r.min[0] - n.pos[0], r.min[1] - n.pos[1]];
+                let m = placement::free_position(&others, r.size, r.min);
+                n.pos = [m[0] - off[0], m[1] - off[1]];
+                let pos = n.pos;
+                if let Some(w) = self.placed.get_mut(&id) {
+                    w.0 = pos;
+                }
+            }
+            let out = &self.runtime.outcome;
+            let evaluated = !evaluating
+                && (out.node_errors.contains_key(&id) || out.values.keys().any(|k| k.0 == id));
+            if evaluated {
+                if let Some(w) = self.placed.get_mut(&id) {
+                    w.1 = w.1.saturating_sub(1);
+                    if w.1 == 0 {
+                        self.placed.remove(&id);
+                    }
+                }
+            }
+        }
     }
 
     /// Adds a `load` node for the image at `path` (one undo step). If the viewed chain starts
@@ -78,11 +154,12 @@ impl EditorApp {
                 }
             }
         };
-        let pos = self.place_node("load", preferred);
+        let pos = self.place_node("load", preferred, true);
         let id = self
             .session
             .doc
             .add_load(&written.to_string_lossy(), pos, source);
+        self.watch_placed(id);
         let name = path.file_name().map_or_else(
             || path.display().to_string(),
             |n| n.to_string_lossy().into(),

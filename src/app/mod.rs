@@ -128,6 +128,9 @@ pub struct EditorApp {
     files: Option<(egui_file_dialog::FileDialog, FilePurpose)>,
     /// The Help ▸ Operators window is open.
     show_ops: bool,
+    /// Nodes the editor placed that it keeps clear of others until they are drawn evaluated
+    /// (their size is known only then): position given, frames left once evaluated.
+    placed: BTreeMap<NodeId, ([f32; 2], u8)>,
     last_widget_selection: Vec<NodeId>,
 }
 
@@ -147,6 +150,7 @@ impl EditorApp {
             pending_then: None,
             files: None,
             show_ops: false,
+            placed: BTreeMap::new(),
             last_widget_selection: Vec::new(),
         }
     }
@@ -232,8 +236,9 @@ impl EditorApp {
     pub fn apply(&mut self, a: Action) {
         match a {
             Action::AddNode { op, pos } => {
-                let pos = self.place_node(&op, pos);
+                let pos = self.place_node(&op, pos, false);
                 let id = self.session.doc.add_node(&op, pos);
+                self.watch_placed(id);
                 self.session.selected = Some(id);
                 self.say(format!("added {op} (#{id})"));
             }
@@ -332,7 +337,7 @@ impl EditorApp {
                 ([x + 260.0, 0.0], None)
             }
         };
-        let pos = self.place_node(op, pos);
+        let pos = self.place_node(op, pos, after.is_some());
         let before = self.session.doc.graph.clone();
         let id = self.session.doc.graph.add_node(op, pos);
         if let Some(a) = after {
@@ -351,6 +356,7 @@ impl EditorApp {
             }
         }
         self.session.doc.history.commit(before);
+        self.watch_placed(id);
         self.session.selected = Some(id);
         self.view_node(id);
         self.say(format!("added {op} (#{id})"));
@@ -382,6 +388,9 @@ impl EditorApp {
             ctx.send_viewport_cmd(egui::ViewportCommand::CancelClose);
             self.dialog = Some(Dialog::Unsaved(Then::Quit));
         }
+        // Before `before`: moving a just-placed node off others is part of placing it, not
+        // an edit of its own.
+        self.keep_placed_clear();
         let before = self.session.doc.graph.clone();
         let (version, epoch) = (self.session.doc.history.version(), self.session.doc_epoch);
         let mut actions = Vec::new();
