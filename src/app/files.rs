@@ -150,6 +150,7 @@ impl EditorApp {
         self.runtime.thumbs.clear();
         self.runtime.last_sent = None;
         self.runtime.in_flight = None; // its result will be stale
+        self.placed.clear();
         self.view.frame_pending = 3;
     }
 
