@@ -33,6 +33,10 @@ mod cli_errors;
 #[path = "it/editor.rs"]
 mod editor;
 
+#[cfg(feature = "gui")]
+#[path = "it/editor_images.rs"]
+mod editor_images;
+
 #[path = "it/nodes.rs"]
 mod nodes;
 

@@ -16,6 +16,8 @@ use std::time::{Duration, Instant};
 pub enum FilePurpose {
     /// Open this graph.
     Open,
+    /// Open this image as a `load` node in the viewed chain.
+    OpenImage,
     /// Save the graph here.
     SaveAs,
     /// Write this node's output port here.
@@ -62,6 +64,15 @@ impl EditorApp {
                 .title("Open graph")
                 .add_file_filter_extensions("Graphs (*.ron)", vec!["ron"])
                 .default_file_filter("Graphs (*.ron)"),
+            FilePurpose::OpenImage => d
+                .title("Open image")
+                .add_file_filter(
+                    "Images (PNG, JPEG, TIFF, EXR, PTM)",
+                    egui_file_dialog::Filter::new(|p: &Path| {
+                        crate::raster::io::Format::of(p).is_ok()
+                    }),
+                )
+                .default_file_filter("Images (PNG, JPEG, TIFF, EXR, PTM)"),
             FilePurpose::SaveAs => {
                 let name = self
                     .session
@@ -83,7 +94,7 @@ impl EditorApp {
             FilePurpose::Param(_, name) => d.title(&format!("Choose {name}")),
         };
         match purpose {
-            FilePurpose::Open | FilePurpose::Param(..) => d.pick_file(),
+            FilePurpose::Open | FilePurpose::OpenImage | FilePurpose::Param(..) => d.pick_file(),
             FilePurpose::SaveAs | FilePurpose::Export(..) => d.save_file(),
         }
         self.files = Some((d, purpose));
@@ -94,6 +105,9 @@ impl EditorApp {
         self.prefs.dialog_dir = path.parent().map(Path::to_path_buf);
         match purpose {
             FilePurpose::Open => self.open_path(path),
+            FilePurpose::OpenImage => {
+                self.open_image(path);
+            }
             FilePurpose::SaveAs => {
                 self.save_to(path);
             }
@@ -136,6 +150,7 @@ impl EditorApp {
         self.runtime.thumbs.clear();
         self.runtime.last_sent = None;
         self.runtime.in_flight = None; // its result will be stale
+        self.placed.clear();
         self.view.frame_pending = 3;
     }
 

@@ -6,6 +6,7 @@
 //! the snarl (incrementally, so the widget keeps its selection). Egui-snarl's own node ids are
 //! reused slab indices: they are never persisted nor used as keys outside this module.
 
+use super::placement::{self, Rect as PlaceRect};
 use crate::graph::{Graph, NodeId, NodePorts};
 use crate::ops::{self, PortType};
 use egui::{Color32, Id, Pos2, RichText, TextureHandle, Ui};
@@ -96,6 +97,9 @@ pub struct GraphView {
     /// Frames left during which the view is fitted to the whole graph (panels settle in the
     /// first frames, so fitting lasts a few).
     pub frame_pending: u32,
+    /// Each drawn node's rectangle relative to its position (offset of the top-left corner,
+    /// size), as the widget last drew it.
+    measured: BTreeMap<NodeId, ([f32; 2], [f32; 2])>,
 }
 
 impl Default for GraphView {
@@ -111,6 +115,7 @@ impl Default for GraphView {
             style,
             search: String::new(),
             frame_pending: 3,
+            measured: BTreeMap::new(),
         }
     }
 }
@@ -129,6 +134,7 @@ impl GraphView {
                 self.snarl.remove_node(sid);
             }
         }
+        self.measured.retain(|id, _| graph.nodes.contains_key(id));
         for (id, n) in &graph.nodes {
             let pos = Pos2::new(n.pos[0], n.pos[1]);
             match self.by_id.get(id) {
@@ -206,6 +212,52 @@ impl GraphView {
             .collect()
     }
 
+    /// The rectangle of every node of `graph` in graph coordinates: as last drawn, or of
+    /// [`placement::DEFAULT_NODE_SIZE`] at its position when it was not drawn yet.
+    #[must_use]
+    pub fn node_rects(&self, graph: &Graph) -> Vec<(NodeId, PlaceRect)> {
+        let drawn = self.drawn_rects(graph);
+        graph
+            .nodes
+            .values()
+            .map(|n| {
+                let r = drawn
+                    .get(&n.id)
+                    .copied()
+                    .unwrap_or_else(|| PlaceRect::new(n.pos, placement::DEFAULT_NODE_SIZE));
+                (n.id, r)
+            })
+            .collect()
+    }
+
+    /// The rectangles of the nodes of `graph` that were drawn, at their current positions.
+    #[must_use]
+    pub fn drawn_rects(&self, graph: &Graph) -> BTreeMap<NodeId, PlaceRect> {
+        graph
+            .nodes
+            .values()
+            .filter_map(|n| {
+                let (off, size) = self.measured.get(&n.id)?;
+                Some((
+                    n.id,
+                    PlaceRect::new([n.pos[0] + off[0], n.pos[1] + off[1]], *size),
+                ))
+            })
+            .collect()
+    }
+
+    /// The size to expect of a new node of operator `op`: the largest drawn node of that
+    /// operator, at least [`placement::DEFAULT_NODE_SIZE`].
+    #[must_use]
+    pub fn size_hint(&self, graph: &Graph, op: &str) -> [f32; 2] {
+        self.measured
+            .iter()
+            .filter(|(id, _)| graph.nodes.get(id).is_some_and(|n| n.op == op))
+            .fold(placement::DEFAULT_NODE_SIZE, |a, (_, (_, s))| {
+                [a[0].max(s[0]), a[1].max(s[1])]
+            })
+    }
+
     /// Number of wires shown (tests).
     #[must_use]
     pub fn wire_count(&self) -> usize {
@@ -221,6 +273,7 @@ impl GraphView {
             search: &mut self.search,
             actions: Vec::new(),
             frame,
+            measured: &mut self.measured,
         };
         SnarlWidget::new()
             .id(Id::new(SNARL_ID))
@@ -276,6 +329,8 @@ struct Viewer<'a, 'd> {
     actions: Vec<Action>,
     /// Fit the view to the graph in this screen rectangle.
     frame: Option<egui::Rect>,
+    /// Drawn node rectangles (see [`GraphView::node_rects`]).
+    measured: &'a mut BTreeMap<NodeId, ([f32; 2], [f32; 2])>,
 }
 
 impl Viewer<'_, '_> {
@@ -472,6 +527,25 @@ impl SnarlViewer<NodeId> for Viewer<'_, '_> {
                     port: tp.name.clone(),
                 });
             }
+        }
+    }
+
+    fn final_node_rect(
+        &mut self,
+        node: egui_snarl::NodeId,
+        rect: egui::Rect,
+        _ui: &mut Ui,
+        snarl: &mut Snarl<NodeId>,
+    ) {
+        // The rectangle is in graph coordinates (the widget draws nodes at their positions
+        // under its pan/zoom transform).
+        let (Some(&id), Some(info)) = (snarl.get_node(node), snarl.get_node_info(node)) else {
+            return;
+        };
+        if rect.is_finite() {
+            let off = rect.min - info.pos;
+            self.measured
+                .insert(id, ([off.x, off.y], [rect.width(), rect.height()]));
         }
     }
 

@@ -24,6 +24,9 @@ impl EditorApp {
         if hit(sc(Modifiers::COMMAND, Key::S)) {
             self.save();
         }
+        if hit(sc(Modifiers::COMMAND | Modifiers::SHIFT, Key::O)) {
+            self.browse(FilePurpose::OpenImage);
+        }
         if hit(sc(Modifiers::COMMAND, Key::O)) {
             self.guarded(Then::Open(String::new()));
         }
@@ -66,6 +69,16 @@ impl EditorApp {
                 }
                 if ui.button("Open…").clicked() {
                     self.guarded(Then::Open(String::new()));
+                    ui.close();
+                }
+                if ui
+                    .button("Open image…")
+                    .on_hover_text(
+                        "Add a load node for an image (PNG, JPEG, TIFF, EXR, PTM) in place of the viewed chain's source (Ctrl+Shift+O; or drop the file on the window)",
+                    )
+                    .clicked()
+                {
+                    self.browse(FilePurpose::OpenImage);
                     ui.close();
                 }
                 ui.menu_button("Open recent", |ui| {

@@ -12,8 +12,10 @@
 //! selection, clipboard) and [`runtime`] (evaluation requests and results, timing; its
 //! [`EditorApp::poll`] runs once per frame from `eframe::App::logic`). Its behaviour is split
 //! by concern: [`files`] (file dialog, open / save / export, autosave and recovery),
-//! [`dialogs`] (modal dialogs), `menu` (menu bar, shortcuts); this file holds the frame
-//! layout, the panels and the graph commands.
+//! [`images`] (open an image or drop a file: a `load` node wired into the viewed chain; where
+//! new nodes go, with the pure geometry in [`placement`]), [`dialogs`] (modal dialogs),
+//! `menu` (menu bar, shortcuts); this file holds the frame layout, the panels and the graph
+//! commands.
 //!
 //! Layout: menu bar; node graph | preview | inspector (resizable); status bar with evaluation
 //! progress, cache memory and the viewed node's curl.
@@ -21,8 +23,10 @@
 pub mod dialogs;
 pub mod files;
 pub mod graph_view;
+pub mod images;
 mod menu;
 pub mod params_ui;
+pub mod placement;
 pub mod prefs;
 pub mod preview;
 pub mod recent;
@@ -124,6 +128,9 @@ pub struct EditorApp {
     files: Option<(egui_file_dialog::FileDialog, FilePurpose)>,
     /// The Help ▸ Operators window is open.
     show_ops: bool,
+    /// Nodes the editor placed that it keeps clear of others until they are drawn evaluated
+    /// (their size is known only then): position given, frames left once evaluated.
+    placed: BTreeMap<NodeId, ([f32; 2], u8)>,
     last_widget_selection: Vec<NodeId>,
 }
 
@@ -143,6 +150,7 @@ impl EditorApp {
             pending_then: None,
             files: None,
             show_ops: false,
+            placed: BTreeMap::new(),
             last_widget_selection: Vec::new(),
         }
     }
@@ -228,7 +236,9 @@ impl EditorApp {
     pub fn apply(&mut self, a: Action) {
         match a {
             Action::AddNode { op, pos } => {
+                let pos = self.place_node(&op, pos, false);
                 let id = self.session.doc.add_node(&op, pos);
+                self.watch_placed(id);
                 self.session.selected = Some(id);
                 self.say(format!("added {op} (#{id})"));
             }
@@ -306,7 +316,7 @@ impl EditorApp {
     }
 
     /// Adds a node of `op` after the selected node (connected to it when the types fit), as one
-    /// undo step.
+    /// undo step, where it overlaps no other node.
     pub fn add_node_after_selection(&mut self, op: &str) -> NodeId {
         let base = self.session.doc.base_dir();
         let (pos, after) = match self
@@ -327,6 +337,7 @@ impl EditorApp {
                 ([x + 260.0, 0.0], None)
             }
         };
+        let pos = self.place_node(op, pos, after.is_some());
         let before = self.session.doc.graph.clone();
         let id = self.session.doc.graph.add_node(op, pos);
         if let Some(a) = after {
@@ -345,6 +356,7 @@ impl EditorApp {
             }
         }
         self.session.doc.history.commit(before);
+        self.watch_placed(id);
         self.session.selected = Some(id);
         self.view_node(id);
         self.say(format!("added {op} (#{id})"));
@@ -376,10 +388,14 @@ impl EditorApp {
             ctx.send_viewport_cmd(egui::ViewportCommand::CancelClose);
             self.dialog = Some(Dialog::Unsaved(Then::Quit));
         }
+        // Before `before`: moving a just-placed node off others is part of placing it, not
+        // an edit of its own.
+        self.keep_placed_clear();
         let before = self.session.doc.graph.clone();
         let (version, epoch) = (self.session.doc.history.version(), self.session.doc_epoch);
         let mut actions = Vec::new();
         self.shortcuts(&ctx);
+        self.dropped_files_ui(&ctx);
 
         egui::Panel::top("menu").show(ui, |ui| self.menu_ui(ui, &mut actions));
         egui::Panel::bottom("status").show(ui, |ui| self.status_ui(ui));

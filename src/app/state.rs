@@ -7,6 +7,7 @@
 use crate::graph::file;
 use crate::graph::{At, Graph, GraphError, NodeDef, NodeId, NodePorts, Source};
 use crate::ops::params::ParamValue;
+use crate::ops::PortType;
 use std::collections::{BTreeMap, BTreeSet};
 use std::path::{Path, PathBuf};
 
@@ -329,6 +330,83 @@ impl Document {
         });
     }
 
+    /// True when node `id` is an image source: no input ports and an RGBN output (`demo`,
+    /// `load`, `surface`, …).
+    #[must_use]
+    pub fn is_source(&self, id: NodeId) -> bool {
+        self.ports(id)
+            .is_ok_and(|p| p.inputs.is_empty() && p.outputs.iter().any(|o| o.ty == PortType::Rgbn))
+    }
+
+    /// The image source the chain ending at node `id` starts from: followed upstream through
+    /// each node's first connected input (in port order) until a node with none; that node if
+    /// it [is a source](Self::is_source), else `None` (also on a cycle or a missing node).
+    #[must_use]
+    pub fn chain_source(&self, id: NodeId) -> Option<NodeId> {
+        let mut at = id;
+        let mut seen = BTreeSet::new();
+        loop {
+            if !seen.insert(at) {
+                return None;
+            }
+            let node = self.graph.nodes.get(&at)?;
+            let ports = self.ports(at).ok()?;
+            let up = ports
+                .inputs
+                .iter()
+                .find_map(|p| match node.inputs.get(&p.name) {
+                    Some(Source::Node(src, _)) => Some(*src),
+                    _ => None,
+                });
+            match up {
+                Some(src) => at = src,
+                None => return self.is_source(at).then_some(at),
+            }
+        }
+    }
+
+    /// Adds a `load` node reading `path` (as written in the graph: relative to
+    /// [`base_dir`](Self::base_dir) or absolute) at `pos`, as one undo step. When `replace`
+    /// names a [source](Self::is_source), the new node takes over its connections: every
+    /// input and graph output fed by one of its RGBN outputs now reads the new node's `image`
+    /// instead; the old source stays in the graph. Returns the new node's id.
+    pub fn add_load(&mut self, path: &str, pos: [f32; 2], replace: Option<NodeId>) -> NodeId {
+        let rgbn_outputs: BTreeSet<String> = replace
+            .filter(|r| self.is_source(*r))
+            .and_then(|r| self.ports(r).ok())
+            .map(|p| {
+                p.outputs
+                    .into_iter()
+                    .filter(|o| o.ty == PortType::Rgbn)
+                    .map(|o| o.name)
+                    .collect()
+            })
+            .unwrap_or_default();
+        self.edit(|g| {
+            let id = g.add_node("load", pos);
+            if let Some(n) = g.nodes.get_mut(&id) {
+                n.params
+                    .insert("path".into(), ParamValue::Path(path.to_string()));
+            }
+            let Some(old) = replace else { return id };
+            let fed = |s: &Source| matches!(s, Source::Node(n, p) if *n == old && rgbn_outputs.contains(p));
+            for n in g.nodes.values_mut() {
+                for s in n.inputs.values_mut() {
+                    if fed(s) {
+                        *s = Source::Node(id, "image".into());
+                    }
+                }
+            }
+            for r in g.outputs.values_mut() {
+                if r.node == old && rgbn_outputs.contains(&r.port) {
+                    r.node = id;
+                    r.port = "image".into();
+                }
+            }
+            id
+        })
+    }
+
     /// Undoes one step.
     pub fn undo(&mut self) -> bool {
         self.history.undo(&mut self.graph)
@@ -525,6 +603,68 @@ mod tests {
         assert!(back.graph.nodes.contains_key(&id));
         assert_eq!(back.base_dir(), dir.path());
         assert_eq!(back.title(), "edited.ron");
+    }
+
+    #[test]
+    fn a_load_node_replaces_the_viewed_chains_source_as_one_step() {
+        let mut d = demo();
+        // The demo's chains all start from node 1 (demo).
+        for id in [1, 2, 3, 4, 5, 6] {
+            assert_eq!(d.chain_source(id), Some(1), "node {id}");
+        }
+        assert!(d.is_source(1));
+        assert!(!d.is_source(2));
+        let g0 = d.graph.clone();
+        let id = d.add_load("pic.png", [0.0, 200.0], d.chain_source(3));
+        let g = &d.graph;
+        assert_eq!(g.nodes[&id].op, "load");
+        assert_eq!(g.nodes[&id].pos, [0.0, 200.0]);
+        assert_eq!(
+            g.nodes[&id].params["path"],
+            ParamValue::Path("pic.png".into())
+        );
+        // The sharpen node reads the new node; the demo stays, fed into nothing.
+        assert_eq!(
+            g.nodes[&2].inputs["image"],
+            Source::Node(id, "image".into())
+        );
+        assert!(g.nodes.contains_key(&1));
+        assert!(!g
+            .nodes
+            .values()
+            .flat_map(|n| n.inputs.values())
+            .any(|s| matches!(s, Source::Node(1, _))));
+        assert_eq!(d.chain_source(3), Some(id));
+        // The rest of the graph is as it was.
+        for n in [3, 4, 5, 6] {
+            assert_eq!(g.nodes[&n], g0.nodes[&n]);
+        }
+        assert_eq!(g.outputs, g0.outputs);
+        // One undo step.
+        assert!(d.undo());
+        assert_eq!(d.graph, g0);
+
+        // A graph output naming the source follows it; no source: just added.
+        let mut d = Document::new();
+        let a = d.add_load("a.exr", [0.0, 0.0], None);
+        assert!(d.graph.nodes[&a].inputs.is_empty());
+        d.graph.outputs.insert(
+            "image".into(),
+            crate::graph::PortRef {
+                node: a,
+                port: "image".into(),
+            },
+        );
+        let b = d.add_load("b.exr", [0.0, 0.0], d.chain_source(a));
+        assert_eq!(d.graph.outputs["image"].node, b);
+        assert_eq!(d.graph.nodes.len(), 2);
+        // A non-source is never rewired.
+        let mut d = demo();
+        let g0 = d.graph.clone();
+        let c = d.add_load("c.png", [0.0, 0.0], Some(2));
+        d.graph.nodes.remove(&c);
+        d.graph.next_id = g0.next_id;
+        assert_eq!(d.graph, g0);
     }
 
     #[test]

@@ -15,7 +15,7 @@ use rgbn::ops::params::ParamValue;
 use std::time::{Duration, Instant};
 
 /// The demo graph at a small size (fast evaluations).
-fn small_demo() -> Document {
+pub(crate) fn small_demo() -> Document {
     let mut d = Document::demo();
     d.graph
         .nodes
@@ -27,19 +27,19 @@ fn small_demo() -> Document {
 }
 
 /// One editor frame as eframe runs it: `App::logic` (the worker is polled) then `App::ui`.
-fn frame(ui: &mut egui::Ui, app: &mut EditorApp) {
+pub(crate) fn frame(ui: &mut egui::Ui, app: &mut EditorApp) {
     app.poll(ui.ctx());
     app.frame_ui(ui);
 }
 
-fn harness(doc: Document) -> Harness<'static, EditorApp> {
+pub(crate) fn harness(doc: Document) -> Harness<'static, EditorApp> {
     Harness::builder()
         .with_size([1500.0, 900.0])
         .build_ui_state(frame, EditorApp::new(doc))
 }
 
 /// Steps frames until the worker has evaluated the current graph and the preview is rendered.
-fn settle(h: &mut Harness<'static, EditorApp>) {
+pub(crate) fn settle(h: &mut Harness<'static, EditorApp>) {
     let deadline = Instant::now() + Duration::from_secs(120);
     loop {
         h.step();
