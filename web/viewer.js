@@ -538,8 +538,9 @@ void main() {
       state.panY = iy - cy / z;
       requestDraw();
     }, { passive: false });
-    window.addEventListener('resize', requestDraw);
   }
+  // Also in bare mode: headless browsers may size the window after the first layout.
+  window.addEventListener('resize', () => draw());
 
   draw();
 })();
