@@ -25,8 +25,8 @@ pub use docs::{CompletionsArgs, ManArgs};
 pub use error::{CliError, Exit};
 pub use graph::{BatchArgs, CheckArgs, EvalArgs};
 pub use image::{FilterArgs, InfoArgs, InputArgs, RenderArgs};
-pub use publish::PublishArgs;
 use out::Out;
+pub use publish::PublishArgs;
 
 /// Edit RGBN images (colour + normals) without breaking integrability.
 ///

@@ -347,19 +347,23 @@ impl Planes {
                 };
                 let o = y * w + x;
                 for j in 0..3 {
-                    out.color[j][o] = src.iter().map(|&i| weight(i) * self.color[j][i]).sum::<f32>()
+                    out.color[j][o] = src
+                        .iter()
+                        .map(|&i| weight(i) * self.color[j][i])
+                        .sum::<f32>()
                         / wsum;
                 }
-                let v: [f32; 3] =
-                    std::array::from_fn(|j| src.iter().map(|&i| weight(i) * self.normal[j][i]).sum());
+                let v: [f32; 3] = std::array::from_fn(|j| {
+                    src.iter().map(|&i| weight(i) * self.normal[j][i]).sum()
+                });
                 let len = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
                 let v = if len > 1e-12 && len.is_finite() {
                     v.map(|c| c / len)
                 } else {
                     [0.0, 0.0, 1.0]
                 };
-                for j in 0..3 {
-                    out.normal[j][o] = v[j];
+                for (plane, c) in out.normal.iter_mut().zip(v) {
+                    plane[o] = c;
                 }
                 out.coverage[o] = cov / src.len() as f32;
             }
@@ -602,13 +606,19 @@ mod tests {
             .iter()
             .map(|l| (l.width, l.height, l.cols, l.rows))
             .collect();
-        assert_eq!(sizes, [(9000, 300, 9, 1), (4500, 150, 5, 1), (2250, 75, 3, 1)]);
+        assert_eq!(
+            sizes,
+            [(9000, 300, 9, 1), (4500, 150, 5, 1), (2250, 75, 3, 1)]
+        );
     }
 
     #[test]
     fn sphere_mean_curvature_is_one_over_r() {
-        let r = 40.0;
-        let (img, _) = Surface::Sphere { radius_px: r }.render(128, 128);
+        let r = 40.0f32;
+        let (img, _) = Surface::Sphere {
+            radius_px: f64::from(r),
+        }
+        .render(128, 128);
         let h = mean_curvature(&img);
         // Near the centre (the sphere's normals are exact there), H = 1/r.
         let c = 64 * 128 + 64;

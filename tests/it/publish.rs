@@ -47,7 +47,9 @@ fn chromium() -> Option<PathBuf> {
         !required,
         "chromium not found (looked for {names:?} on PATH and RGBN_CHROMIUM) and RGBN_REQUIRE_BROWSER=1"
     );
-    eprintln!("skipped: chromium not found (install Debian's chromium package or set RGBN_CHROMIUM)");
+    eprintln!(
+        "skipped: chromium not found (install Debian's chromium package or set RGBN_CHROMIUM)"
+    );
     None
 }
 
@@ -97,7 +99,6 @@ fn screenshot(browser: &Path, folder: &Path, query: &str, w: usize, h: usize) ->
 
 /// Mean and max |Δ| over RGB between `shot` (from `(sx, sy)`) and `reference` (from
 /// `(rx, ry)`, composited over black as the bare page shows it), over a `w × h` window.
-#[allow(clippy::too_many_arguments)]
 fn compare(
     shot: &RgbaImage,
     (sx, sy): (u32, u32),
@@ -148,6 +149,9 @@ fn reference(input: &[&str], view: &str, light: [f32; 3], dir: &Path) -> RgbaIma
     image::open(&out).unwrap().to_rgba8()
 }
 
+/// An input: its name, its CLI input arguments and the lights it is compared at.
+type Case<'a> = (&'a str, Vec<&'a str>, &'a [[f32; 3]]);
+
 #[test]
 fn published_viewer_matches_rgbn_render_in_chromium() {
     let Some(browser) = chromium() else { return };
@@ -157,7 +161,7 @@ fn published_viewer_matches_rgbn_render_in_chromium() {
     let sphere_path = dir.path().join("sphere.exr");
     rgbn::raster::io::save(&sphere, &sphere_path, &Default::default()).unwrap();
     let sphere_arg = sphere_path.display().to_string();
-    let inputs: [(&str, Vec<&str>, &[[f32; 3]]); 2] = [
+    let inputs: [Case<'_>; 2] = [
         ("demo", vec!["--demo", "--demo-size", "256"], &LIGHTS),
         ("sphere", vec![sphere_arg.as_str()], &LIGHTS[1..2]),
     ];
@@ -188,7 +192,10 @@ fn published_viewer_matches_rgbn_render_in_chromium() {
             }
         }
     }
-    assert!(failures.is_empty(), "viewer differs from rgbn render: {failures:?}");
+    assert!(
+        failures.is_empty(),
+        "viewer differs from rgbn render: {failures:?}"
+    );
 }
 
 /// A 4200×300 colour + normal map with per-pixel noise (so that a coarser level would not pass
@@ -211,7 +218,11 @@ fn write_wide_input(dir: &Path) -> (PathBuf, PathBuf) {
             let len = (a * a + b * b + z * z).sqrt();
             let enc = |v: f32| ((v / len + 1.0) * 127.5).round() as u8;
             normal.put_pixel(x, y, image::Rgb([enc(a), enc(b), enc(z)]));
-            let c = [(x * 255 / w) as u8, (y * 255 / h) as u8, 128 + (x % 97) as u8];
+            let c = [
+                (x * 255 / w) as u8,
+                (y * 255 / h) as u8,
+                128 + (x % 97) as u8,
+            ];
             color.put_pixel(x, y, image::Rgb(c));
         }
     }
@@ -234,31 +245,50 @@ fn large_images_get_a_tile_pyramid_that_the_viewer_loads() {
     run_ok(&["publish", "--normal", &n, "--color", &c, "-o", &f]);
     // Level 0: 4200×300 in 1024² tiles (5 columns, the last 104 wide); level 1: 2100×150
     // (3 columns), which fits in 4096: no level 2.
-    for (level, widths, height) in [(0, &[1024, 1024, 1024, 1024, 104][..], 300), (1, &[1024, 1024, 52][..], 150)] {
+    for (level, widths, height) in [
+        (0, &[1024, 1024, 1024, 1024, 104][..], 300),
+        (1, &[1024, 1024, 52][..], 150),
+    ] {
         for (col, &tw) in widths.iter().enumerate() {
             for what in ["albedo", "normals"] {
                 let p = folder.join(rgbn::ops::publish::tile_path(level, col, 0, what));
-                let dims = image::image_dimensions(&p)
-                    .unwrap_or_else(|e| panic!("{}: {e}", p.display()));
+                let dims =
+                    image::image_dimensions(&p).unwrap_or_else(|e| panic!("{}: {e}", p.display()));
                 assert_eq!(dims, (tw, height), "{}", p.display());
             }
         }
     }
     assert!(!folder.join("tiles/2").exists());
-    assert!(!folder.join(rgbn::ops::publish::tile_path(0, 5, 0, "albedo")).exists());
+    assert!(!folder
+        .join(rgbn::ops::publish::tile_path(0, 5, 0, "albedo"))
+        .exists());
     let meta = std::fs::read_to_string(folder.join("image.json")).unwrap();
-    assert!(meta.contains("\"width\": 2100, \"height\": 150, \"tile\": 1024, \"cols\": 3"), "{meta}");
+    assert!(
+        meta.contains("\"width\": 2100, \"height\": 150, \"tile\": 1024, \"cols\": 3"),
+        "{meta}"
+    );
 
     let Some(browser) = chromium() else { return };
     let light = LIGHTS[1];
-    let want = reference(&["render", "--normal", &n, "--color", &c], "relit", light, dir.path());
+    let want = reference(
+        &["render", "--normal", &n, "--color", &c],
+        "relit",
+        light,
+        dir.path(),
+    );
     // Level 0 at 1:1 from x = 900: the window spans the boundary of tiles 0 and 1.
     let (w, h) = (400u32, 300u32);
-    let query = format!("bare&light={}&view=relit&zoom=1&pan=900,0", light_arg(light));
+    let query = format!(
+        "bare&light={}&view=relit&zoom=1&pan=900,0",
+        light_arg(light)
+    );
     let shot = screenshot(&browser, &folder, &query, w as usize, h as usize);
     let (mean, max) = compare(&shot, (0, 0), &want, (900, 0), w, h);
     eprintln!("publish: 4200×300 pyramid, level-0 tiles 0–1 at 1:1: mean |Δ| = {mean:.3} levels (max {max})");
-    assert!(mean <= MAX_MEAN_LEVELS, "tiled level 0 differs from rgbn render: mean |Δ| {mean:.3}");
+    assert!(
+        mean <= MAX_MEAN_LEVELS,
+        "tiled level 0 differs from rgbn render: mean |Δ| {mean:.3}"
+    );
 }
 
 #[test]
@@ -279,7 +309,10 @@ fn publish_refuses_to_lose_data_and_replaces_only_its_own_folders() {
         &["publish", "--demo", "--demo-size", "32", "-o", &d("docs")],
         "not empty",
     );
-    assert_eq!(std::fs::read_to_string(dir.path().join("docs/notes.txt")).unwrap(), "mine");
+    assert_eq!(
+        std::fs::read_to_string(dir.path().join("docs/notes.txt")).unwrap(),
+        "mine"
+    );
     // The output is the input, or holds it.
     let (sphere, _) = Surface::Sphere { radius_px: 10.0 }.render(24, 24);
     let input = dir.path().join("docs/sphere.exr");
@@ -289,7 +322,14 @@ fn publish_refuses_to_lose_data_and_replaces_only_its_own_folders() {
     expect_usage_error(&["publish", &input_arg, "-o", &d("docs")], "input");
     // Unwritable: the parent is a file.
     expect_usage_error(
-        &["publish", "--demo", "--demo-size", "32", "-o", &d("docs/notes.txt/web")],
+        &[
+            "publish",
+            "--demo",
+            "--demo-size",
+            "32",
+            "-o",
+            &d("docs/notes.txt/web"),
+        ],
         "docs/notes.txt/web",
     );
     // A new folder, then a second publish over it (the marker says it is ours).
@@ -299,8 +339,18 @@ fn publish_refuses_to_lose_data_and_replaces_only_its_own_folders() {
     run_ok(&["publish", &input_arg, "--view", "curvature", "-o", &web]);
     assert!(!dir.path().join("web/stale.txt").exists());
     let meta = std::fs::read_to_string(dir.path().join("web/image.json")).unwrap();
-    assert!(meta.contains("\"width\": 24") && meta.contains("\"view\": \"curvature\""), "{meta}");
-    for f in ["index.html", "viewer.js", "image.json", ".rgbn-publish", "tiles/0/0_0.albedo.png", "tiles/0/0_0.normals.png"] {
+    assert!(
+        meta.contains("\"width\": 24") && meta.contains("\"view\": \"curvature\""),
+        "{meta}"
+    );
+    for f in [
+        "index.html",
+        "viewer.js",
+        "image.json",
+        ".rgbn-publish",
+        "tiles/0/0_0.albedo.png",
+        "tiles/0/0_0.normals.png",
+    ] {
         assert!(dir.path().join("web").join(f).is_file(), "{f}");
     }
     // Nothing temporary left beside it.
@@ -308,11 +358,19 @@ fn publish_refuses_to_lose_data_and_replaces_only_its_own_folders() {
         .unwrap()
         .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
         .collect();
-    assert!(names.iter().all(|n| !n.contains(".tmp-") && !n.contains(".old-")), "{names:?}");
+    assert!(
+        names
+            .iter()
+            .all(|n| !n.contains(".tmp-") && !n.contains(".old-")),
+        "{names:?}"
+    );
     // The page is self-contained: no network URL anywhere in it.
     for f in ["index.html", "viewer.js"] {
         let text = std::fs::read_to_string(dir.path().join("web").join(f)).unwrap();
-        assert!(!text.contains("http://") && !text.contains("https://"), "{f} refers to the network");
+        assert!(
+            !text.contains("http://") && !text.contains("https://"),
+            "{f} refers to the network"
+        );
     }
 }
 
@@ -323,5 +381,8 @@ fn publish_node_writes_the_folder() {
     eval_all(&rgbn::eval::Evaluator::default(), &lg, dir.path());
     let meta = std::fs::read_to_string(dir.path().join("sphere_web/image.json")).unwrap();
     assert!(meta.contains("\"width\": 32"), "{meta}");
-    assert!(dir.path().join("sphere_web/tiles/0/0_0.normals.png").is_file());
+    assert!(dir
+        .path()
+        .join("sphere_web/tiles/0/0_0.normals.png")
+        .is_file());
 }
