@@ -74,11 +74,14 @@
     else fail('exposure=' + q.get('exposure') + ': not a number');
   }
   let fitPending = !bare;
+  // Fit again when the window changes size, until the user zooms or pans.
+  let autoFit = !bare;
   if (q.has('zoom')) {
     const z = Number(q.get('zoom'));
     if (Number.isFinite(z) && z > 0) {
       state.zoom = z;
       fitPending = false;
+      autoFit = false;
     } else fail('zoom=' + q.get('zoom') + ': expected a number > 0');
   }
   if (q.has('pan')) {
@@ -86,6 +89,7 @@
     if (v) {
       [state.panX, state.panY] = v;
       fitPending = false;
+      autoFit = false;
     } else fail('pan=' + q.get('pan') + ': expected X,Y');
   }
   if (bare) document.body.classList.add('bare');
@@ -253,16 +257,7 @@ void main() {
     let pending = 2;
     const base = levels[L].path + '/' + c + '_' + r;
     for (const [what, format] of [['albedo', gl.SRGB8_ALPHA8], ['normals', gl.RGBA8]]) {
-      const img = new Image();
-      img.onload = () => {
-        try {
-          t[what] = upload(img, format);
-        } catch (e) {
-          fail('the browser refused ' + img.src + ' as a texture (' + e.message + '). ' +
-            'Browsers do not let pages opened from file:// read their images: serve this ' +
-            'folder over HTTP (e.g. python3 -m http.server in it).');
-          return;
-        }
+      const done = (img) => {
         t.w = img.naturalWidth;
         t.h = img.naturalHeight;
         if (--pending === 0) {
@@ -270,9 +265,49 @@ void main() {
           draw();
         }
       };
+      const img = new Image();
+      img.onload = () => {
+        try {
+          t[what] = upload(img, format);
+        } catch (e) {
+          // Pages opened from file:// may not put their images into WebGL (a security
+          // error): the same PNG, as a data: URL inside a script, is allowed.
+          loadEmbedded(base + '.' + what, (dataImg) => {
+            try {
+              t[what] = upload(dataImg, format);
+            } catch (e2) {
+              fail('the browser refused ' + img.src + ' as a texture (' + e2.message + '); ' +
+                'serve this folder over HTTP (e.g. python3 -m http.server in it)');
+              return;
+            }
+            done(dataImg);
+          });
+          return;
+        }
+        done(img);
+      };
       img.onerror = () => fail('cannot load ' + img.src);
       img.src = base + '.' + what + '.png';
     }
+  }
+
+  // tiles/L/C_R.WHAT.js call rgbnTexture("tiles/L/C_R.WHAT", "data:image/png;base64,…").
+  const embedded = new Map();
+  window.rgbnTexture = (name, url) => {
+    const k = embedded.get(name);
+    if (!k) return;
+    embedded.delete(name);
+    const img = new Image();
+    img.onload = () => k(img);
+    img.onerror = () => fail('cannot decode ' + name + '.js');
+    img.src = url;
+  };
+  function loadEmbedded(name, k) {
+    embedded.set(name, k);
+    const s = document.createElement('script');
+    s.src = name + '.js';
+    s.onerror = () => fail('cannot load ' + s.src);
+    document.head.appendChild(s);
   }
 
   // ---- drawing ----
@@ -477,6 +512,7 @@ void main() {
       requestDraw();
     });
     $('fit').addEventListener('click', () => {
+      autoFit = true;
       fit();
       requestDraw();
     });
@@ -511,6 +547,7 @@ void main() {
         shiftLight(e);
       } else {
         const dpr = window.devicePixelRatio || 1;
+        autoFit = false;
         state.panX -= ((e.clientX - drag.x) * dpr) / state.zoom;
         state.panY -= ((e.clientY - drag.y) * dpr) / state.zoom;
         requestDraw();
@@ -533,6 +570,7 @@ void main() {
       const iy = state.panY + cy / state.zoom;
       const unit = e.deltaMode === 1 ? 40 : e.deltaMode === 2 ? 800 : 1;
       const z = Math.min(64, Math.max(1e-3, state.zoom * Math.exp(-e.deltaY * unit * 0.002)));
+      autoFit = false;
       state.zoom = z;
       state.panX = ix - cx / z;
       state.panY = iy - cy / z;
@@ -540,7 +578,10 @@ void main() {
     }, { passive: false });
   }
   // Also in bare mode: headless browsers may size the window after the first layout.
-  window.addEventListener('resize', () => draw());
+  window.addEventListener('resize', () => {
+    fitPending = autoFit;
+    draw();
+  });
 
   draw();
 })();

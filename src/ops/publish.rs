@@ -12,6 +12,9 @@
 //!   curvature scale;
 //! - `tiles/L/C_R.albedo.png`: colour, sRGB 8-bit RGBA with the coverage in alpha;
 //! - `tiles/L/C_R.normals.png`: normals, 8-bit RGB `(n+1)/2` (OpenGL convention);
+//! - `tiles/L/C_R.*.js`: the same PNGs as `data:` URLs in scripts, used by the viewer when
+//!   the page is opened from `file://` (browsers refuse plain image files there as WebGL
+//!   textures, but accept `data:` URLs);
 //! - `.rgbn-publish`: the marker that lets a later publish replace this folder.
 //!
 //! Level `L` halves level `L − 1` (2×2 means: colour and normals weighted by coverage, normals
@@ -167,7 +170,7 @@ pub fn levels(width: usize, height: usize) -> Vec<Level> {
 pub struct Published {
     /// The pyramid levels (level 0 = the image).
     pub levels: Vec<Level>,
-    /// Curvature scale passed to the viewer (1/px).
+    /// Curvature scale passed to the viewer (px: the colour map shows `H · scale`).
     pub curvature_scale: f32,
     /// Files written (textures, page, script, metadata).
     pub files: usize,
@@ -415,23 +418,12 @@ fn write_folder(
                 let th = level.tile.min(level.height - y0);
                 let (albedo, normals) = planes.tile_bytes(x0, y0, tw, th);
                 let stem = format!("{c}_{r}");
-                io::write_raster8(
-                    &albedo,
-                    tw,
-                    th,
-                    4,
-                    Format::Png,
-                    &ldir.join(format!("{stem}.albedo.png")),
-                )?;
-                io::write_raster8(
-                    &normals,
-                    tw,
-                    th,
-                    3,
-                    Format::Png,
-                    &ldir.join(format!("{stem}.normals.png")),
-                )?;
-                files += 2;
+                for (what, bytes, channels) in [("albedo", &albedo, 4), ("normals", &normals, 3)] {
+                    let png = ldir.join(format!("{stem}.{what}.png"));
+                    io::write_raster8(bytes, tw, th, channels, Format::Png, &png)?;
+                    write_embedded(&png, &format!("tiles/{l}/{stem}.{what}"))?;
+                }
+                files += 4;
             }
         }
     }
@@ -456,6 +448,46 @@ fn write_folder(
         curvature_scale: scale,
         files,
     })
+}
+
+/// Writes `NAME.js` beside the PNG `NAME.png`: a script handing the PNG as a `data:` URL to
+/// the viewer (`rgbnTexture(name, url)`), which browsers let a page opened from `file://` use
+/// as a WebGL texture (the plain PNG they refuse there).
+fn write_embedded(png: &Path, name: &str) -> Result<(), RgbnError> {
+    let bytes = std::fs::read(png).map_err(|e| RgbnError::Write {
+        detail: e.to_string(),
+        path: png.into(),
+    })?;
+    let js = png.with_extension("js");
+    io::write_atomic(&js, |w| {
+        use std::io::Write;
+        write!(w, "rgbnTexture(\"{name}\", \"data:image/png;base64,")
+            .and_then(|()| w.write_all(base64(&bytes).as_bytes()))
+            .and_then(|()| w.write_all(b"\");\n"))
+            .map_err(|e| e.to_string())
+    })
+}
+
+/// Standard base64 (RFC 4648, padded).
+fn base64(bytes: &[u8]) -> String {
+    const ABC: &[u8; 64] = b"ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
+    let mut out = String::with_capacity(bytes.len().div_ceil(3) * 4);
+    for chunk in bytes.chunks(3) {
+        let b = [
+            chunk[0],
+            chunk.get(1).copied().unwrap_or(0),
+            chunk.get(2).copied().unwrap_or(0),
+        ];
+        let n = u32::from(b[0]) << 16 | u32::from(b[1]) << 8 | u32::from(b[2]);
+        for k in 0..4 {
+            if k <= chunk.len() {
+                out.push(char::from(ABC[(n >> (18 - 6 * k)) as usize & 63]));
+            } else {
+                out.push('=');
+            }
+        }
+    }
+    out
 }
 
 /// `image.json`: everything the viewer needs besides the textures.
@@ -625,6 +657,22 @@ mod tests {
         assert!((h[c] - 1.0 / r).abs() < 0.02 / r, "{} vs {}", h[c], 1.0 / r);
         let flat = RgbnImage::flat(8, 8, [0.5; 3]);
         assert_eq!(curvature_scale(&flat), 1.0);
+    }
+
+    #[test]
+    fn base64_matches_rfc_4648() {
+        for (raw, enc) in [
+            ("", ""),
+            ("f", "Zg=="),
+            ("fo", "Zm8="),
+            ("foo", "Zm9v"),
+            ("foob", "Zm9vYg=="),
+            ("fooba", "Zm9vYmE="),
+            ("foobar", "Zm9vYmFy"),
+        ] {
+            assert_eq!(base64(raw.as_bytes()), enc);
+        }
+        assert_eq!(base64(&[0xff, 0xfe, 0x00]), "//4A");
     }
 
     #[test]

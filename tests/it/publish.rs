@@ -55,6 +55,18 @@ fn chromium() -> Option<PathBuf> {
 
 /// A `w × h` screenshot of `index.html?query` (the page's background is black in bare mode).
 fn screenshot(browser: &Path, folder: &Path, query: &str, w: usize, h: usize) -> RgbaImage {
+    screenshot_with(browser, folder, query, (w, h), true)
+}
+
+/// [`screenshot`]; `file_access: false` leaves out `--allow-file-access-from-files`, as a
+/// browser opening the page by double-click is (the viewer then uses the `data:` URL scripts).
+fn screenshot_with(
+    browser: &Path,
+    folder: &Path,
+    query: &str,
+    (w, h): (usize, usize),
+    file_access: bool,
+) -> RgbaImage {
     let scratch = tempfile::tempdir().unwrap();
     let shot = scratch.path().join("shot.png");
     let url = format!("file://{}?{query}", folder.join("index.html").display());
@@ -65,7 +77,6 @@ fn screenshot(browser: &Path, folder: &Path, query: &str, w: usize, h: usize) ->
             "--disable-gpu",
             "--use-angle=swiftshader",
             "--enable-unsafe-swiftshader",
-            "--allow-file-access-from-files",
             "--disable-background-networking",
             "--disable-component-update",
             "--disable-sync",
@@ -77,6 +88,7 @@ fn screenshot(browser: &Path, folder: &Path, query: &str, w: usize, h: usize) ->
             "--user-data-dir={}",
             scratch.path().join("profile").display()
         ))
+        .args(file_access.then_some("--allow-file-access-from-files"))
         .arg(format!("--window-size={w},{h}"))
         .arg(format!("--screenshot={}", shot.display()))
         .arg(&url)
@@ -191,6 +203,21 @@ fn published_viewer_matches_rgbn_render_in_chromium() {
                 }
             }
         }
+    }
+    // Opened as by a double-click (no file access flag): the data: URL textures.
+    let folder = dir.path().join("demo-web");
+    let want = reference(
+        &["render", "--demo", "--demo-size", "256"],
+        "relit",
+        LIGHTS[0],
+        dir.path(),
+    );
+    let query = format!("bare&light={}", light_arg(LIGHTS[0]));
+    let shot = screenshot_with(&browser, &folder, &query, (320, 320), false);
+    let (mean, max) = compare(&shot, (0, 0), &want, (0, 0), 256, 256);
+    eprintln!("publish: demo relit from file:// without file access: mean |Δ| = {mean:.3} levels (max {max})");
+    if mean > MAX_MEAN_LEVELS {
+        failures.push(format!("file:// without file access: mean |Δ| {mean:.3}"));
     }
     assert!(
         failures.is_empty(),
@@ -350,6 +377,8 @@ fn publish_refuses_to_lose_data_and_replaces_only_its_own_folders() {
         ".rgbn-publish",
         "tiles/0/0_0.albedo.png",
         "tiles/0/0_0.normals.png",
+        "tiles/0/0_0.albedo.js",
+        "tiles/0/0_0.normals.js",
     ] {
         assert!(dir.path().join("web").join(f).is_file(), "{f}");
     }
