@@ -34,8 +34,7 @@ pub struct PublishArgs {
     #[arg(long, default_value = "relit", value_parser = parse_web_view)]
     pub view: WebView,
     /// Output folder: created, or replaced when it holds an earlier publish (never a folder
-    /// with other files). Open its index.html through any web server
-    /// (e.g. `python3 -m http.server`).
+    /// with other files). Open its index.html in a browser (from disk or any web server).
     #[arg(short, long)]
     pub output: PathBuf,
 }
