@@ -48,3 +48,6 @@ mod readme;
 
 #[path = "it/ptm.rs"]
 mod ptm;
+
+#[path = "it/publish.rs"]
+mod publish;

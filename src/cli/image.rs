@@ -119,7 +119,7 @@ pub struct FilterArgs {
     pub half: bool,
 }
 
-fn parse_vec3(s: &str) -> Result<[f32; 3], String> {
+pub(super) fn parse_vec3(s: &str) -> Result<[f32; 3], String> {
     let v: Vec<f32> = s
         .split(',')
         .map(|t| {
@@ -165,7 +165,7 @@ impl InputArgs {
     }
 
     /// Loads the input (or builds the demo) and reports repairs on stderr.
-    fn load(&self) -> Result<(RgbnImage, String), CliError> {
+    pub(super) fn load(&self) -> Result<(RgbnImage, String), CliError> {
         if self.demo {
             let mut img = demo_medallion(self.demo_size as usize);
             let spec = self.spec();
@@ -210,7 +210,7 @@ impl InputArgs {
         Ok((loaded.image, name))
     }
 
-    fn paths(&self) -> Vec<&Path> {
+    pub(super) fn paths(&self) -> Vec<&Path> {
         [&self.file, &self.color, &self.normal, &self.mask]
             .into_iter()
             .flatten()

@@ -5,7 +5,7 @@
 //!   2 bad usage or input); errors are printed once, as one line on stderr:
 //!   `rgbn: <what is wrong>: <file>`;
 //! - [`out`]: the one writer for stdout (a closed pipe is not an error);
-//! - `image`: `info`, `render`, `filter`; `graph`: `eval`, `batch`, `check`, `ops`;
+//! - `image`: `info`, `render`, `filter`; `publish`: `publish`; `graph`: `eval`, `batch`, `check`, `ops`;
 //!   `capture`: `capture`; `docs`: `completions`, `man`.
 
 use clap::{Parser, Subcommand};
@@ -18,6 +18,7 @@ pub mod error;
 mod graph;
 mod image;
 pub mod out;
+mod publish;
 
 pub use capture::CaptureArgs;
 pub use docs::{CompletionsArgs, ManArgs};
@@ -25,6 +26,7 @@ pub use error::{CliError, Exit};
 pub use graph::{BatchArgs, CheckArgs, EvalArgs};
 pub use image::{FilterArgs, InfoArgs, InputArgs, RenderArgs};
 use out::Out;
+pub use publish::PublishArgs;
 
 /// Edit RGBN images (colour + normals) without breaking integrability.
 ///
@@ -45,6 +47,8 @@ pub enum Command {
     Render(RenderArgs),
     /// Filter the normals through their gradients with linear kernels.
     Filter(FilterArgs),
+    /// Write a self-contained web folder that relights the image in any WebGL2 browser.
+    Publish(PublishArgs),
     /// Evaluate a graph file: bind inputs, set parameters, write outputs.
     Eval(EvalArgs),
     /// Run a graph over many files (a glob), continuing past failures.
@@ -114,6 +118,7 @@ pub fn run_command(command: Command, out: &mut Out<'_>) -> Result<(), CliError> 
         Command::Info(a) => image::info(&a, out),
         Command::Render(a) => image::render_cmd(&a, out),
         Command::Filter(a) => image::filter_cmd(&a, out),
+        Command::Publish(a) => publish::publish_cmd(&a, out),
         Command::Eval(a) => graph::eval_cmd(&a, out),
         Command::Batch(a) => graph::batch_cmd(&a, out),
         Command::Check(a) => graph::check_cmd(&a, out),

@@ -72,6 +72,7 @@ pub mod kit;
 pub mod load;
 pub mod normalize;
 pub mod pen;
+pub mod publish;
 pub mod render;
 pub mod rotate;
 pub mod save;
@@ -475,6 +476,7 @@ pub fn registry() -> &'static [Box<dyn DynOp>] {
             Entry::<save::Save>::boxed(),
             Entry::<integrate::SaveHeight>::boxed(),
             Entry::<integrate::SaveMesh>::boxed(),
+            Entry::<publish::PublishNode>::boxed(),
         ]
     })
 }

@@ -35,6 +35,7 @@ pub mod load;
 pub mod normalize;
 pub mod params;
 pub mod pen;
+pub mod publish;
 pub mod render;
 pub mod rotate;
 pub mod save;

@@ -1,0 +1,417 @@
+//! `rgbn publish`: the folder it writes, its refusals, and the viewer in a real browser.
+//!
+//! The browser tests start headless Chromium (software GL: SwiftShader through ANGLE) on
+//! `index.html?bare&light=…&view=…`, crop the screenshot to the image and compare it with
+//! `rgbn render` (mean |Δ| over RGB ≤ 3 levels; the measured means are printed). Without
+//! Chromium they print `skipped: chromium not found`; with `RGBN_REQUIRE_BROWSER=1` (CI,
+//! `.ci/run`) its absence fails. `RGBN_CHROMIUM` names the browser binary explicitly.
+
+use crate::common::*;
+use image::RgbaImage;
+use rgbn::raster::sample::Surface;
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+/// Views compared with `rgbn render --view NAME`; adding a view is one line here
+/// (`specular_enhancement` and `curvature` once `rgbn render` has them).
+const COMPARED_VIEWS: &[&str] = &["relit", "normals"];
+
+/// Light directions compared (x right, y up, z to the viewer).
+const LIGHTS: [[f32; 3]; 3] = [[-0.5, 0.6, 0.8], [0.3, 0.4, 0.8], [0.9, -0.2, 0.4]];
+
+/// Largest mean |Δ| (8-bit levels, over RGB) allowed between the viewer and `rgbn render`.
+const MAX_MEAN_LEVELS: f64 = 3.0;
+
+/// The browser, or `None` after a clear skip note (a panic under `RGBN_REQUIRE_BROWSER=1`).
+fn chromium() -> Option<PathBuf> {
+    if let Some(p) = std::env::var_os("RGBN_CHROMIUM") {
+        return Some(PathBuf::from(p));
+    }
+    let names = [
+        "chromium",
+        "chromium-browser",
+        "google-chrome",
+        "google-chrome-stable",
+    ];
+    let path = std::env::var_os("PATH").unwrap_or_default();
+    for dir in std::env::split_paths(&path) {
+        for n in names {
+            let p = dir.join(n);
+            if p.is_file() {
+                return Some(p);
+            }
+        }
+    }
+    let required = std::env::var_os("RGBN_REQUIRE_BROWSER").is_some_and(|v| v == "1");
+    assert!(
+        !required,
+        "chromium not found (looked for {names:?} on PATH and RGBN_CHROMIUM) and RGBN_REQUIRE_BROWSER=1"
+    );
+    eprintln!(
+        "skipped: chromium not found (install Debian's chromium package or set RGBN_CHROMIUM)"
+    );
+    None
+}
+
+/// A `w × h` screenshot of `index.html?query` (the page's background is black in bare mode).
+fn screenshot(browser: &Path, folder: &Path, query: &str, w: usize, h: usize) -> RgbaImage {
+    screenshot_with(browser, folder, query, (w, h), true)
+}
+
+/// [`screenshot`]; `file_access: false` leaves out `--allow-file-access-from-files`, as a
+/// browser opening the page by double-click is (the viewer then uses the `data:` URL scripts).
+fn screenshot_with(
+    browser: &Path,
+    folder: &Path,
+    query: &str,
+    (w, h): (usize, usize),
+    file_access: bool,
+) -> RgbaImage {
+    let scratch = tempfile::tempdir().unwrap();
+    let shot = scratch.path().join("shot.png");
+    let url = format!("file://{}?{query}", folder.join("index.html").display());
+    let o = Command::new(browser)
+        .args([
+            "--headless",
+            "--no-sandbox",
+            "--disable-gpu",
+            "--use-angle=swiftshader",
+            "--enable-unsafe-swiftshader",
+            "--disable-background-networking",
+            "--disable-component-update",
+            "--disable-sync",
+            "--no-first-run",
+            "--hide-scrollbars",
+            "--virtual-time-budget=10000",
+        ])
+        .arg(format!(
+            "--user-data-dir={}",
+            scratch.path().join("profile").display()
+        ))
+        .args(file_access.then_some("--allow-file-access-from-files"))
+        .arg(format!("--window-size={w},{h}"))
+        .arg(format!("--screenshot={}", shot.display()))
+        .arg(&url)
+        .output()
+        .expect("chromium runs");
+    assert!(
+        shot.is_file(),
+        "chromium wrote no screenshot of {url} (exit {:?}): {}",
+        o.status.code(),
+        stderr(&o)
+    );
+    let img = image::open(&shot).unwrap().to_rgba8();
+    assert_eq!(
+        (img.width() as usize, img.height() as usize),
+        (w, h),
+        "screenshot size"
+    );
+    img
+}
+
+/// Mean and max |Δ| over RGB between `shot` (from `(sx, sy)`) and `reference` (from
+/// `(rx, ry)`, composited over black as the bare page shows it), over a `w × h` window.
+fn compare(
+    shot: &RgbaImage,
+    (sx, sy): (u32, u32),
+    reference: &RgbaImage,
+    (rx, ry): (u32, u32),
+    w: u32,
+    h: u32,
+) -> (f64, u8) {
+    let (mut sum, mut max, mut n) = (0u64, 0u8, 0u64);
+    for y in 0..h {
+        for x in 0..w {
+            let s = shot.get_pixel(sx + x, sy + y).0;
+            let r = reference.get_pixel(rx + x, ry + y).0;
+            for c in 0..3 {
+                let want = (f64::from(r[c]) * f64::from(r[3]) / 255.0).round() as u8;
+                let d = s[c].abs_diff(want);
+                sum += u64::from(d);
+                max = max.max(d);
+                n += 1;
+            }
+        }
+    }
+    (sum as f64 / n as f64, max)
+}
+
+fn run_ok(args: &[&str]) {
+    let o = rgbn(args);
+    assert!(o.status.success(), "rgbn {args:?}: {}", stderr(&o));
+}
+
+fn light_arg(l: [f32; 3]) -> String {
+    format!("{},{},{}", l[0], l[1], l[2])
+}
+
+/// `rgbn render` of `input` (CLI input arguments) as an RGBA image.
+fn reference(input: &[&str], view: &str, light: [f32; 3], dir: &Path) -> RgbaImage {
+    let out = dir.join(format!("ref-{view}-{}.png", light_arg(light)));
+    let mut args: Vec<String> = input.iter().map(|s| (*s).to_string()).collect();
+    args.extend([
+        "--view".into(),
+        view.into(),
+        format!("--light={}", light_arg(light)),
+        "-o".into(),
+        out.display().to_string(),
+    ]);
+    let args: Vec<&str> = args.iter().map(String::as_str).collect();
+    run_ok(&args);
+    image::open(&out).unwrap().to_rgba8()
+}
+
+/// An input: its name, its CLI input arguments and the lights it is compared at.
+type Case<'a> = (&'a str, Vec<&'a str>, &'a [[f32; 3]]);
+
+#[test]
+fn published_viewer_matches_rgbn_render_in_chromium() {
+    let Some(browser) = chromium() else { return };
+    let dir = tempfile::tempdir().unwrap();
+    // A masked, non-square input beside the demo: transparent and partly covered pixels.
+    let (sphere, _) = Surface::Sphere { radius_px: 36.0 }.render(96, 80);
+    let sphere_path = dir.path().join("sphere.exr");
+    rgbn::raster::io::save(&sphere, &sphere_path, &Default::default()).unwrap();
+    let sphere_arg = sphere_path.display().to_string();
+    let inputs: [Case<'_>; 2] = [
+        ("demo", vec!["--demo", "--demo-size", "256"], &LIGHTS),
+        ("sphere", vec![sphere_arg.as_str()], &LIGHTS[1..2]),
+    ];
+    let mut failures = Vec::new();
+    for (name, input, lights) in &inputs {
+        let folder = dir.path().join(format!("{name}-web"));
+        let mut args = vec!["publish"];
+        args.extend(input.iter().copied());
+        let out = folder.display().to_string();
+        args.extend(["-o", out.as_str()]);
+        run_ok(&args);
+        let mut render_input = vec!["render"];
+        render_input.extend(input.iter().copied());
+        for view in COMPARED_VIEWS {
+            for &light in *lights {
+                let want = reference(&render_input, view, light, dir.path());
+                let (w, h) = (want.width(), want.height());
+                let query = format!("bare&light={}&view={view}", light_arg(light));
+                let shot = screenshot(&browser, &folder, &query, 320, 320);
+                let (mean, max) = compare(&shot, (0, 0), &want, (0, 0), w, h);
+                eprintln!(
+                    "publish: {name} {w}×{h} view={view} light={}: mean |Δ| = {mean:.3} levels (max {max})",
+                    light_arg(light)
+                );
+                if mean > MAX_MEAN_LEVELS {
+                    failures.push(format!("{name} {view} {light:?}: mean |Δ| {mean:.3}"));
+                }
+            }
+        }
+    }
+    // Opened as by a double-click (no file access flag): the data: URL textures.
+    let folder = dir.path().join("demo-web");
+    let want = reference(
+        &["render", "--demo", "--demo-size", "256"],
+        "relit",
+        LIGHTS[0],
+        dir.path(),
+    );
+    let query = format!("bare&light={}", light_arg(LIGHTS[0]));
+    let shot = screenshot_with(&browser, &folder, &query, (320, 320), false);
+    let (mean, max) = compare(&shot, (0, 0), &want, (0, 0), 256, 256);
+    eprintln!("publish: demo relit from file:// without file access: mean |Δ| = {mean:.3} levels (max {max})");
+    if mean > MAX_MEAN_LEVELS {
+        failures.push(format!("file:// without file access: mean |Δ| {mean:.3}"));
+    }
+    assert!(
+        failures.is_empty(),
+        "viewer differs from rgbn render: {failures:?}"
+    );
+}
+
+/// A 4200×300 colour + normal map with per-pixel noise (so that a coarser level would not pass
+/// for level 0), as two PNGs.
+fn write_wide_input(dir: &Path) -> (PathBuf, PathBuf) {
+    let (w, h) = (4200u32, 300u32);
+    let mut state = 0x2545_f491_4f6c_dd1du64;
+    let mut rnd = move || {
+        state ^= state << 13;
+        state ^= state >> 7;
+        state ^= state << 17;
+        (state >> 40) as f32 / (1u64 << 24) as f32
+    };
+    let mut normal = image::RgbImage::new(w, h);
+    let mut color = image::RgbImage::new(w, h);
+    for y in 0..h {
+        for x in 0..w {
+            let (a, b) = (rnd() * 1.4 - 0.7, rnd() * 1.4 - 0.7);
+            let z = (1.0 - a * a - b * b).max(0.05).sqrt();
+            let len = (a * a + b * b + z * z).sqrt();
+            let enc = |v: f32| ((v / len + 1.0) * 127.5).round() as u8;
+            normal.put_pixel(x, y, image::Rgb([enc(a), enc(b), enc(z)]));
+            let c = [
+                (x * 255 / w) as u8,
+                (y * 255 / h) as u8,
+                128 + (x % 97) as u8,
+            ];
+            color.put_pixel(x, y, image::Rgb(c));
+        }
+    }
+    let (np, cp) = (dir.join("wide_n.png"), dir.join("wide_c.png"));
+    normal.save(&np).unwrap();
+    color.save(&cp).unwrap();
+    (np, cp)
+}
+
+#[test]
+fn large_images_get_a_tile_pyramid_that_the_viewer_loads() {
+    let dir = tempfile::tempdir().unwrap();
+    let (np, cp) = write_wide_input(dir.path());
+    let folder = dir.path().join("wide-web");
+    let (n, c, f) = (
+        np.display().to_string(),
+        cp.display().to_string(),
+        folder.display().to_string(),
+    );
+    run_ok(&["publish", "--normal", &n, "--color", &c, "-o", &f]);
+    // Level 0: 4200×300 in 1024² tiles (5 columns, the last 104 wide); level 1: 2100×150
+    // (3 columns), which fits in 4096: no level 2.
+    for (level, widths, height) in [
+        (0, &[1024, 1024, 1024, 1024, 104][..], 300),
+        (1, &[1024, 1024, 52][..], 150),
+    ] {
+        for (col, &tw) in widths.iter().enumerate() {
+            for what in ["albedo", "normals"] {
+                let p = folder.join(rgbn::ops::publish::tile_path(level, col, 0, what));
+                let dims =
+                    image::image_dimensions(&p).unwrap_or_else(|e| panic!("{}: {e}", p.display()));
+                assert_eq!(dims, (tw, height), "{}", p.display());
+            }
+        }
+    }
+    assert!(!folder.join("tiles/2").exists());
+    assert!(!folder
+        .join(rgbn::ops::publish::tile_path(0, 5, 0, "albedo"))
+        .exists());
+    let meta = std::fs::read_to_string(folder.join("image.json")).unwrap();
+    assert!(
+        meta.contains("\"width\": 2100, \"height\": 150, \"tile\": 1024, \"cols\": 3"),
+        "{meta}"
+    );
+
+    let Some(browser) = chromium() else { return };
+    let light = LIGHTS[1];
+    let want = reference(
+        &["render", "--normal", &n, "--color", &c],
+        "relit",
+        light,
+        dir.path(),
+    );
+    // Level 0 at 1:1 from x = 900: the window spans the boundary of tiles 0 and 1.
+    let (w, h) = (400u32, 300u32);
+    let query = format!(
+        "bare&light={}&view=relit&zoom=1&pan=900,0",
+        light_arg(light)
+    );
+    let shot = screenshot(&browser, &folder, &query, w as usize, h as usize);
+    let (mean, max) = compare(&shot, (0, 0), &want, (900, 0), w, h);
+    eprintln!("publish: 4200×300 pyramid, level-0 tiles 0–1 at 1:1: mean |Δ| = {mean:.3} levels (max {max})");
+    assert!(
+        mean <= MAX_MEAN_LEVELS,
+        "tiled level 0 differs from rgbn render: mean |Δ| {mean:.3}"
+    );
+}
+
+#[test]
+fn publish_refuses_to_lose_data_and_replaces_only_its_own_folders() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = |name: &str| dir.path().join(name).display().to_string();
+    let expect_usage_error = |args: &[&str], needle: &str| {
+        let o = rgbn(args);
+        let err = stderr(&o);
+        assert_eq!(o.status.code(), Some(2), "{args:?}: {err}");
+        assert_eq!(err.trim().lines().count(), 1, "one line: {err}");
+        assert!(err.contains(needle), "{args:?}: {err}");
+    };
+    // A non-empty folder that is not a publish.
+    std::fs::create_dir(dir.path().join("docs")).unwrap();
+    std::fs::write(dir.path().join("docs/notes.txt"), "mine").unwrap();
+    expect_usage_error(
+        &["publish", "--demo", "--demo-size", "32", "-o", &d("docs")],
+        "not empty",
+    );
+    assert_eq!(
+        std::fs::read_to_string(dir.path().join("docs/notes.txt")).unwrap(),
+        "mine"
+    );
+    // The output is the input, or holds it.
+    let (sphere, _) = Surface::Sphere { radius_px: 10.0 }.render(24, 24);
+    let input = dir.path().join("docs/sphere.exr");
+    rgbn::raster::io::save(&sphere, &input, &Default::default()).unwrap();
+    let input_arg = input.display().to_string();
+    expect_usage_error(&["publish", &input_arg, "-o", &input_arg], "input");
+    expect_usage_error(&["publish", &input_arg, "-o", &d("docs")], "input");
+    // Unwritable: the parent is a file.
+    expect_usage_error(
+        &[
+            "publish",
+            "--demo",
+            "--demo-size",
+            "32",
+            "-o",
+            &d("docs/notes.txt/web"),
+        ],
+        "docs/notes.txt/web",
+    );
+    // A new folder, then a second publish over it (the marker says it is ours).
+    let web = d("web");
+    run_ok(&["publish", "--demo", "--demo-size", "32", "-o", &web]);
+    std::fs::write(dir.path().join("web/stale.txt"), "old").unwrap();
+    run_ok(&["publish", &input_arg, "--view", "curvature", "-o", &web]);
+    assert!(!dir.path().join("web/stale.txt").exists());
+    let meta = std::fs::read_to_string(dir.path().join("web/image.json")).unwrap();
+    assert!(
+        meta.contains("\"width\": 24") && meta.contains("\"view\": \"curvature\""),
+        "{meta}"
+    );
+    for f in [
+        "index.html",
+        "viewer.js",
+        "image.json",
+        ".rgbn-publish",
+        "tiles/0/0_0.albedo.png",
+        "tiles/0/0_0.normals.png",
+        "tiles/0/0_0.albedo.js",
+        "tiles/0/0_0.normals.js",
+    ] {
+        assert!(dir.path().join("web").join(f).is_file(), "{f}");
+    }
+    // Nothing temporary left beside it.
+    let names: Vec<String> = std::fs::read_dir(dir.path())
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    assert!(
+        names
+            .iter()
+            .all(|n| !n.contains(".tmp-") && !n.contains(".old-")),
+        "{names:?}"
+    );
+    // The page is self-contained: no network URL anywhere in it.
+    for f in ["index.html", "viewer.js"] {
+        let text = std::fs::read_to_string(dir.path().join("web").join(f)).unwrap();
+        assert!(
+            !text.contains("http://") && !text.contains("https://"),
+            "{f} refers to the network"
+        );
+    }
+}
+
+#[test]
+fn publish_node_writes_the_folder() {
+    let dir = tempfile::tempdir().unwrap();
+    let lg = rgbn::graph::LoadedGraph::load(&graph_path("publish.ron")).unwrap();
+    eval_all(&rgbn::eval::Evaluator::default(), &lg, dir.path());
+    let meta = std::fs::read_to_string(dir.path().join("sphere_web/image.json")).unwrap();
+    assert!(meta.contains("\"width\": 32"), "{meta}");
+    assert!(dir
+        .path()
+        .join("sphere_web/tiles/0/0_0.normals.png")
+        .is_file());
+}
