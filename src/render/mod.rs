@@ -9,6 +9,9 @@ use crate::raster::srgb::{srgb8_lut_encode, SRGB8_LUT_SIZE};
 use crate::raster::RgbnImage;
 use rayon::prelude::*;
 
+pub mod occlusion;
+pub mod rti;
+
 /// A directional light: `direction` points from the surface towards the light (OpenGL frame,
 /// need not be normalised), `color` is its linear RGB intensity.
 #[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
