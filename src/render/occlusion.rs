@@ -273,7 +273,10 @@ mod tests {
             total += best;
         }
         let want = 1.0 - total / n as f64;
-        assert!((f64::from(centre) - want).abs() < 0.05, "{centre} vs {want}");
+        assert!(
+            (f64::from(centre) - want).abs() < 0.05,
+            "{centre} vs {want}"
+        );
         // Rendered: darker in the middle, white far away.
         let px = render(&img, &p);
         assert!(px[(c * size + c) * 4] + 40 < px[(c * size + c + 15) * 4]);

@@ -378,7 +378,10 @@ mod tests {
         let px = render_spec(&img, &s, &p);
         for c in px.chunks_exact(4) {
             for &v in &c[..3] {
-                assert!((i32::from(v) - srgb_level(want)).abs() <= 1, "{c:?} vs {want}");
+                assert!(
+                    (i32::from(v) - srgb_level(want)).abs() <= 1,
+                    "{c:?} vs {want}"
+                );
             }
             assert_eq!(c[3], 255);
         }
@@ -389,7 +392,11 @@ mod tests {
             ..Shading::default()
         };
         let px = render_spec(&img, &s, &p);
-        assert!((i32::from(px[0]) - srgb_level(0.4)).abs() <= 1, "{:?}", &px[..4]);
+        assert!(
+            (i32::from(px[0]) - srgb_level(0.4)).abs() <= 1,
+            "{:?}",
+            &px[..4]
+        );
     }
 
     #[test]
@@ -549,7 +556,10 @@ mod tests {
     #[test]
     fn normal_unsharp_leaves_a_plane_as_relit() {
         let s = Shading {
-            lights: vec![Light::white([0.4, -0.3, 0.6]), Light::white([-1.0, 0.2, 0.3])],
+            lights: vec![
+                Light::white([0.4, -0.3, 0.6]),
+                Light::white([-1.0, 0.2, 0.3]),
+            ],
             ..Shading::default()
         };
         let p = UnsharpParams {
@@ -618,7 +628,8 @@ mod tests {
         let relit = std_dev(&relight(&img, &s).unwrap());
         let sharp = std_dev(&render_unsharp(&img, &s, &p));
         assert!(sharp > 1.3 * relit, "{sharp} vs {relit}");
-        // The tilt of the sharpened normals: ≈ (1 + gain) × the original's at a crest's slope.
+        // The tilt of the sharpened normals at the steepest slope: ≈ (1 + gain) × the original's
+        // (a little more: the blurred normal's n_z is below 1, which lowers 2·n_z − G∗n_z).
         let n = unsharp_normals(&img, &p).unwrap();
         let (i, _) = img.normal()[0]
             .iter()
@@ -627,7 +638,7 @@ mod tests {
             .unwrap();
         let t0 = img.normal()[0][i] / img.normal()[2][i];
         let t1 = n[0][i] / n[2][i];
-        assert!(t1 > 1.6 * t0 && t1 < 2.05 * t0, "{t1} vs {t0}");
+        assert!(t1 > 1.6 * t0 && t1 < 2.2 * t0, "{t1} vs {t0}");
     }
 
     fn render_multi(img: &RgbnImage, p: &MultiLightParams) -> Vec<u8> {
