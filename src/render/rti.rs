@@ -472,9 +472,9 @@ mod tests {
                     let ndl = nv[0] * d[0] + nv[1] * d[1] + nv[2] * d[2];
                     let ndh = ((nv[0] * hv[0] + nv[1] * hv[1] + nv[2] * hv[2]) / hl).max(0.0);
                     if ndl > 0.0 {
-                        for j in 0..3 {
-                            v[j] += f64::from(l.color[j])
-                                * (p.spec_kd * ndl + p.spec_ks * ndh.powf(p.spec_alpha));
+                        let t = p.spec_kd * ndl + p.spec_ks * ndh.powf(p.spec_alpha);
+                        for (vj, cj) in v.iter_mut().zip(l.color) {
+                            *vj += f64::from(cj) * t;
                         }
                     }
                 }
