@@ -74,7 +74,8 @@ pub struct RenderArgs {
     #[arg(long, default_value_t = 0.0, allow_hyphen_values = true)]
     pub exposure: f32,
     /// What to show: relit, albedo, normals, curl, curvature, exaggerated, radiance_scaling,
-    /// toon, lines (see --help for each view's reference and parameters).
+    /// specular_enhancement, normal_unsharp, toon, lines, ambient_occlusion, multi_light (see
+    /// --help for each view's reference and parameters).
     #[arg(long, default_value = "relit", long_help = view_help())]
     pub view: View,
     /// A view parameter NAME=VALUE (repeat for several), e.g. --param curvature_scale=20 or

@@ -51,7 +51,7 @@ impl Operator for ViewOp {
             "view",
             "View",
             "render",
-            "A picture of an image for inspection: albedo, normals as colour, curl, mean curvature, exaggerated shading, radiance scaling, toon shading or lines (each view's parameters are prefixed by its short name; the light parameters are used by the views that light the image).",
+            "A picture of an image for inspection: albedo, normals as colour, curl, mean curvature, exaggerated shading, radiance scaling, specular enhancement, normal unsharp masking, toon shading, lines, ambient occlusion or multi-light detail enhancement (each view's parameters are prefixed by its short name; the light parameters are used by the views that light the image).",
         )
         .input(PortSpec::new("image", PortType::Rgbn, "Image to show."))
         .output(PortSpec::new("picture", PortType::Picture, "The view."))

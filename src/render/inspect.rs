@@ -40,6 +40,40 @@ crate::params! {
         pub lines_threshold: f64 = 0.05 => float.unit("1/px").range(0.0, 100.0),
         /// lines: contour-like lines where n_z is below this (0 = none).
         pub lines_contour: f64 = 0.2 => float.range(0.0, 1.0),
+        // spec_*, unsharp_*, ao_*, multi_*: the same fields (docs, defaults, ranges) as the
+        // views' own structs in render::rti and render::occlusion, which the views take; a
+        // test there checks that the two declarations agree.
+        /// specular_enhancement: diffuse weight kd of the grey material that replaces the
+        /// albedo.
+        pub spec_kd: f64 = 0.4 => float.range(0.0, 10.0),
+        /// specular_enhancement: specular strength ks (white Blinn-Phong highlight).
+        pub spec_ks: f64 = 0.7 => float.range(0.0, 10.0),
+        /// specular_enhancement: highlight exponent α; larger is a tighter, glossier highlight.
+        pub spec_alpha: f64 = 75.0 => float.range(0.0, 10000.0),
+        /// normal_unsharp: how much of the normals' fine detail (normal minus its blur) is
+        /// added back; 0 = relit.
+        pub unsharp_gain: f64 = 2.0 => float.range(0.0, 100.0),
+        /// normal_unsharp: σ of the Gaussian blur separating detail from shape.
+        pub unsharp_sigma: f64 = 3.0 => float.unit("px").range(0.1, 1000.0),
+        /// ambient_occlusion: how far each direction is searched for a horizon; relief wider
+        /// than this is not seen as occluding.
+        pub ao_radius: f64 = 16.0 => float.unit("px").range(1.0, 512.0),
+        /// ambient_occlusion: number of directions marched around each pixel (evenly spaced
+        /// in azimuth).
+        pub ao_directions: i64 = 8 => int.range(1.0, 64.0),
+        /// ambient_occlusion: multiply the grey occlusion by the albedo.
+        pub ao_albedo: bool = false => bool,
+        /// multi_light: number of virtual lights, spread evenly in azimuth around the
+        /// hemisphere.
+        pub multi_lights: i64 = 8 => int.range(1.0, 64.0),
+        /// multi_light: elevation of the virtual lights above the image plane (90 = from the
+        /// viewer).
+        pub multi_elevation: f64 = 30.0 => float.unit("°").range(1.0, 90.0),
+        /// multi_light: σ of the Gaussian separating each light's shading into base and
+        /// detail.
+        pub multi_sigma: f64 = 4.0 => float.unit("px").range(0.3, 1000.0),
+        /// multi_light: gain on the combined detail layer (0 = the mean base only).
+        pub multi_gain: f64 = 3.0 => float.range(0.0, 100.0),
     }
 }
 
@@ -54,6 +88,10 @@ impl InspectParams {
             View::RadianceScaling => Some("radiance_"),
             View::Toon => Some("toon_"),
             View::Lines => Some("lines_"),
+            View::SpecularEnhancement => Some("spec_"),
+            View::NormalUnsharp => Some("unsharp_"),
+            View::AmbientOcclusion => Some("ao_"),
+            View::MultiLight => Some("multi_"),
         }
     }
 

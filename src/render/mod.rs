@@ -6,6 +6,8 @@
 pub mod curvature;
 pub mod inspect;
 pub mod npr;
+pub mod occlusion;
+pub mod rti;
 
 pub use curvature::{curvature_scale, mean_curvature};
 pub use inspect::InspectParams;
@@ -17,9 +19,6 @@ use crate::raster::gradient::GradientField;
 use crate::raster::srgb::{srgb8_lut_encode, SRGB8_LUT_SIZE};
 use crate::raster::RgbnImage;
 use rayon::prelude::*;
-
-pub mod occlusion;
-pub mod rti;
 
 /// A directional light: `direction` points from the surface towards the light (OpenGL frame,
 /// need not be normalised), `color` is its linear RGB intensity.
@@ -130,12 +129,25 @@ crate::choice_enum! {
         /// Radiance scaling (Vergne et al. 2010): the relit picture brightened where the surface
         /// is convex and darkened where it is concave, with strength radiance_alpha.
         RadianceScaling = "radiance_scaling",
+        /// Specular enhancement (RTIViewer; Malzbender et al. 2001): albedo removed, a grey
+        /// material kd·(n·l) + ks·(n·h)^α with a strong, tight highlight that shows fine relief.
+        SpecularEnhancement = "specular_enhancement",
+        /// Normal unsharp masking (RTIViewer): the normals' detail amplified,
+        /// n' = normalize(n + gain·(n − G_σ∗n)), then relit with the shading (albedo kept).
+        NormalUnsharp = "normal_unsharp",
         /// Toon shading: Lambert quantised into toon_levels bands times albedo, with black
         /// outlines near silhouettes and at strong curvature.
         Toon = "toon",
         /// Line drawing: ridges and valleys (local extrema of |H| above a threshold) and
         /// contour-like lines (n_z small), black on white.
         Lines = "lines",
+        /// Horizon-based ambient occlusion (Bavoil et al. 2008) on the height integrated from
+        /// the normals: cavities dark, open surface white; independent of the lights.
+        AmbientOcclusion = "ambient_occlusion",
+        /// Multi-light detail enhancement (RTIViewer; Fattal et al. 2007): grey shading under
+        /// multi_lights virtual lights, the mean base plus the per-pixel strongest detail ×
+        /// multi_gain; independent of the shading's lights.
+        MultiLight = "multi_light",
     }
 }
 
@@ -160,7 +172,13 @@ impl View {
     pub fn lit(self) -> bool {
         !matches!(
             self,
-            View::Albedo | View::Normals | View::Curl | View::Curvature | View::Lines
+            View::Albedo
+                | View::Normals
+                | View::Curl
+                | View::Curvature
+                | View::Lines
+                | View::AmbientOcclusion
+                | View::MultiLight
         )
     }
 }
@@ -233,6 +251,14 @@ pub fn render_with_into(
         View::RadianceScaling => npr::radiance_scaling_into(img, shading, params, out)?,
         View::Toon => npr::toon_into(img, shading, params, out),
         View::Lines => npr::lines_into(img, params, out),
+        View::SpecularEnhancement => {
+            rti::specular_enhancement_into(img, shading, &params.specular(), out)?;
+        }
+        View::NormalUnsharp => rti::normal_unsharp_into(img, shading, &params.unsharp(), out)?,
+        View::AmbientOcclusion => {
+            occlusion::ambient_occlusion_into(img, shading, &params.ao(), out)?;
+        }
+        View::MultiLight => rti::multi_light_into(img, shading, &params.multi_light(), out)?,
     }
     Ok(())
 }

@@ -16,16 +16,19 @@ crate::params! {
     /// Parameters of the `ambient_occlusion` view (horizon-based ambient occlusion).
     #[derive(Clone, Debug, PartialEq)]
     pub struct AoParams {
-        /// Ambient occlusion: how far each direction is searched for a horizon; relief wider than this is not seen as occluding.
+        /// ambient_occlusion: how far each direction is searched for a horizon; relief wider
+        /// than this is not seen as occluding.
         pub ao_radius: f64 = 16.0 => float.unit("px").range(1.0, 512.0),
-        /// Ambient occlusion: number of directions marched around each pixel (evenly spaced in azimuth).
+        /// ambient_occlusion: number of directions marched around each pixel (evenly spaced
+        /// in azimuth).
         pub ao_directions: i64 = 8 => int.range(1.0, 64.0),
-        /// Ambient occlusion: multiply the grey occlusion by the albedo.
+        /// ambient_occlusion: multiply the grey occlusion by the albedo.
         pub ao_albedo: bool = false => bool,
     }
 }
 
-/// The ambient-occlusion factor per pixel, in [0, 1] (1 = unoccluded), of [`ambient_occlusion_into`].
+/// The ambient-occlusion factor per pixel, in [0, 1] (1 = unoccluded), of
+/// [`ambient_occlusion_into`].
 ///
 /// 1. The normals are integrated to a height `z` in pixels with
 ///    [`crate::raster::integrate::integrate_normals`]: Poisson/DCT without a mask, the masked
@@ -150,19 +153,18 @@ impl HeightField<'_> {
 
 /// The **ambient_occlusion** view: [`ambient_occlusion`]'s factor as grey (times the albedo
 /// when `ao_albedo`), sRGB-encoded, alpha = mask coverage. It shows cavities — pits, grooves,
-/// incisions — independently of the lights: the shading's lights and exposure are not used
-/// (only checked).
+/// incisions — independently of the lights: the shading is not used (`_shading` keeps the
+/// signature of the other views).
 ///
 /// # Errors
-/// An output of the wrong size, invalid shading or parameters, an empty mask.
+/// An output of the wrong size, parameters out of range, an empty mask.
 pub fn ambient_occlusion_into(
     img: &RgbnImage,
-    shading: &Shading,
+    _shading: &Shading,
     p: &AoParams,
     out: &mut [u8],
 ) -> Result<(), RgbnError> {
     check_output_len(img, out, "ambient_occlusion")?;
-    shading.validate()?;
     let ao = ambient_occlusion(img, p)?;
     let a = ao.data();
     let c = img.color();
@@ -175,6 +177,18 @@ pub fn ambient_occlusion_into(
         }
     });
     Ok(())
+}
+
+impl super::InspectParams {
+    /// The `ao_*` group: the `ambient_occlusion` view's parameters.
+    #[must_use]
+    pub fn ao(&self) -> AoParams {
+        AoParams {
+            ao_radius: self.ao_radius,
+            ao_directions: self.ao_directions,
+            ao_albedo: self.ao_albedo,
+        }
+    }
 }
 
 #[cfg(test)]
@@ -350,5 +364,24 @@ mod tests {
         };
         let e = ambient_occlusion(&img, &bad).unwrap_err().to_string();
         assert!(e.contains("ao_radius"), "{e}");
+    }
+
+    #[test]
+    fn inspect_params_group_matches_and_the_view_renders_through_render_with() {
+        use crate::render::{render_with, InspectParams, View};
+        crate::render::rti::tests::check_group(View::AmbientOcclusion, |ip| ip.ao());
+        let img = from_slope(20, 16, |u, v| [0.05 * u, -0.02 * v]);
+        let ip = InspectParams {
+            ao_radius: 6.0,
+            ..InspectParams::default()
+        };
+        let s = Shading::default();
+        let mut want = vec![0; img.len() * 4];
+        ambient_occlusion_into(&img, &s, &ip.ao(), &mut want).unwrap();
+        assert_eq!(
+            render_with(&img, View::AmbientOcclusion, &s, &ip).unwrap(),
+            want
+        );
+        assert!(!View::AmbientOcclusion.lit());
     }
 }

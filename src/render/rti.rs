@@ -118,11 +118,12 @@ crate::params! {
     /// Parameters of the `specular_enhancement` view (RTIViewer "specular enhancement").
     #[derive(Clone, Debug, PartialEq)]
     pub struct SpecularParams {
-        /// Specular enhancement: diffuse weight kd of the grey material that replaces the albedo.
+        /// specular_enhancement: diffuse weight kd of the grey material that replaces the
+        /// albedo.
         pub spec_kd: f64 = 0.4 => float.range(0.0, 10.0),
-        /// Specular enhancement: specular strength ks (white Blinn-Phong highlight).
+        /// specular_enhancement: specular strength ks (white Blinn-Phong highlight).
         pub spec_ks: f64 = 0.7 => float.range(0.0, 10.0),
-        /// Specular enhancement: highlight exponent α; larger is a tighter, glossier highlight.
+        /// specular_enhancement: highlight exponent α; larger is a tighter, glossier highlight.
         pub spec_alpha: f64 = 75.0 => float.range(0.0, 10000.0),
     }
 }
@@ -174,9 +175,10 @@ crate::params! {
     /// Parameters of the `normal_unsharp` view (RTIViewer "normal unsharp masking").
     #[derive(Clone, Debug, PartialEq)]
     pub struct UnsharpParams {
-        /// Normal unsharp masking: how much of the normals' fine detail (normal minus its blur) is added back; 0 = relit.
+        /// normal_unsharp: how much of the normals' fine detail (normal minus its blur) is
+        /// added back; 0 = relit.
         pub unsharp_gain: f64 = 2.0 => float.range(0.0, 100.0),
-        /// Normal unsharp masking: σ of the Gaussian blur separating detail from shape.
+        /// normal_unsharp: σ of the Gaussian blur separating detail from shape.
         pub unsharp_sigma: f64 = 3.0 => float.unit("px").range(0.1, 1000.0),
     }
 }
@@ -235,13 +237,16 @@ crate::params! {
     /// Parameters of the `multi_light` view (RTIViewer multi-light detail enhancement).
     #[derive(Clone, Debug, PartialEq)]
     pub struct MultiLightParams {
-        /// Multi-light detail: number of virtual lights, spread evenly in azimuth around the hemisphere.
+        /// multi_light: number of virtual lights, spread evenly in azimuth around the
+        /// hemisphere.
         pub multi_lights: i64 = 8 => int.range(1.0, 64.0),
-        /// Multi-light detail: elevation of the virtual lights above the image plane (90 = from the viewer).
+        /// multi_light: elevation of the virtual lights above the image plane (90 = from the
+        /// viewer).
         pub multi_elevation: f64 = 30.0 => float.unit("°").range(1.0, 90.0),
-        /// Multi-light detail: σ of the Gaussian separating each light's shading into base and detail.
+        /// multi_light: σ of the Gaussian separating each light's shading into base and
+        /// detail.
         pub multi_sigma: f64 = 4.0 => float.unit("px").range(0.3, 1000.0),
-        /// Multi-light detail: gain on the combined detail layer (0 = the mean base only).
+        /// multi_light: gain on the combined detail layer (0 = the mean base only).
         pub multi_gain: f64 = 3.0 => float.range(0.0, 100.0),
     }
 }
@@ -265,26 +270,27 @@ pub fn multi_light_directions(count: usize, elevation_deg: f64) -> Vec<[f32; 3]>
 /// The image is shaded (grey Lambert `max(0, n·lₖ)`, albedo removed) under `multi_lights`
 /// virtual lights around the hemisphere at `multi_elevation`. Each shading `Sₖ` is split into a
 /// base `Bₖ = G_σ∗Sₖ` (restricted to the mask when there is one) and a detail `Dₖ = Sₖ − Bₖ`.
-/// The result is `v = 2^ev · (mean_k Bₖ + gain · D*)`, clamped, sRGB-encoded, grey.
+/// The result is `v = mean_k Bₖ + gain · D*`, clamped, sRGB-encoded, grey.
 ///
 /// **Simplification of Fattal et al.**: they decompose each photograph at several scales with
 /// the bilateral filter and combine, per pixel and scale, the detail coefficients with weights
 /// favouring the image of largest local contrast (passed through a sigmoid), plus a
 /// user-weighted base. Here: one scale, a Gaussian (not bilateral) decomposition, the
 /// per-pixel **maximum-contrast rule taken hard** — `D*` is the `Dₖ` of largest `|Dₖ|` at that
-/// pixel (sign kept) — no sigmoid, and the base is the mean of the lights' bases. The lights
-/// and exposure: virtual lights from the parameters, exposure `ev` from the shading.
+/// pixel (sign kept) — no sigmoid, and the base is the mean of the lights' bases.
+///
+/// The view does not depend on the shading (its lights are virtual, from the parameters; no
+/// exposure): `_shading` keeps the signature of the other views.
 ///
 /// # Errors
-/// An output of the wrong size, invalid shading or parameters.
+/// An output of the wrong size, or parameters out of range.
 pub fn multi_light_into(
     img: &RgbnImage,
-    shading: &Shading,
+    _shading: &Shading,
     p: &MultiLightParams,
     out: &mut [u8],
 ) -> Result<(), RgbnError> {
     check_output_len(img, out, "multi_light")?;
-    shading.validate()?;
     check_params(p)?;
     let (w, h) = (img.width(), img.height());
     let n = w * h;
@@ -314,18 +320,49 @@ pub fn multi_light_into(
                 }
             });
     }
-    let gain = 2f32.powf(shading.exposure_ev);
     let inv = 1.0 / lights.len() as f32;
     let dg = p.multi_gain as f32;
     write_linear_rgb(out, mask, |i| {
-        let v = gain * (base_sum[i] * inv + dg * best[i]);
+        let v = base_sum[i] * inv + dg * best[i];
         [v; 3]
     });
     Ok(())
 }
 
+impl super::InspectParams {
+    /// The `spec_*` group: the `specular_enhancement` view's parameters.
+    #[must_use]
+    pub fn specular(&self) -> SpecularParams {
+        SpecularParams {
+            spec_kd: self.spec_kd,
+            spec_ks: self.spec_ks,
+            spec_alpha: self.spec_alpha,
+        }
+    }
+
+    /// The `unsharp_*` group: the `normal_unsharp` view's parameters.
+    #[must_use]
+    pub fn unsharp(&self) -> UnsharpParams {
+        UnsharpParams {
+            unsharp_gain: self.unsharp_gain,
+            unsharp_sigma: self.unsharp_sigma,
+        }
+    }
+
+    /// The `multi_*` group: the `multi_light` view's parameters.
+    #[must_use]
+    pub fn multi_light(&self) -> MultiLightParams {
+        MultiLightParams {
+            multi_lights: self.multi_lights,
+            multi_elevation: self.multi_elevation,
+            multi_sigma: self.multi_sigma,
+            multi_gain: self.multi_gain,
+        }
+    }
+}
+
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
     use crate::raster::sample::Surface;
     use crate::raster::srgb::linear_to_srgb;
@@ -687,5 +724,96 @@ mod tests {
             assert!((v[2] - 0.5).abs() < 1e-6);
         }
         assert!((d[1][1] - 30f32.to_radians().cos()).abs() < 1e-6);
+    }
+
+    /// The view's own struct and its group in [`super::super::InspectParams`] declare the same
+    /// parameters (names, kinds, docs, units, ranges, defaults), and the conversion carries
+    /// every field.
+    pub(crate) fn check_group<P: Params>(
+        view: crate::render::View,
+        convert: impl Fn(&crate::render::InspectParams) -> P,
+    ) {
+        use crate::ops::params::{describe, ParamValue};
+        use crate::render::InspectParams;
+        assert_eq!(
+            describe::<P>(),
+            InspectParams::describe(view),
+            "{}",
+            view.name()
+        );
+        // Every field of the group set to a non-default value inside its range.
+        let mut values = std::collections::BTreeMap::new();
+        for info in InspectParams::describe(view) {
+            let (lo, hi) = info.meta.range.unwrap_or((0.0, 1.0));
+            let v = match info.default {
+                ParamValue::Float(d) => ParamValue::Float(if d < hi { (d + hi) / 2.0 } else { lo }),
+                ParamValue::Int(d) => ParamValue::Int(if (d as f64) < hi { d + 1 } else { d - 1 }),
+                ParamValue::Bool(b) => ParamValue::Bool(!b),
+                other => panic!("unexpected kind {other:?}"),
+            };
+            values.insert(info.name.to_string(), v);
+        }
+        let ip: InspectParams = from_values(&values).unwrap();
+        let p = convert(&ip);
+        assert_eq!(to_values(&p), values, "{}", view.name());
+        assert_ne!(to_values(&P::default()), values);
+    }
+
+    #[test]
+    fn inspect_params_groups_match_the_views_params() {
+        use crate::render::View;
+        check_group(View::SpecularEnhancement, |ip| ip.specular());
+        check_group(View::NormalUnsharp, |ip| ip.unsharp());
+        check_group(View::MultiLight, |ip| ip.multi_light());
+    }
+
+    #[test]
+    fn the_views_render_through_render_with() {
+        use crate::render::{render, render_with, InspectParams, View};
+        let (img, _) = Surface::gaussians_for(40).render(40, 32);
+        let s = Shading::default();
+        let ip = InspectParams {
+            spec_alpha: 30.0,
+            unsharp_gain: 4.0,
+            multi_lights: 5,
+            ..InspectParams::default()
+        };
+        let direct = |f: &dyn Fn(&mut [u8]) -> Result<(), RgbnError>| {
+            let mut out = vec![0; img.len() * 4];
+            f(&mut out).unwrap();
+            out
+        };
+        let cases: [(View, Vec<u8>); 3] = [
+            (
+                View::SpecularEnhancement,
+                direct(&|o| specular_enhancement_into(&img, &s, &ip.specular(), o)),
+            ),
+            (
+                View::NormalUnsharp,
+                direct(&|o| normal_unsharp_into(&img, &s, &ip.unsharp(), o)),
+            ),
+            (
+                View::MultiLight,
+                direct(&|o| multi_light_into(&img, &s, &ip.multi_light(), o)),
+            ),
+        ];
+        for (view, want) in cases {
+            assert_eq!(view.name().parse::<View>(), Ok(view));
+            assert_eq!(
+                render_with(&img, view, &s, &ip).unwrap(),
+                want,
+                "{}",
+                view.name()
+            );
+            assert!(render(&img, view, &s).is_ok());
+        }
+        let bad = InspectParams {
+            multi_sigma: -2.0,
+            ..InspectParams::default()
+        };
+        let e = render_with(&img, View::MultiLight, &s, &bad)
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("multi_sigma"), "{e}");
     }
 }
