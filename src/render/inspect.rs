@@ -61,6 +61,9 @@ crate::params! {
         /// ambient_occlusion: number of directions marched around each pixel (evenly spaced
         /// in azimuth).
         pub ao_directions: i64 = 8 => int.range(1.0, 64.0),
+        /// ambient_occlusion: multiplies the integrated height before the horizon search
+        /// (relief exaggeration: shallow relief needs more than 1).
+        pub ao_depth: f64 = 1.0 => float.range(0.01, 1000.0),
         /// ambient_occlusion: multiply the grey occlusion by the albedo.
         pub ao_albedo: bool = false => bool,
         /// multi_light: number of virtual lights, spread evenly in azimuth around the
@@ -73,7 +76,7 @@ crate::params! {
         /// detail.
         pub multi_sigma: f64 = 4.0 => float.unit("px").range(0.3, 1000.0),
         /// multi_light: gain on the combined detail layer (0 = the mean base only).
-        pub multi_gain: f64 = 3.0 => float.range(0.0, 100.0),
+        pub multi_gain: f64 = 1.0 => float.range(0.0, 100.0),
     }
 }
 

@@ -22,6 +22,9 @@ crate::params! {
         /// ambient_occlusion: number of directions marched around each pixel (evenly spaced
         /// in azimuth).
         pub ao_directions: i64 = 8 => int.range(1.0, 64.0),
+        /// ambient_occlusion: multiplies the integrated height before the horizon search
+        /// (relief exaggeration: shallow relief needs more than 1).
+        pub ao_depth: f64 = 1.0 => float.range(0.01, 1000.0),
         /// ambient_occlusion: multiply the grey occlusion by the albedo.
         pub ao_albedo: bool = false => bool,
     }
@@ -32,7 +35,7 @@ crate::params! {
 ///
 /// 1. The normals are integrated to a height `z` in pixels with
 ///    [`crate::raster::integrate::integrate_normals`]: Poisson/DCT without a mask, the masked
-///    Poisson solver (only edges inside the mask) with one.
+///    Poisson solver (only edges inside the mask) with one; then multiplied by `ao_depth`.
 /// 2. Per pixel, `ao_directions` directions `θₖ = 2πk/N` (image frame, `y` up) are marched
 ///    out to `ao_radius` px in `min(⌈radius⌉, 32)` even steps, sampling `z` bilinearly; a
 ///    direction stops at the image border or where a sample touches a pixel outside the mask
@@ -61,7 +64,9 @@ pub fn ambient_occlusion(img: &RgbnImage, p: &AoParams) -> Result<Plane, RgbnErr
         max_iterations: 1000,
         tolerance: 1e-4,
     };
-    let (z, _) = integrate_normals(img, &ip)?;
+    let (mut z, _) = integrate_normals(img, &ip)?;
+    let depth = p.ao_depth as f32;
+    z.data_mut().par_iter_mut().for_each(|v| *v *= depth);
     let zd = z.data();
     let field = HeightField { z: zd, w, h, mask };
     let dirs: Vec<[f32; 2]> = (0..p.ao_directions)
@@ -186,6 +191,7 @@ impl super::InspectParams {
         AoParams {
             ao_radius: self.ao_radius,
             ao_directions: self.ao_directions,
+            ao_depth: self.ao_depth,
             ao_albedo: self.ao_albedo,
         }
     }
@@ -257,13 +263,7 @@ mod tests {
     #[test]
     fn a_pit_is_darker_at_its_centre_than_at_its_rim_as_hbao_by_hand() {
         let (size, rad, depth) = (64usize, 14.0, 7.0);
-        let img = from_slope(size, size, |u, v| {
-            if u * u + v * v < rad * rad {
-                [2.0 * depth * u / (rad * rad), 2.0 * depth * v / (rad * rad)]
-            } else {
-                [0.0, 0.0]
-            }
-        });
+        let img = pit(size, rad, depth);
         let p = AoParams::default();
         let ao = ambient_occlusion(&img, &p).unwrap();
         let c = size / 2;
@@ -297,6 +297,37 @@ mod tests {
         assert_eq!(px[0], 255);
     }
 
+    fn pit(size: usize, rad: f64, depth: f64) -> RgbnImage {
+        from_slope(size, size, |u, v| {
+            if u * u + v * v < rad * rad {
+                [2.0 * depth * u / (rad * rad), 2.0 * depth * v / (rad * rad)]
+            } else {
+                [0.0, 0.0]
+            }
+        })
+    }
+
+    #[test]
+    fn ao_depth_is_the_same_as_a_deeper_relief() {
+        // The slopes of a pit twice as deep are twice as large, so its integrated height is
+        // twice as large: ao_depth = 2 on the shallow pit must give the deep pit's occlusion.
+        let shallow = ambient_occlusion(
+            &pit(48, 10.0, 2.0),
+            &AoParams {
+                ao_depth: 2.0,
+                ..AoParams::default()
+            },
+        )
+        .unwrap();
+        let deep = ambient_occlusion(&pit(48, 10.0, 4.0), &AoParams::default()).unwrap();
+        let plain = ambient_occlusion(&pit(48, 10.0, 2.0), &AoParams::default()).unwrap();
+        let c = 24 * 48 + 24;
+        assert!(shallow.data()[c] < plain.data()[c] - 0.1);
+        for (a, b) in shallow.data().iter().zip(deep.data()) {
+            assert!((a - b).abs() < 1e-3, "{a} vs {b}");
+        }
+    }
+
     #[test]
     fn a_dome_is_unoccluded() {
         // Convex everywhere: every horizon lies below the tangent.
@@ -324,7 +355,7 @@ mod tests {
             let p = AoParams {
                 ao_radius: 5.0,
                 ao_directions: dirs,
-                ao_albedo: false,
+                ..AoParams::default()
             };
             let ao = ambient_occlusion(&img, &p).unwrap();
             let (lo, hi) = ao

@@ -247,7 +247,7 @@ crate::params! {
         /// detail.
         pub multi_sigma: f64 = 4.0 => float.unit("px").range(0.3, 1000.0),
         /// multi_light: gain on the combined detail layer (0 = the mean base only).
-        pub multi_gain: f64 = 3.0 => float.range(0.0, 100.0),
+        pub multi_gain: f64 = 1.0 => float.range(0.0, 100.0),
     }
 }
 
