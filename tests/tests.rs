@@ -41,3 +41,6 @@ mod readme;
 
 #[path = "it/ptm.rs"]
 mod ptm;
+
+#[path = "it/views.rs"]
+mod views;

@@ -25,21 +25,29 @@ crate::params! {
         pub exag_clamp: f64 = 10.0 => float.range(0.01, 1000.0),
         /// exaggerated: weight of scale i ∝ σᵢ^(−detail): positive favours fine detail, 0
         /// weighs all scales alike, negative favours coarse shape.
-        pub exag_detail: f64 = 0.5 => float.range(-4.0, 4.0),
+        pub exag_detail: f64 = 0.0 => float.range(-4.0, 4.0),
         /// radiance_scaling: strength α: radiance × 2^(α·tanh(H·scale)) (0 = plain relit).
         pub radiance_alpha: f64 = 1.0 => float.range(0.0, 16.0),
         /// radiance_scaling: curvature scale as curvature_scale (0 = automatic).
         pub radiance_scale: f64 = 0.0 => float.unit("px").range(0.0, 1e9),
+        /// radiance_scaling: Gaussian σ the normals are smoothed with before the curvature is
+        /// taken (0 = none), so that fine texture does not dominate.
+        pub radiance_sigma: f64 = 1.0 => float.unit("px").range(0.0, 256.0),
         /// toon: number of shading bands.
         pub toon_levels: i64 = 4 => int.range(1.0, 64.0),
         /// toon: outline where the normal's n_z is below this (near the silhouette; 0 = none).
         pub toon_silhouette: f64 = 0.25 => float.range(0.0, 1.0),
         /// toon: outline where |H| exceeds this (1/px; 0 = no curvature outlines).
-        pub toon_crease: f64 = 0.2 => float.unit("1/px").range(0.0, 100.0),
+        pub toon_crease: f64 = 0.1 => float.unit("1/px").range(0.0, 100.0),
+        /// toon: Gaussian σ the normals are smoothed with before the curvature is taken.
+        pub toon_sigma: f64 = 2.0 => float.unit("px").range(0.0, 256.0),
         /// lines: ridge/valley lines where |H| exceeds this and is a local maximum across.
         pub lines_threshold: f64 = 0.05 => float.unit("1/px").range(0.0, 100.0),
         /// lines: contour-like lines where n_z is below this (0 = none).
         pub lines_contour: f64 = 0.2 => float.range(0.0, 1.0),
+        /// lines: Gaussian σ the normals are smoothed with before the curvature is taken
+        /// (0 = none): the scale of the features drawn.
+        pub lines_sigma: f64 = 2.0 => float.unit("px").range(0.0, 256.0),
         // spec_*, unsharp_*, ao_*, multi_*: the same fields (docs, defaults, ranges) as the
         // views' own structs in render::rti and render::occlusion, which the views take; a
         // test there checks that the two declarations agree.

@@ -46,6 +46,16 @@ fn smoothed_normals(img: &RgbnImage, sigma: f32) -> [Vec<f32>; 3] {
     planes
 }
 
+/// Mean curvature of the normals smoothed with a Gaussian of `sigma` px (none when 0).
+fn smoothed_curvature(img: &RgbnImage, sigma: f64) -> Vec<f32> {
+    if sigma <= 0.0 {
+        return mean_curvature(img);
+    }
+    let mut s = img.clone();
+    *s.normal_mut() = smoothed_normals(img, sigma as f32);
+    mean_curvature(&s)
+}
+
 #[inline]
 fn at(p: &[Vec<f32>; 3], i: usize) -> [f32; 3] {
     [p[0][i], p[1][i], p[2][i]]
@@ -121,14 +131,16 @@ pub(super) fn exaggerated_into(
 /// versatile surface enhancement", I3D 2010): the relit radiance (exactly [`super::relight`])
 /// multiplied, before the sRGB curve, by a function of the mean curvature that brightens
 /// convex and darkens concave places: `× 2^(α · tanh(H · s))`, `α = radiance_alpha`,
-/// `s = radiance_scale` (0 = automatic, as the curvature view). α = 0 is the relit picture.
+/// `s = radiance_scale` (0 = automatic, as the curvature view), H taken from the normals
+/// smoothed with σ = `radiance_sigma`. α = 0 is the relit picture. (The paper's scaling
+/// function also depends on the light and material; this is its curvature-only core.)
 pub(super) fn radiance_scaling_into(
     img: &RgbnImage,
     shading: &Shading,
     p: &InspectParams,
     out: &mut [u8],
 ) -> Result<(), RgbnError> {
-    let hv = mean_curvature(img);
+    let hv = smoothed_curvature(img, p.radiance_sigma);
     let s = scale_of(&hv, img.mask(), p.radiance_scale as f32);
     let alpha = p.radiance_alpha as f32;
     let scale: Vec<f32> = hv
@@ -141,7 +153,8 @@ pub(super) fn radiance_scaling_into(
 /// Toon shading: the diffuse light `d = Σ cᵢ max(0, n·lᵢ)` (per colour channel) quantised into
 /// `L = toon_levels` bands, `q = min(⌊d·L⌋, L−1) / (L−1)` (L = 1: 1 where lit, else 0), shown as
 /// `2^ev · albedo · (ambient + q)`; black outlines where `n_z < toon_silhouette` (near the
-/// silhouette) or `|H| > toon_crease` (strong curvature; 0 = none). Alpha = coverage.
+/// silhouette) or `|H| > toon_crease` (strong curvature, from the normals smoothed with
+/// σ = `toon_sigma`; 0 = none). Alpha = coverage.
 pub(super) fn toon_into(img: &RgbnImage, shading: &Shading, p: &InspectParams, out: &mut [u8]) {
     let ls = lights(shading);
     let levels = p.toon_levels.max(1) as f32;
@@ -157,7 +170,7 @@ pub(super) fn toon_into(img: &RgbnImage, shading: &Shading, p: &InspectParams, o
         }
     };
     let crease = p.toon_crease as f32;
-    let hv = (crease > 0.0).then(|| mean_curvature(img));
+    let hv = (crease > 0.0).then(|| smoothed_curvature(img, p.toon_sigma));
     let sil = p.toon_silhouette as f32;
     let gain = 2f32.powf(shading.exposure_ev);
     let [cr, cg, cb] = img.color();
@@ -181,13 +194,15 @@ pub(super) fn toon_into(img: &RgbnImage, shading: &Shading, p: &InspectParams, o
     });
 }
 
-/// Line drawing: black on white. Ridge and valley lines where `|H| > lines_threshold` (1/px)
+/// Line drawing (after Toler-Franklin et al. 2007 and DeCarlo et al.'s ridges/valleys and
+/// suggestive contours): black on white. H is taken from the normals smoothed with
+/// σ = `lines_sigma`. Ridge and valley lines where `|H| > lines_threshold` (1/px)
 /// and `|H|` is a local maximum across the line (not below either neighbour and above one,
 /// horizontally or vertically), and contour-like lines where `n_z < lines_contour` (the
 /// surface turns away from the viewer). Alpha = coverage. A plane has no lines.
 pub(super) fn lines_into(img: &RgbnImage, p: &InspectParams, out: &mut [u8]) {
     let (w, h) = (img.width(), img.height());
-    let hv = mean_curvature(img);
+    let hv = smoothed_curvature(img, p.lines_sigma);
     let thr = p.lines_threshold as f32;
     let contour = p.lines_contour as f32;
     let nz = &img.normal()[2];
@@ -214,3 +229,7 @@ pub(super) fn lines_into(img: &RgbnImage, p: &InspectParams, out: &mut [u8]) {
         }
     });
 }
+
+#[cfg(test)]
+#[path = "npr_tests.rs"]
+mod tests;
