@@ -5,7 +5,7 @@
 use super::{Inputs, OpSpec, Operator, Picture, PortSpec, PortType, RunContext, Value};
 use crate::error::RgbnError;
 use crate::ops::render::{RelightParams, ViewParams};
-use crate::render;
+use crate::render::{self, View};
 use std::sync::Arc;
 
 /// Relights an image.
@@ -41,20 +41,30 @@ impl Operator for Relight {
     }
 }
 
-/// A diagnostic view of an image.
+/// The view node's documentation: what it does, then every view with its reference.
+fn view_doc() -> &'static str {
+    static DOC: std::sync::OnceLock<String> = std::sync::OnceLock::new();
+    DOC.get_or_init(|| {
+        let views: Vec<String> = View::ALL
+            .iter()
+            .map(|v| format!("{}: {}", v.name(), v.doc()))
+            .collect();
+        format!(
+            "A picture of an image for inspection: albedo, normals as colour, curl, mean curvature, exaggerated shading, radiance scaling, specular enhancement, normal unsharp masking, toon shading, lines, ambient occlusion or multi-light detail enhancement (each view's parameters are prefixed by its short name; the light parameters are used by the views that light the image). Views — {}",
+            views.join(" ")
+        )
+    })
+}
+
+/// A view of an image (any [`View`]).
 pub struct ViewOp;
 
 impl Operator for ViewOp {
     type Params = ViewParams;
     fn spec() -> OpSpec {
-        OpSpec::new(
-            "view",
-            "View",
-            "render",
-            "A picture of an image for inspection: albedo, normals as colour, curl, mean curvature, exaggerated shading, radiance scaling, specular enhancement, normal unsharp masking, toon shading, lines, ambient occlusion or multi-light detail enhancement (each view's parameters are prefixed by its short name; the light parameters are used by the views that light the image).",
-        )
-        .input(PortSpec::new("image", PortType::Rgbn, "Image to show."))
-        .output(PortSpec::new("picture", PortType::Picture, "The view."))
+        OpSpec::new("view", "View", "render", view_doc())
+            .input(PortSpec::new("image", PortType::Rgbn, "Image to show."))
+            .output(PortSpec::new("picture", PortType::Picture, "The view."))
     }
     fn check(p: &ViewParams) -> Result<(), RgbnError> {
         if p.view.lit() {
