@@ -45,7 +45,7 @@ fn bench(c: &mut Criterion) {
             })
         });
     }
-    s.view = Mode::Albedo;
+    s.view = Mode::View(rgbn::render::View::Albedo);
     g.bench_function("albedo_to_texture", |b| {
         b.iter(|| black_box(color_image(&img, &s).expect("albedo")))
     });

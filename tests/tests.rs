@@ -51,3 +51,6 @@ mod ptm;
 
 #[path = "it/publish.rs"]
 mod publish;
+
+#[path = "it/views.rs"]
+mod views;

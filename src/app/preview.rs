@@ -13,60 +13,72 @@
 
 use super::tools::ViewTransform;
 use super::tools_ui::{ToolCx, Tools};
+use crate::ops::params;
 use crate::ops::{Picture, Value};
 use crate::raster::gradient::GradientField;
 use crate::raster::Plane;
-use crate::render::{self, Light, Shading, View};
+use crate::render::{self, InspectParams, Light, Shading, View};
 use egui::{
     Color32, PointerButton, Pos2, Rect, Sense, Stroke, TextureHandle, TextureOptions, Ui, Vec2,
 };
 use std::sync::mpsc::{channel, Receiver, Sender};
 use std::sync::Arc;
 
-/// What the preview shows of an RGBN image.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+/// What the preview shows of an RGBN image: any [`View`] (relit, albedo, normals, curl and the
+/// inspection views), or the integrated height.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Mode {
-    /// Relit with the preview's light.
-    #[default]
-    Relit,
-    /// Colour only.
-    Albedo,
-    /// Normals as colour.
-    Normals,
-    /// Curl map (blue − / white 0 / red +).
-    Curl,
+    /// A rendered view (relit with the preview's light, colour only, normals as colour, curl
+    /// map, curvature, exaggerated shading, …).
+    View(View),
     /// The height the normals integrate to (DCT Poisson), grey from low to high.
     Height,
 }
 
+impl Default for Mode {
+    fn default() -> Self {
+        Mode::View(View::Relit)
+    }
+}
+
 impl Mode {
-    /// Every mode, in menu order.
-    pub const ALL: [Mode; 5] = [
-        Mode::Relit,
-        Mode::Albedo,
-        Mode::Normals,
-        Mode::Curl,
-        Mode::Height,
-    ];
+    /// Relit with the preview's light.
+    pub const RELIT: Mode = Mode::View(View::Relit);
+
+    /// Every mode, in menu order: every view, then the height.
+    pub const ALL: [Mode; View::ALL.len() + 1] = {
+        let mut all = [Mode::Height; View::ALL.len() + 1];
+        let mut i = 0;
+        while i < View::ALL.len() {
+            all[i] = Mode::View(View::ALL[i]);
+            i += 1;
+        }
+        all
+    };
 
     /// Its name in menus.
     #[must_use]
     pub fn name(self) -> &'static str {
         match self {
-            Mode::Relit => "relit",
-            Mode::Albedo => "albedo",
-            Mode::Normals => "normals",
-            Mode::Curl => "curl",
+            Mode::View(v) => v.name(),
             Mode::Height => "height",
+        }
+    }
+
+    /// One line of documentation (hover text).
+    #[must_use]
+    pub fn doc(self) -> &'static str {
+        match self {
+            Mode::View(v) => v.doc(),
+            Mode::Height => {
+                "The height the normals integrate to (DCT Poisson), grey from low to high."
+            }
         }
     }
 
     fn render_view(self) -> Option<View> {
         match self {
-            Mode::Relit => Some(View::Relit),
-            Mode::Albedo => Some(View::Albedo),
-            Mode::Normals => Some(View::Normals),
-            Mode::Curl => Some(View::Curl),
+            Mode::View(v) => Some(v),
             Mode::Height => None,
         }
     }
@@ -75,7 +87,7 @@ impl Mode {
 /// Display settings of the preview (not part of the graph).
 #[derive(Clone, Debug, PartialEq)]
 pub struct PreviewSettings {
-    /// Relit, albedo, normals, curl or height.
+    /// A view or the height.
     pub view: Mode,
     /// Direction towards the light (OpenGL frame, unit).
     pub light: [f32; 3],
@@ -87,6 +99,8 @@ pub struct PreviewSettings {
     pub shininess: f32,
     /// Exposure in stops.
     pub exposure_ev: f32,
+    /// The inspection views' parameters.
+    pub inspect: InspectParams,
 }
 
 impl Default for PreviewSettings {
@@ -95,12 +109,13 @@ impl Default for PreviewSettings {
         let d = s.lights[0].direction;
         let len = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
         Self {
-            view: Mode::Relit,
+            view: Mode::RELIT,
             light: [d[0] / len, d[1] / len, d[2] / len],
             ambient: s.ambient,
             specular: s.specular,
             shininess: s.shininess,
             exposure_ev: s.exposure_ev,
+            inspect: InspectParams::default(),
         }
     }
 }
@@ -325,7 +340,7 @@ pub fn color_image(v: &Value, s: &PreviewSettings) -> Option<egui::ColorImage> {
             let mut pixels: Vec<egui::Color32> = bytemuck::zeroed_vec(img.len());
             crate::raster::buf::advise_huge_pages(&pixels);
             let rgba: &mut [u8] = bytemuck::cast_slice_mut(&mut pixels);
-            render::render_into(img, view, &s.shading(), rgba).ok()?;
+            render::render_with_into(img, view, &s.shading(), &s.inspect, rgba).ok()?;
             return Some(egui::ColorImage::new([img.width(), img.height()], pixels));
         }
     }
@@ -389,7 +404,7 @@ pub fn render_value(v: &Value, s: &PreviewSettings) -> Option<Picture> {
     match v {
         Value::Rgbn(img) => {
             let view = s.view.render_view().unwrap_or(View::Relit);
-            let rgba = render::render(img, view, &s.shading()).ok()?;
+            let rgba = render::render_with(img, view, &s.shading(), &s.inspect).ok()?;
             Some(Picture {
                 width: img.width(),
                 height: img.height(),
@@ -760,9 +775,10 @@ fn set_texture(
 /// The display controls: view mode, before/after split, light, ambient, specular, exposure.
 /// `can_split`: the viewed node has an RGBN input to compare with.
 pub fn settings_ui(ui: &mut Ui, s: &mut PreviewSettings, split: &mut Option<f32>, can_split: bool) {
-    ui.horizontal(|ui| {
+    ui.horizontal_wrapped(|ui| {
         for v in Mode::ALL {
-            ui.selectable_value(&mut s.view, v, v.name());
+            ui.selectable_value(&mut s.view, v, v.name())
+                .on_hover_text(v.doc());
         }
         ui.separator();
         let mut on = split.is_some();
@@ -777,8 +793,9 @@ pub fn settings_ui(ui: &mut Ui, s: &mut PreviewSettings, split: &mut Option<f32>
                 .on_hover_text("Split position");
         }
     });
-    if s.view == Mode::Relit {
-        ui.horizontal(|ui| {
+    let view = s.view.render_view();
+    ui.horizontal(|ui| {
+        if view.is_some_and(View::lit) {
             light_ui(ui, &mut s.light);
             egui::Grid::new("shading").num_columns(2).show(ui, |ui| {
                 ui.label("ambient");
@@ -794,7 +811,39 @@ pub fn settings_ui(ui: &mut Ui, s: &mut PreviewSettings, split: &mut Option<f32>
                 ui.add(egui::Slider::new(&mut s.exposure_ev, -4.0..=4.0).suffix(" EV"));
                 ui.end_row();
             });
+        }
+        if let Some(v) = view {
+            view_params_ui(ui, v, &mut s.inspect);
+        }
+    });
+}
+
+/// The selected view's own parameters ([`InspectParams::describe`]) as the inspector's widgets.
+fn view_params_ui(ui: &mut Ui, view: View, p: &mut InspectParams) {
+    let infos = InspectParams::describe(view);
+    if infos.is_empty() {
+        return;
+    }
+    let mut values = params::to_values(p);
+    let mut changed = false;
+    egui::Grid::new("view_params")
+        .num_columns(2)
+        .show(ui, |ui| {
+            for info in &infos {
+                let mut browse = false;
+                let v = values
+                    .entry(info.name.to_string())
+                    .or_insert_with(|| info.default.clone());
+                let here = std::path::Path::new(".");
+                changed |= super::params_ui::param_ui(ui, info.name, info, v, here, &mut browse);
+            }
         });
+    if changed {
+        // The widgets keep values in range; a value the core refuses leaves the settings as
+        // they were.
+        if let Ok(new) = params::from_values::<InspectParams>(&values) {
+            *p = new;
+        }
     }
 }
 
@@ -811,7 +860,7 @@ mod tests {
         let mut masked = img.clone();
         let m: Vec<f32> = (0..img.len()).map(|i| (i % 5) as f32 / 4.0).collect();
         masked.set_mask(Some(m)).unwrap();
-        for view in [Mode::Relit, Mode::Albedo, Mode::Normals, Mode::Curl] {
+        for view in View::ALL.iter().map(|v| Mode::View(*v)) {
             let s = PreviewSettings {
                 view,
                 ..PreviewSettings::default()

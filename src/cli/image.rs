@@ -12,7 +12,7 @@ use crate::raster::io::{
 };
 use crate::raster::sample::demo_medallion;
 use crate::raster::RgbnImage;
-use crate::render::{self, Light, Shading, View};
+use crate::render::{self, InspectParams, Light, Shading, View};
 use clap::Args;
 use std::path::{Path, PathBuf};
 
@@ -74,9 +74,15 @@ pub struct RenderArgs {
     /// Exposure in stops.
     #[arg(long, default_value_t = 0.0, allow_hyphen_values = true)]
     pub exposure: f32,
-    /// What to show: relit, albedo, normals, curl.
-    #[arg(long, default_value = "relit")]
+    /// What to show: relit, albedo, normals, curl, curvature, exaggerated, radiance_scaling,
+    /// specular_enhancement, normal_unsharp, toon, lines, ambient_occlusion, multi_light (see
+    /// --help for each view's reference and parameters).
+    #[arg(long, default_value = "relit", long_help = view_help())]
     pub view: View,
+    /// A view parameter NAME=VALUE (repeat for several), e.g. --param curvature_scale=20 or
+    /// --param toon_levels=3; the names are prefixed by the view's short name.
+    #[arg(long = "param", value_name = "NAME=VALUE", allow_hyphen_values = true)]
+    pub params: Vec<String>,
     /// Output PNG (8-bit sRGB with alpha).
     #[arg(short, long)]
     pub output: PathBuf,
@@ -117,6 +123,15 @@ pub struct FilterArgs {
     /// Write EXR as 16-bit half floats.
     #[arg(long)]
     pub half: bool,
+}
+
+/// `--view`'s long help: every view with its documentation and parameters.
+fn view_help() -> String {
+    format!(
+        "What to show. Each view, its reference and its parameters (set with --param \
+         NAME=VALUE):\n\n{}",
+        InspectParams::help()
+    )
 }
 
 pub(super) fn parse_vec3(s: &str) -> Result<[f32; 3], String> {
@@ -310,9 +325,37 @@ pub(super) fn render_cmd(a: &RenderArgs, out: &mut Out<'_>) -> Result<(), CliErr
         exposure_ev: a.exposure,
     };
     shading.validate()?;
+    let params = InspectParams::from_assignments(&a.params)?;
+    for p in &a.params {
+        let name = p.split_once('=').map_or(p.as_str(), |(n, _)| n.trim());
+        if let Some(v) = InspectParams::view_of(name).filter(|v| *v != a.view) {
+            return Err(usage(format!(
+                "--param {name} belongs to the {} view, not {} (use --view {})",
+                v.name(),
+                a.view.name(),
+                v.name()
+            )));
+        }
+    }
     let (img, _) = a.input.load()?;
-    let rgba = render::render(&img, a.view, &shading)?;
-    io::write_raster8(&rgba, img.width(), img.height(), 4, Format::Png, &a.output)?;
+    let rgba = render::render_with(&img, a.view, &shading, &params)?;
+    if a.view == View::Curvature {
+        let scale = render::curvature_scale(&img, params.curvature_scale as f32);
+        let text = scale.to_string();
+        io::write_png8_text(
+            &rgba,
+            img.width(),
+            img.height(),
+            &[("rgbn:curvature_scale", &text)],
+            &a.output,
+        )?;
+        out.line(format_args!(
+            "curvature scale: {text} px (full colour at |H| = {:.4e} /px)",
+            1.0 / scale
+        ))?;
+    } else {
+        io::write_raster8(&rgba, img.width(), img.height(), 4, Format::Png, &a.output)?;
+    }
     out.line(format_args!(
         "wrote {} ({}×{}, {}): {}",
         a.view.name(),

@@ -427,7 +427,7 @@ fn write_folder(
             }
         }
     }
-    let scale = curvature_scale(img);
+    let scale = crate::render::curvature_scale(img, 0.0);
     let json = metadata_json(img, &lv, scale, opts);
     let write_text = |name: &str, text: &str| {
         io::write_atomic(&dir.join(name), |w| {
@@ -553,63 +553,6 @@ fn metadata_json(img: &RgbnImage, levels: &[Level], scale: f32, opts: &PublishOp
     )
 }
 
-/// Mean curvature `H = ½(∂nx/∂x + ∂ny/∂y)` in 1/px (y up; central differences, one-sided at
-/// the border and next to pixels with coverage < 0.5, 0 with no neighbour), per pixel.
-#[must_use]
-pub fn mean_curvature(img: &RgbnImage) -> Vec<f32> {
-    let (w, h) = (img.width(), img.height());
-    let [nx, ny, _] = img.normal();
-    let mask = img.mask();
-    let inside = |i: usize| mask.is_none_or(|m| m[i] >= 0.5);
-    let diff = |p: &[f32], i: usize, before: Option<usize>, after: Option<usize>| {
-        let before = before.filter(|&j| inside(j));
-        let after = after.filter(|&j| inside(j));
-        match (before, after) {
-            (Some(b), Some(a)) => (p[a] - p[b]) / 2.0,
-            (None, Some(a)) => p[a] - p[i],
-            (Some(b), None) => p[i] - p[b],
-            (None, None) => 0.0,
-        }
-    };
-    let mut out = vec![0.0; w * h];
-    for r in 0..h {
-        for c in 0..w {
-            let i = r * w + c;
-            let left = (c > 0).then(|| i - 1);
-            let right = (c + 1 < w).then(|| i + 1);
-            // y up: "before" in y is the row below, "after" the row above.
-            let below = (r + 1 < h).then(|| i + w);
-            let above = (r > 0).then(|| i - w);
-            out[i] = 0.5 * (diff(nx, i, left, right) + diff(ny, i, below, above));
-        }
-    }
-    out
-}
-
-/// The automatic curvature scale: 1 / (99th percentile of |H| over covered pixels), 1 when
-/// that is 0 (the issue-16 spec; `crate::render::inspect::curvature_scale` replaces this once
-/// merged).
-#[must_use]
-pub fn curvature_scale(img: &RgbnImage) -> f32 {
-    let h = mean_curvature(img);
-    let mut abs: Vec<f32> = h
-        .iter()
-        .enumerate()
-        .filter(|&(i, v)| img.mask().is_none_or(|m| m[i] >= 0.5) && v.is_finite())
-        .map(|(_, v)| v.abs())
-        .collect();
-    if abs.is_empty() {
-        return 1.0;
-    }
-    let k = ((abs.len() as f64 * 0.99).ceil() as usize).clamp(1, abs.len()) - 1;
-    let (_, p99, _) = abs.select_nth_unstable_by(k, f32::total_cmp);
-    if *p99 > 0.0 {
-        1.0 / *p99
-    } else {
-        1.0
-    }
-}
-
 /// Where [`publish`] puts a level's tile (relative to the folder).
 #[must_use]
 pub fn tile_path(level: usize, col: usize, row: usize, what: &str) -> PathBuf {
@@ -642,21 +585,6 @@ mod tests {
             sizes,
             [(9000, 300, 9, 1), (4500, 150, 5, 1), (2250, 75, 3, 1)]
         );
-    }
-
-    #[test]
-    fn sphere_mean_curvature_is_one_over_r() {
-        let r = 40.0f32;
-        let (img, _) = Surface::Sphere {
-            radius_px: f64::from(r),
-        }
-        .render(128, 128);
-        let h = mean_curvature(&img);
-        // Near the centre (the sphere's normals are exact there), H = 1/r.
-        let c = 64 * 128 + 64;
-        assert!((h[c] - 1.0 / r).abs() < 0.02 / r, "{} vs {}", h[c], 1.0 / r);
-        let flat = RgbnImage::flat(8, 8, [0.5; 3]);
-        assert_eq!(curvature_scale(&flat), 1.0);
     }
 
     #[test]

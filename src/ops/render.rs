@@ -1,7 +1,8 @@
 //! Parameters of the render nodes ([`crate::nodes::render`]); the renderers themselves are
 //! [`crate::render::relight`] and [`crate::render::render`].
 
-use crate::render::{Light, Shading, View};
+use crate::ops::params::{visit_choice, Meta, ParamVisitor, Params};
+use crate::render::{InspectParams, Light, Shading, View};
 
 crate::params! {
     /// Parameters of relighting with one directional white light.
@@ -37,35 +38,39 @@ impl RelightParams {
     }
 }
 
-crate::choice_enum! {
-    /// The diagnostic views offered by the view node.
-    pub enum ViewKind {
-        /// Colour.
-        Albedo = "albedo",
-        /// Normals encoded (n+1)/2.
-        Normals = "normals",
-        /// Curl map, blue (−) – white – red (+).
-        Curl = "curl",
-    }
+/// Parameters of the view node: which view, the shading of the views that light the image
+/// (the relight node's parameters) and every view's own parameters ([`InspectParams`]).
+#[derive(Clone, Debug, PartialEq)]
+pub struct ViewParams {
+    /// The view shown.
+    pub view: View,
+    /// Light, ambient, specular, shininess and exposure (for the views that light the image).
+    pub shading: RelightParams,
+    /// The inspection views' parameters.
+    pub inspect: InspectParams,
 }
 
-impl ViewKind {
-    /// The renderer's view.
-    #[must_use]
-    pub fn view(self) -> View {
-        match self {
-            ViewKind::Albedo => View::Albedo,
-            ViewKind::Normals => View::Normals,
-            ViewKind::Curl => View::Curl,
+impl Default for ViewParams {
+    fn default() -> Self {
+        Self {
+            view: View::Normals,
+            shading: RelightParams::default(),
+            inspect: InspectParams::default(),
         }
     }
 }
 
-crate::params! {
-    /// Parameters of a diagnostic view.
-    #[derive(Clone, Debug, PartialEq)]
-    pub struct ViewParams {
-        /// albedo: colour; normals: (n+1)/2; curl: blue (−) – white – red (+).
-        pub view: ViewKind = ViewKind::Normals => choice,
+impl Params for ViewParams {
+    fn visit(&mut self, v: &mut dyn ParamVisitor) {
+        visit_choice(
+            v,
+            "view",
+            &mut self.view,
+            &Meta::new(
+                "What to show: each view's documentation lists its reference and parameters.",
+            ),
+        );
+        self.shading.visit(v);
+        self.inspect.visit(v);
     }
 }

@@ -770,8 +770,36 @@ fn encode_png(
     sixteen: bool,
     path: &Path,
 ) -> Result<(), RgbnError> {
+    encode_png_text(bytes, w, h, channels, sixteen, &[], path)
+}
+
+/// Writes 8-bit RGBA samples as a PNG carrying `text` as tEXt chunks (keyword, value), e.g.
+/// `rgbn:curvature_scale` written by `rgbn render --view curvature`.
+pub fn write_png8_text(
+    rgba: &[u8],
+    w: usize,
+    h: usize,
+    text: &[(&str, &str)],
+    path: &Path,
+) -> Result<(), RgbnError> {
+    encode_png_text(rgba, w, h, 4, false, text, path)
+}
+
+fn encode_png_text(
+    bytes: &[u8],
+    w: usize,
+    h: usize,
+    channels: usize,
+    sixteen: bool,
+    text: &[(&str, &str)],
+    path: &Path,
+) -> Result<(), RgbnError> {
     write_atomic(path, |out| {
         let mut enc = png::Encoder::new(out, w as u32, h as u32);
+        for (k, v) in text {
+            enc.add_text_chunk((*k).to_string(), (*v).to_string())
+                .map_err(|e| e.to_string())?;
+        }
         enc.set_color(match channels {
             1 => png::ColorType::Grayscale,
             2 => png::ColorType::GrayscaleAlpha,

@@ -1,8 +1,19 @@
 //! Turning an RGBN image into something to look at: relighting (Lambert + Blinn-Phong with
-//! directional lights, ambient and exposure), normals as colour, albedo, and the curl map.
+//! directional lights, ambient and exposure), normals as colour, albedo, the curl map, and the
+//! inspection views ([`View`]; their parameters: [`InspectParams`]).
 //! Every view produces sRGB 8-bit RGBA, row-major, row 0 at the top.
 
+pub mod curvature;
+pub mod inspect;
+pub mod npr;
+pub mod occlusion;
+pub mod rti;
+
+pub use curvature::{curvature_scale, mean_curvature};
+pub use inspect::InspectParams;
+
 use crate::error::RgbnError;
+use crate::ops::params::Choice;
 use crate::raster::buf;
 use crate::raster::gradient::GradientField;
 use crate::raster::srgb::{srgb8_lut_encode, SRGB8_LUT_SIZE};
@@ -94,67 +105,160 @@ impl Shading {
     }
 }
 
-/// The view a render produces.
-#[derive(
-    Clone, Copy, Debug, Default, PartialEq, Eq, Hash, serde::Serialize, serde::Deserialize,
-)]
-pub enum View {
-    /// Relit with [`Shading`].
-    #[default]
-    Relit,
-    /// Albedo (colour) only.
-    Albedo,
-    /// Normals encoded `(n+1)/2` (no sRGB curve, as normal maps are stored).
-    Normals,
-    /// Curl of the gradient field, blue (negative) – white – red (positive).
-    Curl,
+crate::choice_enum! {
+    /// The view a render produces. Adding a view: a variant here (its doc is its documentation
+    /// in `rgbn render --help`, `rgbn ops` and the editor), a parameter group in
+    /// [`InspectParams`] (with its prefix in [`InspectParams::prefix`]), an arm in
+    /// [`render_with_into`] and the function it calls.
+    #[derive(serde::Serialize, serde::Deserialize)]
+    pub enum View {
+        /// Relit with the shading (Lambert + Blinn-Phong).
+        Relit = "relit",
+        /// Albedo (colour) only.
+        Albedo = "albedo",
+        /// Normals encoded (n+1)/2 (no sRGB curve, as normal maps are stored).
+        Normals = "normals",
+        /// Curl of the gradient field, blue (negative) – white – red (positive).
+        Curl = "curl",
+        /// Mean curvature H = ½ div n in 1/px, red (convex) – white – blue (concave), saturating
+        /// at ±1/curvature_scale (0 = automatic: the 99th percentile of |H|).
+        Curvature = "curvature",
+        /// Exaggerated shading (Rusinkiewicz, Burns & DeCarlo 2006): each scale of the normals
+        /// lit relative to the next coarser one, clamped cosines summed with per-scale weights.
+        Exaggerated = "exaggerated",
+        /// Radiance scaling (Vergne et al. 2010): the relit picture brightened where the surface
+        /// is convex and darkened where it is concave, with strength radiance_alpha.
+        RadianceScaling = "radiance_scaling",
+        /// Specular enhancement (RTIViewer; Malzbender et al. 2001): albedo removed, a grey
+        /// material kd·(n·l) + ks·(n·h)^α with a strong, tight highlight that shows fine relief.
+        SpecularEnhancement = "specular_enhancement",
+        /// Normal unsharp masking (RTIViewer): the normals' detail amplified,
+        /// n' = normalize(n + gain·(n − G_σ∗n)), then relit with the shading (albedo kept).
+        NormalUnsharp = "normal_unsharp",
+        /// Toon shading: Lambert quantised into toon_levels bands times albedo, with black
+        /// outlines near silhouettes and at strong curvature.
+        Toon = "toon",
+        /// Line drawing: ridges and valleys (local extrema of |H| above a threshold) and
+        /// contour-like lines (n_z small), black on white.
+        Lines = "lines",
+        /// Horizon-based ambient occlusion (Bavoil et al. 2008) on the height integrated from
+        /// the normals: cavities dark, open surface white; independent of the lights.
+        AmbientOcclusion = "ambient_occlusion",
+        /// Multi-light detail enhancement (RTIViewer; Fattal et al. 2007): grey shading under
+        /// multi_lights virtual lights, the mean base plus the per-pixel strongest detail ×
+        /// multi_gain; independent of the shading's lights.
+        MultiLight = "multi_light",
+    }
 }
 
 impl View {
-    pub const ALL: [View; 4] = [View::Relit, View::Albedo, View::Normals, View::Curl];
+    /// Every view, in menu order.
+    pub const ALL: &'static [View] = <View as Choice>::ALL;
+
+    /// Its name (`rgbn render --view NAME`, graph files, menus).
     #[must_use]
     pub fn name(self) -> &'static str {
-        match self {
-            View::Relit => "relit",
-            View::Albedo => "albedo",
-            View::Normals => "normals",
-            View::Curl => "curl",
-        }
+        <View as Choice>::name(self)
+    }
+
+    /// One-line documentation.
+    #[must_use]
+    pub fn doc(self) -> &'static str {
+        <View as Choice>::doc(self)
+    }
+
+    /// True when the view uses the shading's lights (the editor then shows the light controls).
+    #[must_use]
+    pub fn lit(self) -> bool {
+        !matches!(
+            self,
+            View::Albedo
+                | View::Normals
+                | View::Curl
+                | View::Curvature
+                | View::Lines
+                | View::AmbientOcclusion
+                | View::MultiLight
+        )
     }
 }
 
 impl std::str::FromStr for View {
     type Err = String;
     fn from_str(s: &str) -> Result<Self, String> {
-        View::ALL
-            .into_iter()
-            .find(|v| v.name() == s)
-            .ok_or_else(|| format!("unknown view {s:?} (relit, albedo, normals, curl)"))
+        View::from_name(s).ok_or_else(|| {
+            let names = View::names().join(", ");
+            match crate::ops::params::nearest(s, View::names()) {
+                Some(n) => format!("unknown view {s:?} (did you mean {n:?}? views: {names})"),
+                None => format!("unknown view {s:?} (views: {names})"),
+            }
+        })
     }
 }
 
-/// Renders `view` of `img` as sRGB RGBA8.
+/// Renders `view` of `img` as sRGB RGBA8, with the default view parameters.
 pub fn render(img: &RgbnImage, view: View, shading: &Shading) -> Result<Vec<u8>, RgbnError> {
+    render_with(img, view, shading, &InspectParams::default())
+}
+
+/// Renders `view` of `img` as sRGB RGBA8 with the view parameters `params` (checked: a value
+/// out of range is an error naming the parameter).
+pub fn render_with(
+    img: &RgbnImage,
+    view: View,
+    shading: &Shading,
+    params: &InspectParams,
+) -> Result<Vec<u8>, RgbnError> {
     let mut out = buf::zeroed_u8(img.len() * 4);
-    render_into(img, view, shading, &mut out)?;
+    render_with_into(img, view, shading, params, &mut out)?;
     Ok(out)
 }
 
 /// [`render`] into `out` (`4 · width · height` bytes), e.g. straight into a texture's pixels.
 /// The relit and albedo views of a masked image carry coverage in alpha (not premultiplied);
-/// the others are opaque.
+/// normals and curl are opaque; the inspection views document their alpha.
 pub fn render_into(
     img: &RgbnImage,
     view: View,
     shading: &Shading,
     out: &mut [u8],
 ) -> Result<(), RgbnError> {
+    render_with_into(img, view, shading, &InspectParams::default(), out)
+}
+
+/// [`render_with`] into `out` (`4 · width · height` bytes).
+pub fn render_with_into(
+    img: &RgbnImage,
+    view: View,
+    shading: &Shading,
+    params: &InspectParams,
+    out: &mut [u8],
+) -> Result<(), RgbnError> {
     check_output_len(img, out, "render")?;
+    if view != View::Relit && view.lit() {
+        shading.validate()?;
+    }
+    params.validate()?;
     match view {
         View::Relit => relight_into(img, shading, out)?,
         View::Albedo => albedo_into(img, out),
         View::Normals => normals_as_color_into(img, out),
         View::Curl => curl_map_into(&GradientField::from_normals(img), None, out),
+        View::Curvature => {
+            curvature::curvature_into(img, params, out);
+        }
+        View::Exaggerated => npr::exaggerated_into(img, shading, params, out),
+        View::RadianceScaling => npr::radiance_scaling_into(img, shading, params, out)?,
+        View::Toon => npr::toon_into(img, shading, params, out),
+        View::Lines => npr::lines_into(img, params, out),
+        View::SpecularEnhancement => {
+            rti::specular_enhancement_into(img, shading, &params.specular(), out)?;
+        }
+        View::NormalUnsharp => rti::normal_unsharp_into(img, shading, &params.unsharp(), out)?,
+        View::AmbientOcclusion => {
+            occlusion::ambient_occlusion_into(img, shading, &params.ao(), out)?;
+        }
+        View::MultiLight => rti::multi_light_into(img, shading, &params.multi_light(), out)?,
     }
     Ok(())
 }
@@ -188,6 +292,17 @@ pub fn relight(img: &RgbnImage, shading: &Shading) -> Result<Vec<u8>, RgbnError>
 /// same image again and again reuse memory that is already mapped, or render straight into
 /// its own pixel type (the editor preview's texture pixels).
 pub fn relight_into(img: &RgbnImage, shading: &Shading, out: &mut [u8]) -> Result<(), RgbnError> {
+    relight_scaled_into(img, shading, None, out)
+}
+
+/// [`relight_into`] with the linear result of pixel `i` multiplied by `scale[i]` before the
+/// sRGB curve (radiance scaling); `None` is a scale of 1.
+fn relight_scaled_into(
+    img: &RgbnImage,
+    shading: &Shading,
+    scale: Option<&[f32]>,
+    out: &mut [u8],
+) -> Result<(), RgbnError> {
     check_output_len(img, out, "relight")?;
     shading.validate()?;
     let lights: Vec<RelightLight> = shading
@@ -221,7 +336,8 @@ pub fn relight_into(img: &RgbnImage, shading: &Shading, out: &mut [u8]) -> Resul
             let rows = RelightRow {
                 c: [&cr[r.clone()], &cg[r.clone()], &cb[r.clone()]],
                 n: [&nx[r.clone()], &ny[r.clone()], &nz[r.clone()]],
-                mask: mask.map(|m| &m[r]),
+                mask: mask.map(|m| &m[r.clone()]),
+                scale: scale.map(|m| &m[r]),
             };
             k.row(&rows, orow);
         });
@@ -250,6 +366,7 @@ struct RelightRow<'a> {
     c: [&'a [f32]; 3],
     n: [&'a [f32]; 3],
     mask: Option<&'a [f32]>,
+    scale: Option<&'a [f32]>,
 }
 
 /// Pixels shaded together: the light loop runs over a chunk's lanes (vectorised), then the
@@ -336,6 +453,7 @@ impl RelightKernel<'_> {
                 c: rows.c.map(|p| &p[r.clone()]),
                 n: rows.n.map(|p| &p[r.clone()]),
                 mask: rows.mask.map(|m| &m[r.clone()]),
+                scale: rows.scale.map(|m| &m[r.clone()]),
             };
             self.chunk(&rows, &mut scratch, px);
         }
@@ -383,8 +501,18 @@ impl RelightKernel<'_> {
             let terms = rows.c[j][..m]
                 .iter()
                 .zip(sc.diff[j][..m].iter().zip(&sc.spec[j][..m]));
-            for (o, (&cv, (&dv, &sv))) in sc.idx[j][..m].iter_mut().zip(terms) {
-                *o = srgb8_table_index(self.gain * (cv * dv + self.ks * sv));
+            match rows.scale {
+                None => {
+                    for (o, (&cv, (&dv, &sv))) in sc.idx[j][..m].iter_mut().zip(terms) {
+                        *o = srgb8_table_index(self.gain * (cv * dv + self.ks * sv));
+                    }
+                }
+                Some(g) => {
+                    let terms = terms.zip(&g[..m]);
+                    for (o, ((&cv, (&dv, &sv)), &gv)) in sc.idx[j][..m].iter_mut().zip(terms) {
+                        *o = srgb8_table_index(gv * (self.gain * (cv * dv + self.ks * sv)));
+                    }
+                }
             }
         }
         let alpha = |i: usize| match rows.mask {

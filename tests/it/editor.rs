@@ -429,3 +429,42 @@ fn shift_drag_on_the_image_moves_the_light_without_panning() {
     let len = (l[0] * l[0] + l[1] * l[1] + l[2] * l[2]).sqrt();
     assert!((len - 1.0).abs() < 1e-5, "unit light direction: {len}");
 }
+
+#[test]
+fn the_preview_offers_every_view_and_shows_the_selected_views_parameters() {
+    use rgbn::app::preview::Mode;
+    use rgbn::render::View;
+    let mut h = harness(small_demo());
+    settle(&mut h);
+    for v in View::ALL {
+        assert!(
+            h.query_all_by_label(v.name()).next().is_some(),
+            "no preview button for {}",
+            v.name()
+        );
+    }
+    // No view parameters while relit.
+    assert!(h.query_all_by_label("toon_levels").next().is_none());
+    h.get_by_role_and_label(Role::Button, "toon").click();
+    h.run_steps(1);
+    settle(&mut h);
+    assert_eq!(
+        h.state().preview.shown_settings().map(|s| s.view),
+        Some(Mode::View(View::Toon))
+    );
+    assert!(h.query_all_by_label("toon_levels").next().is_some());
+    assert!(h.query_all_by_label("curvature_scale").next().is_none());
+    // Changing a view parameter re-renders with it.
+    let renders = h.state().preview.renders;
+    h.state_mut().prefs.settings.inspect.toon_levels = 2;
+    h.run_steps(1);
+    settle(&mut h);
+    assert!(h.state().preview.renders > renders);
+    assert_eq!(
+        h.state()
+            .preview
+            .shown_settings()
+            .map(|s| s.inspect.toon_levels),
+        Some(2)
+    );
+}

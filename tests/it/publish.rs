@@ -14,7 +14,7 @@ use std::process::Command;
 
 /// Views compared with `rgbn render --view NAME`; adding a view is one line here
 /// (`specular_enhancement` and `curvature` once `rgbn render` has them).
-const COMPARED_VIEWS: &[&str] = &["relit", "normals"];
+const COMPARED_VIEWS: &[&str] = &["relit", "normals", "specular_enhancement", "curvature"];
 
 /// Light directions compared (x right, y up, z to the viewer).
 const LIGHTS: [[f32; 3]; 3] = [[-0.5, 0.6, 0.8], [0.3, 0.4, 0.8], [0.9, -0.2, 0.4]];
