@@ -252,13 +252,13 @@ pub fn render_with_into(
         View::Toon => npr::toon_into(img, shading, params, out),
         View::Lines => npr::lines_into(img, params, out),
         View::SpecularEnhancement => {
-            rti::specular_enhancement_into(img, shading, &params.specular(), out)?;
+            rti::specular_enhancement_into(img, shading, params, out)?;
         }
-        View::NormalUnsharp => rti::normal_unsharp_into(img, shading, &params.unsharp(), out)?,
+        View::NormalUnsharp => rti::normal_unsharp_into(img, shading, params, out)?,
         View::AmbientOcclusion => {
-            occlusion::ambient_occlusion_into(img, shading, &params.ao(), out)?;
+            occlusion::ambient_occlusion_into(img, shading, params, out)?;
         }
-        View::MultiLight => rti::multi_light_into(img, shading, &params.multi_light(), out)?,
+        View::MultiLight => rti::multi_light_into(img, shading, params, out)?,
     }
     Ok(())
 }

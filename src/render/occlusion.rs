@@ -2,7 +2,8 @@
 //! Dimitrov 2008, "Image-space horizon-based ambient occlusion", HBAO) on the height integrated
 //! from the normals.
 
-use super::rti::{check_params, write_linear_rgb};
+use super::rti::write_linear_rgb;
+use super::InspectParams;
 use super::{check_output_len, Shading};
 use crate::error::RgbnError;
 use crate::raster::integrate::{integrate_normals, IntegrateParams, IntegrationMethod};
@@ -11,24 +12,6 @@ use rayon::prelude::*;
 
 /// Most samples marched per direction; a larger radius spaces them further apart.
 const MAX_STEPS: usize = 32;
-
-crate::params! {
-    /// Parameters of the `ambient_occlusion` view (horizon-based ambient occlusion).
-    #[derive(Clone, Debug, PartialEq)]
-    pub struct AoParams {
-        /// ambient_occlusion: how far each direction is searched for a horizon; relief wider
-        /// than this is not seen as occluding.
-        pub ao_radius: f64 = 16.0 => float.unit("px").range(1.0, 512.0),
-        /// ambient_occlusion: number of directions marched around each pixel (evenly spaced
-        /// in azimuth).
-        pub ao_directions: i64 = 8 => int.range(1.0, 64.0),
-        /// ambient_occlusion: multiplies the integrated height before the horizon search
-        /// (relief exaggeration: shallow relief needs more than 1).
-        pub ao_depth: f64 = 1.0 => float.range(0.01, 1000.0),
-        /// ambient_occlusion: multiply the grey occlusion by the albedo.
-        pub ao_albedo: bool = false => bool,
-    }
-}
 
 /// The ambient-occlusion factor per pixel, in [0, 1] (1 = unoccluded), of
 /// [`ambient_occlusion_into`].
@@ -51,8 +34,8 @@ crate::params! {
 ///
 /// # Errors
 /// Parameters out of range, or a mask with no pixel inside.
-pub fn ambient_occlusion(img: &RgbnImage, p: &AoParams) -> Result<Plane, RgbnError> {
-    check_params(p)?;
+pub fn ambient_occlusion(img: &RgbnImage, p: &InspectParams) -> Result<Plane, RgbnError> {
+    p.validate()?;
     let (w, h) = (img.width(), img.height());
     let mask = img.mask();
     let ip = IntegrateParams {
@@ -166,7 +149,7 @@ impl HeightField<'_> {
 pub fn ambient_occlusion_into(
     img: &RgbnImage,
     _shading: &Shading,
-    p: &AoParams,
+    p: &InspectParams,
     out: &mut [u8],
 ) -> Result<(), RgbnError> {
     check_output_len(img, out, "ambient_occlusion")?;
@@ -182,19 +165,6 @@ pub fn ambient_occlusion_into(
         }
     });
     Ok(())
-}
-
-impl super::InspectParams {
-    /// The `ao_*` group: the `ambient_occlusion` view's parameters.
-    #[must_use]
-    pub fn ao(&self) -> AoParams {
-        AoParams {
-            ao_radius: self.ao_radius,
-            ao_directions: self.ao_directions,
-            ao_depth: self.ao_depth,
-            ao_albedo: self.ao_albedo,
-        }
-    }
 }
 
 #[cfg(test)]
@@ -219,7 +189,7 @@ mod tests {
         img
     }
 
-    fn render(img: &RgbnImage, p: &AoParams) -> Vec<u8> {
+    fn render(img: &RgbnImage, p: &InspectParams) -> Vec<u8> {
         let mut out = vec![0; img.len() * 4];
         ambient_occlusion_into(img, &Shading::default(), p, &mut out).unwrap();
         out
@@ -227,7 +197,7 @@ mod tests {
 
     #[test]
     fn a_plane_is_unoccluded_tilted_or_not_masked_or_not() {
-        let p = AoParams::default();
+        let p = InspectParams::default();
         for slope in [[0.0, 0.0], [0.4, -0.7], [-1.5, 0.2]] {
             let mut img = from_slope(41, 29, |_, _| slope);
             let px = render(&img, &p);
@@ -264,7 +234,7 @@ mod tests {
     fn a_pit_is_darker_at_its_centre_than_at_its_rim_as_hbao_by_hand() {
         let (size, rad, depth) = (64usize, 14.0, 7.0);
         let img = pit(size, rad, depth);
-        let p = AoParams::default();
+        let p = InspectParams::default();
         let ao = ambient_occlusion(&img, &p).unwrap();
         let c = size / 2;
         let at = |x: usize, r: usize| ao.data()[r * size + x];
@@ -313,14 +283,14 @@ mod tests {
         // twice as large: ao_depth = 2 on the shallow pit must give the deep pit's occlusion.
         let shallow = ambient_occlusion(
             &pit(48, 10.0, 2.0),
-            &AoParams {
+            &InspectParams {
                 ao_depth: 2.0,
-                ..AoParams::default()
+                ..InspectParams::default()
             },
         )
         .unwrap();
-        let deep = ambient_occlusion(&pit(48, 10.0, 4.0), &AoParams::default()).unwrap();
-        let plain = ambient_occlusion(&pit(48, 10.0, 2.0), &AoParams::default()).unwrap();
+        let deep = ambient_occlusion(&pit(48, 10.0, 4.0), &InspectParams::default()).unwrap();
+        let plain = ambient_occlusion(&pit(48, 10.0, 2.0), &InspectParams::default()).unwrap();
         let c = 24 * 48 + 24;
         assert!(shallow.data()[c] < plain.data()[c] - 0.1);
         for (a, b) in shallow.data().iter().zip(deep.data()) {
@@ -332,7 +302,7 @@ mod tests {
     fn a_dome_is_unoccluded() {
         // Convex everywhere: every horizon lies below the tangent.
         let (img, _) = Surface::Paraboloid { curvature: 0.01 }.render(48, 40);
-        let ao = ambient_occlusion(&img, &AoParams::default()).unwrap();
+        let ao = ambient_occlusion(&img, &InspectParams::default()).unwrap();
         let min = ao.data().iter().copied().fold(1.0f32, f32::min);
         assert!(min > 0.99, "{min}");
     }
@@ -352,10 +322,10 @@ mod tests {
             slopes[r * 40 + x]
         });
         for dirs in [1, 3, 8] {
-            let p = AoParams {
+            let p = InspectParams {
                 ao_radius: 5.0,
                 ao_directions: dirs,
-                ..AoParams::default()
+                ..InspectParams::default()
             };
             let ao = ambient_occlusion(&img, &p).unwrap();
             let (lo, hi) = ao
@@ -373,34 +343,33 @@ mod tests {
         let mut img2 = img.clone();
         img2.set_color([vec![0.5; 64], vec![0.25; 64], vec![0.0; 64]])
             .unwrap();
-        let p = AoParams {
+        let p = InspectParams {
             ao_albedo: true,
-            ..AoParams::default()
+            ..InspectParams::default()
         };
         let px = render(&img2, &p);
         let lvl = |v: f32| crate::raster::srgb::linear_to_srgb8(v);
         assert_eq!(&px[..4], &[lvl(0.5), lvl(0.25), 0, 255]);
         let mut out = vec![0; 64 * 4];
-        let bad = AoParams {
+        let bad = InspectParams {
             ao_directions: 0,
-            ..AoParams::default()
+            ..InspectParams::default()
         };
         let e = ambient_occlusion_into(&img, &Shading::default(), &bad, &mut out)
             .unwrap_err()
             .to_string();
         assert!(e.contains("ao_directions") && !e.contains('\n'), "{e}");
-        let bad = AoParams {
+        let bad = InspectParams {
             ao_radius: 0.5,
-            ..AoParams::default()
+            ..InspectParams::default()
         };
         let e = ambient_occlusion(&img, &bad).unwrap_err().to_string();
         assert!(e.contains("ao_radius"), "{e}");
     }
 
     #[test]
-    fn inspect_params_group_matches_and_the_view_renders_through_render_with() {
-        use crate::render::{render_with, InspectParams, View};
-        crate::render::rti::tests::check_group(View::AmbientOcclusion, |ip| ip.ao());
+    fn the_view_renders_through_render_with() {
+        use crate::render::{render_with, View};
         let img = from_slope(20, 16, |u, v| [0.05 * u, -0.02 * v]);
         let ip = InspectParams {
             ao_radius: 6.0,
@@ -408,7 +377,7 @@ mod tests {
         };
         let s = Shading::default();
         let mut want = vec![0; img.len() * 4];
-        ambient_occlusion_into(&img, &s, &ip.ao(), &mut want).unwrap();
+        ambient_occlusion_into(&img, &s, &ip, &mut want).unwrap();
         assert_eq!(
             render_with(&img, View::AmbientOcclusion, &s, &ip).unwrap(),
             want

@@ -4,25 +4,16 @@
 //! Every view writes sRGB RGBA8 (row 0 at the top) with alpha = mask coverage (not
 //! premultiplied; pixels of coverage 0 are transparent black, as [`super::relight`]). Lights
 //! and exposure come from the [`Shading`] unless a view says otherwise; each view's own
-//! parameters are a [`crate::params!`] struct whose field names are those of the view's group
-//! in the inspection parameters (`spec_*`, `unsharp_*`, `multi_*`), checked against their
-//! declared ranges before anything is computed (a one-line error naming the field).
+//! parameters are its group in [`InspectParams`] (`spec_*`, `unsharp_*`, `multi_*`), checked
+//! against their declared ranges before anything is computed (a one-line error naming the
+//! field).
 
-use super::{check_output_len, normalize3, relight_into, Shading};
+use super::{check_output_len, normalize3, relight_into, InspectParams, Shading};
 use crate::error::RgbnError;
-use crate::ops::params::{from_values, to_values, Params};
 use crate::raster::convolve::{gaussian, BorderMode};
 use crate::raster::srgb::linear_to_srgb8;
 use crate::raster::{buf, RgbnImage};
 use rayon::prelude::*;
-
-/// Refuses a params struct whose fields are outside their declared ranges (or not finite):
-/// the error names the field, e.g. `invalid parameter spec_kd: -1 is out of range [0, 10]`.
-pub(crate) fn check_params<P: Params>(p: &P) -> Result<(), RgbnError> {
-    from_values::<P>(&to_values(p))
-        .map(|_| ())
-        .map_err(RgbnError::from)
-}
 
 /// Writes one RGBA8 pixel per index from linear RGB `f(i)` (clamped to [0, 1], sRGB-encoded),
 /// alpha = coverage; coverage ≤ 0 is transparent black (and `f` is not called). In parallel.
@@ -114,20 +105,6 @@ fn dot(a: [f32; 3], b: [f32; 3]) -> f32 {
     a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
 }
 
-crate::params! {
-    /// Parameters of the `specular_enhancement` view (RTIViewer "specular enhancement").
-    #[derive(Clone, Debug, PartialEq)]
-    pub struct SpecularParams {
-        /// specular_enhancement: diffuse weight kd of the grey material that replaces the
-        /// albedo.
-        pub spec_kd: f64 = 0.4 => float.range(0.0, 10.0),
-        /// specular_enhancement: specular strength ks (white Blinn-Phong highlight).
-        pub spec_ks: f64 = 0.7 => float.range(0.0, 10.0),
-        /// specular_enhancement: highlight exponent α; larger is a tighter, glossier highlight.
-        pub spec_alpha: f64 = 75.0 => float.range(0.0, 10000.0),
-    }
-}
-
 /// RTIViewer's **specular enhancement** (Malzbender, Gelb & Wolters 2001 "Polynomial texture
 /// maps"; RTIViewer, Cultural Heritage Imaging): the albedo is replaced by a grey material with
 /// a strong, tight Blinn-Phong highlight, which brings out fine relief that the colour hides.
@@ -136,19 +113,19 @@ crate::params! {
 /// only where `n·lᵢ > 0`, `lᵢ` the shading's light directions normalised and
 /// `hᵢ = normalize(lᵢ + (0,0,1))`, as [`super::relight`]; then clamped to [0, 1] and
 /// sRGB-encoded. White lights give grey, `R = G = B = v`. The shading's ambient, specular and
-/// shininess are not used; `kd`, `ks`, `α` are [`SpecularParams`].
+/// shininess are not used; `kd`, `ks`, `α` are [`InspectParams`].
 ///
 /// # Errors
 /// An output of the wrong size, invalid shading or parameters.
 pub fn specular_enhancement_into(
     img: &RgbnImage,
     shading: &Shading,
-    p: &SpecularParams,
+    p: &InspectParams,
     out: &mut [u8],
 ) -> Result<(), RgbnError> {
     check_output_len(img, out, "specular_enhancement")?;
     shading.validate()?;
-    check_params(p)?;
+    p.validate()?;
     let lights = unit_lights(shading);
     let gain = 2f32.powf(shading.exposure_ev);
     let (kd, ks, alpha) = (p.spec_kd as f32, p.spec_ks as f32, p.spec_alpha as f32);
@@ -171,26 +148,14 @@ pub fn specular_enhancement_into(
     Ok(())
 }
 
-crate::params! {
-    /// Parameters of the `normal_unsharp` view (RTIViewer "normal unsharp masking").
-    #[derive(Clone, Debug, PartialEq)]
-    pub struct UnsharpParams {
-        /// normal_unsharp: how much of the normals' fine detail (normal minus its blur) is
-        /// added back; 0 = relit.
-        pub unsharp_gain: f64 = 2.0 => float.range(0.0, 100.0),
-        /// normal_unsharp: σ of the Gaussian blur separating detail from shape.
-        pub unsharp_sigma: f64 = 3.0 => float.unit("px").range(0.1, 1000.0),
-    }
-}
-
 /// The normals of [`normal_unsharp_into`]: `n' = normalize(n + gain·(n − G_σ∗n))`, the blur
 /// restricted to the mask (normalised convolution) when there is one. Where `n'` has no length
 /// (cannot happen for unit normals and gain ≥ 0, kept as a guard) the normal is kept.
 ///
 /// # Errors
 /// Parameters out of range.
-pub fn unsharp_normals(img: &RgbnImage, p: &UnsharpParams) -> Result<[Vec<f32>; 3], RgbnError> {
-    check_params(p)?;
+pub fn unsharp_normals(img: &RgbnImage, p: &InspectParams) -> Result<[Vec<f32>; 3], RgbnError> {
+    p.validate()?;
     let (w, h) = (img.width(), img.height());
     let n = img.normal();
     let mut blurred = n.to_vec();
@@ -224,31 +189,13 @@ pub fn unsharp_normals(img: &RgbnImage, p: &UnsharpParams) -> Result<[Vec<f32>; 
 pub fn normal_unsharp_into(
     img: &RgbnImage,
     shading: &Shading,
-    p: &UnsharpParams,
+    p: &InspectParams,
     out: &mut [u8],
 ) -> Result<(), RgbnError> {
     check_output_len(img, out, "normal_unsharp")?;
     shading.validate()?;
     let sharpened = img.with_normals(unsharp_normals(img, p)?)?;
     relight_into(&sharpened, shading, out)
-}
-
-crate::params! {
-    /// Parameters of the `multi_light` view (RTIViewer multi-light detail enhancement).
-    #[derive(Clone, Debug, PartialEq)]
-    pub struct MultiLightParams {
-        /// multi_light: number of virtual lights, spread evenly in azimuth around the
-        /// hemisphere.
-        pub multi_lights: i64 = 8 => int.range(1.0, 64.0),
-        /// multi_light: elevation of the virtual lights above the image plane (90 = from the
-        /// viewer).
-        pub multi_elevation: f64 = 30.0 => float.unit("°").range(1.0, 90.0),
-        /// multi_light: σ of the Gaussian separating each light's shading into base and
-        /// detail.
-        pub multi_sigma: f64 = 4.0 => float.unit("px").range(0.3, 1000.0),
-        /// multi_light: gain on the combined detail layer (0 = the mean base only).
-        pub multi_gain: f64 = 1.0 => float.range(0.0, 100.0),
-    }
 }
 
 /// The virtual lights of [`multi_light_into`]: unit directions at `elevation` degrees above
@@ -287,11 +234,11 @@ pub fn multi_light_directions(count: usize, elevation_deg: f64) -> Vec<[f32; 3]>
 pub fn multi_light_into(
     img: &RgbnImage,
     _shading: &Shading,
-    p: &MultiLightParams,
+    p: &InspectParams,
     out: &mut [u8],
 ) -> Result<(), RgbnError> {
     check_output_len(img, out, "multi_light")?;
-    check_params(p)?;
+    p.validate()?;
     let (w, h) = (img.width(), img.height());
     let n = w * h;
     let [nx, ny, nz] = img.normal();
@@ -329,38 +276,6 @@ pub fn multi_light_into(
     Ok(())
 }
 
-impl super::InspectParams {
-    /// The `spec_*` group: the `specular_enhancement` view's parameters.
-    #[must_use]
-    pub fn specular(&self) -> SpecularParams {
-        SpecularParams {
-            spec_kd: self.spec_kd,
-            spec_ks: self.spec_ks,
-            spec_alpha: self.spec_alpha,
-        }
-    }
-
-    /// The `unsharp_*` group: the `normal_unsharp` view's parameters.
-    #[must_use]
-    pub fn unsharp(&self) -> UnsharpParams {
-        UnsharpParams {
-            unsharp_gain: self.unsharp_gain,
-            unsharp_sigma: self.unsharp_sigma,
-        }
-    }
-
-    /// The `multi_*` group: the `multi_light` view's parameters.
-    #[must_use]
-    pub fn multi_light(&self) -> MultiLightParams {
-        MultiLightParams {
-            multi_lights: self.multi_lights,
-            multi_elevation: self.multi_elevation,
-            multi_sigma: self.multi_sigma,
-            multi_gain: self.multi_gain,
-        }
-    }
-}
-
 #[cfg(test)]
 pub(crate) mod tests {
     use super::*;
@@ -372,7 +287,7 @@ pub(crate) mod tests {
         (linear_to_srgb(v.clamp(0.0, 1.0) as f32) * 255.0).round() as i32
     }
 
-    fn render_spec(img: &RgbnImage, s: &Shading, p: &SpecularParams) -> Vec<u8> {
+    fn render_spec(img: &RgbnImage, s: &Shading, p: &InspectParams) -> Vec<u8> {
         let mut out = vec![0; img.len() * 4];
         specular_enhancement_into(img, s, p, &mut out).unwrap();
         out
@@ -406,10 +321,11 @@ pub(crate) mod tests {
             lights: vec![Light::white([th.sin() as f32, 0.0, th.cos() as f32])],
             ..Shading::default()
         };
-        let p = SpecularParams {
+        let p = InspectParams {
             spec_kd: 0.3,
             spec_ks: 0.5,
             spec_alpha: 20.0,
+            ..InspectParams::default()
         };
         let want = 0.3 * th.cos() + 0.5 * (th / 2.0).cos().powf(20.0);
         let px = render_spec(&img, &s, &p);
@@ -445,7 +361,7 @@ pub(crate) mod tests {
         b.set_color([0; 3].map(|_| (0..n).map(|_| rnd()).collect()))
             .unwrap();
         let s = Shading::default();
-        let p = SpecularParams::default();
+        let p = InspectParams::default();
         assert_eq!(render_spec(&a, &s, &p), render_spec(&b, &s, &p));
         // …whereas relit does depend on it (the two images really differ).
         assert_ne!(relight(&a, &s).unwrap(), relight(&b, &s).unwrap());
@@ -485,10 +401,11 @@ pub(crate) mod tests {
                 exposure_ev: [0.0, 0.5, -1.0][k],
                 ..Shading::default()
             };
-            let p = SpecularParams {
+            let p = InspectParams {
                 spec_kd: [0.4, 0.8, 0.2][k],
                 spec_ks: [0.7, 0.3, 1.5][k],
                 spec_alpha: [75.0, 8.0, 300.0][k],
+                ..InspectParams::default()
             };
             let px = render_spec(&img, &s, &p);
             let gain = 2f64.powf(f64::from(s.exposure_ev));
@@ -536,9 +453,9 @@ pub(crate) mod tests {
         let e = specular_enhancement_into(
             &img,
             &s,
-            &SpecularParams {
+            &InspectParams {
                 spec_kd: -1.0,
-                ..SpecularParams::default()
+                ..InspectParams::default()
             },
             &mut out,
         )
@@ -548,9 +465,9 @@ pub(crate) mod tests {
         let e = normal_unsharp_into(
             &img,
             &s,
-            &UnsharpParams {
+            &InspectParams {
                 unsharp_sigma: f64::NAN,
-                ..UnsharpParams::default()
+                ..InspectParams::default()
             },
             &mut out,
         )
@@ -560,22 +477,22 @@ pub(crate) mod tests {
         let e = multi_light_into(
             &img,
             &s,
-            &MultiLightParams {
+            &InspectParams {
                 multi_lights: 0,
-                ..MultiLightParams::default()
+                ..InspectParams::default()
             },
             &mut out,
         )
         .unwrap_err()
         .to_string();
         assert!(e.contains("multi_lights"), "{e}");
-        let e = multi_light_into(&img, &s, &MultiLightParams::default(), &mut out[4..])
+        let e = multi_light_into(&img, &s, &InspectParams::default(), &mut out[4..])
             .unwrap_err()
             .to_string();
         assert!(e.contains("multi_light") && e.contains("2×2"), "{e}");
     }
 
-    fn render_unsharp(img: &RgbnImage, s: &Shading, p: &UnsharpParams) -> Vec<u8> {
+    fn render_unsharp(img: &RgbnImage, s: &Shading, p: &InspectParams) -> Vec<u8> {
         let mut out = vec![0; img.len() * 4];
         normal_unsharp_into(img, s, p, &mut out).unwrap();
         out
@@ -599,9 +516,10 @@ pub(crate) mod tests {
             ],
             ..Shading::default()
         };
-        let p = UnsharpParams {
+        let p = InspectParams {
             unsharp_gain: 5.0,
             unsharp_sigma: 4.0,
+            ..InspectParams::default()
         };
         for n in [[0.0, 0.0, 1.0], [0.3, -0.5, 0.8]] {
             let mut img = tilted_plane(40, 30, n, [0.7, 0.5, 0.2]);
@@ -625,9 +543,10 @@ pub(crate) mod tests {
     fn normal_unsharp_with_gain_zero_is_relit() {
         let (img, _) = Surface::gaussians_for(48).render(48, 48);
         let s = Shading::default();
-        let p = UnsharpParams {
+        let p = InspectParams {
             unsharp_gain: 0.0,
             unsharp_sigma: 2.0,
+            ..InspectParams::default()
         };
         assert!(max_level_diff(&render_unsharp(&img, &s, &p), &relight(&img, &s).unwrap()) <= 1);
     }
@@ -658,9 +577,10 @@ pub(crate) mod tests {
             specular: 0.0,
             ..Shading::default()
         };
-        let p = UnsharpParams {
+        let p = InspectParams {
             unsharp_gain: 1.0,
             unsharp_sigma: 4.0,
+            ..InspectParams::default()
         };
         let relit = std_dev(&relight(&img, &s).unwrap());
         let sharp = std_dev(&render_unsharp(&img, &s, &p));
@@ -678,7 +598,7 @@ pub(crate) mod tests {
         assert!(t1 > 1.6 * t0 && t1 < 2.2 * t0, "{t1} vs {t0}");
     }
 
-    fn render_multi(img: &RgbnImage, p: &MultiLightParams) -> Vec<u8> {
+    fn render_multi(img: &RgbnImage, p: &InspectParams) -> Vec<u8> {
         let mut out = vec![0; img.len() * 4];
         multi_light_into(img, &Shading::default(), p, &mut out).unwrap();
         out
@@ -688,7 +608,7 @@ pub(crate) mod tests {
     fn multi_light_of_a_plane_is_flat() {
         for n in [[0.0, 0.0, 1.0], [0.2, 0.3, 0.9]] {
             let img = tilted_plane(37, 23, n, [0.9, 0.1, 0.1]);
-            let px = render_multi(&img, &MultiLightParams::default());
+            let px = render_multi(&img, &InspectParams::default());
             assert!(px.chunks_exact(4).all(|c| c == &px[..4]), "{n:?}");
             // Facing the viewer: every light gives sin(elevation), no detail.
             if n[2] == 1.0 {
@@ -704,10 +624,10 @@ pub(crate) mod tests {
         let std_at = |g: f64| {
             std_dev(&render_multi(
                 &img,
-                &MultiLightParams {
+                &InspectParams {
                     multi_gain: g,
                     multi_sigma: 3.0,
-                    ..MultiLightParams::default()
+                    ..InspectParams::default()
                 },
             ))
         };
@@ -724,47 +644,6 @@ pub(crate) mod tests {
             assert!((v[2] - 0.5).abs() < 1e-6);
         }
         assert!((d[1][1] - 30f32.to_radians().cos()).abs() < 1e-6);
-    }
-
-    /// The view's own struct and its group in [`super::super::InspectParams`] declare the same
-    /// parameters (names, kinds, docs, units, ranges, defaults), and the conversion carries
-    /// every field.
-    pub(crate) fn check_group<P: Params>(
-        view: crate::render::View,
-        convert: impl Fn(&crate::render::InspectParams) -> P,
-    ) {
-        use crate::ops::params::{describe, ParamValue};
-        use crate::render::InspectParams;
-        assert_eq!(
-            describe::<P>(),
-            InspectParams::describe(view),
-            "{}",
-            view.name()
-        );
-        // Every field of the group set to a non-default value inside its range.
-        let mut values = std::collections::BTreeMap::new();
-        for info in InspectParams::describe(view) {
-            let (lo, hi) = info.meta.range.unwrap_or((0.0, 1.0));
-            let v = match info.default {
-                ParamValue::Float(d) => ParamValue::Float(if d < hi { (d + hi) / 2.0 } else { lo }),
-                ParamValue::Int(d) => ParamValue::Int(if (d as f64) < hi { d + 1 } else { d - 1 }),
-                ParamValue::Bool(b) => ParamValue::Bool(!b),
-                other => panic!("unexpected kind {other:?}"),
-            };
-            values.insert(info.name.to_string(), v);
-        }
-        let ip: InspectParams = from_values(&values).unwrap();
-        let p = convert(&ip);
-        assert_eq!(to_values(&p), values, "{}", view.name());
-        assert_ne!(to_values(&P::default()), values);
-    }
-
-    #[test]
-    fn inspect_params_groups_match_the_views_params() {
-        use crate::render::View;
-        check_group(View::SpecularEnhancement, |ip| ip.specular());
-        check_group(View::NormalUnsharp, |ip| ip.unsharp());
-        check_group(View::MultiLight, |ip| ip.multi_light());
     }
 
     #[test]
@@ -786,15 +665,15 @@ pub(crate) mod tests {
         let cases: [(View, Vec<u8>); 3] = [
             (
                 View::SpecularEnhancement,
-                direct(&|o| specular_enhancement_into(&img, &s, &ip.specular(), o)),
+                direct(&|o| specular_enhancement_into(&img, &s, &ip, o)),
             ),
             (
                 View::NormalUnsharp,
-                direct(&|o| normal_unsharp_into(&img, &s, &ip.unsharp(), o)),
+                direct(&|o| normal_unsharp_into(&img, &s, &ip, o)),
             ),
             (
                 View::MultiLight,
-                direct(&|o| multi_light_into(&img, &s, &ip.multi_light(), o)),
+                direct(&|o| multi_light_into(&img, &s, &ip, o)),
             ),
         ];
         for (view, want) in cases {
