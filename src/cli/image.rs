@@ -54,10 +54,9 @@ pub struct InfoArgs {
     pub input: InputArgs,
 }
 
-#[derive(Args, Debug)]
-pub struct RenderArgs {
-    #[command(flatten)]
-    pub input: InputArgs,
+/// Relighting options shared by `render` and `publish`.
+#[derive(Args, Debug, Clone)]
+pub struct ShadingArgs {
     /// Light direction x,y,z towards the light (+x right, +y up, +z to the viewer). Repeat for
     /// several lights; default -0.5,0.6,0.8.
     #[arg(long = "light", value_parser = parse_vec3, allow_hyphen_values = true)]
@@ -74,6 +73,34 @@ pub struct RenderArgs {
     /// Exposure in stops.
     #[arg(long, default_value_t = 0.0, allow_hyphen_values = true)]
     pub exposure: f32,
+}
+
+impl ShadingArgs {
+    /// The shading these options describe, checked (white lights; the default light when none
+    /// is given).
+    pub(super) fn shading(&self) -> Result<Shading, RgbnError> {
+        let shading = Shading {
+            lights: if self.lights.is_empty() {
+                Shading::default().lights
+            } else {
+                self.lights.iter().map(|d| Light::white(*d)).collect()
+            },
+            ambient: self.ambient,
+            specular: self.specular,
+            shininess: self.shininess,
+            exposure_ev: self.exposure,
+        };
+        shading.validate()?;
+        Ok(shading)
+    }
+}
+
+#[derive(Args, Debug)]
+pub struct RenderArgs {
+    #[command(flatten)]
+    pub input: InputArgs,
+    #[command(flatten)]
+    pub shading: ShadingArgs,
     /// What to show: relit, albedo, normals, curl, curvature, exaggerated, radiance_scaling,
     /// specular_enhancement, normal_unsharp, toon, lines, ambient_occlusion, multi_light (see
     /// --help for each view's reference and parameters).
@@ -134,7 +161,7 @@ fn view_help() -> String {
     )
 }
 
-pub(super) fn parse_vec3(s: &str) -> Result<[f32; 3], String> {
+fn parse_vec3(s: &str) -> Result<[f32; 3], String> {
     let v: Vec<f32> = s
         .split(',')
         .map(|t| {
@@ -313,18 +340,7 @@ pub(super) fn render_cmd(a: &RenderArgs, out: &mut Out<'_>) -> Result<(), CliErr
         }
         .into());
     }
-    let shading = Shading {
-        lights: if a.lights.is_empty() {
-            Shading::default().lights
-        } else {
-            a.lights.iter().map(|d| Light::white(*d)).collect()
-        },
-        ambient: a.ambient,
-        specular: a.specular,
-        shininess: a.shininess,
-        exposure_ev: a.exposure,
-    };
-    shading.validate()?;
+    let shading = a.shading.shading()?;
     let params = InspectParams::from_assignments(&a.params)?;
     for p in &a.params {
         let name = p.split_once('=').map_or(p.as_str(), |(n, _)| n.trim());
