@@ -54,3 +54,6 @@ mod publish;
 
 #[path = "it/views.rs"]
 mod views;
+
+#[path = "it/nan_ops.rs"]
+mod nan_ops;

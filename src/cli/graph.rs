@@ -88,6 +88,17 @@ fn split_pair<'a>(s: &'a str, what: &str) -> Result<(&'a str, &'a str), CliError
 
 fn load_graph(path: &Path, sets: &[String]) -> Result<LoadedGraph, CliError> {
     let mut lg = LoadedGraph::load(path)?;
+    apply_sets(&mut lg, sets)?;
+    Ok(lg)
+}
+
+/// Applies `--set NODE.PARAM=VALUE` arguments to a loaded graph, in order (each re-validates
+/// the graph). A node is named by id or name; the parameter's text is parsed by its kind.
+///
+/// # Errors
+/// A usage error for text not of that form; the graph's error for an unknown node or
+/// parameter, or a value out of range.
+pub fn apply_sets(lg: &mut LoadedGraph, sets: &[String]) -> Result<(), CliError> {
     for s in sets {
         let (lhs, value) = s
             .split_once('=')
@@ -98,10 +109,15 @@ fn load_graph(path: &Path, sets: &[String]) -> Result<LoadedGraph, CliError> {
             .ok_or_else(|| usage(format!("--set {s:?} is not of the form NODE.PARAM=VALUE")))?;
         lg.set_param(node, param, value)?;
     }
-    Ok(lg)
+    Ok(())
 }
 
-fn parse_inputs(list: &[String]) -> Result<BTreeMap<String, PathBuf>, CliError> {
+/// Parses `--input NAME=PATH` arguments into graph-input bindings (a later binding of the same
+/// name replaces an earlier one).
+///
+/// # Errors
+/// A usage error for text not of the form `NAME=PATH`.
+pub fn parse_inputs(list: &[String]) -> Result<BTreeMap<String, PathBuf>, CliError> {
     let mut m = BTreeMap::new();
     for s in list {
         let (name, path) = split_pair(s, "--input")?;

@@ -23,7 +23,7 @@ mod publish;
 pub use capture::CaptureArgs;
 pub use docs::{CompletionsArgs, ManArgs};
 pub use error::{CliError, Exit};
-pub use graph::{BatchArgs, CheckArgs, EvalArgs};
+pub use graph::{apply_sets, parse_inputs, BatchArgs, CheckArgs, EvalArgs};
 pub use image::{FilterArgs, InfoArgs, InputArgs, RenderArgs};
 use out::Out;
 pub use publish::PublishArgs;
