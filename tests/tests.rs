@@ -57,3 +57,6 @@ mod views;
 
 #[path = "it/nan_ops.rs"]
 mod nan_ops;
+
+#[path = "it/faults.rs"]
+mod faults;

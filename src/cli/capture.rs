@@ -95,6 +95,7 @@ pub fn capture_cmd(a: &CaptureArgs, out: &mut Out<'_>) -> Result<(), CliError> {
             .into());
         }
         let cal = calibrate_chrome(&stack, &mask, &ChromeParams::default())?;
+        super::interrupt::check()?;
         io::write_atomic(&a.output, |f| {
             let mut s = format!(
                 "# rgbn capture --chrome: sphere centre ({:.2}, {:.2}) px, radius {:.2} px\n{}\n",
@@ -159,6 +160,7 @@ pub fn capture_cmd(a: &CaptureArgs, out: &mut Out<'_>) -> Result<(), CliError> {
         ..PhotometricParams::default()
     };
     let (img, rep) = photometric_stereo(&ps.stack, &ps.lights, ps.mask.as_deref(), &params)?;
+    super::interrupt::check()?;
     io::save(&img, &a.output, &SaveOptions::default())?;
     let interior = img
         .mask()

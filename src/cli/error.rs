@@ -6,6 +6,8 @@
 //!   (`rgbn ops | head`).
 //! - **1** ([`Exit::Failed`]): an evaluation failure — valid input on which an operator failed,
 //!   a cancelled evaluation, or files of a `batch` that failed (each reported as it failed).
+//! - **130 / 143** ([`Exit::Interrupted`] / [`Exit::Terminated`]): stopped by Ctrl-C (SIGINT)
+//!   or SIGTERM before finishing; nothing unfinished was written (see `interrupt`).
 //! - **2** ([`Exit::Usage`]): bad usage or bad input — arguments, input files, graph files,
 //!   parameters, and outputs that cannot be written (a missing folder, a full disk, stdout on a
 //!   full device: an I/O problem of the user's target, whichever command or node writes it).
@@ -23,6 +25,10 @@ pub enum Exit {
     Failed = 1,
     /// Bad usage or bad input (including outputs that cannot be written).
     Usage = 2,
+    /// Interrupted by Ctrl-C (SIGINT): 128 + 2, as shells report it.
+    Interrupted = 130,
+    /// Stopped by SIGTERM: 128 + 15.
+    Terminated = 143,
 }
 
 impl From<Exit> for u8 {
@@ -74,6 +80,17 @@ pub enum CliError {
     /// The editor could not start or open its graph.
     #[error("{0}")]
     Editor(String),
+
+    /// Stopped by a signal before finishing (nothing unfinished was written).
+    #[error(
+        "interrupted by {}: stopped before writing the unfinished outputs (outputs reported as \
+         written are complete)",
+        if *signal == super::interrupt::SIGTERM { "SIGTERM" } else { "Ctrl-C (SIGINT)" }
+    )]
+    Interrupted {
+        /// The signal number.
+        signal: i32,
+    },
 }
 
 impl From<GraphError> for CliError {
@@ -95,6 +112,13 @@ impl CliError {
                 _ => return Exit::Usage,
             },
             CliError::Batch { .. } => return Exit::Failed,
+            CliError::Interrupted { signal } => {
+                return if *signal == super::interrupt::SIGTERM {
+                    Exit::Terminated
+                } else {
+                    Exit::Interrupted
+                }
+            }
             CliError::Clap(_) | CliError::Usage(_) | CliError::Stdout(_) | CliError::Editor(_) => {
                 return Exit::Usage
             }

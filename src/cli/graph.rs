@@ -250,7 +250,7 @@ pub fn eval_cmd(a: &EvalArgs, out: &mut Out<'_>) -> Result<(), CliError> {
     let pb = progress_bar(0);
     let pb2 = pb.clone();
     let opts = EvalOptions {
-        cancel: None,
+        cancel: super::interrupt::flag(),
         progress: Some(Arc::new(move |p| {
             pb2.set_length(p.total as u64);
             pb2.set_position(p.done as u64);
@@ -263,6 +263,7 @@ pub fn eval_cmd(a: &EvalArgs, out: &mut Out<'_>) -> Result<(), CliError> {
     let r = r?;
     for (name, path) in &requested {
         let v = &r.outputs[name];
+        super::interrupt::check()?;
         write_value(v, path, &SaveOptions::default())?;
         out.line(format_args!(
             "wrote {name} ({}): {}",
@@ -321,8 +322,13 @@ pub fn batch_cmd(a: &BatchArgs, out: &mut Out<'_>) -> Result<(), CliError> {
     let run_one = |file: &PathBuf| -> Result<(), CliError> {
         let mut inputs = fixed.clone();
         inputs.insert(name.to_string(), file.clone());
+        super::interrupt::check()?;
         let plan = Plan::new(&lg, &inputs, Path::new("."))?;
-        let r = ev.eval(&plan, &[], &EvalOptions::default())?;
+        let opts = EvalOptions {
+            cancel: super::interrupt::flag(),
+            ..EvalOptions::default()
+        };
+        let r = ev.eval(&plan, &[], &opts)?;
         let stem = file
             .file_stem()
             .map_or_else(|| "out".into(), |s| s.to_string_lossy().into_owned());
@@ -331,6 +337,7 @@ pub fn batch_cmd(a: &BatchArgs, out: &mut Out<'_>) -> Result<(), CliError> {
             let path = a.out_dir.join(format!("{stem}.{oname}.{}", extension(ty)));
             let protected: Vec<&Path> = plan.protected.iter().map(PathBuf::as_path).collect();
             io::check_output(&path, &protected)?;
+            super::interrupt::check()?;
             write_value(v, &path, &SaveOptions::default())?;
             written.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
         }
@@ -344,8 +351,14 @@ pub fn batch_cmd(a: &BatchArgs, out: &mut Out<'_>) -> Result<(), CliError> {
         for file in &files {
             let (pb, failures, run_one) = (&pb, &failures, &run_one);
             s.spawn(move |_| {
+                if super::interrupt::received().is_some() {
+                    return; // interrupted: the files not started are skipped, not failed
+                }
                 pb.set_message(file.display().to_string());
                 if let Err(e) = run_one(file) {
+                    if super::interrupt::received().is_some() {
+                        return;
+                    }
                     pb.suspend(|| eprintln!("{}", message(&e)));
                     failures
                         .lock()
@@ -368,6 +381,7 @@ pub fn batch_cmd(a: &BatchArgs, out: &mut Out<'_>) -> Result<(), CliError> {
         a.out_dir.display(),
         failures.len()
     ))?;
+    super::interrupt::check()?;
     if failures.is_empty() {
         return Ok(());
     }

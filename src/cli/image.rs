@@ -355,6 +355,7 @@ pub(super) fn render_cmd(a: &RenderArgs, out: &mut Out<'_>) -> Result<(), CliErr
     }
     let (img, _) = a.input.load()?;
     let rgba = render::render_with(&img, a.view, &shading, &params)?;
+    super::interrupt::check()?;
     if a.view == View::Curvature {
         let scale = render::curvature_scale(&img, params.curvature_scale as f32);
         let text = scale.to_string();
@@ -421,6 +422,7 @@ pub(super) fn filter_cmd(a: &FilterArgs, out: &mut Out<'_>) -> Result<(), CliErr
             ExrPrecision::Full
         },
     };
+    super::interrupt::check()?;
     io::save(&filtered, &a.output, &save)?;
     if let Some(c) = &a.color_out {
         io::save_color(&filtered, c, a.bits)?;

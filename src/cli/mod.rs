@@ -17,6 +17,7 @@ mod docs;
 pub mod error;
 mod graph;
 mod image;
+pub mod interrupt;
 pub mod out;
 mod publish;
 
@@ -97,6 +98,7 @@ where
                 Err(error::usage("no command given"))
             }
             Some(command) => {
+                interrupt::install();
                 let stdout = std::io::stdout();
                 let mut lock = stdout.lock();
                 let mut out = Out::new(&mut lock);
@@ -105,7 +107,12 @@ where
         });
     match result {
         Ok(()) => Exit::Ok,
-        Err(e) => error::report(&e),
+        // Whatever stopped the command (a cancelled evaluation, a refused write), a signal
+        // received on the way is the reason to report.
+        Err(e) => match interrupt::received() {
+            Some(signal) => error::report(&CliError::Interrupted { signal }),
+            None => error::report(&e),
+        },
     }
 }
 

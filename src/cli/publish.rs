@@ -49,6 +49,7 @@ pub(super) fn publish_cmd(a: &PublishArgs, out: &mut Out<'_>) -> Result<(), CliE
         shading,
         view: a.view,
     };
+    super::interrupt::check()?;
     let p = publish(&img, &a.output, &opts, &a.input.paths())?;
     let tiles: usize = p.levels.iter().map(|l| l.cols * l.rows).sum();
     out.line(format_args!(

@@ -13,7 +13,6 @@ use super::cache::{CacheEntry, CacheKey};
 use crate::ops::{Picture, Value};
 use crate::raster::{Plane, RgbnImage};
 use std::path::{Path, PathBuf};
-use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::Arc;
 
 const MAGIC: &[u8; 8] = b"RGBNCACH";
@@ -171,6 +170,8 @@ impl DiskCache {
     /// Uses (and creates if needed) `dir`.
     pub fn new(dir: &Path) -> std::io::Result<Self> {
         std::fs::create_dir_all(dir)?;
+        // Entries half-written by a process killed meanwhile.
+        crate::raster::io::temp::clean_stale(dir, None);
         Ok(Self { dir: dir.into() })
     }
 
@@ -206,7 +207,6 @@ impl DiskCache {
     /// Stores `entry` under `key` (temporary file + rename). Failures are reported to the
     /// caller, who may ignore them: the cache is an optimisation.
     pub fn put(&self, key: CacheKey, entry: &CacheEntry) -> std::io::Result<()> {
-        static SEQ: AtomicU64 = AtomicU64::new(0);
         let payload = encode(entry);
         let mut out = Vec::with_capacity(HEADER + payload.len());
         out.extend_from_slice(MAGIC);
@@ -215,11 +215,8 @@ impl DiskCache {
         out.extend_from_slice(&(payload.len() as u64).to_le_bytes());
         out.extend_from_slice(&xxhash_rust::xxh3::xxh3_64(&payload).to_le_bytes());
         out.extend_from_slice(&payload);
-        let tmp = self.dir.join(format!(
-            ".{key:032x}.{}.{}.tmp",
-            std::process::id(),
-            SEQ.fetch_add(1, Ordering::Relaxed)
-        ));
+        let _writing = crate::raster::io::temp::WriteGuard::begin();
+        let tmp = crate::raster::io::temp::temp_path(&self.dir, &format!("{key:032x}"));
         let r = std::fs::write(&tmp, &out).and_then(|()| std::fs::rename(&tmp, self.path_of(key)));
         if r.is_err() {
             let _ = std::fs::remove_file(&tmp);

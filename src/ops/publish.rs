@@ -22,12 +22,13 @@
 //! have one level of one tile; larger images get levels down to one that fits in
 //! [`MAX_LEVEL_SIDE`], cut into tiles of [`TILE`]² pixels (column `C`, row `R`).
 //!
-//! The folder is built beside the target (`DIR.tmp-…`) and renamed into place; a non-empty
+//! The folder is built beside the target (`.DIR.PID.SEQ.tmp`, see [`temp`]) and swapped into
+//! place; a killed publish leaves the earlier one (or none) and a temporary removed next time; a non-empty
 //! target that is not an earlier publish (no marker) is refused, and so is a target holding an
 //! input file.
 
 use crate::error::RgbnError;
-use crate::raster::io::{self, Format};
+use crate::raster::io::{self, temp, Format};
 use crate::raster::srgb::linear_to_srgb;
 use crate::raster::RgbnImage;
 use crate::render::{Light, Shading};
@@ -205,7 +206,9 @@ pub fn publish(
         .file_name()
         .map(|n| n.to_string_lossy().into_owned())
         .unwrap_or_else(|| "published".into());
-    let tmp = parent.join(format!(".{name}.tmp-{}", unique()));
+    let _writing = temp::WriteGuard::begin();
+    recover_or_clean(parent, dir, &name);
+    let tmp = temp::temp_path(parent, &name);
     std::fs::create_dir(&tmp).map_err(|e| RgbnError::Write {
         detail: format!("cannot create a folder beside it: {e}"),
         path: dir.into(),
@@ -222,14 +225,6 @@ fn parent_of(p: &Path) -> &Path {
         Some(d) if !d.as_os_str().is_empty() => d,
         _ => Path::new("."),
     }
-}
-
-/// `pid-nanoseconds`: unique enough for a temporary name beside the target.
-fn unique() -> String {
-    let nanos = std::time::SystemTime::now()
-        .duration_since(std::time::UNIX_EPOCH)
-        .map_or(0, |d| d.subsec_nanos());
-    format!("{}-{nanos:09}", std::process::id())
 }
 
 /// Refuses a target that would lose data: see [`publish`].
@@ -277,7 +272,10 @@ fn check_target(dir: &Path, inputs: &[&Path]) -> Result<(), RgbnError> {
     Ok(())
 }
 
-/// Moves the finished folder `tmp` to `dir`, replacing an earlier publish there.
+/// Moves the finished folder `tmp` to `dir`, replacing an earlier publish there: swapped in one
+/// step where the system can (Linux `renameat2(RENAME_EXCHANGE)`), else renamed aside first
+/// (a process killed between the two renames leaves the earlier publish aside, and the next
+/// publish puts it back: [`recover_or_clean`]).
 fn install(tmp: &Path, dir: &Path) -> Result<(), RgbnError> {
     let werr = |e: std::io::Error| RgbnError::Write {
         detail: e.to_string(),
@@ -286,8 +284,13 @@ fn install(tmp: &Path, dir: &Path) -> Result<(), RgbnError> {
     if std::fs::symlink_metadata(dir).is_err() {
         return std::fs::rename(tmp, dir).map_err(werr);
     }
+    if exchange(tmp, dir) {
+        // `tmp` now holds the earlier publish.
+        let _ = std::fs::remove_dir_all(tmp);
+        return Ok(());
+    }
     let name = dir.file_name().unwrap_or_default().to_string_lossy();
-    let old = parent_of(dir).join(format!(".{name}.old-{}", unique()));
+    let old = temp::temp_path(parent_of(dir), &format!("{name}{OLD}"));
     std::fs::rename(dir, &old).map_err(werr)?;
     if let Err(e) = std::fs::rename(tmp, dir) {
         let _ = std::fs::rename(&old, dir);
@@ -295,6 +298,59 @@ fn install(tmp: &Path, dir: &Path) -> Result<(), RgbnError> {
     }
     let _ = std::fs::remove_dir_all(&old);
     Ok(())
+}
+
+/// Suffix of the stem under which an earlier publish is set aside while being replaced.
+const OLD: &str = ".old";
+
+/// Swaps two paths atomically; false where the system cannot (then nothing changed).
+#[cfg(target_os = "linux")]
+fn exchange(a: &Path, b: &Path) -> bool {
+    use std::os::unix::ffi::OsStrExt;
+    let (Ok(a), Ok(b)) = (
+        std::ffi::CString::new(a.as_os_str().as_bytes()),
+        std::ffi::CString::new(b.as_os_str().as_bytes()),
+    ) else {
+        return false;
+    };
+    // SAFETY: two valid NUL-terminated paths relative to the working directory.
+    let r = unsafe {
+        libc::renameat2(
+            libc::AT_FDCWD,
+            a.as_ptr(),
+            libc::AT_FDCWD,
+            b.as_ptr(),
+            libc::RENAME_EXCHANGE,
+        )
+    };
+    r == 0
+}
+#[cfg(not(target_os = "linux"))]
+fn exchange(_: &Path, _: &Path) -> bool {
+    false
+}
+
+/// Before publishing to `dir` (named `name` in `parent`): an earlier publish that a killed
+/// process had set aside while replacing it is put back when `dir` is missing, and the
+/// temporaries of killed processes are removed.
+fn recover_or_clean(parent: &Path, dir: &Path, name: &str) {
+    let aside = format!("{name}{OLD}");
+    if std::fs::symlink_metadata(dir).is_err() {
+        if let Ok(entries) = std::fs::read_dir(parent) {
+            for e in entries.flatten() {
+                let n = e.file_name();
+                let stale = n
+                    .to_str()
+                    .and_then(temp::parse)
+                    .is_some_and(|(s, pid)| s == aside && !temp::alive(pid));
+                if stale && std::fs::rename(e.path(), dir).is_ok() {
+                    break;
+                }
+            }
+        }
+    }
+    temp::clean_stale(parent, Some(&aside));
+    temp::clean_stale(parent, Some(name));
 }
 
 /// Planes of one level: linear colour, unit normals, coverage.

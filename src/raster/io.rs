@@ -18,6 +18,7 @@
 //! any input (see [`check_output`]).
 
 mod openexr;
+pub mod temp;
 
 pub use openexr::{
     load_exr, save_exr, save_exr_with, save_plane_exr, ExrCompression, ExrPrecision,
@@ -586,8 +587,10 @@ fn same_file(_: &Path, _: &Path) -> bool {
     false
 }
 
-/// Writes through `write` into a temporary file next to `path`, then renames it over `path`.
-/// On error the temporary file is removed and `path` is untouched.
+/// Writes through `write` into a temporary file next to `path` (see [`temp`]), then renames it
+/// over `path`. On error the temporary file is removed and `path` is untouched; a process
+/// killed meanwhile leaves the old `path` (or none) and a temporary that the next write of
+/// `path` removes.
 pub fn write_atomic(
     path: &Path,
     write: impl FnOnce(&mut std::io::BufWriter<std::fs::File>) -> Result<(), String>,
@@ -600,7 +603,10 @@ pub fn write_atomic(
         return Err(RgbnError::MissingDir { path: path.into() });
     }
     let name = path.file_name().and_then(|n| n.to_str()).unwrap_or("out");
-    let tmp = dir.join(format!(".{name}.{}.tmp", std::process::id()));
+    let _writing = temp::WriteGuard::begin();
+    // Temporaries of this target left by a killed process are removed first.
+    temp::clean_stale(dir, Some(name));
+    let tmp = temp::temp_path(dir, name);
     let werr = |detail: String| RgbnError::Write {
         detail,
         path: path.into(),
