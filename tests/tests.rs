@@ -60,3 +60,6 @@ mod nan_ops;
 
 #[path = "it/faults.rs"]
 mod faults;
+
+#[path = "it/memory.rs"]
+mod memory;

@@ -210,6 +210,23 @@ fn print_stats(out: &mut Out<'_>, r: &EvalResult, top: &str) -> Result<(), CliEr
         r.stats.len(),
         r.hits(),
         r.misses()
+    ))?;
+    let budget = crate::eval::memory::budget()?;
+    out.line(format_args!(
+        "memory: estimated peak {}{}, budget {}{}",
+        crate::eval::memory::human(r.memory.peak),
+        match r.memory.unknown {
+            0 => String::new(),
+            n => format!(
+                " ({n} node{} of unknown size)",
+                if n == 1 { "" } else { "s" }
+            ),
+        },
+        budget.map_or_else(|| "none".into(), crate::eval::memory::human),
+        crate::eval::memory::measured_peak().map_or_else(String::new, |m| format!(
+            ", measured peak RSS {}",
+            crate::eval::memory::human(m)
+        )),
     ))
 }
 

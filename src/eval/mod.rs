@@ -11,6 +11,9 @@
 //! - **Caches**: a byte-budgeted LRU in memory ([`cache`]) and optionally a folder on disk
 //!   ([`disk`]) that survives the process.
 //! - **Parallel**: nodes to run are grouped in dependency levels; each level runs on rayon.
+//! - **Memory**: before anything runs, the plan's peak memory is estimated from the output
+//!   sizes every operator states ([`memory`]); over the budget (`RGBN_MEMORY_LIMIT`) the
+//!   evaluation is refused with an error naming the nodes that need the most.
 //! - **Cancellation and progress**: [`EvalOptions::cancel`] is checked before each node;
 //!   [`EvalOptions::progress`] is called after each node that ran.
 
@@ -19,6 +22,7 @@
 
 pub mod cache;
 pub mod disk;
+pub mod memory;
 
 pub use cache::{CacheEntry, CacheKey, MemCache};
 pub use disk::DiskCache;
@@ -304,6 +308,8 @@ pub struct EvalResult {
     pub outputs: BTreeMap<String, Value>,
     /// One entry per node that was needed, in evaluation order.
     pub stats: Vec<NodeStats>,
+    /// The memory estimate this evaluation was checked against.
+    pub memory: memory::Estimate,
 }
 
 impl EvalResult {
@@ -537,6 +543,14 @@ impl Evaluator {
                 Conn::None => {}
             }
         }
+        // Refuse before running what would not fit in memory (sizes known without running).
+        let cached: HashMap<usize, (usize, usize)> = results
+            .iter()
+            .filter_map(|(&i, e)| Some((i, e.values.iter().find_map(memory::value_size)?)))
+            .collect();
+        let sizes = memory::sizes(plan, &cached);
+        let estimate = memory::estimate(plan, &to_run, &sizes);
+        memory::check(&estimate, memory::budget()?, &plan.at)?;
         // Dependency levels among the nodes to run (to_run is in post-order).
         let run_set: HashSet<usize> = to_run.iter().copied().collect();
         let mut level: HashMap<usize, usize> = HashMap::new();
@@ -601,6 +615,7 @@ impl Evaluator {
         Ok(EvalResult {
             outputs: out,
             stats: order.into_iter().filter_map(|i| stats.remove(&i)).collect(),
+            memory: estimate,
         })
     }
 

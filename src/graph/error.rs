@@ -16,6 +16,16 @@ pub struct At {
 }
 
 impl At {
+    /// The node alone (`node 3 "name"`), or the file when not at a node.
+    #[must_use]
+    pub fn short(&self) -> String {
+        match (self.node, &self.name) {
+            (Some(id), Some(n)) => format!("node {id} {n:?}"),
+            (Some(id), None) => format!("node {id}"),
+            _ => self.file.clone(),
+        }
+    }
+
     /// A location in `file`, at no particular node.
     #[must_use]
     pub fn file(file: impl Into<String>) -> Self {
@@ -259,4 +269,30 @@ pub enum GraphError {
     /// Evaluation was cancelled.
     #[error("evaluation cancelled")]
     Cancelled,
+
+    /// The plan's estimated peak memory is over the budget (see `eval::memory`).
+    #[error(
+        "evaluating needs about {need} of memory, over the budget of {budget} \
+         (RGBN_MEMORY_LIMIT; default 80 % of physical memory): {nodes}; evaluate fewer or \
+         smaller images, or raise RGBN_MEMORY_LIMIT: {at}"
+    )]
+    Memory {
+        /// Estimated peak.
+        need: String,
+        /// The budget.
+        budget: String,
+        /// The nodes needing the most.
+        nodes: String,
+        /// The graph.
+        at: At,
+    },
+
+    /// An environment variable holds a value that cannot be used.
+    #[error("environment variable {var}: {detail}")]
+    Env {
+        /// The variable.
+        var: &'static str,
+        /// What is wrong.
+        detail: String,
+    },
 }

@@ -28,6 +28,9 @@ impl Operator for Demo {
         )
         .output(PortSpec::new("image", PortType::Rgbn, "The demo image."))
     }
+    fn out_size(p: &DemoParams, _: &[Option<(usize, usize)>]) -> Option<(usize, usize)> {
+        Some((p.size as usize, p.size as usize))
+    }
     fn run(p: &DemoParams, _: &Inputs<'_>, _: &RunContext) -> Result<Vec<Value>, RgbnError> {
         let s = p.size as usize;
         check_size(s, s, "demo")?;
@@ -57,6 +60,9 @@ impl Operator for SurfaceOp {
             PortType::Scalar,
             "Height in pixels (y up).",
         ))
+    }
+    fn out_size(p: &SurfaceParams, _: &[Option<(usize, usize)>]) -> Option<(usize, usize)> {
+        Some((p.width as usize, p.height as usize))
     }
     fn run(p: &SurfaceParams, _: &Inputs<'_>, _: &RunContext) -> Result<Vec<Value>, RgbnError> {
         let (w, h) = (p.width as usize, p.height as usize);
@@ -90,6 +96,9 @@ impl Operator for Load {
             return Err(RgbnError::param("path", "a file path is required"));
         }
         Ok(())
+    }
+    fn out_size(p: &LoadParams, _: &[Option<(usize, usize)>]) -> Option<(usize, usize)> {
+        io::dimensions(std::path::Path::new(&p.path))
     }
     fn run(p: &LoadParams, _: &Inputs<'_>, _: &RunContext) -> Result<Vec<Value>, RgbnError> {
         Self::check(p)?;
@@ -133,6 +142,9 @@ impl Operator for LoadMask {
             return Err(RgbnError::param("path", "a file path is required"));
         }
         Ok(())
+    }
+    fn out_size(p: &LoadMaskParams, _: &[Option<(usize, usize)>]) -> Option<(usize, usize)> {
+        io::dimensions(std::path::Path::new(&p.path))
     }
     fn run(p: &LoadMaskParams, _: &Inputs<'_>, _: &RunContext) -> Result<Vec<Value>, RgbnError> {
         Self::check(p)?;

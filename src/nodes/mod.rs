@@ -354,6 +354,20 @@ pub trait Operator: Send + Sync + 'static {
         inputs: &Inputs<'_>,
         ctx: &RunContext,
     ) -> Result<Vec<Value>, RgbnError>;
+    /// The pixel size (width, height) of the outputs, known before running, from the sizes of
+    /// the inputs in port order (`None`: unconnected or unknown). Sources state it from their
+    /// parameters or file headers; every other operator makes outputs of its first image
+    /// input's size (the default). `None` when it cannot be known without running.
+    fn out_size(
+        _params: &Self::Params,
+        inputs: &[Option<(usize, usize)>],
+    ) -> Option<(usize, usize)> {
+        inputs.iter().flatten().next().copied()
+    }
+    /// Working memory while running beyond inputs and outputs, in multiples of the output
+    /// bytes (gradient planes, transforms, solver vectors): used by the evaluator's estimate of
+    /// a plan's peak memory (see `eval::memory`).
+    const SCRATCH: f64 = 1.0;
 }
 
 /// The object-safe face of an [`Operator`], as held by the registry.
@@ -375,6 +389,14 @@ pub trait DynOp: Send + Sync {
         inputs: &[Option<Value>],
         ctx: &RunContext,
     ) -> Result<Vec<Value>, RgbnError>;
+    /// [`Operator::out_size`] on canonical params (`None` also when they do not parse).
+    fn out_size(
+        &self,
+        values: &BTreeMap<String, ParamValue>,
+        inputs: &[Option<(usize, usize)>],
+    ) -> Option<(usize, usize)>;
+    /// [`Operator::SCRATCH`].
+    fn scratch(&self) -> f64;
 }
 
 struct Entry<T: Operator> {
@@ -425,6 +447,17 @@ impl<T: Operator> DynOp for Entry<T> {
         let out = T::run(&p, &Inputs::new(&self.spec.inputs, inputs), ctx)?;
         debug_assert_eq!(out.len(), self.spec.outputs.len());
         Ok(out)
+    }
+    fn out_size(
+        &self,
+        values: &BTreeMap<String, ParamValue>,
+        inputs: &[Option<(usize, usize)>],
+    ) -> Option<(usize, usize)> {
+        let p: T::Params = params::from_values(values).ok()?;
+        T::out_size(&p, inputs)
+    }
+    fn scratch(&self) -> f64 {
+        T::SCRATCH
     }
 }
 

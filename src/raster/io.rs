@@ -587,6 +587,23 @@ fn same_file(_: &Path, _: &Path) -> bool {
     false
 }
 
+/// The pixel size of an image file from its header alone (nothing decoded), or `None` when
+/// the file cannot be read or is not an image rgbn reads.
+#[must_use]
+pub fn dimensions(path: &Path) -> Option<(usize, usize)> {
+    match Format::of(path).ok()? {
+        Format::Exr => {
+            let meta = exr::meta::MetaData::read_from_file(path, false).ok()?;
+            let size = meta.headers.first()?.layer_size;
+            Some((size.width(), size.height()))
+        }
+        Format::Ptm => super::ptm::dimensions(path),
+        _ => image::image_dimensions(path)
+            .ok()
+            .map(|(w, h)| (w as usize, h as usize)),
+    }
+}
+
 /// Writes through `write` into a temporary file next to `path` (see [`temp`]), then renames it
 /// over `path`. On error the temporary file is removed and `path` is untouched; a process
 /// killed meanwhile leaves the old `path` (or none) and a temporary that the next write of

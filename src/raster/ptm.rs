@@ -292,6 +292,14 @@ fn parse_dimension(tok: &str, what: &str, path: &Path) -> Result<usize, RgbnErro
     usize::try_from(v).map_err(|_| bad("is too large"))
 }
 
+/// The pixel size in a PTM's header (nothing else read), or `None` when it is not one.
+#[must_use]
+pub fn dimensions(path: &Path) -> Option<(usize, usize)> {
+    let f = std::fs::File::open(path).ok()?;
+    let h = read_header(&mut std::io::BufReader::new(f), path).ok()?;
+    Some((h.width, h.height))
+}
+
 fn read_header(r: &mut impl BufRead, path: &Path) -> Result<Header, RgbnError> {
     let mut len = 0u64;
     let version = parse_version(&read_line(r, &mut len, path, "version")?, path)?;
