@@ -67,6 +67,11 @@ pub struct BatchArgs {
     /// Files processed at once.
     #[arg(short = 'j', long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..=256))]
     pub jobs: u32,
+    /// Process only part K of N (K from 1): the matching files, sorted by path, are dealt
+    /// round-robin into N disjoint shards that together cover them — one shard per job of a
+    /// Slurm array (`--shard $SLURM_ARRAY_TASK_ID/N`), a Kubernetes indexed job or GNU parallel.
+    #[arg(long, value_name = "K/N", value_parser = parse_shard)]
+    pub shard: Option<(usize, usize)>,
     /// Keep node results in this folder and reuse them across runs.
     #[arg(long, value_name = "DIR")]
     pub cache_dir: Option<PathBuf>,
@@ -77,6 +82,20 @@ pub struct BatchArgs {
 pub struct CheckArgs {
     /// Graph file (.ron).
     pub graph: PathBuf,
+}
+
+/// `K/N` with 1 ≤ K ≤ N.
+fn parse_shard(s: &str) -> Result<(usize, usize), String> {
+    let bad = || format!("{s:?} is not K/N with 1 ≤ K ≤ N (e.g. 2/8)");
+    let (k, n) = s.split_once('/').ok_or_else(bad)?;
+    let (k, n): (usize, usize) = (
+        k.trim().parse().map_err(|_| bad())?,
+        n.trim().parse().map_err(|_| bad())?,
+    );
+    if k == 0 || k > n {
+        return Err(bad());
+    }
+    Ok((k, n))
 }
 
 fn split_pair<'a>(s: &'a str, what: &str) -> Result<(&'a str, &'a str), CliError> {
@@ -316,13 +335,31 @@ pub fn batch_cmd(a: &BatchArgs, out: &mut Out<'_>) -> Result<(), CliError> {
         .ok_or_else(|| usage("batch needs --input NAME=GLOB"))?;
     let (name, pattern) = split_pair(first, "--input")?;
     let fixed = parse_inputs(rest)?;
-    let files: Vec<PathBuf> = glob::glob(pattern)
+    let mut files: Vec<PathBuf> = glob::glob(pattern)
         .map_err(|e| usage(format!("bad glob pattern {pattern:?}: {e}")))?
         .filter_map(Result::ok)
         .filter(|p| p.is_file())
         .collect();
     if files.is_empty() {
         return Err(usage(format!("no files match {pattern:?}")));
+    }
+    if let Some((k, n)) = a.shard {
+        // Round-robin over the sorted list: shards of equal size (±1) for any N.
+        files.sort();
+        let all = files.len();
+        files = files
+            .into_iter()
+            .enumerate()
+            .filter(|(i, _)| i % n == k - 1)
+            .map(|(_, f)| f)
+            .collect();
+        out.line(format_args!(
+            "shard {k}/{n}: {} of {all} files",
+            files.len()
+        ))?;
+        if files.is_empty() {
+            return Ok(());
+        }
     }
     let ev = evaluator(a.cache_dir.as_deref())?;
     if !a.out_dir.is_dir() {

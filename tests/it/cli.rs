@@ -255,6 +255,69 @@ fn batch_continues_past_bad_files_and_lists_them() {
     assert!(!outd.join("broken.relit.png").exists());
 }
 
+#[test]
+fn batch_shards_are_disjoint_and_cover_every_file() {
+    let d = tempfile::tempdir().unwrap();
+    let inp = d.path().join("in");
+    std::fs::create_dir_all(&inp).unwrap();
+    let names = ["a", "b", "c", "d", "e"];
+    for n in names {
+        std::fs::copy(
+            root().join("graphs/data/image.exr"),
+            inp.join(format!("{n}.exr")),
+        )
+        .unwrap();
+    }
+    let mut seen = Vec::new();
+    for k in 1..=3 {
+        let out = format!("out{k}");
+        let o = rgbn(
+            d.path(),
+            &[
+                "batch",
+                &graph_path("input_image.ron").display().to_string(),
+                "--input",
+                "image=in/*.exr",
+                "--out-dir",
+                &out,
+                "--shard",
+                &format!("{k}/3"),
+            ],
+        );
+        assert!(o.status.success(), "{}", text(&o.stderr));
+        let expected = if k < 3 { 2 } else { 1 };
+        assert!(
+            text(&o.stdout).contains(&format!("shard {k}/3: {expected} of 5 files")),
+            "{}",
+            text(&o.stdout)
+        );
+        for e in std::fs::read_dir(d.path().join(&out)).unwrap().flatten() {
+            let f = e.file_name().to_string_lossy().into_owned();
+            if let Some(stem) = f.strip_suffix(".relit.png") {
+                seen.push(stem.to_string());
+            }
+        }
+    }
+    seen.sort();
+    assert_eq!(seen, names, "every file in exactly one shard");
+    for bad in ["0/3", "4/3", "1", "x/2"] {
+        let o = rgbn(
+            d.path(),
+            &[
+                "batch",
+                &graph_path("input_image.ron").display().to_string(),
+                "--input",
+                "image=in/*.exr",
+                "--out-dir",
+                "o",
+                "--shard",
+                bad,
+            ],
+        );
+        assert_eq!(o.status.code(), Some(2), "{bad}: {}", text(&o.stderr));
+    }
+}
+
 /// Without the editor (`--no-default-features`), no command prints the help; with it, no
 /// command opens the editor (not run here: it needs a display).
 #[cfg(not(feature = "gui"))]
