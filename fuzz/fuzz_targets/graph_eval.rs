@@ -34,7 +34,11 @@ fn number(u: &mut Unstructured, range: Option<(f64, f64)>) -> AResult<f64> {
         _ => {
             let t = f64::from(u.int_in_range(0u32..=1_000_000)?) / 1e6;
             // Wide ranges: sample the low end more (sizes, radii, iteration counts).
-            let hi = if hi - lo > 1000.0 { lo + (hi - lo) * t * t * t } else { hi };
+            let hi = if hi - lo > 1000.0 {
+                lo + (hi - lo) * t * t * t
+            } else {
+                hi
+            };
             lo + (hi - lo) * t
         }
     })
@@ -62,7 +66,9 @@ fn value(
         }
         ParamKind::Floats | ParamKind::Profile => {
             let n = u.int_in_range(0usize..=12)?;
-            let v = (0..n).map(|_| number(u, range)).collect::<AResult<Vec<_>>>()?;
+            let v = (0..n)
+                .map(|_| number(u, range))
+                .collect::<AResult<Vec<_>>>()?;
             if matches!(kind, ParamKind::Profile) {
                 ParamValue::Profile(v)
             } else {
@@ -97,7 +103,11 @@ fn image(u: &mut Unstructured) -> AResult<RgbnImage> {
             _ => 0.2 + (a * b).abs(),
         };
         let l = (a * a + b * b + z * z).sqrt().max(1e-6);
-        let v = if l > 1e-3 { [a / l, b / l, z / l] } else { [0.0, 0.0, 1.0] };
+        let v = if l > 1e-3 {
+            [a / l, b / l, z / l]
+        } else {
+            [0.0, 0.0, 1.0]
+        };
         for k in 0..3 {
             n[k].push(v[k]);
             c[k].push(f32::from(u.int_in_range(0u8..=255)?) / 255.0);
@@ -123,16 +133,29 @@ fn build(u: &mut Unstructured, dir: &Path) -> AResult<Graph> {
             0 => {
                 let id = g.add_node("demo", [0.0, 0.0]);
                 let size = u.int_in_range(16..=MAX_SIDE)?;
-                g.nodes.get_mut(&id).unwrap().params.insert("size".into(), ParamValue::Int(size));
+                g.nodes
+                    .get_mut(&id)
+                    .unwrap()
+                    .params
+                    .insert("size".into(), ParamValue::Int(size));
                 id
             }
             1 => {
                 let id = g.add_node("surface", [0.0, 0.0]);
                 let p = &mut g.nodes.get_mut(&id).unwrap().params;
-                p.insert("width".into(), ParamValue::Int(u.int_in_range(1..=MAX_SIDE)?));
-                p.insert("height".into(), ParamValue::Int(u.int_in_range(1..=MAX_SIDE)?));
+                p.insert(
+                    "width".into(),
+                    ParamValue::Int(u.int_in_range(1..=MAX_SIDE)?),
+                );
+                p.insert(
+                    "height".into(),
+                    ParamValue::Int(u.int_in_range(1..=MAX_SIDE)?),
+                );
                 let shapes = ["sphere", "paraboloid", "sinusoid", "gaussians"];
-                p.insert("shape".into(), ParamValue::Choice(shapes[u.choose_index(4)?].into()));
+                p.insert(
+                    "shape".into(),
+                    ParamValue::Choice(shapes[u.choose_index(4)?].into()),
+                );
                 id
             }
             _ => {
@@ -149,7 +172,11 @@ fn build(u: &mut Unstructured, dir: &Path) -> AResult<Graph> {
                 id
             }
         };
-        let spec = ops.iter().find(|o| o.spec().id == g.nodes[&id].op).unwrap().spec();
+        let spec = ops
+            .iter()
+            .find(|o| o.spec().id == g.nodes[&id].op)
+            .unwrap()
+            .spec();
         for p in &spec.outputs {
             outs.push((id, p.name.clone(), p.ty));
         }
@@ -159,8 +186,7 @@ fn build(u: &mut Unstructured, dir: &Path) -> AResult<Graph> {
         let candidates: Vec<_> = ops
             .iter()
             .filter(|o| {
-                !o.spec().inputs.is_empty()
-                    && !o.params().iter().any(|p| p.kind == ParamKind::Path)
+                !o.spec().inputs.is_empty() && !o.params().iter().any(|p| p.kind == ParamKind::Path)
             })
             .collect();
         let op = candidates[u.choose_index(candidates.len())?];
@@ -172,7 +198,11 @@ fn build(u: &mut Unstructured, dir: &Path) -> AResult<Graph> {
                 _ => value(u, &p.kind, p.meta.range)?,
             };
             if let Some(v) = v {
-                g.nodes.get_mut(&id).unwrap().params.insert(p.name.into(), v);
+                g.nodes
+                    .get_mut(&id)
+                    .unwrap()
+                    .params
+                    .insert(p.name.into(), v);
             }
         }
         for port in &op.spec().inputs {
@@ -182,11 +212,10 @@ fn build(u: &mut Unstructured, dir: &Path) -> AResult<Graph> {
                 continue;
             }
             let (from, from_port, _) = matching[u.choose_index(matching.len())?];
-            g.nodes
-                .get_mut(&id)
-                .unwrap()
-                .inputs
-                .insert(port.name.clone(), Source::Node(*from, from_port.to_string()));
+            g.nodes.get_mut(&id).unwrap().inputs.insert(
+                port.name.clone(),
+                Source::Node(*from, from_port.to_string()),
+            );
         }
         for p in &op.spec().outputs {
             outs.push((id, p.name.clone(), p.ty));
@@ -219,7 +248,10 @@ fn check(name: &str, v: &Value) {
                     "{name}: normal {i} = ({x}, {y}, {z})"
                 );
             }
-            assert!(img.color().iter().all(|c| finite(c)), "{name}: non-finite colour");
+            assert!(
+                img.color().iter().all(|c| finite(c)),
+                "{name}: non-finite colour"
+            );
             assert!(img.mask().is_none_or(finite), "{name}: non-finite mask");
         }
         Value::Mask(p) | Value::Scalar(p) => assert!(finite(p.data()), "{name}: non-finite field"),
@@ -230,7 +262,10 @@ fn check(name: &str, v: &Value) {
 
 fuzz_target!(|data: &[u8]| {
     common::init();
-    let dir = common::scratch(b"", "none").parent().expect("scratch folder").to_path_buf();
+    let dir = common::scratch(b"", "none")
+        .parent()
+        .expect("scratch folder")
+        .to_path_buf();
     let mut u = Unstructured::new(data);
     let Ok(graph) = build(&mut u, &dir) else {
         return;
@@ -239,7 +274,10 @@ fuzz_target!(|data: &[u8]| {
         Ok(lg) => lg,
         Err(e) => {
             let msg = e.to_string();
-            assert!(!msg.trim().is_empty() && !msg.contains('\n'), "unclear error {msg:?}");
+            assert!(
+                !msg.trim().is_empty() && !msg.contains('\n'),
+                "unclear error {msg:?}"
+            );
             return;
         }
     };
@@ -254,7 +292,10 @@ fuzz_target!(|data: &[u8]| {
         }
         Err(e) => {
             let msg = e.to_string();
-            assert!(!msg.trim().is_empty() && !msg.contains('\n'), "unclear error {msg:?}");
+            assert!(
+                !msg.trim().is_empty() && !msg.contains('\n'),
+                "unclear error {msg:?}"
+            );
         }
     }
 });

@@ -12,7 +12,10 @@ fuzz_target!(|data: &[u8]| {
     if let Ok(lp) = rgbn::capture::lp::read_lp(&p) {
         assert_eq!(lp.photos.len(), lp.directions.len());
         for d in &lp.directions {
-            assert!(d.iter().all(|c| c.is_finite()), "non-finite direction {d:?}");
+            assert!(
+                d.iter().all(|c| c.is_finite()),
+                "non-finite direction {d:?}"
+            );
         }
     }
 });

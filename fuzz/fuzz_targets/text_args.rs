@@ -27,7 +27,10 @@ const INPUT_GRAPH: &str = include_str!("../../graphs/input_image.ron");
 
 fn one_line(e: &dyn std::fmt::Display) {
     let msg = e.to_string();
-    assert!(!msg.trim().is_empty() && !msg.contains('\n'), "unclear error {msg:?}");
+    assert!(
+        !msg.trim().is_empty() && !msg.contains('\n'),
+        "unclear error {msg:?}"
+    );
 }
 
 fuzz_target!(|data: &[u8]| {
@@ -35,7 +38,10 @@ fuzz_target!(|data: &[u8]| {
     let Some((&which, rest)) = data.split_first() else {
         return;
     };
-    let dir = common::scratch(b"", "none").parent().expect("scratch folder").to_path_buf();
+    let dir = common::scratch(b"", "none")
+        .parent()
+        .expect("scratch folder")
+        .to_path_buf();
     let text = String::from_utf8_lossy(rest);
     let args: Vec<String> = text.lines().map(str::to_string).collect();
     match which % 5 {
