@@ -63,3 +63,6 @@ mod faults;
 
 #[path = "it/memory.rs"]
 mod memory;
+
+#[path = "it/extract.rs"]
+mod extract;

@@ -498,6 +498,7 @@ pub fn registry() -> &'static [Box<dyn DynOp>] {
             // combine and draw
             Entry::<combine::LinearCombineNode>::boxed(),
             Entry::<rotate::RotationCombineNode>::boxed(),
+            Entry::<stamp::ExtractNode>::boxed(),
             Entry::<stamp::StampNode>::boxed(),
             Entry::<pen::PenNode>::boxed(),
             // render and analysis

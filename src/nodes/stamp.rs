@@ -4,7 +4,7 @@
 use super::kit::curl_port;
 use super::{Inputs, OpSpec, Operator, PortSpec, PortType, RunContext, Value};
 use crate::error::RgbnError;
-use crate::ops::stamp::{stamp_image, StampParams};
+use crate::ops::stamp::{extract, stamp_image, ExtractParams, StampParams};
 
 /// Stamp.
 pub struct StampNode;
@@ -36,5 +36,41 @@ impl Operator for StampNode {
             Value::Rgbn(img),
             Value::Number(rep.curl_after.relative),
         ])
+    }
+}
+
+/// Extract: a piece of an image as a stamp.
+pub struct ExtractNode;
+
+impl Operator for ExtractNode {
+    type Params = ExtractParams;
+    fn spec() -> OpSpec {
+        OpSpec::new(
+            "extract",
+            "Extract stamp",
+            "combine",
+            "Cuts a piece out of an RGBN image to stamp elsewhere (Pereira & Velho Fig. 4): a rectangle, or the bounding box of a region mask whose coverage becomes the piece's mask; optionally high-passed so only its detail is stamped.",
+        )
+        .input(PortSpec::new("image", PortType::Rgbn, "Image to cut from."))
+        .input(
+            PortSpec::new(
+                "region",
+                PortType::Mask,
+                "Optional region (the image's size): its bounding box is cut, its coverage is the piece's mask.",
+            )
+            .optional(),
+        )
+        .output(PortSpec::new("stamp", PortType::Rgbn, "The piece (at most 512 px a side)."))
+    }
+    fn out_size(p: &ExtractParams, inputs: &[Option<(usize, usize)>]) -> Option<(usize, usize)> {
+        // With a region the size depends on its pixels: at most a stamp's largest side.
+        match inputs.get(1) {
+            Some(Some(_)) => Some((512, 512)),
+            _ => Some((p.width as usize, p.height as usize)),
+        }
+    }
+    fn run(p: &ExtractParams, i: &Inputs<'_>, _: &RunContext) -> Result<Vec<Value>, RgbnError> {
+        let region = i.mask("region")?.map(|m| m.data());
+        Ok(vec![Value::Rgbn(extract(i.rgbn("image")?, region, p)?)])
     }
 }

@@ -400,6 +400,111 @@ pub fn stamp_image(
     ))
 }
 
+crate::params! {
+    /// Parameters of the `extract` operator: the rectangle cut out of an image as a stamp.
+    #[derive(Clone, Debug, PartialEq)]
+    pub struct ExtractParams {
+        /// Left column of the rectangle.
+        pub x: i64 = 0 => int.unit("px").range(0.0, 16384.0),
+        /// Top row of the rectangle (rows count downwards).
+        pub y: i64 = 0 => int.unit("px").range(0.0, 16384.0),
+        /// Width of the rectangle (ignored when a region mask is connected).
+        pub width: i64 = 64 => int.unit("px").range(2.0, 512.0),
+        /// Height of the rectangle (ignored when a region mask is connected).
+        pub height: i64 = 64 => int.unit("px").range(2.0, 512.0),
+        /// Remove the piece's low frequencies: a high-pass of this σ on its gradients, so only
+        /// its detail is stamped (0 = keep everything).
+        pub highpass_sigma_px: f64 = 0.0 => float.unit("px").range(0.0, 4096.0),
+    }
+}
+
+/// The bounding box `(x, row, width, height)` of the pixels where `mask ≥ ½`, or `None` when
+/// there are none.
+#[must_use]
+pub fn mask_bounds(mask: &[f32], width: usize) -> Option<(usize, usize, usize, usize)> {
+    let (mut x0, mut r0, mut x1, mut r1) = (usize::MAX, usize::MAX, 0, 0);
+    for (i, &m) in mask.iter().enumerate() {
+        if m >= 0.5 {
+            let (x, r) = (i % width, i / width);
+            x0 = x0.min(x);
+            r0 = r0.min(r);
+            x1 = x1.max(x);
+            r1 = r1.max(r);
+        }
+    }
+    (x0 != usize::MAX).then(|| (x0, r0, x1 - x0 + 1, r1 - r0 + 1))
+}
+
+/// The `extract` operator: [`extract_stamp`] on the rectangle of `p`, or — with a `region`
+/// mask (the image's size) — on the bounding box of the region, whose coverage then becomes
+/// the piece's mask (times the image's own, if any).
+///
+/// # Errors
+/// A rectangle not inside the image, a region of another size, empty or over
+/// [`MAX_STAMP_SIDE`] a side.
+pub fn extract(
+    img: &RgbnImage,
+    region: Option<&[f32]>,
+    p: &ExtractParams,
+) -> Result<RgbnImage, RgbnError> {
+    let sigma = (p.highpass_sigma_px > 0.0).then_some(p.highpass_sigma_px as f32);
+    let Some(region) = region else {
+        return extract_stamp(
+            img,
+            p.x as usize,
+            p.y as usize,
+            p.width as usize,
+            p.height as usize,
+            sigma,
+        )
+        .map_err(|e| match e {
+            RgbnError::InvalidParam { name, detail } if name == "region" => {
+                RgbnError::param("x, y, width, height", detail)
+            }
+            other => other,
+        });
+    };
+    if region.len() != img.width() * img.height() {
+        return Err(RgbnError::param(
+            "region",
+            format!(
+                "the mask is not the image's size ({}×{})",
+                img.width(),
+                img.height()
+            ),
+        ));
+    }
+    let (x, r, w, h) = mask_bounds(region, img.width()).ok_or_else(|| {
+        RgbnError::param(
+            "region",
+            "the mask covers no pixel (none ≥ 0.5)".to_string(),
+        )
+    })?;
+    // At least 2×2 (a one-pixel region still makes a valid stamp).
+    let (w2, h2) = (w.max(2).min(img.width()), h.max(2).min(img.height()));
+    let (x, r) = (x.min(img.width() - w2), r.min(img.height() - h2));
+    let mut out = extract_stamp(img, x, r, w2, h2, sigma).map_err(|e| match e {
+        RgbnError::InvalidParam { detail, .. } => RgbnError::param(
+            "region",
+            format!("its bounding box {w}×{h} at ({x}, {r}): {detail}"),
+        ),
+        other => other,
+    })?;
+    let cover: Vec<f32> = (0..h2)
+        .flat_map(|j| {
+            let o = (r + j) * img.width() + x;
+            region[o..o + w2].iter().map(|m| m.clamp(0.0, 1.0))
+        })
+        .zip(
+            out.mask()
+                .map_or_else(|| vec![1.0; w2 * h2], <[f32]>::to_vec),
+        )
+        .map(|(a, b)| a * b)
+        .collect();
+    out.set_mask(Some(cover))?;
+    Ok(out)
+}
+
 /// Cuts a stamp out of an image: the `width × height` region whose top-left pixel is
 /// `(x0, row0)`, with its low frequencies removed by a high-pass of `highpass_sigma_px` on the
 /// gradients (`None` = keep everything). Colour and mask are cropped.
