@@ -278,7 +278,7 @@ pub(super) fn info(a: &InfoArgs, out: &mut Out<'_>) -> Result<(), CliError> {
         .repaired
     };
     let g = GradientField::from_normals(&img);
-    let c = g.curl_stats(img.mask());
+    let c = g.curl_stats_of(crate::raster::gradient::Differences::Averaged, img.mask());
     let (w, h) = (img.width(), img.height());
     out.line(format_args!("input:       {name}"))?;
     out.line(format_args!(

@@ -2,20 +2,28 @@
 //!
 //! # Discretisation
 //!
-//! The unknown is a height `z(x, r)` on the pixel grid (`r` = row, downwards; `y` up, see
-//! [`gradient`](super::gradient)). Each gradient sample is one *edge equation* with the forward
-//! differences of [`GradientField::from_height`]:
+//! The unknown is a height `z(x, r)` at the pixel centres (`r` = row, downwards; `y` up, see
+//! [`gradient`](super::gradient)). Each edge between two neighbouring pixels is one *edge
+//! equation*, with the edge values `e` of [`GradientField::edge_values`] for the chosen
+//! [`Differences`] model:
 //!
-//! - horizontal edge `(x, r)`, `x ≤ W−2`: `z(x+1, r) − z(x, r) = p(x, r)`,
-//! - vertical edge `(x, r)`, `r ≥ 1`: `z(x, r−1) − z(x, r) = q(x, r)`.
+//! - horizontal edge `(x, r)`, `x ≤ W−2`: `z(x+1, r) − z(x, r) = e_p(x, r)`,
+//! - vertical edge `(x, r)`, `r ≥ 1`: `z(x, r−1) − z(x, r) = e_q(x, r)`.
 //!
-//! Writing these as `D z = g`, the least-squares height solves the normal equations
-//! `Dᵀ D z = Dᵀ g`. `L = DᵀD` is the graph Laplacian of the grid with *natural Neumann*
-//! boundaries, and `b = Dᵀg` is the discrete divergence
-//! `b(x,r) = p(x−1,r) − p(x,r) + q(x,r+1) − q(x,r)` (terms whose edge does not exist dropped).
-//! Because this is exactly the operator whose range holds every discrete gradient,
-//! **integrating the discrete gradient of any height returns that height** up to a constant and
-//! rounding, and the normals of the result have zero curl (to rounding).
+//! With [`Differences::Averaged`] (the default) `e_p(x, r) = ½(p(x, r) + p(x+1, r))` and
+//! `e_q(x, r) = ½(q(x, r) + q(x, r−1))` (trapezoidal rule: the right model for normals sampled
+//! at pixel centres); with [`Differences::Forward`] `e = (p, q)`, one pixel's sample per edge
+//! (exact for [`GradientField::from_height`]).
+//!
+//! Writing these as `D z = e`, the least-squares height solves the normal equations
+//! `Dᵀ D z = Dᵀ e`. `L = DᵀD` is the graph Laplacian of the grid with *natural Neumann*
+//! boundaries, and `b = Dᵀe` is the discrete divergence
+//! `b(x,r) = e_p(x−1,r) − e_p(x,r) + e_q(x,r+1) − e_q(x,r)` (terms whose edge does not exist
+//! dropped). The model only changes the data side, so the DCT and masked solvers are those of
+//! the forward model fed with the edge values. Because `L` is exactly the operator whose range
+//! holds every discrete gradient, **integrating the edge values of a height's model gradient
+//! returns that height** up to a constant and rounding, and the normals of the result have zero
+//! curl (to rounding) in the same model.
 //!
 //! # Solvers (one submodule each)
 //!
@@ -34,35 +42,56 @@
 //!   amplitude; `f64` would double memory traffic for no visible gain at these tolerances.
 //! - [`IntegrationMethod::FrankotChellappa`] (Frankot & Chellappa 1988): the same least squares
 //!   but with **periodic** boundaries, solved with FFTs: with `a = e^{2πi k/W} − 1`,
-//!   `c = e^{−2πi l/H} − 1` (the transfer functions of the two forward differences),
-//!   `Ẑ = (ā P̂ + c̄ Q̂) / (|a|² + |c|²)`. Every gradient sample is used, including the last
-//!   column's `p` and the top row's `q` as wrap-around edges. Exact for periodic heights; for
-//!   others the wrap-around edges disagree and the error concentrates at the borders.
+//!   `c = e^{−2πi l/H} − 1` (the transfer functions of the two forward differences) and the
+//!   data-side transfer functions of the edge model, `α = ½(1 + e^{2πi k/W})`,
+//!   `γ = ½(1 + e^{−2πi l/H})` (averaged; `α = γ = 1` forward),
+//!   `Ẑ = (ā α P̂ + c̄ γ Q̂) / (|a|² + |c|²)`. Averaged, `ā α = −i sin(2πk/W)` and
+//!   `c̄ γ = i sin(2πl/H)`: central differences. Their zeros at the Nyquist bins (`ω = π`,
+//!   even sizes) are zeros of the *data* side only — the checkerboard gradient the average
+//!   cannot see contributes nothing there — while the denominator vanishes only at `(0, 0)`
+//!   (the free constant, set to 0), so nothing is divided by zero. Every gradient sample is
+//!   used, the last column's `p` and the top row's `q` through wrap-around edges. Exact for
+//!   periodic heights; for others the wrap-around edges disagree and the error concentrates
+//!   at the borders.
 //!   Real-input packing (rows of `p + i q` split into half spectra, column FFTs on `W/2 + 1`
 //!   bins with the solve fused, two Hermitian rows per inverse FFT): the FFT work of scipy's
 //!   `rfft2` ×2 + `irfft2`, `f32`.
 //! - [`IntegrationMethod::MaskedPoisson`]: only edges with both ends inside the mask
-//!   (coverage ≥ 0.5) are equations, so nothing outside the object (background normals,
-//!   depth discontinuities at the silhouette) leaks in. The masked Laplacian is solved by
-//!   conjugate gradients with a Jacobi (node degree) preconditioner, in `f64`, warm-started from
-//!   the DCT solution of the field with its off-domain edges set to 0. Each connected component
+//!   (coverage ≥ 0.5) are equations (averaged edge values thus only average two samples
+//!   inside), so nothing outside the object (background normals, depth discontinuities at the
+//!   silhouette) leaks in. The masked Laplacian is solved by conjugate gradients
+//!   preconditioned with one geometric-multigrid V-cycle (see [`masked`](self) sources:
+//!   coverage-aggregated coarse masks, rediscretised masked Laplacians, red-black Gauss–Seidel),
+//!   in `f64` for the Krylov vectors and `f32` inside the V-cycle, warm-started from the DCT
+//!   solution of the edge values with the off-domain edges set to 0. Each connected component
 //!   of the mask has its own free constant (kept from the warm start); the result has zero mean
 //!   over the mask. Pixels outside the mask keep the warm start (a smooth fill carrying no
-//!   information).
+//!   information). A pixel with no edge inside the mask (a single-pixel component) gets
+//!   height 0 and is counted in [`IntegrationReport::isolated_pixels`]; a mask with no edge at
+//!   all is an error naming the mask.
 //!
-//! # Sampled normals are staggered
+//! # Sampled normals: averaged vs forward (history)
 //!
-//! A forward difference `z(x+1) − z(x)` is a central difference at `x + ½`. Feeding normals
-//! sampled *at pixel centres* (as photometric stereo and renderers produce) therefore gives, to
-//! second order, the height at `(x − ½, row + ½)`, not at `(x, row)`. The tests compare analytic
-//! surfaces at that staggered position.
+//! Until issue 17 the only model was the forward one: a forward difference `z(x+1) − z(x)` is
+//! a central difference at `x + ½`, so normals sampled *at pixel centres* gave, to second
+//! order, the height at `(x − ½, row + ½)`, half a pixel staggered — on steep surfaces (slopes
+//! up to 10 px/px) the RMSE against the centre samples was 1.6–2.3 px. The averaged model
+//! registers the height at the pixel centres (≈ 0.1 px on the same surfaces). The forward model
+//! remains as [`Differences::Forward`] for fields that *are* forward differences of a height
+//! (the editing operators' [`GradientField::from_height`]); its tests compare analytic surfaces
+//! at the staggered position, those of the default at pixel centres.
 //!
 //! # Integrability projection
 //!
-//! [`project_integrable`] replaces a normal field by the normals of its integrated height: the
-//! gradient field nearest to it (least squares over the edges) among all discrete gradients,
-//! i.e. the orthogonal projection onto the conservative fields. It reports the curl before and
-//! after. An already integrable field is returned unchanged (to rounding).
+//! [`project_integrable`] replaces a normal field by the normals of its integrated height `z*`
+//! in the same edge model: the samples `g'` closest to the input `g` whose edge values are the
+//! height's differences, `g' = g + A⁺(D z* − A g)` (`A` the model's sample-to-edge map, applied
+//! per row for `p` and per column for `q` over the runs of the domain; a tridiagonal solve
+//! per run). With the forward model this is the old rule (forward differences, backward at a
+//! run's end). With the averaged model the checkerboard component of `g` (null space of `A`,
+//! see [`gradient`](super::gradient)) is kept, so an already integrable field is returned
+//! unchanged (to rounding), the output has zero model curl, and projecting twice changes
+//! nothing. It reports the model curl before and after.
 //!
 //! # References
 //!
@@ -85,6 +114,7 @@ mod test_util;
 
 pub use projection::{project_integrable, ProjectParams, ProjectionReport};
 
+pub use super::gradient::Differences;
 use super::gradient::GradientField;
 use super::{Plane, RgbnImage};
 use crate::error::RgbnError;
@@ -118,6 +148,9 @@ pub struct IntegrateParams {
     pub max_iterations: u32,
     /// Stop when `‖b − L z‖ ≤ tolerance · ‖b‖` (masked method only), in (0, 1).
     pub tolerance: f64,
+    /// The edge model (module docs); [`Differences::Averaged`] unless named.
+    #[serde(default)]
+    pub differences: Differences,
 }
 
 impl Default for IntegrateParams {
@@ -126,6 +159,7 @@ impl Default for IntegrateParams {
             method: IntegrationMethod::PoissonDct,
             max_iterations: 2000,
             tolerance: 1e-6,
+            differences: Differences::Averaged,
         }
     }
 }
@@ -156,9 +190,11 @@ pub struct IntegrationReport {
     pub iterations: u32,
     /// Final `‖b − L z‖ / ‖b‖` of the conjugate gradients (0 for the direct solvers).
     pub relative_residual: f64,
-    /// RMS over the domain's edges of `D z − g`: how far the field is from integrable, in
-    /// height units per pixel (0 for an integrable field).
+    /// RMS over the domain's edges of `D z − e` (`e` the edge values of the model): how far
+    /// the field is from integrable, in height units per pixel (0 for an integrable field).
     pub rms_residual: f64,
+    /// Domain pixels with no edge inside the domain (single-pixel components): height 0.
+    pub isolated_pixels: usize,
 }
 
 /// Coverage ≥ 0.5 counts as inside.
@@ -213,24 +249,59 @@ pub fn integrate_gradients(
         domain_pixels: w * h,
         ..Default::default()
     };
+    let e = g.edge_values(params.differences);
     let z = match (params.method, mask) {
-        (IntegrationMethod::FrankotChellappa, _) => frankot_chellappa(g),
+        (IntegrationMethod::FrankotChellappa, _) => frankot_chellappa(g, params.differences),
         (IntegrationMethod::MaskedPoisson, Some(m)) => {
-            report.domain_pixels = m.iter().filter(|&&v| inside(v)).count();
-            let (z, it, rel) = masked_poisson(g, m, params);
+            let (domain, isolated) = domain_counts(m, w, h);
+            if domain > 1 && isolated == domain {
+                return Err(RgbnError::param(
+                    "mask",
+                    format!(
+                        "the integration domain ({domain} pixels) has no two neighbouring \
+                         pixels inside: no edge to integrate"
+                    ),
+                ));
+            }
+            report.domain_pixels = domain;
+            report.isolated_pixels = isolated;
+            let (z, it, rel) = masked_poisson(&e, m, params);
             report.iterations = it;
             report.relative_residual = rel;
             z
         }
-        _ => poisson_dct(g, None),
+        _ => poisson_dct(&e, None),
     };
     let dom = if params.method == IntegrationMethod::MaskedPoisson {
         mask
     } else {
         None
     };
-    report.rms_residual = edge_residual_rms(&z, g, dom);
+    report.rms_residual = edge_residual_rms(&z, &e, dom);
     Ok((z, report))
+}
+
+/// Pixels inside the mask and those of them with no neighbour inside (4-neighbourhood).
+fn domain_counts(m: &[f32], w: usize, h: usize) -> (usize, usize) {
+    (0..h)
+        .into_par_iter()
+        .map(|r| {
+            let (mut d, mut iso) = (0usize, 0usize);
+            for x in 0..w {
+                let i = r * w + x;
+                if !inside(m[i]) {
+                    continue;
+                }
+                d += 1;
+                let nb = (x >= 1 && inside(m[i - 1]))
+                    || (x + 1 < w && inside(m[i + 1]))
+                    || (r >= 1 && inside(m[i - w]))
+                    || (r + 1 < h && inside(m[i + w]));
+                iso += usize::from(!nb);
+            }
+            (d, iso)
+        })
+        .reduce(|| (0, 0), |a, b| (a.0 + b.0, a.1 + b.1))
 }
 
 /// Integrates an image's normals (through [`GradientField::from_normals`]); the image's mask is
@@ -245,8 +316,9 @@ pub fn integrate_normals(
     integrate_gradients(&GradientField::from_normals(img), img.mask(), params)
 }
 
-/// The non-integrable fraction `F = ‖g − D z*‖ / ‖g‖` over the edge equations of the module
-/// docs, `z*` the least-squares height: [`IntegrationMethod::PoissonDct`] (Neumann borders), or
+/// The non-integrable fraction `F = ‖e − D z*‖ / ‖e‖` over the edge equations of the module
+/// docs in the default ([`Differences::Averaged`]) model, `e` the edge values, `z*` the
+/// least-squares height: [`IntegrationMethod::PoissonDct`] (Neumann borders), or
 /// [`IntegrationMethod::MaskedPoisson`] over the mask where there is one. `D z*` is the
 /// orthogonal projection of `g` onto the discrete gradients, so `F ∈ [0, 1]`: 0 for the
 /// gradient of a height (to rounding), ≈ 0.71 for white noise (a random field has as much
@@ -270,7 +342,7 @@ pub fn non_integrable_fraction(g: &GradientField, mask: Option<&[f32]>) -> Resul
             ..IntegrateParams::default()
         },
     )?;
-    let norm = edge_rms(None, g, mask);
+    let norm = edge_rms(None, &g.edge_values(Differences::Averaged), mask);
     Ok(if norm > 0.0 {
         (report.rms_residual / norm).min(1.0)
     } else {
@@ -315,18 +387,28 @@ pub fn curl_interior(mask: &[f32], w: usize, h: usize) -> Vec<f32> {
         .collect()
 }
 
-/// Forward-difference gradients of a height restricted to a domain.
+/// Pixel-sample gradients of a height restricted to a domain, in an edge model: the
+/// integrability projection's output (module docs).
 ///
-/// Without a domain this is [`GradientField::from_height`]. With one, a pixel inside uses the
-/// forward difference if its forward neighbour is inside, else the backward difference if that
-/// neighbour is inside, else `fallback`'s value (or 0); pixels outside take `fallback`'s values
-/// (or 0). `fallback` must have the height's size.
+/// - [`Differences::Forward`]: without a domain [`GradientField::from_height`]. With one, a
+///   pixel inside uses the forward difference if its forward neighbour is inside, else the
+///   backward difference if that neighbour is inside, else `fallback`'s value (or 0).
+/// - [`Differences::Averaged`]: along each run of domain pixels in a row (for `p`) or column
+///   (for `q`), the samples closest to `fallback` (or to 0) whose edge averages are the
+///   height's differences: `g + A⁺(D z − A g)`, one tridiagonal solve per run. A run of one
+///   pixel keeps `fallback`'s value (or 0).
+///
+/// Pixels outside take `fallback`'s values (or 0). `fallback` must have the height's size.
 #[must_use]
 pub fn gradients_of_height(
     z: &Plane,
     domain: Option<&[f32]>,
     fallback: Option<&GradientField>,
+    differences: Differences,
 ) -> GradientField {
+    if differences == Differences::Averaged {
+        return averaged_gradients_of_height(z, domain, fallback);
+    }
     let Some(m) = domain else {
         return GradientField::from_height(z);
     };
@@ -361,6 +443,123 @@ pub fn gradients_of_height(
                 };
             }
         });
+    out
+}
+
+/// One line (row or column, read through `at(k)`) of the averaged projection: `z`, `g`, `ins`
+/// give height, sample and membership at index `k`; the height difference of edge
+/// `k → k+1` is `dz(k)`. Writes the new samples through `out`.
+fn averaged_line(
+    n: usize,
+    ins: impl Fn(usize) -> bool,
+    dz: impl Fn(usize) -> f64,
+    g: impl Fn(usize) -> f64,
+    mut out: impl FnMut(usize, f32),
+    y: &mut Vec<f64>,
+    cp: &mut Vec<f64>,
+) {
+    let mut k = 0;
+    while k < n {
+        if !ins(k) {
+            out(k, g(k) as f32);
+            k += 1;
+            continue;
+        }
+        let a = k;
+        while k < n && ins(k) {
+            k += 1;
+        }
+        let len = k - a;
+        if len == 1 {
+            out(a, g(a) as f32);
+            continue;
+        }
+        // Minimum-norm δ with ½(δ_j + δ_{j+1}) = e_j (j < len−1): δ = Aᵀ y with
+        // (A Aᵀ) y = e, i.e. tridiag(1, 2, 1) y = 4 e (Thomas; SPD).
+        let m = len - 1;
+        y.clear();
+        cp.clear();
+        let mut prev_c = 0.0f64;
+        let mut prev_y = 0.0f64;
+        for j in 0..m {
+            let e = dz(a + j) - 0.5 * (g(a + j) + g(a + j + 1));
+            let den = 2.0 - prev_c;
+            let c = 1.0 / den;
+            let v = (4.0 * e - prev_y) / den;
+            cp.push(c);
+            y.push(v);
+            (prev_c, prev_y) = (c, v);
+        }
+        for j in (0..m.saturating_sub(1)).rev() {
+            let next = y[j + 1];
+            y[j] -= cp[j] * next;
+        }
+        for j in 0..len {
+            let left = if j >= 1 { y[j - 1] } else { 0.0 };
+            let right = if j < m { y[j] } else { 0.0 };
+            out(a + j, (g(a + j) + 0.5 * (left + right)) as f32);
+        }
+    }
+}
+
+fn averaged_gradients_of_height(
+    z: &Plane,
+    domain: Option<&[f32]>,
+    fallback: Option<&GradientField>,
+) -> GradientField {
+    let (w, h) = (z.width(), z.height());
+    let d = z.data();
+    let ins = |i: usize| domain.is_none_or(|m| inside(m[i]));
+    let fp = |i: usize| fallback.map_or(0.0, |f| f64::from(f.p[i]));
+    let fq = |i: usize| fallback.map_or(0.0, |f| f64::from(f.q[i]));
+    let mut out = GradientField::zeros(w, h);
+    out.p
+        .par_chunks_mut(w.max(1))
+        .enumerate()
+        .for_each_init(
+            || (Vec::new(), Vec::new()),
+            |(y, cp), (r, pr)| {
+                let o = r * w;
+                averaged_line(
+                    w,
+                    |k| ins(o + k),
+                    |k| f64::from(d[o + k + 1]) - f64::from(d[o + k]),
+                    |k| fp(o + k),
+                    |k, v| pr[k] = v,
+                    y,
+                    cp,
+                );
+            },
+        );
+    // Columns top to bottom: edge k → k+1 is z(k) − z(k+1) = ½(q(k) + q(k+1)).
+    let cols: Vec<Vec<f32>> = (0..w)
+        .into_par_iter()
+        .map_init(
+            || (Vec::new(), Vec::new()),
+            |(y, cp), x| {
+                let mut col = vec![0.0f32; h];
+                averaged_line(
+                    h,
+                    |k| ins(k * w + x),
+                    |k| f64::from(d[k * w + x]) - f64::from(d[(k + 1) * w + x]),
+                    |k| fq(k * w + x),
+                    |k, v| col[k] = v,
+                    y,
+                    cp,
+                );
+                col
+            },
+        )
+        .collect();
+    out.q
+        .par_chunks_mut(w.max(1))
+        .enumerate()
+        .for_each(|(r, qr)| {
+            for (o, col) in qr.iter_mut().zip(&cols) {
+                *o = col[r];
+            }
+        });
+    out.clamped = 0;
     out
 }
 

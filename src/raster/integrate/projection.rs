@@ -24,9 +24,10 @@ impl ProjectParams {
 /// Integrability before and after [`project_integrable`].
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct ProjectionReport {
-    /// Curl of the input's gradients (over the mask's [`curl_interior`] if masked).
+    /// Model curl of the input's gradients (over the mask's [`curl_interior`] if masked).
     pub before: CurlStats,
-    /// Curl of the output's gradients (from its normals, so including unit-vector rounding).
+    /// Model curl of the output's gradients (from its normals, so including unit-vector
+    /// rounding).
     pub after: CurlStats,
     pub integration: IntegrationReport,
 }
@@ -46,14 +47,15 @@ pub fn project_integrable(
     let interior = img
         .mask()
         .map(|m| curl_interior(m, img.width(), img.height()));
-    let before = g.curl_stats(interior.as_deref());
+    let model = params.integrate.differences;
+    let before = g.curl_stats_of(model, interior.as_deref());
     let (z, integration) = integrate_gradients(&g, img.mask(), &params.integrate)?;
     let masked = params.integrate.method == IntegrationMethod::MaskedPoisson;
     let dom = if masked { img.mask() } else { None };
-    let g2 = gradients_of_height(&z, dom, Some(&g));
+    let g2 = gradients_of_height(&z, dom, Some(&g), model);
     let mut out = img.clone();
     g2.write_normals(&mut out);
-    let after = GradientField::from_normals(&out).curl_stats(interior.as_deref());
+    let after = GradientField::from_normals(&out).curl_stats_of(model, interior.as_deref());
     Ok((
         out,
         z,
