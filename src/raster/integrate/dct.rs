@@ -162,13 +162,24 @@ mod tests {
     fn dct_poisson_recovers_any_height_from_its_discrete_gradient() {
         for &(w, h) in &[(37, 23), (64, 64), (1, 9), (9, 1), (128, 96)] {
             let z = rough(w, h);
-            let g = GradientField::from_height(&z);
-            let (zi, rep) = integrate_gradients(&g, None, &IntegrateParams::default()).unwrap();
-            let e = max_err_up_to_constant(&zi, &z, None);
-            assert!(e < 2e-3, "{w}×{h}: max error {e}");
-            assert!(rep.rms_residual < 1e-3, "{rep:?}");
-            let mean = zi.data().iter().map(|&v| f64::from(v)).sum::<f64>() / (w * h) as f64;
-            assert!(mean.abs() < 1e-3, "zero mean, got {mean}");
+            // Each model with the samples of a height in that model: forward differences,
+            // and the averaged model's minimum-norm samples (projection of a height).
+            for differences in [Differences::Forward, Differences::Averaged] {
+                let g = gradients_of_height(&z, None, None, differences);
+                if differences == Differences::Forward {
+                    assert_eq!(g, GradientField::from_height(&z));
+                }
+                let params = IntegrateParams {
+                    differences,
+                    ..Default::default()
+                };
+                let (zi, rep) = integrate_gradients(&g, None, &params).unwrap();
+                let e = max_err_up_to_constant(&zi, &z, None);
+                assert!(e < 2e-3, "{w}×{h} {differences:?}: max error {e}");
+                assert!(rep.rms_residual < 1e-3, "{rep:?}");
+                let mean = zi.data().iter().map(|&v| f64::from(v)).sum::<f64>() / (w * h) as f64;
+                assert!(mean.abs() < 1e-3, "zero mean, got {mean}");
+            }
         }
     }
 }
