@@ -207,6 +207,29 @@ mod tests {
                 .collect();
             let z = frankot_chellappa(&g, Differences::Forward);
             assert_close(z.data(), &want, 1e-4, &format!("Frankot–Chellappa {w}×{h}"));
+            // Averaged: the data side times ½(1 + e^{iω_x}) and ½(1 + e^{−iω_y}).
+            let zf: Vec<Complex64> = (0..w * h)
+                .map(|o| {
+                    let (k, l) = (o % w, o / w);
+                    let (tx, ty) = (tau * k as f64 / w as f64, tau * l as f64 / h as f64);
+                    let a = Complex64::from_polar(1.0, tx) - 1.0;
+                    let c = Complex64::from_polar(1.0, -ty) - 1.0;
+                    let al = (Complex64::from_polar(1.0, tx) + 1.0) * 0.5;
+                    let ga = (Complex64::from_polar(1.0, -ty) + 1.0) * 0.5;
+                    let den = a.norm_sqr() + c.norm_sqr();
+                    if o == 0 {
+                        Complex64::new(0.0, 0.0)
+                    } else {
+                        (a.conj() * al * pf[o] + c.conj() * ga * qf[o]) / den
+                    }
+                })
+                .collect();
+            let want: Vec<f64> = dft2(&|i| zf[i], 1.0)
+                .into_iter()
+                .map(|v| v.re / (w * h) as f64)
+                .collect();
+            let z = frankot_chellappa(&g, Differences::Averaged);
+            assert_close(z.data(), &want, 1e-4, &format!("averaged FC {w}×{h}"));
         }
     }
 

@@ -304,7 +304,7 @@ impl Multigrid {
 }
 
 /// Masked Poisson by multigrid-preconditioned CG from the DCT warm start (module docs).
-/// `g` holds the edge values of the model. Returns the height (isolated domain pixels 0, zero
+/// The edge values of `params.differences` enter through the divergence. Returns the height (isolated domain pixels 0, zero
 /// mean over the rest of the domain), iterations and final relative residual.
 pub(super) fn masked_poisson(
     g: &GradientField,
@@ -313,8 +313,12 @@ pub(super) fn masked_poisson(
 ) -> (Plane, u32, f64) {
     let (w, h) = (g.width, g.height);
     let n = w * h;
-    let warm = poisson_dct(g, Some(m));
-    let b: Vec<f64> = divergence(g, Some(m)).into_iter().map(f64::from).collect();
+    let d = params.differences;
+    let warm = poisson_dct(g, Some(m), d);
+    let b: Vec<f64> = divergence(g, Some(m), d)
+        .into_par_iter()
+        .map(f64::from)
+        .collect();
     let mut x: Vec<f64> = warm.data().iter().map(|&v| f64::from(v)).collect();
     drop(warm);
     let mut mg = Multigrid::new(m, w, h);

@@ -249,7 +249,7 @@ pub fn integrate_gradients(
         domain_pixels: w * h,
         ..Default::default()
     };
-    let e = g.edge_values(params.differences);
+    let d = params.differences;
     let z = match (params.method, mask) {
         (IntegrationMethod::FrankotChellappa, _) => frankot_chellappa(g, params.differences),
         (IntegrationMethod::MaskedPoisson, Some(m)) => {
@@ -265,19 +265,19 @@ pub fn integrate_gradients(
             }
             report.domain_pixels = domain;
             report.isolated_pixels = isolated;
-            let (z, it, rel) = masked_poisson(&e, m, params);
+            let (z, it, rel) = masked_poisson(g, m, params);
             report.iterations = it;
             report.relative_residual = rel;
             z
         }
-        _ => poisson_dct(&e, None),
+        _ => poisson_dct(g, None, d),
     };
     let dom = if params.method == IntegrationMethod::MaskedPoisson {
         mask
     } else {
         None
     };
-    report.rms_residual = edge_residual_rms(&z, &e, dom);
+    report.rms_residual = edge_rms(Some(z.data()), g, dom, d);
     Ok((z, report))
 }
 
@@ -343,7 +343,7 @@ pub fn non_integrable_fraction(g: &GradientField, mask: Option<&[f32]>) -> Resul
             ..IntegrateParams::default()
         },
     )?;
-    let norm = edge_rms(None, &g.edge_values(Differences::Averaged), mask);
+    let norm = edge_rms(None, g, mask, Differences::Averaged);
     Ok(if norm > 0.0 {
         (report.rms_residual / norm).min(1.0)
     } else {
@@ -564,15 +564,29 @@ fn averaged_gradients_of_height(
     out
 }
 
-/// RMS of `D z − g` over the edges (inside the domain if given).
-fn edge_residual_rms(z: &Plane, g: &GradientField, domain: Option<&[f32]>) -> f64 {
-    edge_rms(Some(z.data()), g, domain)
+/// The edge value of a horizontal edge `i → i+1` in a model (module docs).
+#[inline(always)]
+fn edge_p(g: &GradientField, d: Differences, i: usize) -> f32 {
+    match d {
+        Differences::Forward => g.p[i],
+        Differences::Averaged => 0.5 * (g.p[i] + g.p[i + 1]),
+    }
 }
 
-/// RMS over the domain's edge equations of `D z − g`, or of `g` itself when `z` is `None`.
-fn edge_rms(z: Option<&[f32]>, g: &GradientField, domain: Option<&[f32]>) -> f64 {
+/// The edge value of a vertical edge `i → i−w` in a model (module docs).
+#[inline(always)]
+fn edge_q(g: &GradientField, d: Differences, i: usize) -> f32 {
+    match d {
+        Differences::Forward => g.q[i],
+        Differences::Averaged => 0.5 * (g.q[i] + g.q[i - g.width]),
+    }
+}
+
+/// RMS over the domain's edge equations of `D z − e` (`e` the model's edge values), or of `e`
+/// itself when `z` is `None`.
+fn edge_rms(z: Option<&[f32]>, g: &GradientField, domain: Option<&[f32]>, d: Differences) -> f64 {
     let (w, h) = (g.width, g.height);
-    let dz = |i: usize, j: usize| z.map_or(0.0, |d| d[j] - d[i]);
+    let dz = |i: usize, j: usize| z.map_or(0.0, |v| v[j] - v[i]);
     let ins = |i: usize| domain.is_none_or(|m| inside(m[i]));
     let (s, n) = (0..h)
         .into_par_iter()
@@ -581,12 +595,12 @@ fn edge_rms(z: Option<&[f32]>, g: &GradientField, domain: Option<&[f32]>) -> f64
             for x in 0..w {
                 let i = r * w + x;
                 if x + 1 < w && ins(i) && ins(i + 1) {
-                    let e = f64::from(dz(i, i + 1) - g.p[i]);
+                    let e = f64::from(dz(i, i + 1) - edge_p(g, d, i));
                     s += e * e;
                     n += 1;
                 }
                 if r >= 1 && ins(i) && ins(i - w) {
-                    let e = f64::from(dz(i, i - w) - g.q[i]);
+                    let e = f64::from(dz(i, i - w) - edge_q(g, d, i));
                     s += e * e;
                     n += 1;
                 }
@@ -601,20 +615,30 @@ fn edge_rms(z: Option<&[f32]>, g: &GradientField, domain: Option<&[f32]>) -> f64
     }
 }
 
-/// The divergence `b = Dᵀ g` (module docs); with a domain only edges inside it count.
-fn divergence(g: &GradientField, domain: Option<&[f32]>) -> Vec<f32> {
+/// The divergence `b = Dᵀ e` (module docs) of the model's edge values; with a domain only edges
+/// inside it count.
+fn divergence(g: &GradientField, domain: Option<&[f32]>, d: Differences) -> Vec<f32> {
     let mut b = buf::zeroed_f32(g.width * g.height);
     b.par_chunks_mut(g.width)
         .enumerate()
-        .for_each(|(r, out)| divergence_row(g, domain, r, out));
+        .for_each(|(r, out)| divergence_row(g, domain, d, r, out));
     b
 }
 
 /// Row `r` of [`divergence`] into `out`.
-fn divergence_row(g: &GradientField, domain: Option<&[f32]>, r: usize, out: &mut [f32]) {
+fn divergence_row(
+    g: &GradientField,
+    domain: Option<&[f32]>,
+    d: Differences,
+    r: usize,
+    out: &mut [f32],
+) {
     let (w, h) = (g.width, g.height);
     let row = r * w..(r + 1) * w;
     let Some(m) = domain else {
+        if d == Differences::Averaged {
+            return averaged_divergence_row(g, r, out);
+        }
         // Every edge counts: p(x−1) − p(x) (ends dropped), + q below, − q here.
         let p = &g.p[row.clone()];
         out[0] = 0.0;
@@ -634,26 +658,64 @@ fn divergence_row(g: &GradientField, domain: Option<&[f32]>, r: usize, out: &mut
         }
         return;
     };
-    let (p, q) = (&g.p, &g.q);
     let ins = |i: usize| inside(m[i]);
     for (x, o) in out.iter_mut().enumerate() {
         let i = r * w + x;
         let mut s = 0.0f32;
         if ins(i) {
             if x >= 1 && ins(i - 1) {
-                s += p[i - 1];
+                s += edge_p(g, d, i - 1);
             }
             if x + 1 < w && ins(i + 1) {
-                s -= p[i];
+                s -= edge_p(g, d, i);
             }
             if r + 1 < h && ins(i + w) {
-                s += q[i + w];
+                s += edge_q(g, d, i + w);
             }
             if r >= 1 && ins(i - w) {
-                s -= q[i];
+                s -= edge_q(g, d, i);
             }
         }
         *o = s;
+    }
+}
+
+/// Row `r` of the full-rectangle divergence of the averaged edge values, straight from the
+/// samples (no edge-value buffer): inside, `½(p(x−1) − p(x+1)) + ½(q(r+1) − q(r−1))`; the
+/// border terms keep their one edge.
+fn averaged_divergence_row(g: &GradientField, r: usize, out: &mut [f32]) {
+    let (w, h) = (g.width, g.height);
+    let p = &g.p[r * w..(r + 1) * w];
+    // x: e_p(x−1) − e_p(x) with e_p(x) = ½(p(x) + p(x+1)), x ≤ W−2.
+    if w == 1 {
+        out[0] = 0.0;
+    } else {
+        out[0] = -0.5 * (p[0] + p[1]);
+        for (x, o) in out.iter_mut().enumerate().take(w - 1).skip(1) {
+            *o = 0.5 * (p[x - 1] - p[x + 1]);
+        }
+        out[w - 1] = 0.5 * (p[w - 2] + p[w - 1]);
+    }
+    // y: e_q(r+1) − e_q(r) with e_q(r) = ½(q(r) + q(r−1)), r ≥ 1.
+    let q = |k: usize| &g.q[k * w..(k + 1) * w];
+    let qc = q(r);
+    match (r >= 1, r + 1 < h) {
+        (true, true) => {
+            for ((o, a), b) in out.iter_mut().zip(q(r + 1)).zip(q(r - 1)) {
+                *o += 0.5 * (a - b);
+            }
+        }
+        (false, true) => {
+            for ((o, a), b) in out.iter_mut().zip(q(r + 1)).zip(qc) {
+                *o += 0.5 * (a + b);
+            }
+        }
+        (true, false) => {
+            for ((o, a), b) in out.iter_mut().zip(qc).zip(q(r - 1)) {
+                *o -= 0.5 * (a + b);
+            }
+        }
+        (false, false) => {}
     }
 }
 #[cfg(test)]
