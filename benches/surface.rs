@@ -38,11 +38,19 @@ fn integration(c: &mut Criterion) {
     // An irregular blob (wobbly ellipse) covering half of the image.
     let mask = half_mask();
     let covered = mask.iter().filter(|&&v| v >= 0.5).count() as f64 / (W * H) as f64;
-    eprintln!("integrate_4k/MaskedPoisson: mask covers {:.1} % of the image", 100.0 * covered);
+    eprintln!(
+        "integrate_4k/MaskedPoisson: mask covers {:.1} % of the image",
+        100.0 * covered
+    );
     let params = IntegrateParams {
         method: IntegrationMethod::MaskedPoisson,
         ..Default::default()
     };
+    let (_, rep) = integrate_gradients(&g, Some(&mask), &params).unwrap();
+    eprintln!(
+        "integrate_4k/MaskedPoisson: {} CG iterations, relative residual {:.2e}",
+        rep.iterations, rep.relative_residual
+    );
     group.bench_function("MaskedPoisson", |b| {
         b.iter(|| integrate_gradients(black_box(&g), Some(&mask), &params).unwrap())
     });

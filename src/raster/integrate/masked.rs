@@ -266,9 +266,7 @@ impl Multigrid {
     /// `out ≈ A⁻¹ r` by one V-cycle (symmetric: module docs).
     fn apply(&mut self, r: &[f64], out: &mut [f64]) {
         let l0 = &mut self.levels[0];
-        l0.b.par_iter_mut()
-            .zip(r)
-            .for_each(|(b, &v)| *b = v as f32);
+        l0.b.par_iter_mut().zip(r).for_each(|(b, &v)| *b = v as f32);
         self.vcycle(0);
         out.par_iter_mut()
             .zip(&self.levels[0].x)

@@ -514,24 +514,21 @@ fn averaged_gradients_of_height(
     let fp = |i: usize| fallback.map_or(0.0, |f| f64::from(f.p[i]));
     let fq = |i: usize| fallback.map_or(0.0, |f| f64::from(f.q[i]));
     let mut out = GradientField::zeros(w, h);
-    out.p
-        .par_chunks_mut(w.max(1))
-        .enumerate()
-        .for_each_init(
-            || (Vec::new(), Vec::new()),
-            |(y, cp), (r, pr)| {
-                let o = r * w;
-                averaged_line(
-                    w,
-                    |k| ins(o + k),
-                    |k| f64::from(d[o + k + 1]) - f64::from(d[o + k]),
-                    |k| fp(o + k),
-                    |k, v| pr[k] = v,
-                    y,
-                    cp,
-                );
-            },
-        );
+    out.p.par_chunks_mut(w.max(1)).enumerate().for_each_init(
+        || (Vec::new(), Vec::new()),
+        |(y, cp), (r, pr)| {
+            let o = r * w;
+            averaged_line(
+                w,
+                |k| ins(o + k),
+                |k| f64::from(d[o + k + 1]) - f64::from(d[o + k]),
+                |k| fp(o + k),
+                |k, v| pr[k] = v,
+                y,
+                cp,
+            );
+        },
+    );
     // Columns top to bottom: edge k → k+1 is z(k) − z(k+1) = ½(q(k) + q(k+1)).
     let cols: Vec<Vec<f32>> = (0..w)
         .into_par_iter()
@@ -946,7 +943,11 @@ mod tests {
                 g.q[i] = (df(rho) * v / rho) as f32;
             }
         }
-        let col = [vec![0.5; size * size], vec![0.5; size * size], vec![0.5; size * size]];
+        let col = [
+            vec![0.5; size * size],
+            vec![0.5; size * size],
+            vec![0.5; size * size],
+        ];
         let mut img = RgbnImage::new(size, size, col, g.to_normals(), mask).unwrap();
         g.write_normals(&mut img);
         let z = Plane::from_fn(size, size, |x, r| {
@@ -1024,7 +1025,11 @@ mod tests {
             }
             assert!(max_slope > 9.0, "{name}: {max_slope}");
             assert!(rmse[0] <= 0.15, "{name}: averaged RMSE {}", rmse[0]);
-            assert!(rmse[1] > 4.0 * rmse[0], "{name}: forward {} vs averaged", rmse[1]);
+            assert!(
+                rmse[1] > 4.0 * rmse[0],
+                "{name}: forward {} vs averaged",
+                rmse[1]
+            );
         }
     }
 
@@ -1034,9 +1039,14 @@ mod tests {
         let c = size as f64 / 2.0;
         // Two Gaussian bumps, slopes ≤ 1: DCT (full rectangle) and masked (irregular mask).
         let bump = |u: f64, v: f64, a: f64, s: f64| a * (-(u * u + v * v) / (2.0 * s * s)).exp();
-        let f = |u: f64, v: f64| bump(u - 10.0, v + 5.0, 25.0, 20.0) - bump(u + 25.0, v - 20.0, 6.0, 12.0);
+        let f = |u: f64, v: f64| {
+            bump(u - 10.0, v + 5.0, 25.0, 20.0) - bump(u + 25.0, v - 20.0, 6.0, 12.0)
+        };
         let grad = |u: f64, v: f64| {
-            let (a, b) = (bump(u - 10.0, v + 5.0, 25.0, 20.0), bump(u + 25.0, v - 20.0, 6.0, 12.0));
+            let (a, b) = (
+                bump(u - 10.0, v + 5.0, 25.0, 20.0),
+                bump(u + 25.0, v - 20.0, 6.0, 12.0),
+            );
             [
                 -a * (u - 10.0) / 400.0 + b * (u + 25.0) / 144.0,
                 -a * (v + 5.0) / 400.0 + b * (v - 20.0) / 144.0,
@@ -1052,7 +1062,10 @@ mod tests {
                 -8.0 * ky * (kx * u).sin() * (ky * v).sin(),
             ]
         };
-        type Surf<'a> = (&'a (dyn Fn(f64, f64) -> f64 + Sync), &'a dyn Fn(f64, f64) -> [f64; 2]);
+        type Surf<'a> = (
+            &'a (dyn Fn(f64, f64) -> f64 + Sync),
+            &'a dyn Fn(f64, f64) -> [f64; 2],
+        );
         let mask = wobbly_mask(size, 60.0);
         let cases: [(IntegrationMethod, Surf, bool); 3] = [
             (IntegrationMethod::PoissonDct, (&f, &grad), false),
@@ -1165,7 +1178,10 @@ mod tests {
         assert!(z.data().iter().all(|v| v.is_finite()));
         assert_eq!(z.data()[36], 0.0);
         assert_eq!((rep.domain_pixels, rep.isolated_pixels), (7, 1), "{rep:?}");
-        let mean = [0, 1, 2, 8, 9, 10].iter().map(|&i| z.data()[i]).sum::<f32>();
+        let mean = [0, 1, 2, 8, 9, 10]
+            .iter()
+            .map(|&i| z.data()[i])
+            .sum::<f32>();
         assert!(mean.abs() < 1e-4, "{mean}");
     }
 }
