@@ -379,8 +379,10 @@ pub(super) fn masked_poisson(
     let inv = &mg.levels[0].inv_diag;
     let connected = |i: usize| inside(m[i]) && inv[i] > 0.0;
     let (s, c) = (0..n)
+        .into_par_iter()
         .filter(|&i| connected(i))
-        .fold((0.0, 0usize), |(s, c), i| (s + x[i], c + 1));
+        .map(|i| (x[i], 1usize))
+        .reduce(|| (0.0, 0), |a, b| (a.0 + b.0, a.1 + b.1));
     let mean = if c > 0 { s / c as f64 } else { 0.0 };
     let z: Vec<f32> = (0..n)
         .into_par_iter()

@@ -60,7 +60,7 @@
 //!   (coverage ≥ 0.5) are equations (averaged edge values thus only average two samples
 //!   inside), so nothing outside the object (background normals, depth discontinuities at the
 //!   silhouette) leaks in. The masked Laplacian is solved by conjugate gradients
-//!   preconditioned with one geometric-multigrid V-cycle (see [`masked`](self) sources:
+//!   preconditioned with one geometric-multigrid V-cycle (documented in the `masked` source:
 //!   coverage-aggregated coarse masks, rediscretised masked Laplacians, red-black Gauss–Seidel),
 //!   in `f64` for the Krylov vectors and `f32` inside the V-cycle, warm-started from the DCT
 //!   solution of the edge values with the off-domain edges set to 0. Each connected component
@@ -135,8 +135,9 @@ pub enum IntegrationMethod {
     PoissonDct,
     /// Least squares with periodic boundaries, FFT solver. The mask is ignored.
     FrankotChellappa,
-    /// Least squares over the edges inside the mask, Jacobi-preconditioned conjugate gradients
-    /// warm-started from the DCT solution. Without a mask it equals `PoissonDct`.
+    /// Least squares over the edges inside the mask, conjugate gradients preconditioned by a
+    /// multigrid V-cycle, warm-started from the DCT solution. Without a mask it equals
+    /// `PoissonDct`.
     MaskedPoisson,
 }
 
@@ -368,9 +369,9 @@ pub fn green_convention_fractions(img: &RgbnImage) -> Result<[f64; 2], RgbnError
     Ok([as_read, non_integrable_fraction(&flipped, img.mask())?])
 }
 
-/// Pixels whose curl stencil (itself, above, right, above-right: every value the forward
-/// differences of `p(x, r−1)`, `p(x, r)`, `q(x, r)`, `q(x+1, r)` read) lies inside the
-/// mask: the curl readout of a masked field, free of values across the silhouette.
+/// Pixels whose curl stencil (itself, above, right, above-right: every sample the plaquette
+/// circulation reads, in both [`Differences`] models) lies inside the mask: the curl readout
+/// of a masked field, free of values across the silhouette.
 #[must_use]
 pub fn curl_interior(mask: &[f32], w: usize, h: usize) -> Vec<f32> {
     (0..w * h)
