@@ -449,3 +449,35 @@ mod tests {
         assert!(max_err_up_to_constant(&zd, &z, Some(mask.data())) > 1.0);
     }
 }
+
+#[cfg(test)]
+mod convergence_tests {
+    use super::super::*;
+    use crate::raster::sample::Surface;
+
+    #[test]
+    fn multigrid_cg_needs_few_iterations_on_a_large_irregular_mask() {
+        // The bench's setting, scaled down: a wobbly ellipse over half the frame.
+        let (w, h) = (480, 270);
+        let (img, _) = Surface::gaussians_for(h).render(w, h);
+        let g = GradientField::from_normals(&img);
+        let (cx, cy) = (w as f64 / 2.0, h as f64 / 2.0);
+        let k = (2.0 / std::f64::consts::PI).sqrt();
+        let mask: Vec<f32> = (0..w * h)
+            .map(|i| {
+                let (u, v) = (((i % w) as f64 - cx) / cx, ((i / w) as f64 - cy) / cy);
+                let edge = k * (1.0 + 0.08 * (5.0 * v.atan2(u)).sin());
+                f32::from(u8::from(u.hypot(v) < edge))
+            })
+            .collect();
+        let params = IntegrateParams {
+            method: IntegrationMethod::MaskedPoisson,
+            ..Default::default()
+        };
+        let (z, rep) = integrate_gradients(&g, Some(&mask), &params).unwrap();
+        eprintln!("{w}×{h} half mask: {rep:?}");
+        assert!(rep.relative_residual <= 1e-6, "{rep:?}");
+        assert!(rep.iterations <= 30, "{rep:?}");
+        assert!(z.data().iter().all(|v| v.is_finite()));
+    }
+}
