@@ -278,7 +278,7 @@ pub(super) fn info(a: &InfoArgs, out: &mut Out<'_>) -> Result<(), CliError> {
         .repaired
     };
     let g = GradientField::from_normals(&img);
-    let c = g.curl_stats(img.mask());
+    let c = g.curl_stats_of(crate::raster::gradient::Differences::Averaged, img.mask());
     let (w, h) = (img.width(), img.height());
     out.line(format_args!("input:       {name}"))?;
     out.line(format_args!(
@@ -307,7 +307,7 @@ pub(super) fn info(a: &InfoArgs, out: &mut Out<'_>) -> Result<(), CliError> {
     ))?;
     let [as_read, flipped] = green_convention_fractions(&img)?;
     out.line(format_args!(
-        "integrability: non-integrable fraction F = {as_read:.3e} (0: the normals of a surface; ≈ 0.7: noise)"
+        "integrability: non-integrable fraction F = {as_read:.3e} (0: the normals of a surface; ≈ 0.8: noise)"
     ))?;
     let (this, other) = if a.input.dx {
         ("DirectX (-y)", "OpenGL (+y)")

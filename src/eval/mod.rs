@@ -754,7 +754,11 @@ impl Evaluator {
 
 fn curl_of(values: &[Value]) -> Option<f64> {
     values.iter().find_map(|v| match v {
-        Value::Rgbn(img) => Some(GradientField::from_normals(img).relative_rms_curl(img.mask())),
+        Value::Rgbn(img) => Some(
+            GradientField::from_normals(img)
+                .curl_stats_of(crate::raster::gradient::Differences::Averaged, img.mask())
+                .relative,
+        ),
         _ => None,
     })
 }

@@ -1,10 +1,11 @@
 //! Integrability readout: the discrete curl `c = ∂p/∂y − ∂q/∂x` of an image's gradient field
-//! (see [`crate::raster::gradient`]) as a scalar field, and its relative RMS.
+//! in the integrator's default edge model ([`Differences::Averaged`], see
+//! [`crate::raster::gradient`]) as a scalar field, and its relative RMS.
 
 use super::{Inputs, OpSpec, Operator, PortSpec, PortType, RunContext, Value};
 use crate::error::RgbnError;
 use crate::ops::params::NoParams;
-use crate::raster::gradient::GradientField;
+use crate::raster::gradient::{Differences, GradientField};
 use std::sync::Arc;
 
 /// The curl map and relative RMS curl of an image.
@@ -20,7 +21,7 @@ impl Operator for CurlOp {
             "Integrability readout: the curl map of the gradient field and RMS(curl)/RMS(|g|) inside the mask (zero for the normals of a height).",
         )
         .input(PortSpec::new("image", PortType::Rgbn, "Image."))
-        .output(PortSpec::new("curl", PortType::Scalar, "Curl per pixel (forward differences)."))
+        .output(PortSpec::new("curl", PortType::Scalar, "Curl per pixel: circulation of the averaged edge slopes (the integrator's model) around the 2×2 pixels (x..x+1, r−1..r)."))
         .output(PortSpec::new(
             "relative_rms",
             PortType::Number,
@@ -30,9 +31,10 @@ impl Operator for CurlOp {
     fn run(_: &NoParams, i: &Inputs<'_>, _: &RunContext) -> Result<Vec<Value>, RgbnError> {
         let img = i.rgbn("image")?;
         let g = GradientField::from_normals(img);
-        let stats = g.curl_stats(img.mask());
+        let e = g.edge_values(Differences::Averaged);
+        let stats = e.curl_stats(img.mask());
         Ok(vec![
-            Value::Scalar(Arc::new(g.curl())),
+            Value::Scalar(Arc::new(e.curl())),
             Value::Number(stats.relative),
         ])
     }

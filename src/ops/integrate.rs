@@ -3,7 +3,7 @@
 
 use super::params::Choice;
 use crate::error::RgbnError;
-use crate::raster::integrate::{IntegrateParams, IntegrationMethod};
+use crate::raster::integrate::{Differences, IntegrateParams, IntegrationMethod};
 use crate::raster::mesh::{MeshFormat, MeshParams};
 
 impl Choice for IntegrationMethod {
@@ -27,6 +27,26 @@ impl Choice for IntegrationMethod {
             IntegrationMethod::FrankotChellappa => "Periodic borders, FFT (mask ignored).",
             IntegrationMethod::MaskedPoisson => {
                 "Only edges inside the image's mask, conjugate gradients."
+            }
+        }
+    }
+}
+
+impl Choice for Differences {
+    const ALL: &'static [Self] = &[Differences::Averaged, Differences::Forward];
+    fn name(self) -> &'static str {
+        match self {
+            Differences::Averaged => "averaged",
+            Differences::Forward => "forward",
+        }
+    }
+    fn doc(self) -> &'static str {
+        match self {
+            Differences::Averaged => {
+                "Edge slope = average of the two pixel samples: heights at pixel centres."
+            }
+            Differences::Forward => {
+                "Edge slope = one pixel's sample (forward differences): half a pixel staggered for centre-sampled normals."
             }
         }
     }
@@ -61,6 +81,8 @@ crate::params! {
             => int.range(1.0, 1e7),
         /// Stop when ‖b − Lz‖ ≤ tolerance·‖b‖ (masked_poisson only).
         pub tolerance: f64 = IntegrateParams::default().tolerance => float.range(1e-12, 0.5),
+        /// averaged: an edge's slope is the average of its two pixel samples (normals sampled at pixel centres; heights registered at pixel centres); forward: one pixel's sample per edge (exact for forward differences of a height; half a pixel staggered otherwise). Graphs that do not name it get averaged.
+        pub differences: Differences = Differences::Averaged => choice,
     }
 }
 
@@ -72,6 +94,7 @@ impl IntegrateSettings {
             max_iterations: u32::try_from(self.max_iterations)
                 .map_err(|_| RgbnError::param("max_iterations", "out of range"))?,
             tolerance: self.tolerance,
+            differences: self.differences,
         };
         p.validate()?;
         Ok(p)

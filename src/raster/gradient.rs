@@ -14,6 +14,36 @@
 //!   `c(x, r) = (p(x, r−1) − p(x, r)) − (q(x+1, r) − q(x, r))`, defined for `r ≥ 1`,
 //!   `x ≤ W−2` (0 on the top row and right column). It is exactly zero (to rounding) for
 //!   the discrete gradient of any height (Agrawal et al. 2005).
+//!
+//! # Edge models ([`Differences`])
+//!
+//! Integration, the integrability projection and the curl readout of the integration
+//! module all read a gradient field through **one** discretisation: the *edge values* of
+//! [`GradientField::edge_values`]. The height lives at pixel centres; the edge between two
+//! neighbouring pixels carries one slope value:
+//!
+//! - [`Differences::Averaged`] (the default): the edge value is the average of the two pixel
+//!   samples, `e_p(x, r) = ½(p(x, r) + p(x+1, r))` on the edge `(x, r)–(x+1, r)` and
+//!   `e_q(x, r) = ½(q(x, r) + q(x, r−1))` on the edge `(x, r)–(x, r−1)`: the trapezoidal rule,
+//!   exact to second order for normals *sampled at pixel centres* (photometric stereo,
+//!   renderers), so integrated heights are registered at pixel centres.
+//! - [`Differences::Forward`]: the edge value is the sample of the pixel at the edge's start,
+//!   `e_p(x, r) = p(x, r)`, `e_q(x, r) = q(x, r)`: exact for the forward differences of
+//!   [`GradientField::from_height`]; for centre-sampled normals the height comes out staggered
+//!   by half a pixel.
+//!
+//! The curl of a model is the circulation of the edge values around the plaquette of the four
+//! pixels `(x, r)`, `(x+1, r)`, `(x, r−1)`, `(x+1, r−1)`:
+//! `c = (e_p(x, r−1) − e_p(x, r)) − (e_q(x+1, r) − e_q(x, r))` — with the forward model the
+//! formula above; with the averaged model the same 2 × 2 pixel stencil (so the same
+//! [`crate::raster::integrate::curl_interior`]), a box-averaged curl centred on the plaquette.
+//!
+//! **Checkerboard null space.** Averaging cannot see a slope component alternating in sign
+//! along its axis (`p = (−1)^x` along a row, `q = (−1)^r` along a column): its edge values are
+//! 0. Such a component carries no height and no curl in the averaged model. The integrators
+//! ignore it; the projection keeps it as it is (it changes the samples as little as possible,
+//! see [`crate::raster::integrate::gradients_of_height`]). The plain [`GradientField::curl`] /
+//! [`GradientField::curl_stats`] are the forward model (the editing operators' readouts).
 
 use super::{Plane, RgbnImage};
 use crate::raster::buf;
@@ -21,6 +51,19 @@ use rayon::prelude::*;
 
 /// Smallest `n_z` used when dividing; slopes are thus bounded by `1/NZ_EPSILON = 1000`.
 pub const NZ_EPSILON: f32 = 1e-3;
+
+/// How pixel samples of a gradient become the slope of an edge between two pixels (module
+/// docs).
+#[derive(
+    Clone, Copy, Debug, Default, PartialEq, Eq, Hash, serde::Serialize, serde::Deserialize,
+)]
+pub enum Differences {
+    /// Edge value = average of the two pixel samples (samples at pixel centres).
+    #[default]
+    Averaged,
+    /// Edge value = the sample of the edge's first pixel (forward differences, staggered).
+    Forward,
+}
 
 /// A gradient field `(p, q)` in the frame of the module docs.
 #[derive(Clone, Debug, PartialEq)]
@@ -170,6 +213,57 @@ impl GradientField {
                 }
             });
         out
+    }
+
+    /// The edge values of a model (module docs), stored where the forward model stores its
+    /// samples: the edge `(x, r)–(x+1, r)` at `p[(x, r)]`, the edge `(x, r)–(x, r−1)` at
+    /// `q[(x, r)]`. Slots without an edge (last column's `p`, top row's `q`) keep the sample.
+    /// The forward model borrows the field unchanged.
+    #[must_use]
+    pub fn edge_values(&self, d: Differences) -> std::borrow::Cow<'_, GradientField> {
+        if d == Differences::Forward {
+            return std::borrow::Cow::Borrowed(self);
+        }
+        let (w, h) = (self.width, self.height);
+        let mut out = GradientField::zeros(w, h);
+        out.clamped = self.clamped;
+        let (p, q) = (&self.p, &self.q);
+        out.p
+            .par_chunks_mut(w.max(1))
+            .zip(out.q.par_chunks_mut(w.max(1)))
+            .enumerate()
+            .for_each(|(r, (pr, qr))| {
+                let row = r * w..(r + 1) * w;
+                let (ps, qs) = (&p[row.clone()], &q[row]);
+                for (o, pair) in pr.iter_mut().zip(ps.windows(2)) {
+                    *o = 0.5 * (pair[0] + pair[1]);
+                }
+                if let (Some(o), Some(&v)) = (pr.last_mut(), ps.last()) {
+                    *o = v;
+                }
+                if r >= 1 {
+                    let qu = &q[(r - 1) * w..r * w];
+                    for ((o, &a), &b) in qr.iter_mut().zip(qs).zip(qu) {
+                        *o = 0.5 * (a + b);
+                    }
+                } else {
+                    qr.copy_from_slice(qs);
+                }
+            });
+        std::borrow::Cow::Owned(out)
+    }
+
+    /// The curl map of a model: the circulation of its [edge values](Self::edge_values)
+    /// (module docs), 0 where undefined.
+    #[must_use]
+    pub fn curl_of(&self, d: Differences) -> Plane {
+        self.edge_values(d).curl()
+    }
+
+    /// [`curl_stats`](Self::curl_stats) of a model's [edge values](Self::edge_values).
+    #[must_use]
+    pub fn curl_stats_of(&self, d: Differences, mask: Option<&[f32]>) -> CurlStats {
+        self.edge_values(d).curl_stats(mask)
     }
 
     /// The curl map (module docs), 0 where undefined.

@@ -46,6 +46,7 @@ pub fn ambient_occlusion(img: &RgbnImage, p: &InspectParams) -> Result<Plane, Rg
         },
         max_iterations: 1000,
         tolerance: 1e-4,
+        ..IntegrateParams::default()
     };
     let (mut z, _) = integrate_normals(img, &ip)?;
     let depth = p.ao_depth as f32;

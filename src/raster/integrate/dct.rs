@@ -3,7 +3,7 @@
 
 use super::divergence_row;
 use super::fft::{dct_plan, for_row_pairs, C_ZERO};
-use crate::raster::gradient::GradientField;
+use crate::raster::gradient::{Differences, GradientField};
 use crate::raster::par::par_column_groups;
 use crate::raster::{buf, Plane};
 use rustfft::num_complex::Complex;
@@ -11,20 +11,21 @@ use rustfft::num_complex::Complex;
 /// Columns per group of the column passes: one 64-byte cache line of `f32` per row.
 const DCT_COLUMN_GROUP: usize = 16;
 
-/// Solves `L z = Dᵀ g` (full rectangle, Neumann) with DCTs; the domain restricts the edges of
-/// the divergence only (used for the masked warm start).
+/// Solves `L z = Dᵀ e` (full rectangle, Neumann; `e` the edge values of model `d`, formed
+/// inside the divergence) with DCTs; the domain restricts the edges of the divergence only
+/// (used for the masked warm start).
 ///
 /// Three passes over one buffer: (1) row pairs: divergence, DCT-II along x; (2) groups of 16
 /// columns gathered into pair buffers: DCT-II along y, division by the eigenvalues, DCT-III
 /// along y, scattered back; (3) row pairs: DCT-III along x.
-pub(super) fn poisson_dct(g: &GradientField, domain: Option<&[f32]>) -> Plane {
+pub(super) fn poisson_dct(g: &GradientField, domain: Option<&[f32]>, d: Differences) -> Plane {
     let (w, h) = (g.width, g.height);
     let (dw, dh) = (dct_plan(w), dct_plan(h));
     let mut z = buf::zeroed_f32(w * h);
     for_row_pairs(&mut z, w, dw.scratch_len, |r, a, mut b, buf, s| {
-        divergence_row(g, domain, r, a);
+        divergence_row(g, domain, d, r, a);
         if let Some(b) = b.as_deref_mut() {
-            divergence_row(g, domain, r + 1, b);
+            divergence_row(g, domain, d, r + 1, b);
         }
         dw.dct2_pair(a, b, buf, s);
     });
@@ -153,8 +154,22 @@ mod tests {
             }
             cols(&mut b, &|c| iy.process_dct3(c));
             b.chunks_mut(w).for_each(|r| ix.process_dct3(r));
-            let z = poisson_dct(&g, None);
+            let z = poisson_dct(&g, None, Differences::Forward);
             assert_close(z.data(), &b, 1e-4, &format!("DCT Poisson {w}×{h}"));
+        }
+    }
+
+    #[test]
+    fn averaged_divergence_is_the_forward_one_of_the_edge_values() {
+        // The fused averaged divergence (no edge-value buffer) against the forward solver fed
+        // with the edge values of `GradientField::edge_values`.
+        for &(w, h) in &ODD_SIZES {
+            let g = rough_field(w, h);
+            let e = g.edge_values(Differences::Averaged);
+            let want = poisson_dct(&e, None, Differences::Forward);
+            let want: Vec<f64> = want.data().iter().map(|&v| f64::from(v)).collect();
+            let got = poisson_dct(&g, None, Differences::Averaged);
+            assert_close(got.data(), &want, 1e-5, &format!("averaged DCT {w}×{h}"));
         }
     }
 
@@ -162,13 +177,24 @@ mod tests {
     fn dct_poisson_recovers_any_height_from_its_discrete_gradient() {
         for &(w, h) in &[(37, 23), (64, 64), (1, 9), (9, 1), (128, 96)] {
             let z = rough(w, h);
-            let g = GradientField::from_height(&z);
-            let (zi, rep) = integrate_gradients(&g, None, &IntegrateParams::default()).unwrap();
-            let e = max_err_up_to_constant(&zi, &z, None);
-            assert!(e < 2e-3, "{w}×{h}: max error {e}");
-            assert!(rep.rms_residual < 1e-3, "{rep:?}");
-            let mean = zi.data().iter().map(|&v| f64::from(v)).sum::<f64>() / (w * h) as f64;
-            assert!(mean.abs() < 1e-3, "zero mean, got {mean}");
+            // Each model with the samples of a height in that model: forward differences,
+            // and the averaged model's minimum-norm samples (projection of a height).
+            for differences in [Differences::Forward, Differences::Averaged] {
+                let g = gradients_of_height(&z, None, None, differences);
+                if differences == Differences::Forward {
+                    assert_eq!(g, GradientField::from_height(&z));
+                }
+                let params = IntegrateParams {
+                    differences,
+                    ..Default::default()
+                };
+                let (zi, rep) = integrate_gradients(&g, None, &params).unwrap();
+                let e = max_err_up_to_constant(&zi, &z, None);
+                assert!(e < 2e-3, "{w}×{h} {differences:?}: max error {e}");
+                assert!(rep.rms_residual < 1e-3, "{rep:?}");
+                let mean = zi.data().iter().map(|&v| f64::from(v)).sum::<f64>() / (w * h) as f64;
+                assert!(mean.abs() < 1e-3, "zero mean, got {mean}");
+            }
         }
     }
 }

@@ -1,7 +1,7 @@
 //! Frankot–Chellappa solver (periodic boundaries, FFTs; module docs of [`super`]).
 
 use super::fft::{fft_plan, C32, C_ZERO};
-use crate::raster::gradient::GradientField;
+use crate::raster::gradient::{Differences, GradientField};
 use crate::raster::par::par_column_groups;
 use crate::raster::{buf, Plane};
 use rayon::prelude::*;
@@ -18,7 +18,7 @@ const FFT_COLUMN_GROUP: usize = 8;
 /// (2) groups of 8 bins: FFT along y of both, `Ẑ = (ā P̂ + c̄ Q̂)/(|a|² + |c|²)`, inverse FFT
 /// along y; (3) two rows of `Ẑ` (Hermitian along x) per inverse FFT of length `W` give two
 /// height rows. That is the work of scipy's `rfft2` ×2 + `irfft2`, half the complex 2-D FFTs.
-pub(super) fn frankot_chellappa(g: &GradientField) -> Plane {
+pub(super) fn frankot_chellappa(g: &GradientField, differences: Differences) -> Plane {
     let (w, h) = (g.width, g.height);
     let (fw, iw) = (fft_plan(w, false), fft_plan(w, true));
     let (fh, ih) = (fft_plan(h, false), fft_plan(h, true));
@@ -57,6 +57,28 @@ pub(super) fn frankot_chellappa(g: &GradientField) -> Plane {
             Complex::new((t.cos() - 1.0) as f32, -t.sin() as f32)
         })
         .collect();
+    // Numerators ā·α, c̄·γ with the data-side transfer functions of the edge model (module
+    // docs): averaged, −i sin ω and i sin ω (zero at ω = π: the checkerboard the average
+    // cannot see; the denominator |a|² + |c|² only vanishes at (0, 0)).
+    let averaged = differences == Differences::Averaged;
+    let anum: Vec<C32> = (0..hw)
+        .map(|k| {
+            if averaged {
+                Complex::new(0.0, -(tau * k as f64 / w as f64).sin() as f32)
+            } else {
+                abar[k]
+            }
+        })
+        .collect();
+    let cnum: Vec<C32> = (0..h)
+        .map(|l| {
+            if averaged {
+                Complex::new(0.0, (tau * l as f64 / h as f64).sin() as f32)
+            } else {
+                cbar[l]
+            }
+        })
+        .collect();
     let scale = (1.0 / (w as f64 * h as f64)) as f32;
     let scratch_len = fh
         .get_inplace_scratch_len()
@@ -81,15 +103,13 @@ pub(super) fn frankot_chellappa(g: &GradientField) -> Plane {
             fh.process_with_scratch(qb, scratch);
             for (j, (pc, qc)) in pb.chunks_exact_mut(h).zip(qb.chunks_exact(h)).enumerate() {
                 let kx = k0 + j;
-                let a = abar[kx];
-                let na = a.norm_sqr();
+                let (a, na) = (anum[kx], abar[kx].norm_sqr());
                 for (l, (pv, qv)) in pc.iter_mut().zip(qc).enumerate() {
-                    let c = cbar[l];
-                    let den = na + c.norm_sqr();
+                    let den = na + cbar[l].norm_sqr();
                     *pv = if kx == 0 && l == 0 {
                         C_ZERO
                     } else {
-                        (a * *pv + c * *qv) * (scale / den)
+                        (a * *pv + cnum[l] * *qv) * (scale / den)
                     };
                 }
             }
@@ -185,8 +205,31 @@ mod tests {
                 .into_iter()
                 .map(|v| v.re / (w * h) as f64)
                 .collect();
-            let z = frankot_chellappa(&g);
+            let z = frankot_chellappa(&g, Differences::Forward);
             assert_close(z.data(), &want, 1e-4, &format!("Frankot–Chellappa {w}×{h}"));
+            // Averaged: the data side times ½(1 + e^{iω_x}) and ½(1 + e^{−iω_y}).
+            let zf: Vec<Complex64> = (0..w * h)
+                .map(|o| {
+                    let (k, l) = (o % w, o / w);
+                    let (tx, ty) = (tau * k as f64 / w as f64, tau * l as f64 / h as f64);
+                    let a = Complex64::from_polar(1.0, tx) - 1.0;
+                    let c = Complex64::from_polar(1.0, -ty) - 1.0;
+                    let al = (Complex64::from_polar(1.0, tx) + 1.0) * 0.5;
+                    let ga = (Complex64::from_polar(1.0, -ty) + 1.0) * 0.5;
+                    let den = a.norm_sqr() + c.norm_sqr();
+                    if o == 0 {
+                        Complex64::new(0.0, 0.0)
+                    } else {
+                        (a.conj() * al * pf[o] + c.conj() * ga * qf[o]) / den
+                    }
+                })
+                .collect();
+            let want: Vec<f64> = dft2(&|i| zf[i], 1.0)
+                .into_iter()
+                .map(|v| v.re / (w * h) as f64)
+                .collect();
+            let z = frankot_chellappa(&g, Differences::Averaged);
+            assert_close(z.data(), &want, 1e-4, &format!("averaged FC {w}×{h}"));
         }
     }
 
@@ -205,6 +248,7 @@ mod tests {
         }
         let params = IntegrateParams {
             method: IntegrationMethod::FrankotChellappa,
+            differences: Differences::Forward,
             ..Default::default()
         };
         let (zi, _) = integrate_gradients(&g, None, &params).unwrap();

@@ -24,9 +24,10 @@ impl ProjectParams {
 /// Integrability before and after [`project_integrable`].
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct ProjectionReport {
-    /// Curl of the input's gradients (over the mask's [`curl_interior`] if masked).
+    /// Model curl of the input's gradients (over the mask's [`curl_interior`] if masked).
     pub before: CurlStats,
-    /// Curl of the output's gradients (from its normals, so including unit-vector rounding).
+    /// Model curl of the output's gradients (from its normals, so including unit-vector
+    /// rounding).
     pub after: CurlStats,
     pub integration: IntegrationReport,
 }
@@ -46,14 +47,15 @@ pub fn project_integrable(
     let interior = img
         .mask()
         .map(|m| curl_interior(m, img.width(), img.height()));
-    let before = g.curl_stats(interior.as_deref());
+    let model = params.integrate.differences;
+    let before = g.curl_stats_of(model, interior.as_deref());
     let (z, integration) = integrate_gradients(&g, img.mask(), &params.integrate)?;
     let masked = params.integrate.method == IntegrationMethod::MaskedPoisson;
     let dom = if masked { img.mask() } else { None };
-    let g2 = gradients_of_height(&z, dom, Some(&g));
+    let g2 = gradients_of_height(&z, dom, Some(&g), model);
     let mut out = img.clone();
     g2.write_normals(&mut out);
-    let after = GradientField::from_normals(&out).curl_stats(interior.as_deref());
+    let after = GradientField::from_normals(&out).curl_stats_of(model, interior.as_deref());
     Ok((
         out,
         z,
@@ -77,15 +79,19 @@ mod tests {
         let size = 96;
         let s = Surface::gaussians_for(size);
         let (_, z) = s.render(size, size);
-        let mut img = RgbnImage::flat(size, size, [0.5; 3]);
-        GradientField::from_height(&z).write_normals(&mut img);
-        for method in [
-            IntegrationMethod::PoissonDct,
-            IntegrationMethod::MaskedPoisson,
+        for (method, differences) in [
+            (IntegrationMethod::PoissonDct, Differences::Averaged),
+            (IntegrationMethod::MaskedPoisson, Differences::Averaged),
+            (IntegrationMethod::PoissonDct, Differences::Forward),
+            (IntegrationMethod::MaskedPoisson, Differences::Forward),
         ] {
+            // The samples of a height in the model: an integrable field of that model.
+            let mut img = RgbnImage::flat(size, size, [0.5; 3]);
+            gradients_of_height(&z, None, None, differences).write_normals(&mut img);
             let params = ProjectParams {
                 integrate: IntegrateParams {
                     method,
+                    differences,
                     ..Default::default()
                 },
             };
@@ -99,17 +105,31 @@ mod tests {
                 })
                 .fold(0.0f32, f32::max);
             eprintln!(
-                "{method:?} projection of an integrable field: max |Δn| {max_dn:.2e}, curl \
-                 {:.2e} → {:.2e}",
+                "{method:?} {differences:?} projection of an integrable field: max |Δn| \
+                 {max_dn:.2e}, curl {:.2e} → {:.2e}",
                 rep.before.relative, rep.after.relative
             );
             assert!(max_dn <= 1e-4, "{max_dn}");
+            assert!(rep.before.relative < 1e-4, "{rep:?}");
+            // Projecting twice changes nothing more.
+            let (out2, _, _) = project_integrable(&out, &params).unwrap();
+            let d2 = (0..3)
+                .flat_map(|k| {
+                    out.normal()[k]
+                        .iter()
+                        .zip(&out2.normal()[k])
+                        .map(|(a, b)| (a - b).abs())
+                })
+                .fold(0.0f32, f32::max);
+            assert!(d2 <= 1e-4, "{d2}");
         }
+        let mut img = RgbnImage::flat(size, size, [0.5; 3]);
+        gradients_of_height(&z, None, None, Differences::Averaged).write_normals(&mut img);
 
         // Add a divergence-free vortex g_rot = (∂ψ/∂v, −∂ψ/∂u) of a Gaussian stream function
         // ψ (tangential at the border, so it carries no height under Neumann boundaries).
         let (amp, s2) = (3.0f32, 2.0 * 8.0f32 * 8.0);
-        let mut g = GradientField::from_height(&z);
+        let mut g = gradients_of_height(&z, None, None, Differences::Averaged);
         for r in 0..size {
             for x in 0..size {
                 let (u, v) = (x as f32 - 40.0, 50.0 - r as f32);
