@@ -24,7 +24,7 @@ impl Operator for Demo {
             "demo",
             "Demo medallion",
             "input",
-            "The built-in procedural RGBN demo: a relief medallion with exact normals, no files needed.",
+            "The built-in procedural RGBN demo: a relief medallion whose normals are exactly a surface's, no files needed.",
         )
         .output(PortSpec::new("image", PortType::Rgbn, "The demo image."))
     }
@@ -38,7 +38,9 @@ impl Operator for Demo {
     }
 }
 
-/// An analytic surface ([`Surface`]) with exact normals and its height.
+/// An analytic surface ([`crate::raster::sample::Surface`]) sampled at the pixel corners with normals from their
+/// differences (exactly integrable; [`crate::raster::sample::Surface::render_sampled`]), or with the analytic normals
+/// at pixel centres, and its height.
 pub struct SurfaceOp;
 
 impl Operator for SurfaceOp {
@@ -48,12 +50,12 @@ impl Operator for SurfaceOp {
             "surface",
             "Analytic surface",
             "input",
-            "An analytic height field (sphere, paraboloid, sinusoid, Gaussian bumps) sampled with exact normals, grey albedo, and its height.",
+            "An analytic height field (sphere, paraboloid, sinusoid, Gaussian bumps) with grey albedo and its height; normals from the height's differences (exactly a surface) or analytic.",
         )
         .output(PortSpec::new(
             "image",
             PortType::Rgbn,
-            "Exact normals; masked where the slope is undefined.",
+            "The surface's normals; masked where the slope is undefined.",
         ))
         .output(PortSpec::new(
             "height",
@@ -68,7 +70,11 @@ impl Operator for SurfaceOp {
         let (w, h) = (p.width as usize, p.height as usize);
         check_size(w, h, "surface")?;
         let s = p.surface(w, h);
-        let (img, z) = s.render(w, h);
+        let (img, z) = if p.analytic_normals {
+            s.render(w, h)
+        } else {
+            s.render_sampled(w, h)
+        };
         Ok(vec![Value::Rgbn(img), Value::Scalar(Arc::new(z))])
     }
 }

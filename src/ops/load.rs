@@ -35,6 +35,10 @@ crate::params! {
         pub amplitude_px: f64 = 4.0 => float.unit("px").range(-1e4, 1e4),
         /// Sinusoid period.
         pub period_px: f64 = 32.0 => float.unit("px").range(0.5, 1e5),
+        /// Normals from the analytic derivative at each pixel centre (not exactly integrable on
+        /// the pixel grid) instead of the differences of the height sampled at the pixel corners
+        /// (the default: exactly a surface, curl 0, as a capture of a real surface would be).
+        pub analytic_normals: bool = false => bool,
     }
 }
 

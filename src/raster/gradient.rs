@@ -311,12 +311,22 @@ impl GradientField {
                     &p[(r - 1) * w..r * w],
                     &p[row.clone()],
                     &q[row.clone()],
-                    mask.map(|m| &m[row]),
+                    mask.map(|m| (&m[(r - 1) * w..r * w], &m[row])),
                 )
             })
             .reduce(CurlSums::default, CurlSums::merge)
             .stats()
     }
+}
+
+/// Whether the curl plaquette at column `x` of row `r ≥ 1` counts under a mask: all four
+/// pixels of its block `{x, x+1} × {r−1, r}` have coverage ≥ 0.5 (see [`CurlSums::of_row`]).
+/// `x + 1 < w` is the caller's contract.
+#[inline(always)]
+#[must_use]
+pub fn plaquette_covered(m: &[f32], w: usize, r: usize, x: usize) -> bool {
+    let (u, c) = ((r - 1) * w + x, r * w + x);
+    m[u] >= 0.5 && m[u + 1] >= 0.5 && m[c] >= 0.5 && m[c + 1] >= 0.5
 }
 
 /// Running sums behind [`CurlStats`], so that a kernel can gather them piecewise (rows,
@@ -347,15 +357,19 @@ impl CurlSums {
     }
 
     /// The sums of one row `r ≥ 1` (module docs): `pu` = p of row `r−1`, `pc`, `qc` = p, q of
-    /// row `r`, `mask` = row `r` of the mask (pixels with coverage < 0.5 are skipped). The
-    /// right column (no `x+1`) is not counted. Accumulates in 8 interleaved partial sums so
-    /// the loop vectorises.
+    /// row `r`, `mask` = rows `r−1` and `r` of the mask. The plaquette at `x` reads the samples
+    /// of the 2 × 2 block `{x, x+1} × {r−1, r}` (in both models), so it counts only when all
+    /// four pixels have coverage ≥ 0.5: a covered pixel beside the silhouette must not be judged
+    /// by the filler normal of its uncovered neighbour. The right column (no `x+1`) is not
+    /// counted. Accumulates in 8 interleaved partial sums so the loop vectorises.
     #[inline(always)]
     #[must_use]
-    pub fn of_row(pu: &[f32], pc: &[f32], qc: &[f32], mask: Option<&[f32]>) -> Self {
+    pub fn of_row(pu: &[f32], pc: &[f32], qc: &[f32], mask: Option<(&[f32], &[f32])>) -> Self {
         match mask {
             None => Self::of_row_where(pu, pc, qc, |_| true),
-            Some(m) => Self::of_row_where(pu, pc, qc, |x| m[x] >= 0.5),
+            Some((mu, mc)) => Self::of_row_where(pu, pc, qc, |x| {
+                mu[x] >= 0.5 && mu[x + 1] >= 0.5 && mc[x] >= 0.5 && mc[x + 1] >= 0.5
+            }),
         }
     }
 

@@ -231,14 +231,111 @@ fn medallion(u: f64, v: f64, rr: f64) -> (f64, [f32; 3]) {
     (z, c)
 }
 
+/// Heights of `f(u, v)` at the `(width + 1) × (height + 1)` pixel corners, row-major, with
+/// `u = x − cx`, `v = cy − row` for corner `(x, row)`.
+fn corner_heights(width: usize, height: usize, f: impl Fn(f64, f64) -> f64 + Sync) -> Vec<f64> {
+    let (cx, cy) = (width as f64 / 2.0, height as f64 / 2.0);
+    let cw = width + 1;
+    let mut z = vec![0.0; cw * (height + 1)];
+    z.par_chunks_mut(cw).enumerate().for_each(|(row, line)| {
+        for (x, out) in line.iter_mut().enumerate() {
+            *out = f(x as f64 - cx, cy - row as f64);
+        }
+    });
+    z
+}
+
+/// The gradient `(∂z/∂u, ∂z/∂v)` at the centre of pixel `(x, row)` of the bilinear
+/// interpolation of the corner heights `zc` (`width + 1` a row): the 2 × 2 differences. Normals
+/// from these are *exactly* integrable under the averaged edge model
+/// ([`crate::raster::gradient::Differences::Averaged`]): with `p = A_y Δ_x z_c`,
+/// `q = A_x Δ_y z_c` every 2 × 2 circulation of averaged edge values cancels, and the height
+/// that integrates them, registered at pixel centres, is the mean of the four corners
+/// ([`corner_mean`]).
+fn corner_gradient(zc: &[f64], width: usize, x: usize, row: usize) -> [f64; 2] {
+    let cw = width + 1;
+    let (tl, tr) = (zc[row * cw + x], zc[row * cw + x + 1]);
+    let (bl, br) = (zc[(row + 1) * cw + x], zc[(row + 1) * cw + x + 1]);
+    [0.5 * ((tr - tl) + (br - bl)), 0.5 * ((tl - bl) + (tr - br))]
+}
+
+/// The mean of the four corner heights of pixel `(x, row)`.
+fn corner_mean(zc: &[f64], width: usize, x: usize, row: usize) -> f64 {
+    let cw = width + 1;
+    0.25 * (zc[row * cw + x]
+        + zc[row * cw + x + 1]
+        + zc[(row + 1) * cw + x]
+        + zc[(row + 1) * cw + x + 1])
+}
+
+impl Surface {
+    /// Samples the surface as a capture does: the height at the pixel corners, each pixel's
+    /// normal from the differences of its four corners ([`corner_gradient`]), so the image is
+    /// exactly integrable (curl 0 up to rounding) and the returned height (the corner mean,
+    /// at pixel centres) is what integrating its normals gives back. Masked where the slope is
+    /// undefined at any of the four corners (outside the sphere or on its rim).
+    #[must_use]
+    pub fn render_sampled(&self, width: usize, height: usize) -> (RgbnImage, Plane) {
+        let zc = corner_heights(width, height, |u, v| self.height(u, v));
+        let defined = corner_heights(width, height, |u, v| {
+            f64::from(u8::from(self.gradient(u, v).is_some()))
+        });
+        let n = width * height;
+        let mut normal = [
+            buf::zeroed_f32(n),
+            buf::zeroed_f32(n),
+            buf::filled_f32(n, 1.0),
+        ];
+        let mut mask = buf::filled_f32(n, 1.0);
+        let mut any_masked = false;
+        for row in 0..height {
+            for x in 0..width {
+                let i = row * width + x;
+                let cw = width + 1;
+                let ok = [
+                    row * cw + x,
+                    row * cw + x + 1,
+                    (row + 1) * cw + x,
+                    (row + 1) * cw + x + 1,
+                ]
+                .iter()
+                .all(|&c| defined[c] > 0.5);
+                if !ok {
+                    mask[i] = 0.0;
+                    any_masked = true;
+                    continue;
+                }
+                let [p, q] = corner_gradient(&zc, width, x, row);
+                let nv = normal_of_gradient(p as f32, q as f32);
+                for k in 0..3 {
+                    normal[k][i] = nv[k];
+                }
+            }
+        }
+        let z = Plane::from_fn(width, height, |x, r| corner_mean(&zc, width, x, r) as f32);
+        let img = RgbnImage::new(
+            width,
+            height,
+            [vec![0.8; n], vec![0.8; n], vec![0.8; n]],
+            normal,
+            any_masked.then_some(mask),
+        )
+        .expect("sizes match by construction");
+        (img, z)
+    }
+}
+
 /// The procedural demo RGBN: a relief medallion (dome, star, rays, beads, rim, hammered and woven
-/// textures, enamel colours) of `size × size` pixels; 1024 is the intended size. Normals are the
-/// exact derivatives of its height (central differences of the analytic function at 0.01 px).
+/// textures, enamel colours) of `size × size` pixels; 1024 is the intended size. Its height is
+/// sampled at the pixel corners and each normal is taken from the differences of its pixel's
+/// four corners, as [`Surface::render_sampled`] does: the demo is exactly a surface (curl 0 up to
+/// rounding), and [`demo_height`] is the height that integrating it gives back.
 #[must_use]
 pub fn demo_medallion(size: usize) -> RgbnImage {
     let n = size * size;
     let c = size as f64 / 2.0;
     let rr = 0.45 * size as f64;
+    let zc = corner_heights(size, size, |u, v| medallion(u, v, rr).0);
     let mut color = [buf::zeroed_f32(n), buf::zeroed_f32(n), buf::zeroed_f32(n)];
     let mut normal = [buf::zeroed_f32(n), buf::zeroed_f32(n), buf::zeroed_f32(n)];
     type Row = (Vec<[f32; 3]>, Vec<[f32; 3]>);
@@ -250,9 +347,7 @@ pub fn demo_medallion(size: usize) -> RgbnImage {
             for x in 0..size {
                 let (u, v) = (x as f64 + 0.5 - c, c - row as f64 - 0.5);
                 let (_, col) = medallion(u, v, rr);
-                let h = 0.01;
-                let p = (medallion(u + h, v, rr).0 - medallion(u - h, v, rr).0) / (2.0 * h);
-                let q = (medallion(u, v + h, rr).0 - medallion(u, v - h, rr).0) / (2.0 * h);
+                let [p, q] = corner_gradient(&zc, size, x, row);
                 cols.push(col);
                 nors.push(normal_of_gradient(p as f32, q as f32));
             }
@@ -271,14 +366,13 @@ pub fn demo_medallion(size: usize) -> RgbnImage {
     RgbnImage::new(size, size, color, normal, None).expect("sizes match by construction")
 }
 
-/// The height of the demo medallion (pixels), for tests and the height view.
+/// The height of the demo medallion (pixels) at pixel centres — the mean of each pixel's four
+/// corner samples, the height its normals integrate to — for tests and the height view.
 #[must_use]
 pub fn demo_height(size: usize) -> Plane {
-    let c = size as f64 / 2.0;
     let rr = 0.45 * size as f64;
-    Plane::from_fn(size, size, |x, row| {
-        medallion(x as f64 + 0.5 - c, c - row as f64 - 0.5, rr).0 as f32
-    })
+    let zc = corner_heights(size, size, |u, v| medallion(u, v, rr).0);
+    Plane::from_fn(size, size, |x, row| corner_mean(&zc, size, x, row) as f32)
 }
 
 #[cfg(test)]
@@ -326,6 +420,91 @@ mod tests {
             0.0,
             "corner lies outside the sphere"
         );
+    }
+
+    /// The averaged-model relative RMS curl (the readout of `rgbn info`).
+    fn averaged_curl(img: &RgbnImage) -> f64 {
+        use crate::raster::gradient::{Differences, GradientField};
+        GradientField::from_normals(img)
+            .curl_stats_of(Differences::Averaged, img.mask())
+            .relative
+    }
+
+    #[test]
+    fn sampled_normals_are_exactly_a_surface_and_integrate_to_its_height() {
+        use crate::raster::integrate::{integrate_normals, IntegrateParams, IntegrationMethod};
+        let surfaces = [
+            // detail near the pixel scale: analytic normals are far from a surface here
+            Surface::Gaussians {
+                bumps: vec![[3.3, -2.1, 4.0, 1.5], [-20.0, 10.0, -3.0, 2.5]],
+            },
+            Surface::Sinusoid {
+                amplitude_px: 3.0,
+                period_px: 5.0,
+            },
+            Surface::gaussians_for(96),
+            Surface::Sphere { radius_px: 40.0 },
+        ];
+        for s in &surfaces {
+            let (img, z) = s.render_sampled(96, 80);
+            let curl = averaged_curl(&img);
+            assert!(curl <= 1e-5, "{s:?}: relative curl {curl:e}");
+            let params = IntegrateParams {
+                method: if img.mask().is_some() {
+                    IntegrationMethod::MaskedPoisson
+                } else {
+                    IntegrationMethod::PoissonDct
+                },
+                ..IntegrateParams::default()
+            };
+            let (zi, _) = integrate_normals(&img, &params).unwrap();
+            // compare up to the constant, inside the mask
+            let inside: Vec<usize> = (0..96 * 80)
+                .filter(|&i| img.mask().is_none_or(|m| m[i] >= 0.5))
+                .collect();
+            let off = inside
+                .iter()
+                .map(|&i| f64::from(z.data()[i] - zi.data()[i]))
+                .sum::<f64>()
+                / inside.len() as f64;
+            let worst = inside
+                .iter()
+                .map(|&i| (f64::from(z.data()[i] - zi.data()[i]) - off).abs())
+                .fold(0.0, f64::max);
+            assert!(worst < 2e-3, "{s:?}: height error {worst} px");
+        }
+        // the analytic normals of the narrow bumps are not a surface on this grid
+        let (analytic, _) = surfaces[0].render(96, 80);
+        assert!(
+            averaged_curl(&analytic) > 0.01,
+            "{}",
+            averaged_curl(&analytic)
+        );
+    }
+
+    #[test]
+    fn the_demo_is_exactly_a_surface_and_integrates_to_demo_height() {
+        use crate::raster::integrate::{integrate_normals, IntegrateParams};
+        let img = demo_medallion(128);
+        let curl = averaged_curl(&img);
+        assert!(curl <= 1e-4, "relative curl {curl:e}");
+        let (zi, _) = integrate_normals(&img, &IntegrateParams::default()).unwrap();
+        let z = demo_height(128);
+        let n = z.data().len() as f64;
+        let off = z
+            .data()
+            .iter()
+            .zip(zi.data())
+            .map(|(a, b)| f64::from(a - b))
+            .sum::<f64>()
+            / n;
+        let worst = z
+            .data()
+            .iter()
+            .zip(zi.data())
+            .map(|(a, b)| (f64::from(a - b) - off).abs())
+            .fold(0.0, f64::max);
+        assert!(worst < 2e-3, "height error {worst} px");
     }
 
     #[test]

@@ -25,7 +25,9 @@ use super::convolve::{
     lane_splat, lanes_to_rows, load_lane, rows_to_lanes, store_lane, BorderMode, Lane, LineFilter,
     LANES,
 };
-use super::gradient::{gradient_of_normal, normal_of_gradient, CurlSums, NZ_EPSILON};
+use super::gradient::{
+    gradient_of_normal, normal_of_gradient, plaquette_covered, CurlSums, NZ_EPSILON,
+};
 use super::par::SharedMut;
 use crate::raster::buf;
 use rayon::prelude::*;
@@ -205,7 +207,7 @@ impl<F: LineFilter> Sweep<'_, F> {
                 } else {
                     &p_done[(k - 1) * w..]
                 };
-                let m = self.mask.map(|m| &m[o]);
+                let m = self.mask.map(|m| (&m[(r - 1) * w..r * w], &m[o]));
                 sums = sums.merge(CurlSums::of_row(p_prev, p_row, q_row, m));
             }
         }
@@ -290,7 +292,10 @@ impl<F: LineFilter> Sweep<'_, F> {
                     0.0
                 },
                 q_last: bq[r][last],
-                keep: r >= 1 && self.mask.is_none_or(|m| m[r * w + c0 + last] >= 0.5),
+                keep: r >= 1
+                    && self
+                        .mask
+                        .is_none_or(|m| c0 + last + 1 < w && plaquette_covered(m, w, r, c0 + last)),
                 q_first: bq[r][0],
             })
             .collect();
@@ -392,7 +397,7 @@ fn group_curl(
         let keep: Lane = match mask {
             None => counted,
             Some(m) => std::array::from_fn(|l| {
-                if counted[l] > 0.0 && m[r * w + c0 + l] >= 0.5 {
+                if counted[l] > 0.0 && plaquette_covered(m, w, r, c0 + l) {
                     1.0
                 } else {
                     0.0

@@ -221,7 +221,7 @@ fn linear_filter_graph_equals_the_library_call() {
     let lg = LoadedGraph::load(&graph_path("filter_gaussian.ron")).unwrap();
     let r = eval_all(&Evaluator::default(), &lg, std::env::temp_dir().as_path());
     let got = image(&r.outputs["image"]);
-    let (src, _) = Surface::gaussians_for(96).render(96, 96);
+    let (src, _) = Surface::gaussians_for(96).render_sampled(96, 96);
     let (want, _) = filter_normals(
         &src,
         &[Kernel::Gaussian { sigma_px: 2.5 }],
@@ -237,7 +237,7 @@ fn linear_filter_graph_equals_the_library_call() {
 fn reusable_graph_node_equals_its_inlined_maths() {
     let lg = LoadedGraph::load(&graph_path("subgraph.ron")).unwrap();
     let r = eval_all(&Evaluator::default(), &lg, std::env::temp_dir().as_path());
-    let (src, _) = Surface::gaussians_for(80).render(80, 80);
+    let (src, _) = Surface::gaussians_for(80).render_sampled(80, 80);
     // lib/detail.ron: gaussian σ 0.8 then sharpen σ 4 with the exposed amount set to 2.
     let (a, _) = filter_normals(
         &src,
@@ -265,6 +265,6 @@ fn save_node_writes_the_image_where_asked() {
     let written = dir.path().join("sphere_saved.exr");
     let back = rgbn::raster::io::load_exr(&written, &Default::default()).unwrap();
     assert_eq!(&back, image(&r.outputs["saved"]));
-    let (want, _) = Surface::Sphere { radius_px: 12.0 }.render(32, 32);
+    let (want, _) = Surface::Sphere { radius_px: 12.0 }.render_sampled(32, 32);
     assert_eq!(back, want);
 }

@@ -209,7 +209,7 @@ fn eval_text(text: &str) -> Result<BTreeMap<String, Value>, String> {
 #[test]
 fn the_view_node_offers_the_inspection_views_with_their_parameters() {
     let out = eval_text(GRAPH).unwrap();
-    let (img, _) = rgbn::raster::sample::Surface::Sphere { radius_px: 15.0 }.render(40, 40);
+    let (img, _) = rgbn::raster::sample::Surface::Sphere { radius_px: 15.0 }.render_sampled(40, 40);
     let pic = |name: &str| match &out[name] {
         Value::Picture(p) => p.rgba.clone(),
         other => panic!("{name}: {:?}", other.port_type()),
