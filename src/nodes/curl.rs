@@ -1,11 +1,11 @@
 //! Integrability readout: the discrete curl `c = ∂p/∂y − ∂q/∂x` of an image's gradient field
-//! in the integrator's default edge model ([`Differences::Averaged`], see
+//! in the integrator's default edge model (`Differences::Averaged`, see
 //! [`crate::raster::gradient`]) as a scalar field, and its relative RMS.
 
 use super::{Inputs, OpSpec, Operator, PortSpec, PortType, RunContext, Value};
 use crate::error::RgbnError;
 use crate::ops::params::NoParams;
-use crate::raster::gradient::{Differences, GradientField};
+use crate::raster::gradient::GradientField;
 use std::sync::Arc;
 
 /// The curl map and relative RMS curl of an image.
@@ -31,10 +31,9 @@ impl Operator for CurlOp {
     fn run(_: &NoParams, i: &Inputs<'_>, _: &RunContext) -> Result<Vec<Value>, RgbnError> {
         let img = i.rgbn("image")?;
         let g = GradientField::from_normals(img);
-        let e = g.edge_values(Differences::Averaged);
-        let stats = e.curl_stats(img.mask());
+        let stats = g.curl_stats(img.mask());
         Ok(vec![
-            Value::Scalar(Arc::new(e.curl())),
+            Value::Scalar(Arc::new(g.curl())),
             Value::Number(stats.relative),
         ])
     }

@@ -275,7 +275,7 @@ mod tests {
             ],
         }
         .render(size, size);
-        GradientField::from_height(&Plane::from_vec(size, size, z.into_vec()).unwrap())
+        GradientField::of_height(&Plane::from_vec(size, size, z.into_vec()).unwrap()).0
     }
 
     fn all_bands() -> Vec<Band> {
@@ -324,7 +324,7 @@ mod tests {
                 period_px: period,
             }
             .render(size, size);
-            GradientField::from_height(&Plane::from_vec(size, size, z.into_vec()).unwrap())
+            GradientField::of_height(&Plane::from_vec(size, size, z.into_vec()).unwrap()).0
         };
         let (fine, coarse) = (field(6.0), field(96.0));
         let run = |g: &GradientField, band: Band| {

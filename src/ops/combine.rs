@@ -187,8 +187,8 @@ pub fn linear_combine(
     Ok(out)
 }
 
-/// The integrable variant for a detail given as a **height** `h`: `w = ∇b + α ∇(m·h)` (forward
-/// differences of `m·h`, the convention of [`GradientField::from_height`]), with the band (if
+/// The integrable variant for a detail given as a **height** `h`: `w = ∇b + α ∇(m·h)` (the
+/// gradient of `m·h` by [`GradientField::of_height`]), with the band (if
 /// any) applied to the height: `B(h)` for the detail and `m·B(∇b)` removed from the base.
 /// With a varying weight, only the base-band removal (`m·B(∇b)`) can add curl; without
 /// `replace_band` the result is exactly as integrable as the base, for any weight.
@@ -240,7 +240,7 @@ pub fn linear_combine_height(
             .zip(m.data().par_iter())
             .for_each(|(v, m)| *v *= m);
     }
-    let d = GradientField::from_height(&h);
+    let d = GradientField::of_height(&h).0;
     out.p
         .par_iter_mut()
         .zip(d.p.par_iter())
@@ -299,7 +299,7 @@ mod tests {
 
     fn height_field(s: &Surface, size: usize) -> GradientField {
         let (_, z) = s.render(size, size);
-        GradientField::from_height(&z)
+        GradientField::of_height(&z).0
     }
 
     #[test]
@@ -346,8 +346,12 @@ mod tests {
         for r in 0..size {
             for x in 0..size {
                 let i = r * size + x;
-                detail.p[i] = z.at((x + 1) % size, r) - z.at(x, r);
-                detail.q[i] = z.at(x, (r + size - 1) % size) - z.at(x, r);
+                // z at the pixel corners (periodic), 2 × 2 differences: exactly integrable
+                // in the averaged model (`GradientField::from_corner_heights`).
+                let (x1, r1) = ((x + 1) % size, (r + 1) % size);
+                let (tl, tr, bl, br) = (z.at(x, r), z.at(x1, r), z.at(x, r1), z.at(x1, r1));
+                detail.p[i] = 0.5 * ((tr - tl) + (br - bl));
+                detail.q[i] = 0.5 * ((tl - bl) + (tr - br));
             }
         }
         // The detail reaches the border: a periodic border (16 whole periods) keeps the band
@@ -398,13 +402,13 @@ mod tests {
         };
         let w = linear_combine_height(&base, &h, Some(&m), &p).unwrap();
         let rel = w.relative_rms_curl(None);
-        let grad = linear_combine(&base, &GradientField::from_height(&h), Some(&m), &p).unwrap();
+        let grad = linear_combine(&base, &GradientField::of_height(&h).0, Some(&m), &p).unwrap();
         let rel_g = grad.relative_rms_curl(None);
         println!("ramp weight: height variant curl {rel:.3e}, gradient variant {rel_g:.3e}");
         assert!(rel < 1e-6 && rel_g > 100.0 * rel, "{rel:e} {rel_g:e}");
         // Weight 1: both variants agree exactly.
         let a = linear_combine_height(&base, &h, None, &p).unwrap();
-        let b = linear_combine(&base, &GradientField::from_height(&h), None, &p).unwrap();
+        let b = linear_combine(&base, &GradientField::of_height(&h).0, None, &p).unwrap();
         assert!(a.p.iter().zip(&b.p).all(|(x, y)| (x - y).abs() < 1e-5));
         let mut bad = h.clone();
         bad.data_mut()[3] = f32::NAN;

@@ -963,7 +963,7 @@ mod tests {
         };
         let (_, z) = surf.render(size, size);
         let z = Plane::from_vec(size, size, z.into_vec()).unwrap();
-        let base = GradientField::from_height(&z);
+        let base = GradientField::of_height(&z).0;
         assert!(base.relative_rms_curl(None) < 1e-6);
         let kernels = [
             "gauss:1.5",

@@ -1,18 +1,18 @@
 //! Small geometry shared by the region-based operators (brush, pen, stamp): polyline distance
 //! and projection, stroke masks, smoothstep, bilinear sampling, the exact Euclidean distance
-//! transform, staggered sampling of analytic gradients and a least-squares integrator.
+//! transform, sampling of analytic gradients and a least-squares integrator.
 //!
 //! Coordinates: points are given in **pixel coordinates** `(x, row)` — `x` right, `row` down,
 //! pixel centres at integer values — as a user clicks them. Vector maths that involves
 //! gradients converts to the y-up frame of [`crate::raster::gradient`] with `y = −row`.
 //!
-//! # Staggered sampling
+//! # Sampling analytic gradients
 //!
-//! The discrete gradient of a height in this crate is a forward difference
-//! (`p(x, r) = z(x+1, r) − z(x, r)`, `q(x, r) = z(x, r−1) − z(x, r)`), i.e. `p` lives at
-//! `(x + ½, r)` and `q` at `(x, r − ½)`. Sampling an analytic gradient at exactly these points
-//! ([`sample_gradient_staggered`]) makes the discrete curl a midpoint-rule circulation, `O(h²)`
-//! instead of the `O(h)` of sampling both at the pixel centre.
+//! Readouts and integration read a field in the averaged edge model of
+//! [`crate::raster::gradient`]: the slope of the edge between two pixels is the mean of their
+//! samples. Sampling an analytic gradient at the pixel centres ([`sample_gradient_centres`])
+//! makes each edge value a trapezoid-rule estimate of the slope and the discrete curl a
+//! trapezoid-rule circulation, `O(h²)`.
 //!
 //! # References
 //! - P. Felzenszwalb, D. Huttenlocher, "Distance Transforms of Sampled Functions", Theory of
@@ -259,10 +259,10 @@ pub fn bilinear(plane: &[f32], w: usize, h: usize, x: f64, row: f64) -> Option<f
     Some(a * (1.0 - fr) + b * fr)
 }
 
-/// Samples an analytic gradient `f(x, row) → (∂z/∂x, ∂z/∂y)` (y up) at the staggered points of
-/// the module docs: `p` at `(x + ½, row)`, `q` at `(x, row − ½)`.
+/// Samples an analytic gradient `f(x, row) → (∂z/∂x, ∂z/∂y)` (y up) at the pixel centres
+/// (module docs).
 #[must_use]
-pub fn sample_gradient_staggered(
+pub fn sample_gradient_centres(
     width: usize,
     height: usize,
     f: impl Fn(f64, f64) -> [f64; 2] + Sync,
@@ -273,8 +273,8 @@ pub fn sample_gradient_staggered(
         .enumerate()
         .for_each(|(r, (pr, qr))| {
             for x in 0..width {
-                pr[x] = f(x as f64 + 0.5, r as f64)[0] as f32;
-                qr[x] = f(x as f64, r as f64 - 0.5)[1] as f32;
+                let [gp, gq] = f(x as f64, r as f64);
+                (pr[x], qr[x]) = (gp as f32, gq as f32);
             }
         });
     g

@@ -43,7 +43,9 @@
 //! 0. Such a component carries no height and no curl in the averaged model. The integrators
 //! ignore it; the projection keeps it as it is (it changes the samples as little as possible,
 //! see [`crate::raster::integrate::gradients_of_height`]). The plain [`GradientField::curl`] /
-//! [`GradientField::curl_stats`] are the forward model (the editing operators' readouts).
+//! [`GradientField::curl_stats`] — every operator's readout, the curl node, `rgbn info` — are
+//! the averaged model; [`GradientField::curl_forward`] / [`GradientField::curl_stats_forward`]
+//! read the field as forward edge values.
 
 use super::{Plane, RgbnImage};
 use crate::raster::buf;
@@ -136,6 +138,57 @@ impl GradientField {
             q,
             clamped,
         }
+    }
+
+    /// The gradient and height of a surface sampled at the `(w + 1) × (h + 1)` pixel corners
+    /// (`zc` row-major, corner `(x, r)` the top-left corner of pixel `(x, r)`; see
+    /// [`corner_samples`]): each pixel's `(p, q)` is the gradient of the bilinear interpolation
+    /// at its centre — the 2 × 2 differences `p = A_y Δ_x z_c`, `q = A_x Δ_y z_c` (y up) — and
+    /// its height the mean of its four corners. Such a field is *exactly* integrable under the
+    /// averaged model ([`Differences::Averaged`]): every 2 × 2 circulation of its averaged edge
+    /// values cancels (both terms are `Δ_x Δ_y A_x A_y z_c`), and the returned height, at pixel
+    /// centres, is the one that integrating it gives back. This is how every operator that
+    /// makes relief from a height (demo, analytic surfaces, pen) turns it into normals.
+    #[must_use]
+    pub fn from_corner_heights(w: usize, h: usize, zc: &[f64]) -> (Self, Plane) {
+        assert_eq!(zc.len(), (w + 1) * (h + 1), "corner grid size");
+        let cw = w + 1;
+        let n = w * h;
+        let (mut p, mut q, mut z) = (buf::zeroed_f32(n), buf::zeroed_f32(n), buf::zeroed_f32(n));
+        p.par_chunks_mut(w.max(1))
+            .zip(q.par_chunks_mut(w.max(1)))
+            .zip(z.par_chunks_mut(w.max(1)))
+            .enumerate()
+            .for_each(|(r, ((pr, qr), zr))| {
+                let (top, bottom) = (&zc[r * cw..(r + 1) * cw], &zc[(r + 1) * cw..(r + 2) * cw]);
+                for x in 0..w {
+                    let (tl, tr, bl, br) = (top[x], top[x + 1], bottom[x], bottom[x + 1]);
+                    pr[x] = (0.5 * ((tr - tl) + (br - bl))) as f32;
+                    qr[x] = (0.5 * ((tl - bl) + (tr - br))) as f32;
+                    zr[x] = (0.25 * (tl + tr + bl + br)) as f32;
+                }
+            });
+        let g = Self {
+            width: w,
+            height: h,
+            p,
+            q,
+            clamped: 0,
+        };
+        (
+            g,
+            Plane::from_vec(w, h, z).expect("sizes match by construction"),
+        )
+    }
+
+    /// An exactly integrable (averaged model) field from a height sampled at pixel centres:
+    /// [`from_corner_heights`](Self::from_corner_heights) of [`corners_of_centres`]. The field
+    /// is that of the height blurred by `[1 2 1]/4` in x and y (returned with it): the
+    /// well-posed choice — samples whose *averages* are the raw height's differences exist
+    /// only up to a checkerboard that rings across a whole row at every step.
+    #[must_use]
+    pub fn of_height(z: &Plane) -> (Self, Plane) {
+        Self::from_corner_heights(z.width(), z.height(), &corners_of_centres(z))
     }
 
     /// Forward-difference gradient of a sampled height (see module docs). The last column's `p`
@@ -257,18 +310,28 @@ impl GradientField {
     /// (module docs), 0 where undefined.
     #[must_use]
     pub fn curl_of(&self, d: Differences) -> Plane {
-        self.edge_values(d).curl()
+        self.edge_values(d).curl_forward()
     }
 
-    /// [`curl_stats`](Self::curl_stats) of a model's [edge values](Self::edge_values).
+    /// [`curl_stats`](Self::curl_stats) in a given model.
     #[must_use]
     pub fn curl_stats_of(&self, d: Differences, mask: Option<&[f32]>) -> CurlStats {
-        self.edge_values(d).curl_stats(mask)
+        match d {
+            Differences::Averaged => self.curl_stats(mask),
+            Differences::Forward => self.curl_stats_forward(mask),
+        }
     }
 
-    /// The curl map (module docs), 0 where undefined.
+    /// The curl map in the averaged model (module docs; every readout uses it), 0 where
+    /// undefined.
     #[must_use]
     pub fn curl(&self) -> Plane {
+        self.curl_of(Differences::Averaged)
+    }
+
+    /// The curl map of the field read as forward edge values (module docs), 0 where undefined.
+    #[must_use]
+    pub fn curl_forward(&self) -> Plane {
         let (w, h) = (self.width, self.height);
         let (p, q) = (&self.p, &self.q);
         Plane::from_fn_rows(w, h, |r, out| {
@@ -287,36 +350,92 @@ impl GradientField {
         })
     }
 
-    /// `RMS(curl) / RMS(|g|)` over the pixels where the curl is defined (and, with a mask, where
-    /// coverage ≥ 0.5). 0 for a flat field.
+    /// `RMS(curl) / RMS(|e|)` in the averaged model over the plaquettes where the curl is
+    /// defined (and, with a mask, whose four pixels have coverage ≥ 0.5). 0 for a flat field.
     #[must_use]
     pub fn relative_rms_curl(&self, mask: Option<&[f32]>) -> f64 {
-        let s = self.curl_stats(mask);
-        s.relative
+        self.curl_stats(mask).relative
     }
 
-    /// Curl statistics without allocating a curl map.
+    /// Curl statistics in the averaged model (module docs) without allocating a curl map:
+    /// the same numbers as [`curl_stats_forward`](Self::curl_stats_forward) of the
+    /// [averaged edge values](Self::edge_values), bit for bit.
     #[must_use]
     pub fn curl_stats(&self, mask: Option<&[f32]>) -> CurlStats {
+        self.rows_of_curl(mask, |r, w, m| {
+            let (u, c) = ((r - 1) * w..r * w, r * w..(r + 1) * w);
+            let (p, q) = (&self.p, &self.q);
+            CurlSums::of_row(&p[u.clone()], &q[u], &p[c.clone()], &q[c], m)
+        })
+    }
+
+    /// Curl statistics of the field read as forward edge values.
+    #[must_use]
+    pub fn curl_stats_forward(&self, mask: Option<&[f32]>) -> CurlStats {
+        self.rows_of_curl(mask, |r, w, m| {
+            let (u, c) = ((r - 1) * w..r * w, r * w..(r + 1) * w);
+            let (p, q) = (&self.p, &self.q);
+            CurlSums::of_forward_row(&p[u], &p[c.clone()], &q[c], m)
+        })
+    }
+
+    fn rows_of_curl(
+        &self,
+        mask: Option<&[f32]>,
+        row: impl Fn(usize, usize, Option<(&[f32], &[f32])>) -> CurlSums + Sync,
+    ) -> CurlStats {
         let (w, h) = (self.width, self.height);
         if w < 2 || h < 2 {
             return CurlStats::default();
         }
-        let (p, q) = (&self.p, &self.q);
         (1..h)
             .into_par_iter()
             .map(|r| {
-                let row = r * w..(r + 1) * w;
-                CurlSums::of_row(
-                    &p[(r - 1) * w..r * w],
-                    &p[row.clone()],
-                    &q[row.clone()],
-                    mask.map(|m| (&m[(r - 1) * w..r * w], &m[row])),
+                row(
+                    r,
+                    w,
+                    mask.map(|m| (&m[(r - 1) * w..r * w], &m[r * w..(r + 1) * w])),
                 )
             })
             .reduce(CurlSums::default, CurlSums::merge)
             .stats()
     }
+}
+
+/// `f(x, r)` at the `(w + 1) × (h + 1)` pixel corners, row-major: corner `(x, r)` is the
+/// top-left corner of pixel `(x, r)` (at `(x − ½, r − ½)` in coordinates where pixel centres
+/// are integers). Rows in parallel. See [`GradientField::from_corner_heights`].
+#[must_use]
+pub fn corner_samples(w: usize, h: usize, f: impl Fn(usize, usize) -> f64 + Sync) -> Vec<f64> {
+    let cw = w + 1;
+    let mut z = vec![0.0; cw * (h + 1)];
+    z.par_chunks_mut(cw).enumerate().for_each(|(r, line)| {
+        for (x, out) in line.iter_mut().enumerate() {
+            *out = f(x, r);
+        }
+    });
+    z
+}
+
+/// Corner heights of a height sampled at pixel centres: each corner the mean of the (up to)
+/// four pixels around it, the bilinear interpolation at the corner. With
+/// [`GradientField::from_corner_heights`] this turns any centre-sampled height into an exactly
+/// integrable field whose height is the centre samples blurred by `[1 2 1]/4` in x and y.
+#[must_use]
+pub fn corners_of_centres(z: &Plane) -> Vec<f64> {
+    let (w, h) = (z.width(), z.height());
+    let d = z.data();
+    corner_samples(w, h, |x, r| {
+        let xs = [x.saturating_sub(1), x.min(w - 1)];
+        let rs = [r.saturating_sub(1), r.min(h - 1)];
+        let mut s = 0.0;
+        for &rr in &rs {
+            for &xx in &xs {
+                s += f64::from(d[rr * w + xx]);
+            }
+        }
+        0.25 * s
+    })
 }
 
 /// Whether the curl plaquette at column `x` of row `r ≥ 1` counts under a mask: all four
@@ -364,13 +483,46 @@ impl CurlSums {
     /// counted. Accumulates in 8 interleaved partial sums so the loop vectorises.
     #[inline(always)]
     #[must_use]
-    pub fn of_row(pu: &[f32], pc: &[f32], qc: &[f32], mask: Option<(&[f32], &[f32])>) -> Self {
+    pub fn of_forward_row(
+        pu: &[f32],
+        pc: &[f32],
+        qc: &[f32],
+        mask: Option<(&[f32], &[f32])>,
+    ) -> Self {
         match mask {
             None => Self::of_row_where(pu, pc, qc, |_| true),
             Some((mu, mc)) => Self::of_row_where(pu, pc, qc, |x| {
                 mu[x] >= 0.5 && mu[x + 1] >= 0.5 && mc[x] >= 0.5 && mc[x + 1] >= 0.5
             }),
         }
+    }
+
+    /// [`of_forward_row`](Self::of_forward_row) in the averaged model, from the *samples*:
+    /// `pu`, `qu` = p, q of row `r−1`, `pc`, `qc` = p, q of row `r`. The edge values are formed
+    /// with the arithmetic of [`GradientField::edge_values`] (`½(a + b)`), so the sums equal
+    /// those of the forward sums of the edge values bit for bit; the gradient term is that of
+    /// the edge values.
+    #[inline(always)]
+    #[must_use]
+    pub fn of_row(
+        pu: &[f32],
+        qu: &[f32],
+        pc: &[f32],
+        qc: &[f32],
+        mask: Option<(&[f32], &[f32])>,
+    ) -> Self {
+        let w = pc.len();
+        if w < 2 {
+            return Self::default();
+        }
+        let avg = |a: &[f32]| -> Vec<f32> {
+            let mut e: Vec<f32> = a.windows(2).map(|t| 0.5 * (t[0] + t[1])).collect();
+            e.push(a[w - 1]);
+            e
+        };
+        let (eu, ec) = (avg(pu), avg(pc));
+        let eq: Vec<f32> = qc.iter().zip(qu).map(|(&a, &b)| 0.5 * (a + b)).collect();
+        Self::of_forward_row(&eu, &ec, &eq, mask)
     }
 
     #[inline(always)]
@@ -506,9 +658,23 @@ mod tests {
             ((x * 7919 + r * 104_729) % 1000) as f32 * 0.01 + (x as f32 * 0.3).sin()
         });
         let g = GradientField::from_height(&z);
-        let s = g.curl_stats(None);
+        let s = g.curl_stats_forward(None);
         assert!(s.rms_gradient > 1.0);
         assert!(s.relative < 1e-6, "{s:?}");
+        // ... in the forward model only: the averaged model reads them as far from a surface.
+        assert!(g.curl_stats(None).relative > 0.1);
+        // The averaged model's counterpart: heights at the pixel corners, 2 × 2 differences
+        // (and `of_height` of centre samples) are exactly integrable there.
+        let zc = corners_of_centres(&z);
+        for (g, _) in [
+            GradientField::from_corner_heights(37, 23, &zc),
+            GradientField::of_height(&z),
+        ] {
+            let s = g.curl_stats(None);
+            assert!(s.rms_gradient > 0.5 && s.relative < 1e-6, "{s:?}");
+            // the map agrees with the statistics
+            assert!(g.curl().data().iter().all(|c| c.abs() < 1e-5));
+        }
     }
 
     #[test]

@@ -3,7 +3,7 @@
 //!
 //! Coordinates: pixel `(x, row)` maps to `u = x − cx`, `v = cy − row` (y up), heights in pixels.
 
-use super::gradient::normal_of_gradient;
+use super::gradient::{corner_samples, normal_of_gradient, GradientField};
 use super::{Plane, RgbnImage};
 use crate::raster::buf;
 use rayon::prelude::*;
@@ -231,93 +231,47 @@ fn medallion(u: f64, v: f64, rr: f64) -> (f64, [f32; 3]) {
     (z, c)
 }
 
-/// Heights of `f(u, v)` at the `(width + 1) × (height + 1)` pixel corners, row-major, with
-/// `u = x − cx`, `v = cy − row` for corner `(x, row)`.
+/// Heights of `f(u, v)` at the `(width + 1) × (height + 1)` pixel corners ([`corner_samples`]),
+/// with `u = x − cx`, `v = cy − row` for corner `(x, row)`.
 fn corner_heights(width: usize, height: usize, f: impl Fn(f64, f64) -> f64 + Sync) -> Vec<f64> {
     let (cx, cy) = (width as f64 / 2.0, height as f64 / 2.0);
-    let cw = width + 1;
-    let mut z = vec![0.0; cw * (height + 1)];
-    z.par_chunks_mut(cw).enumerate().for_each(|(row, line)| {
-        for (x, out) in line.iter_mut().enumerate() {
-            *out = f(x as f64 - cx, cy - row as f64);
-        }
-    });
-    z
-}
-
-/// The gradient `(∂z/∂u, ∂z/∂v)` at the centre of pixel `(x, row)` of the bilinear
-/// interpolation of the corner heights `zc` (`width + 1` a row): the 2 × 2 differences. Normals
-/// from these are *exactly* integrable under the averaged edge model
-/// ([`crate::raster::gradient::Differences::Averaged`]): with `p = A_y Δ_x z_c`,
-/// `q = A_x Δ_y z_c` every 2 × 2 circulation of averaged edge values cancels, and the height
-/// that integrates them, registered at pixel centres, is the mean of the four corners
-/// ([`corner_mean`]).
-fn corner_gradient(zc: &[f64], width: usize, x: usize, row: usize) -> [f64; 2] {
-    let cw = width + 1;
-    let (tl, tr) = (zc[row * cw + x], zc[row * cw + x + 1]);
-    let (bl, br) = (zc[(row + 1) * cw + x], zc[(row + 1) * cw + x + 1]);
-    [0.5 * ((tr - tl) + (br - bl)), 0.5 * ((tl - bl) + (tr - br))]
-}
-
-/// The mean of the four corner heights of pixel `(x, row)`.
-fn corner_mean(zc: &[f64], width: usize, x: usize, row: usize) -> f64 {
-    let cw = width + 1;
-    0.25 * (zc[row * cw + x]
-        + zc[row * cw + x + 1]
-        + zc[(row + 1) * cw + x]
-        + zc[(row + 1) * cw + x + 1])
+    corner_samples(width, height, |x, row| f(x as f64 - cx, cy - row as f64))
 }
 
 impl Surface {
     /// Samples the surface as a capture does: the height at the pixel corners, each pixel's
-    /// normal from the differences of its four corners ([`corner_gradient`]), so the image is
+    /// normal from the differences of its four corners ([`GradientField::from_corner_heights`]), so the image is
     /// exactly integrable (curl 0 up to rounding) and the returned height (the corner mean,
     /// at pixel centres) is what integrating its normals gives back. Masked where the slope is
     /// undefined at any of the four corners (outside the sphere or on its rim).
     #[must_use]
     pub fn render_sampled(&self, width: usize, height: usize) -> (RgbnImage, Plane) {
         let zc = corner_heights(width, height, |u, v| self.height(u, v));
+        let (mut g, z) = GradientField::from_corner_heights(width, height, &zc);
         let defined = corner_heights(width, height, |u, v| {
             f64::from(u8::from(self.gradient(u, v).is_some()))
         });
-        let n = width * height;
-        let mut normal = [
-            buf::zeroed_f32(n),
-            buf::zeroed_f32(n),
-            buf::filled_f32(n, 1.0),
-        ];
-        let mut mask = buf::filled_f32(n, 1.0);
-        let mut any_masked = false;
-        for row in 0..height {
-            for x in 0..width {
-                let i = row * width + x;
-                let cw = width + 1;
-                let ok = [
-                    row * cw + x,
-                    row * cw + x + 1,
-                    (row + 1) * cw + x,
-                    (row + 1) * cw + x + 1,
-                ]
-                .iter()
-                .all(|&c| defined[c] > 0.5);
-                if !ok {
-                    mask[i] = 0.0;
-                    any_masked = true;
-                    continue;
-                }
-                let [p, q] = corner_gradient(&zc, width, x, row);
-                let nv = normal_of_gradient(p as f32, q as f32);
-                for k in 0..3 {
-                    normal[k][i] = nv[k];
-                }
+        let cw = width + 1;
+        let mask: Vec<f32> = (0..width * height)
+            .map(|i| {
+                let (x, row) = (i % width, i / width);
+                let (a, b) = (row * cw + x, (row + 1) * cw + x);
+                let all = [a, a + 1, b, b + 1].iter().all(|&c| defined[c] > 0.5);
+                f32::from(u8::from(all))
+            })
+            .collect();
+        let any_masked = mask.contains(&0.0);
+        for (i, &m) in mask.iter().enumerate() {
+            if m == 0.0 {
+                (g.p[i], g.q[i]) = (0.0, 0.0);
             }
         }
-        let z = Plane::from_fn(width, height, |x, r| corner_mean(&zc, width, x, r) as f32);
+        let n = width * height;
         let img = RgbnImage::new(
             width,
             height,
             [vec![0.8; n], vec![0.8; n], vec![0.8; n]],
-            normal,
+            g.to_normals(),
             any_masked.then_some(mask),
         )
         .expect("sizes match by construction");
@@ -336,34 +290,24 @@ pub fn demo_medallion(size: usize) -> RgbnImage {
     let c = size as f64 / 2.0;
     let rr = 0.45 * size as f64;
     let zc = corner_heights(size, size, |u, v| medallion(u, v, rr).0);
+    let (g, _) = GradientField::from_corner_heights(size, size, &zc);
     let mut color = [buf::zeroed_f32(n), buf::zeroed_f32(n), buf::zeroed_f32(n)];
-    let mut normal = [buf::zeroed_f32(n), buf::zeroed_f32(n), buf::zeroed_f32(n)];
-    type Row = (Vec<[f32; 3]>, Vec<[f32; 3]>);
-    let rows: Vec<Row> = (0..size)
+    let rows: Vec<Vec<[f32; 3]>> = (0..size)
         .into_par_iter()
         .map(|row| {
-            let mut cols = Vec::with_capacity(size);
-            let mut nors = Vec::with_capacity(size);
-            for x in 0..size {
-                let (u, v) = (x as f64 + 0.5 - c, c - row as f64 - 0.5);
-                let (_, col) = medallion(u, v, rr);
-                let [p, q] = corner_gradient(&zc, size, x, row);
-                cols.push(col);
-                nors.push(normal_of_gradient(p as f32, q as f32));
-            }
-            (cols, nors)
+            (0..size)
+                .map(|x| medallion(x as f64 + 0.5 - c, c - row as f64 - 0.5, rr).1)
+                .collect()
         })
         .collect();
-    for (row, (cols, nors)) in rows.into_iter().enumerate() {
-        for x in 0..size {
-            let i = row * size + x;
+    for (row, cols) in rows.into_iter().enumerate() {
+        for (x, col) in cols.into_iter().enumerate() {
             for k in 0..3 {
-                color[k][i] = cols[x][k];
-                normal[k][i] = nors[x][k];
+                color[k][row * size + x] = col[k];
             }
         }
     }
-    RgbnImage::new(size, size, color, normal, None).expect("sizes match by construction")
+    RgbnImage::new(size, size, color, g.to_normals(), None).expect("sizes match by construction")
 }
 
 /// The height of the demo medallion (pixels) at pixel centres — the mean of each pixel's four
@@ -372,7 +316,7 @@ pub fn demo_medallion(size: usize) -> RgbnImage {
 pub fn demo_height(size: usize) -> Plane {
     let rr = 0.45 * size as f64;
     let zc = corner_heights(size, size, |u, v| medallion(u, v, rr).0);
-    Plane::from_fn(size, size, |x, row| corner_mean(&zc, size, x, row) as f32)
+    GradientField::from_corner_heights(size, size, &zc).1
 }
 
 #[cfg(test)]

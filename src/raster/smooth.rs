@@ -6,15 +6,15 @@
 //! compound kernels). Here:
 //!
 //! 1. **Row sweep** (bands of [`LANES`] rows): each row's `(p, q)` is computed from the normals
-//!    (same [`gradient_of_normal`] and `n_z` clamp), its curl sums are taken with the previous
-//!    row's `p` (one extra row of `p` per band is recomputed), then the band is filtered along
-//!    x. The filtered `p`, `q` are parked in the output `n_x`, `n_y` planes (no gradient planes
+//!    (same [`gradient_of_normal`] and `n_z` clamp), its curl sums (averaged model) are taken
+//!    with the previous row's `p`, `q` (one extra row per band is recomputed), then the band
+//!    is filtered along x. The filtered `p`, `q` are parked in the output `n_x`, `n_y` planes (no gradient planes
 //!    are allocated).
 //! 2. **Column sweep** (groups of [`LANES`] columns): `p`, `q` are filtered along y, the curl
 //!    sums of the filtered field are taken from the lane buffers, and [`normal_of_gradient`] is
-//!    written straight into the three output planes. The curl at a group's last column needs
-//!    `q` of the next group's first column: each group hands over that column's filtered `q`
-//!    and its own partial terms, and those `height` curl terms per group are summed afterwards.
+//!    written straight into the three output planes. The plaquettes at a group's last column
+//!    need the next group's first column: each group hands over its first and last columns'
+//!    filtered `p`, `q`, and those `height` plaquettes per group are summed afterwards.
 //!
 //! Filtered values are bit-identical to the unfused path (same line filter, same arithmetic);
 //! the curl statistics are the same sums taken in a different order (`f32` partial sums over
@@ -130,14 +130,15 @@ struct Sweep<'a, F> {
     border: BorderMode,
 }
 
-/// What a column group hands over for the curl at its last column `x` (row by row):
-/// `p(x, r−1) − p(x, r)`, `q(x, r)`, whether the pixel counts, and `q` of its *first* column
+/// What a column group hands over for the plaquettes at its last column `x` (row by row):
+/// `p`, `q` of that column, whether the plaquette counts, and `p`, `q` of its *first* column
 /// (which the previous group needs).
 #[derive(Clone, Copy, Default)]
 struct Seam {
-    dp: f32,
+    p_last: f32,
     q_last: f32,
     keep: bool,
+    p_first: f32,
     q_first: f32,
 }
 
@@ -199,16 +200,17 @@ impl<F: LineFilter> Sweep<'_, F> {
             let r = r0 + k;
             let o = r * w..(r + 1) * w;
             let (p_done, p_rest) = p_band.split_at_mut(k * w);
-            let (p_row, q_row) = (&mut p_rest[..w], &mut q_band[k * w..(k + 1) * w]);
+            let (q_done, q_rest) = q_band.split_at_mut(k * w);
+            let (p_row, q_row) = (&mut p_rest[..w], &mut q_rest[..w]);
             clamped += gradient_row(&nx[o.clone()], &ny[o.clone()], &nz[o.clone()], p_row, q_row);
             if r >= 1 {
-                let p_prev = if k == 0 {
-                    &s.p_prev[..]
+                let (p_prev, q_prev) = if k == 0 {
+                    (&s.p_prev[..], &s.q_row[..])
                 } else {
-                    &p_done[(k - 1) * w..]
+                    (&p_done[(k - 1) * w..], &q_done[(k - 1) * w..])
                 };
                 let m = self.mask.map(|m| (&m[(r - 1) * w..r * w], &m[o]));
-                sums = sums.merge(CurlSums::of_row(p_prev, p_row, q_row, m));
+                sums = sums.merge(CurlSums::of_row(p_prev, q_prev, p_row, q_row, m));
             }
         }
         // p then q through one lane buffer (a smaller working set than both at once).
@@ -286,16 +288,13 @@ impl<F: LineFilter> Sweep<'_, F> {
         let last = cols - 1;
         let seam: Vec<Seam> = (0..h)
             .map(|r| Seam {
-                dp: if r >= 1 {
-                    bp[r - 1][last] - bp[r][last]
-                } else {
-                    0.0
-                },
+                p_last: bp[r][last],
                 q_last: bq[r][last],
                 keep: r >= 1
                     && self
                         .mask
                         .is_none_or(|m| c0 + last + 1 < w && plaquette_covered(m, w, r, c0 + last)),
+                p_first: bp[r][0],
                 q_first: bq[r][0],
             })
             .collect();
@@ -342,25 +341,28 @@ fn column_sweep<F: LineFilter>(sw: &Sweep<'_, F>, out: &mut [Vec<f32>; 3]) -> Cu
             sw.group(s, g, ptr)
         })
         .collect();
-    // Curl at each group's last column, with the next group's first-column q.
+    // The plaquettes at each group's last column, with the next group's first column
+    // (averaged edge values formed as `GradientField::edge_values` does).
     let seams = per_group
         .par_windows(2)
         .map(|pair| {
             let (a, b) = (&pair[0].1, &pair[1].1);
-            let (mut c2, mut max) = (0.0f64, 0.0f32);
-            for (s, t) in a.iter().zip(b) {
-                if s.keep {
-                    let c = s.dp - (t.q_first - s.q_last);
+            let (mut c2, mut g2, mut n, mut max) = (0.0f64, 0.0f64, 0usize, 0.0f32);
+            for r in 1..a.len() {
+                let (su, sc, tu, tc) = (&a[r - 1], &a[r], &b[r - 1], &b[r]);
+                if sc.keep {
+                    let pu = 0.5 * (su.p_last + tu.p_first);
+                    let pc = 0.5 * (sc.p_last + tc.p_first);
+                    let qc = 0.5 * (sc.q_last + su.q_last);
+                    let qn = 0.5 * (tc.q_first + tu.q_first);
+                    let c = (pu - pc) - (qn - qc);
                     c2 += f64::from(c * c);
+                    g2 += f64::from(pc * pc + qc * qc);
+                    n += 1;
                     max = max.max(c.abs());
                 }
             }
-            CurlSums {
-                c2,
-                g2: 0.0,
-                n: 0,
-                max,
-            }
+            CurlSums { c2, g2, n, max }
         })
         .reduce(CurlSums::default, CurlSums::merge);
     per_group
@@ -368,9 +370,9 @@ fn column_sweep<F: LineFilter>(sw: &Sweep<'_, F>, out: &mut [Vec<f32>; 3]) -> Cu
         .fold(seams, |acc, (s, _)| acc.merge(s))
 }
 
-/// Curl sums of one filtered column group (`cols` columns from `c0`) except the curl term of
-/// its last column, which needs the next group (see [`Seam`]); the gradient term and the
-/// count of that column are included. Columns `x = w−1` and row 0 are not counted.
+/// Curl sums (averaged model, module docs of `gradient`) of one filtered column group (`cols`
+/// columns from `c0`) except the plaquettes of its last column, which need the next group
+/// (see [`Seam`]). Columns `x = w−1` and row 0 are not counted.
 #[inline(always)]
 fn group_curl(
     bp: &[Lane],
@@ -380,11 +382,11 @@ fn group_curl(
     c0: usize,
     cols: usize,
 ) -> CurlSums {
-    // 0/1 weights: lanes whose gradient term counts (x ≤ w−2) and whose curl term is taken
-    // here (not the last lane). Multiplying is exact (values are finite: gradients are
-    // clamped and the filters are linear).
-    let counted: Lane = std::array::from_fn(|l| f32::from(u8::from(l < cols && c0 + l + 1 < w)));
-    let interior: Lane = std::array::from_fn(|l| f32::from(u8::from(l + 1 < cols)));
+    // 0/1 weights: lanes whose plaquette is taken here (x ≤ w−2 and not the group's last
+    // lane). Multiplying is exact (values are finite: gradients are clamped and the filters
+    // are linear).
+    let counted: Lane =
+        std::array::from_fn(|l| f32::from(u8::from(l + 1 < cols && c0 + l + 1 < w)));
     let mut total = CurlSums::default();
     let (mut c2, mut g2, mut mx, mut n) = (
         lane_splat(0.0),
@@ -393,7 +395,7 @@ fn group_curl(
         lane_splat(0.0),
     );
     for r in 1..bp.len() {
-        let (pu, pc, qc) = (&bp[r - 1], &bp[r], &bq[r]);
+        let (pu, pc, qu, qc) = (&bp[r - 1], &bp[r], &bq[r - 1], &bq[r]);
         let keep: Lane = match mask {
             None => counted,
             Some(m) => std::array::from_fn(|l| {
@@ -404,11 +406,15 @@ fn group_curl(
                 }
             }),
         };
-        let qn: Lane = std::array::from_fn(|l| if l + 1 < LANES { qc[l + 1] } else { 0.0 });
+        let next = |a: &Lane, l: usize| if l + 1 < LANES { a[l + 1] } else { 0.0 };
         for l in 0..LANES {
-            let c = ((pu[l] - pc[l]) - (qn[l] - qc[l])) * (keep[l] * interior[l]);
+            let eu = 0.5 * (pu[l] + next(pu, l));
+            let ec = 0.5 * (pc[l] + next(pc, l));
+            let qcl = 0.5 * (qc[l] + qu[l]);
+            let qn = 0.5 * (next(qc, l) + next(qu, l));
+            let c = ((eu - ec) - (qn - qcl)) * keep[l];
             c2[l] += c * c;
-            g2[l] += (pc[l] * pc[l] + qc[l] * qc[l]) * keep[l];
+            g2[l] += (ec * ec + qcl * qcl) * keep[l];
             mx[l] = mx[l].max(c.abs());
             n[l] += keep[l];
         }
