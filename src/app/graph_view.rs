@@ -81,6 +81,8 @@ pub struct ViewData<'a> {
     pub thumbs: &'a BTreeMap<NodeId, TextureHandle>,
     /// Errors by node.
     pub errors: &'a BTreeMap<NodeId, String>,
+    /// Non-integrable fraction F of each node's RGBN output.
+    pub fraction: &'a BTreeMap<NodeId, f64>,
     /// The node shown in the preview.
     pub viewed: Option<NodeId>,
     /// Its output port shown in the preview.
@@ -480,6 +482,10 @@ impl SnarlViewer<NodeId> for Viewer<'_, '_> {
                 let size = t.size_vec2();
                 let scale = (72.0 / size.x.max(size.y)).min(1.0);
                 ui.add(egui::Image::new((t.id(), size * scale)));
+            }
+            if let Some(f) = self.data.fraction.get(&id) {
+                ui.label(RichText::new(format!("F {f:.2e}")).small().weak())
+                    .on_hover_text("Non-integrable fraction of this node's normals: 0 for a surface, ≈ 0.8 for noise");
             }
             if let Some(e) = self.data.errors.get(&id) {
                 ui.set_min_width(170.0);

@@ -424,6 +424,7 @@ impl EditorApp {
                     ports: &self.runtime.ports,
                     thumbs: &tex,
                     errors: &self.runtime.outcome.node_errors,
+                    fraction: &self.runtime.outcome.fraction,
                     viewed: self.session.viewed.as_ref().map(|v| v.0),
                     viewed_port: self.session.viewed.as_ref().map(|v| v.1.as_str()),
                 };
@@ -500,11 +501,16 @@ impl EditorApp {
             let (n, bytes) = self.runtime.outcome.cache;
             ui.label(format!("cache {n} values, {:.1} MiB", bytes as f64 / (1 << 20) as f64));
             ui.separator();
-            match self.session.viewed.as_ref().and_then(|v| self.runtime.outcome.curl.get(&v.0)) {
-                Some(c) => ui.label(format!("curl (rel. RMS) {c:.2e}")),
-                None => ui.label("curl —"),
+            let viewed = self.session.viewed.as_ref().map(|v| v.0);
+            let outcome = &self.runtime.outcome;
+            match viewed.and_then(|v| outcome.fraction.get(&v).map(|f| (f, outcome.curl.get(&v)))) {
+                Some((f, c)) => ui.label(format!(
+                    "F {f:.2e} · curl {}",
+                    c.map_or_else(|| "—".into(), |c| format!("{c:.2e}"))
+                )),
+                None => ui.label("F —"),
             }
-            .on_hover_text("RMS(curl) / RMS(|gradient|) of the viewed node's normals: 0 for an integrable field");
+            .on_hover_text("Integrability of the viewed node's normals. F: the non-integrable fraction ‖e − ∇z*‖/‖e‖ of its edge slopes (z* the least-squares height): 0 for a surface, ≈ 0.8 for noise. curl: RMS(curl)/RMS(|gradient|).");
             ui.separator();
             ui.label(RichText::new(format!("ui {:.1} ms", self.runtime.frame_ms)).weak());
             ui.separator();

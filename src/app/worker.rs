@@ -66,6 +66,8 @@ pub struct EvalOutcome {
     pub error: Option<String>,
     /// Relative RMS curl of each node's RGBN output.
     pub curl: BTreeMap<NodeId, f64>,
+    /// Non-integrable fraction F of each node's RGBN output.
+    pub fraction: BTreeMap<NodeId, f64>,
     /// Nodes computed (cache misses) in this evaluation.
     pub computed: usize,
     /// Wall time.
@@ -365,9 +367,12 @@ fn collect(out: &mut EvalOutcome, r: &crate::eval::EvalResult, plan: &Plan) {
             .find(|s| s.at == inst.at && s.op == inst.op.spec().id)
         {
             key_of.insert(i, st.key);
-            if let (Some(c), Some(node)) = (st.curl, st.at.node) {
-                if st.at.file == TOP_LABEL {
+            if let (Some(node), true) = (st.at.node, st.at.file == TOP_LABEL) {
+                if let Some(c) = st.curl {
                     out.curl.insert(node, c);
+                }
+                if let Some(f) = st.fraction {
+                    out.fraction.insert(node, f);
                 }
             }
         }

@@ -35,7 +35,8 @@ pub struct EvalArgs {
     /// summarised, nothing written.
     #[arg(short = 'o', long = "output", value_name = "NAME=PATH")]
     pub outputs: Vec<String>,
-    /// Print per-node statistics (time, cache hit/miss, bytes, curl).
+    /// Print per-node statistics (time, cache hit/miss, bytes, relative curl, non-integrable
+    /// fraction F).
     #[arg(long)]
     pub stats: bool,
     /// Keep node results in this folder and reuse them across runs.
@@ -192,8 +193,8 @@ fn describe_value(v: &Value) -> String {
 
 fn print_stats(out: &mut Out<'_>, r: &EvalResult, top: &str) -> Result<(), CliError> {
     out.line(format_args!(
-        "{:<28} {:<18} {:<8} {:>10} {:>10} {:>11}",
-        "node", "op", "cache", "time ms", "MB", "curl rel."
+        "{:<28} {:<18} {:<8} {:>10} {:>10} {:>11} {:>9}",
+        "node", "op", "cache", "time ms", "MB", "curl rel.", "F"
     ))?;
     for s in &r.stats {
         let mut node = match (s.at.node, &s.at.name) {
@@ -215,13 +216,15 @@ fn print_stats(out: &mut Out<'_>, r: &EvalResult, top: &str) -> Result<(), CliEr
             Status::Effect => "effect",
         };
         out.line(format_args!(
-            "{:<28} {:<18} {:<8} {:>10.1} {:>10.2} {:>11}",
+            "{:<28} {:<18} {:<8} {:>10.1} {:>10.2} {:>11} {:>9}",
             node,
             s.op,
             status,
             s.time.as_secs_f64() * 1e3,
             s.bytes as f64 / 1e6,
-            s.curl.map_or_else(|| "-".into(), |c| format!("{c:.3e}"))
+            s.curl.map_or_else(|| "-".into(), |c| format!("{c:.3e}")),
+            s.fraction
+                .map_or_else(|| "-".into(), |f| format!("{f:.2e}"))
         ))?;
     }
     out.line(format_args!(

@@ -16,6 +16,9 @@ pub struct CacheEntry {
     pub values: Vec<Value>,
     /// Relative RMS curl of the first RGBN output, when measured.
     pub curl: Option<f64>,
+    /// Its non-integrable fraction F (`raster::integrate::non_integrable_fraction`), when
+    /// measured.
+    pub fraction: Option<f64>,
 }
 
 impl CacheEntry {
@@ -106,6 +109,7 @@ mod tests {
         Arc::new(CacheEntry {
             values: vec![Value::Number(n)],
             curl: None,
+            fraction: None,
         })
     }
 

@@ -4,7 +4,8 @@
 //! `u64`, XXH3-64 of the payload `u64`, then the payload: value count `u32`; per value a tag
 //! byte and its data (RGBN: width, height `u32`, mask flag `u8`, then R,G,B,N.X,N.Y,N.Z[,A] as
 //! raw `f32` planes; mask/scalar: width, height, one plane; picture: width, height, RGBA
-//! bytes; number: `f64`); finally a curl flag `u8` and `f64`.
+//! bytes; number: `f64`); finally a curl flag `u8` and `f64`, and a flag `u8` and `f64` for
+//! the non-integrable fraction F.
 //!
 //! Entries are written to a temporary file and renamed into place. An entry that is truncated,
 //! corrupt, of another format version or for another key is ignored (and recomputed).
@@ -16,7 +17,7 @@ use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
 const MAGIC: &[u8; 8] = b"RGBNCACH";
-const FORMAT: u32 = 1;
+const FORMAT: u32 = 2;
 const HEADER: usize = 8 + 4 + 16 + 8 + 8;
 
 /// A folder of cached node outputs.
@@ -104,8 +105,10 @@ fn encode(e: &CacheEntry) -> Vec<u8> {
             }
         }
     }
-    out.push(u8::from(e.curl.is_some()));
-    out.extend_from_slice(&e.curl.unwrap_or(0.0).to_le_bytes());
+    for m in [e.curl, e.fraction] {
+        out.push(u8::from(m.is_some()));
+        out.extend_from_slice(&m.unwrap_or(0.0).to_le_bytes());
+    }
     out
 }
 
@@ -155,14 +158,20 @@ fn decode(payload: &[u8]) -> Option<CacheEntry> {
         };
         values.push(v);
     }
-    let has_curl = r.u8()? != 0;
-    let curl = r.f64()?;
+    let mut measured = || -> Option<Option<f64>> {
+        let has = r.u8()? != 0;
+        let v = r.f64()?;
+        Some(has.then_some(v))
+    };
+    let curl = measured()?;
+    let fraction = measured()?;
     if !r.0.is_empty() {
         return None;
     }
     Some(CacheEntry {
         values,
-        curl: has_curl.then_some(curl),
+        curl,
+        fraction,
     })
 }
 
@@ -248,6 +257,7 @@ mod tests {
                 Value::Number(0.25),
             ],
             curl: Some(1e-3),
+            fraction: Some(0.25),
         };
         c.put(7, &e).unwrap();
         assert_eq!(c.get(7), Some(e));

@@ -265,7 +265,9 @@ pub struct EvalOptions {
     pub cancel: Option<Arc<AtomicBool>>,
     /// Called after each node that ran.
     pub progress: Option<ProgressFn>,
-    /// Measure the relative RMS curl of each node's RGBN output.
+    /// Measure the integrability of each node's RGBN output: its relative RMS curl and its
+    /// non-integrable fraction F (one least-squares integration per node: a DCT, or the
+    /// masked solver where there is a mask).
     pub curl_stats: bool,
 }
 
@@ -297,6 +299,9 @@ pub struct NodeStats {
     pub bytes: usize,
     /// Relative RMS curl of the RGBN output, when measured.
     pub curl: Option<f64>,
+    /// Non-integrable fraction F of the RGBN output (0: a surface; ≈ 0.8: noise), when
+    /// measured.
+    pub fraction: Option<f64>,
     /// The node's content key.
     pub key: CacheKey,
 }
@@ -650,10 +655,10 @@ impl Evaluator {
             }
             if let (Some(mut e), Some(status)) = (entry, status) {
                 if opts.curl_stats && e.curl.is_none() {
-                    let curl = curl_of(&e.values);
+                    let (curl, fraction) = integrability_of(&e.values);
                     if curl.is_some() {
                         let mut c = (*e).clone();
-                        c.curl = curl;
+                        (c.curl, c.fraction) = (curl, fraction);
                         e = Arc::new(c);
                         lock(&self.mem).insert(key, e.clone());
                     }
@@ -667,6 +672,7 @@ impl Evaluator {
                         time: Duration::ZERO,
                         bytes: e.byte_size(),
                         curl: e.curl,
+                        fraction: e.fraction,
                         key,
                     },
                 );
@@ -720,13 +726,17 @@ impl Evaluator {
                     source,
                     at: inst.at.clone(),
                 })?;
-        let curl = if opts.curl_stats {
-            curl_of(&values)
+        let (curl, fraction) = if opts.curl_stats {
+            integrability_of(&values)
         } else {
-            None
+            (None, None)
         };
         let time = t0.elapsed();
-        let entry = Arc::new(CacheEntry { values, curl });
+        let entry = Arc::new(CacheEntry {
+            values,
+            curl,
+            fraction,
+        });
         if !spec.side_effect {
             lock(&self.mem).insert(key, entry.clone());
             if let Some(d) = &self.disk {
@@ -746,19 +756,26 @@ impl Evaluator {
             time,
             bytes: entry.byte_size(),
             curl,
+            fraction,
             key,
         };
         Ok((entry, st))
     }
 }
 
-fn curl_of(values: &[Value]) -> Option<f64> {
-    values.iter().find_map(|v| match v {
-        Value::Rgbn(img) => Some(
-            GradientField::from_normals(img)
-                .curl_stats_of(crate::raster::gradient::Differences::Averaged, img.mask())
-                .relative,
-        ),
-        _ => None,
-    })
+/// Relative RMS curl and non-integrable fraction of the first RGBN value (F is `None` where
+/// the integration refuses the image, e.g. a mask with nothing inside).
+fn integrability_of(values: &[Value]) -> (Option<f64>, Option<f64>) {
+    values
+        .iter()
+        .find_map(|v| match v {
+            Value::Rgbn(img) => {
+                let g = GradientField::from_normals(img);
+                let curl = g.curl_stats(img.mask()).relative;
+                let f = crate::raster::integrate::non_integrable_fraction(&g, img.mask()).ok();
+                Some((Some(curl), f))
+            }
+            _ => None,
+        })
+        .unwrap_or((None, None))
 }

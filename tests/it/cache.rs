@@ -282,4 +282,40 @@ fn curl_stats_are_measured_per_node() {
     assert!((c2 - out).abs() < 1e-12, "{c2} vs {out}");
     assert!(c1 < 0.05 && c2 < 0.05, "{c1} {c2}");
     assert_eq!(by_node[&5], None);
+    // The non-integrable fraction F beside it: the surface node is exactly a surface (heights
+    // at pixel corners), linear filters keep it one; F of a node is that of its output.
+    let f: BTreeMap<u64, Option<f64>> = r
+        .stats
+        .iter()
+        .map(|s| (s.at.node.unwrap(), s.fraction))
+        .collect();
+    let (f1, f2) = (f[&1].unwrap(), f[&2].unwrap());
+    assert!(f1 < 1e-4 && f2 < 1e-3, "{f1} {f2}");
+    assert_eq!(f[&5], None);
+    let (src, _) = rgbn::raster::sample::Surface::gaussians_for(64).render_sampled(64, 64);
+    let want = rgbn::raster::integrate::non_integrable_fraction(
+        &rgbn::raster::gradient::GradientField::from_normals(&src),
+        None,
+    )
+    .unwrap();
+    assert_eq!(f1, want);
+    // Noise reads ≈ √(2/π) ≈ 0.8 on the same scale (the number is scale-free).
+    let mut noisy = src.clone();
+    let mut seed = 1u32;
+    let [nx, ny, nz] = noisy.normal_mut();
+    for i in 0..64 * 64 {
+        let mut rnd = || {
+            seed = seed.wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
+            f32::from((seed >> 16) as u16) / 65535.0 - 0.5
+        };
+        let (a, b) = (rnd(), rnd());
+        let n = (a * a + b * b + 1.0).sqrt();
+        (nx[i], ny[i], nz[i]) = (a / n, b / n, 1.0 / n);
+    }
+    let fn_ = rgbn::raster::integrate::non_integrable_fraction(
+        &rgbn::raster::gradient::GradientField::from_normals(&noisy),
+        None,
+    )
+    .unwrap();
+    assert!((fn_ - 0.8).abs() < 0.05, "{fn_}");
 }
