@@ -64,5 +64,8 @@ mod faults;
 #[path = "it/memory.rs"]
 mod memory;
 
+#[path = "it/stamp_regions.rs"]
+mod stamp_regions;
+
 #[path = "it/extract.rs"]
 mod extract;

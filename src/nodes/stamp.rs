@@ -22,8 +22,16 @@ impl Operator for StampNode {
         .input(PortSpec::new(
             "stamp",
             PortType::Rgbn,
-            "The stamp (at most 512 px a side); its mask limits the colour.",
+            "The stamp (at most 512 px a side); its mask limits its relief (feathered over the falloff) and its colour.",
         ))
+        .input(
+            PortSpec::new(
+                "region",
+                PortType::Mask,
+                "Optional region (the target's size): the stamped relief and colour are multiplied by it, integrably.",
+            )
+            .optional(),
+        )
         .output(PortSpec::new("image", PortType::Rgbn, "Stamped image."))
         .output(curl_port("result's gradients"))
     }
@@ -31,7 +39,8 @@ impl Operator for StampNode {
         p.validate()
     }
     fn run(p: &StampParams, i: &Inputs<'_>, _: &RunContext) -> Result<Vec<Value>, RgbnError> {
-        let (img, rep) = stamp_image(i.rgbn("image")?, i.rgbn("stamp")?, p)?;
+        let region = i.mask("region")?.map(|m| m.data());
+        let (img, rep) = stamp_image(i.rgbn("image")?, i.rgbn("stamp")?, region, p)?;
         Ok(vec![
             Value::Rgbn(img),
             Value::Number(rep.curl_after.relative),

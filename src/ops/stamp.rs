@@ -31,7 +31,20 @@
 //! `W·(h − h̄)` at `A⁻¹(P − t)`, and the stamp gradient is the forward difference of that
 //! height: its discrete curl is exactly zero (to rounding), whatever `A`.
 //!
-//! Colour (optional) is composited "over" with `α = opacity · W · mask` sampled the same way.
+//! Colour (optional) is composited "over" with `α = opacity · W · mask` sampled the same way
+//! (times the region, when there is one).
+//!
+//! # Stamp masks and regions
+//!
+//! A stamp with a mask (e.g. a leaf cut out with [`extract`] and a region) carries relief only
+//! inside its mask: its normals are integrated by the masked least-squares solver on the mask
+//! alone (so the background's normals never enter), and the height is multiplied by the
+//! *feathered* mask `F` ([`mask_feather`]: 0 outside, a quintic ramp over `falloff_px` pixels
+//! of distance inside) and levelled to 0 on that ring ([`prepare_masked_stamp_height`]). The
+//! product is still a height, so the stamp stays integrable. A `region` mask on the target
+//! multiplies the summed stamped height, `∇(m·H)` as the integrable linear combine does:
+//! placements (or their parts) outside the region vanish, integrably; a hard region edge
+//! makes a step in relief there (feather the region for a soft edge).
 //!
 //! # References
 //! - T. Pereira, L. Velho, "RGBN image editing", SIBGRAPI 2011, §IV, Fig. 4.
@@ -39,9 +52,10 @@
 //!   algorithms", PAMI 10(4), 1988 (least-squares integration).
 
 use super::filter::{filter_gradients, FilterOptions, Kernel, MAX_SIGMA_PX};
-use super::geom::{bilinear, integrate_least_squares, smoothstep};
+use super::geom::{bilinear, distance_transform, integrate_least_squares, smoothstep};
 use crate::error::RgbnError;
 use crate::raster::gradient::{CurlStats, GradientField};
+use crate::raster::integrate::{integrate_gradients, IntegrateParams, IntegrationMethod};
 use crate::raster::{Plane, RgbnImage};
 use rayon::prelude::*;
 
@@ -309,11 +323,103 @@ pub fn stamp_gradients(
 }
 
 /// Integrates a stamp's normals once (least squares, module docs) and prepares its height.
+/// A stamp with a mask carries relief only inside it ("Stamp masks" in the module docs).
 pub fn stamp_height_from_normals(stamp: &RgbnImage, falloff_px: f32) -> Result<Plane, RgbnError> {
     check_stamp_size(stamp.width(), stamp.height())?;
     let g = GradientField::from_normals(stamp);
-    let h = integrate_least_squares(&g, 1e-7, 4 * (stamp.width() + stamp.height()) + 500);
-    Ok(prepare_stamp_height(&h, falloff_px))
+    let Some(mask) = stamp.mask() else {
+        let h = integrate_least_squares(&g, 1e-7, 4 * (stamp.width() + stamp.height()) + 500);
+        return Ok(prepare_stamp_height(&h, falloff_px));
+    };
+    let (w, hh) = (stamp.width(), stamp.height());
+    let params = IntegrateParams {
+        method: IntegrationMethod::MaskedPoisson,
+        ..IntegrateParams::default()
+    };
+    let (h, _) = integrate_gradients(&g, Some(mask), &params).map_err(|e| match e {
+        RgbnError::InvalidParam { detail, .. } => {
+            RgbnError::param("stamp", format!("its mask: {detail}"))
+        }
+        other => other,
+    })?;
+    let feather = mask_feather(mask, w, hh, falloff_px);
+    Ok(prepare_masked_stamp_height(&h, &feather, falloff_px))
+}
+
+/// The feathered stamp mask (module docs, "Stamp masks"): 0 outside the mask (coverage < ½),
+/// rising by a quintic smoothstep over `falloff_px` pixels of distance from the outside (1
+/// beyond; a hard edge when `falloff_px` is 0). The stamp's border counts as outside.
+#[must_use]
+pub fn mask_feather(mask: &[f32], width: usize, height: usize, falloff_px: f32) -> Plane {
+    // Distance to the nearest outside pixel, the frame around the stamp included.
+    let (fw, fh) = (width + 2, height + 2);
+    let seeds: Vec<bool> = (0..fw * fh)
+        .map(|k| {
+            let (x, r) = (k % fw, k / fw);
+            x == 0 || r == 0 || x == fw - 1 || r == fh - 1 || mask[(r - 1) * width + x - 1] < 0.5
+        })
+        .collect();
+    let d = distance_transform(&seeds, fw, fh);
+    let f = f64::from(falloff_px);
+    Plane::from_fn(width, height, |x, r| {
+        let dist = f64::from(d.at(x + 1, r + 1));
+        if dist <= 0.0 {
+            0.0
+        } else if f <= 0.0 {
+            1.0
+        } else {
+            // The first pixel inside is 1 px from the outside: the ramp starts there (at 0).
+            smoothstep(0.0, f, dist - 1.0) as f32
+        }
+    })
+}
+
+/// `F·(h − h̄)` for a masked stamp: `F` the feathered mask ([`mask_feather`]) times the
+/// stamp window, `h̄` the mean of `h` on the feather ring (weights `1 − F` inside the mask;
+/// the mask's edge pixels when nothing is feathered), so the relief meets the target at level
+/// 0 all round the mask and is exactly 0 outside it.
+#[must_use]
+pub fn prepare_masked_stamp_height(h: &Plane, feather: &Plane, falloff_px: f32) -> Plane {
+    let (w, hh) = (h.width(), h.height());
+    let win = stamp_window(w, hh, falloff_px);
+    let weight = Plane::from_fn(w, hh, |i, j| win.at(i, j) * feather.at(i, j));
+    let (mut num, mut den) = (0.0f64, 0.0f64);
+    for j in 0..hh {
+        for i in 0..w {
+            let f = f64::from(feather.at(i, j));
+            if f > 0.0 {
+                let ring = if f < 1.0 { 1.0 - f } else { 0.0 };
+                num += ring * f64::from(h.at(i, j));
+                den += ring;
+            }
+        }
+    }
+    if den == 0.0 {
+        // No ring (a hard edge): the mask's edge pixels (a neighbour outside) set the level.
+        for j in 0..hh {
+            for i in 0..w {
+                let inside = |x: isize, y: isize| {
+                    x >= 0
+                        && y >= 0
+                        && (x as usize) < w
+                        && (y as usize) < hh
+                        && feather.at(x as usize, y as usize) > 0.0
+                };
+                let (x, y) = (i as isize, j as isize);
+                if inside(x, y)
+                    && !(inside(x - 1, y)
+                        && inside(x + 1, y)
+                        && inside(x, y - 1)
+                        && inside(x, y + 1))
+                {
+                    num += f64::from(h.at(i, j));
+                    den += 1.0;
+                }
+            }
+        }
+    }
+    let mean = if den > 0.0 { (num / den) as f32 } else { 0.0 };
+    Plane::from_fn(w, hh, |i, j| weight.at(i, j) * (h.at(i, j) - mean))
 }
 
 /// What [`stamp_image`] measured.
@@ -325,16 +431,33 @@ pub struct StampReport {
     pub curl_after: CurlStats,
 }
 
-/// Stamps `stamp` (relief from its normals, colour optionally) onto `target` at every position.
+/// Stamps `stamp` (relief from its normals, colour optionally) onto `target` at every position;
+/// with a `region` (the target's size) the stamped height is multiplied by it, so placements
+/// are restricted to the region and the result stays integrable (module docs).
 pub fn stamp_image(
     target: &RgbnImage,
     stamp: &RgbnImage,
+    region: Option<&[f32]>,
     params: &StampParams,
 ) -> Result<(RgbnImage, StampReport), RgbnError> {
     params.validate()?;
     let (w, h) = (target.width(), target.height());
+    if region.is_some_and(|m| m.len() != w * h) {
+        return Err(RgbnError::param(
+            "region",
+            format!("the mask is not the target image's size ({w}×{h})"),
+        ));
+    }
     let prepared = stamp_height_from_normals(stamp, params.falloff())?;
-    let sg = stamp_gradients(w, h, &prepared, params)?;
+    let mut height = stamp_height_field(w, h, &prepared, params)?;
+    if let Some(m) = region {
+        height
+            .data_mut()
+            .par_iter_mut()
+            .zip(m.par_iter())
+            .for_each(|(v, m)| *v *= m.clamp(0.0, 1.0));
+    }
+    let sg = GradientField::of_height(&height).0;
     let mut g = GradientField::from_normals(target);
     g.p.par_iter_mut()
         .zip(sg.p.par_iter())
@@ -351,6 +474,8 @@ pub fn stamp_image(
             Some(m) => win.data().iter().zip(m).map(|(a, b)| a * b).collect(),
             None => win.into_vec(),
         };
+        let region_alpha =
+            |x: usize, r: usize| region.map_or(1.0, |m| m[r * w + x].clamp(0.0, 1.0));
         let a = params.affine();
         let ainv = inverse(a);
         let sc = stamp.color();
@@ -375,7 +500,7 @@ pub fn stamp_image(
                         let Some(al) = bilinear(&alpha_src, sw, sh, i, j) else {
                             continue;
                         };
-                        let al = (al * opacity).clamp(0.0, 1.0);
+                        let al = (al * opacity * region_alpha(x, r)).clamp(0.0, 1.0);
                         for (dst, src) in [
                             (&mut cr[x], &sc[0]),
                             (&mut cg[x], &sc[1]),
@@ -728,7 +853,7 @@ mod tests {
             scale_y: 1.3,
             ..StampParams::default()
         };
-        let (out, rep) = stamp_image(&target, &stamp, &p).unwrap();
+        let (out, rep) = stamp_image(&target, &stamp, None, &p).unwrap();
         println!("stamp_image: {rep:?}");
         assert!(rep.curl_stamp.relative < 1e-6, "{rep:?}");
         let before = GradientField::from_normals(&target).relative_rms_curl(None);
@@ -774,7 +899,7 @@ mod tests {
             falloff_px: 6.0,
             ..StampParams::default()
         };
-        let (out, rep) = stamp_image(&target, &stamp, &p).unwrap();
+        let (out, rep) = stamp_image(&target, &stamp, None, &p).unwrap();
         let raw = GradientField::from_normals(&stamp).curl_stats(None);
         println!(
             "rosewood stamp: stamp's own curl {:.3e} (rms slope {:.3e}) → stamped {:.3e} (rms slope {:.3e})",
@@ -851,7 +976,7 @@ mod tests {
             assert!(e.contains(needle), "{needle}: {e}");
         }
         let tiny = RgbnImage::flat(1, 1, [0.0; 3]);
-        let e = stamp_image(&RgbnImage::flat(8, 8, [0.0; 3]), &tiny, &ok)
+        let e = stamp_image(&RgbnImage::flat(8, 8, [0.0; 3]), &tiny, None, &ok)
             .unwrap_err()
             .to_string();
         assert!(e.contains("stamp"), "{e}");

@@ -74,8 +74,10 @@ fn editor_opens_the_demo_and_previews_it() {
     h.get_by_label("Inspector");
     h.get_by_label("Preview");
     h.get_by_label("sharpen · Sharpen");
-    // The viewed node's curl is in the status bar.
-    h.get_by_label_contains("curl (rel. RMS)");
+    // The viewed node's integrability (F and curl) is in the status bar; F on the nodes.
+    h.get_by_label_contains(" · curl ");
+    let with_f = h.query_all_by_label_contains("F ").count();
+    assert!(with_f >= 2, "status bar and nodes: {with_f}");
 }
 
 #[test]
