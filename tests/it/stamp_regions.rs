@@ -149,7 +149,9 @@ fn the_stamp_node_takes_a_region_and_refuses_one_of_another_size() {
     let eval = |text: &str| {
         let lg = LoadedGraph::from_text(text, "regions.ron", Path::new(".").to_path_buf()).unwrap();
         let plan = Plan::new(&lg, &BTreeMap::new(), Path::new(".")).unwrap();
-        Evaluator::default().eval(&plan, &[], &EvalOptions::default())
+        Evaluator::default()
+            .eval(&plan, &[], &EvalOptions::default())
+            .map_err(|e| e.to_string())
     };
     let r = eval(GRAPH).unwrap();
     let Value::Rgbn(img) = &r.outputs["image"] else {
@@ -169,7 +171,7 @@ fn the_stamp_node_takes_a_region_and_refuses_one_of_another_size() {
             "    ],\n)",
             "        (id: 5, op: \"surface\", params: { \"shape\": Choice(\"sphere\"), \"width\": Int(80), \"height\": Int(64) }),\n    ],\n)",
         );
-    let e = eval(&bad).unwrap_err().to_string();
+    let e = eval(&bad).unwrap_err();
     assert!(
         !e.contains('\n') && e.contains("region") && e.contains("node 4"),
         "{e}"
