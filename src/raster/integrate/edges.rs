@@ -37,8 +37,17 @@
 //! a good approximate inverse), the Krylov vectors in `f64`.
 
 use crate::error::RgbnError;
+use crate::raster::buf::advise_huge_pages;
 use crate::raster::par::SharedMut;
 use rayon::prelude::*;
+
+// TEMP diagnostics
+pub(super) fn tlog(what: &str, t: &mut std::time::Instant) {
+    if std::env::var_os("RGBN_DIAG").is_some() {
+        eprintln!("  {what}: {:.1} ms", t.elapsed().as_secs_f64() * 1e3);
+    }
+    *t = std::time::Instant::now();
+}
 
 /// Minimise `Σ_i wx[i]·(z[i+1] − z[i] − ex[i])² + Σ_i wy[i]·(z[i+w] − z[i] − ey[i])²`
 /// (row-major `w × h`; `wx[i]` is the edge from `i` to its right neighbour, ignored in the
@@ -72,6 +81,9 @@ pub(crate) struct EdgeSolve {
 /// # Errors
 /// Slices whose lengths are not `w·h`, negative or non-finite weights, non-finite targets on
 /// an edge of positive weight, a non-finite `z0`, or a tolerance outside (0, 1).
+// The entry point for bilateral normal integration (branch `bini`); masked Poisson calls
+// [`solve_edges_owned`].
+#[cfg_attr(not(test), allow(dead_code))]
 pub(crate) fn solve_edges(
     sys: &EdgeSystem,
     z0: Option<&[f32]>,
@@ -82,6 +94,7 @@ pub(crate) fn solve_edges(
 }
 
 /// [`solve_edges`], and whether the CG guard fired (the Jacobi restart of [`pcg`]).
+#[cfg_attr(not(test), allow(dead_code))]
 fn solve_edges_guarded(
     sys: &EdgeSystem,
     z0: Option<&[f32]>,
@@ -89,7 +102,48 @@ fn solve_edges_guarded(
     max_iterations: u32,
 ) -> Result<(EdgeSolve, bool), RgbnError> {
     validate(sys, z0, tolerance)?;
-    let (w, h) = (sys.w, sys.h);
+    let copy = |v: &[f32]| {
+        let mut c = par_vec(v.len(), |_| 0.0f32);
+        c.par_chunks_mut(1 << 14)
+            .zip(v.par_chunks(1 << 14))
+            .for_each(|(c, v)| c.copy_from_slice(v));
+        c
+    };
+    solve_edges_owned(
+        sys.w,
+        sys.h,
+        copy(sys.wx),
+        sys.ex,
+        copy(sys.wy),
+        sys.ey,
+        z0,
+        tolerance,
+        max_iterations,
+    )
+}
+
+/// [`solve_edges_guarded`] taking the weights by value (no copy).
+#[allow(clippy::too_many_arguments)]
+pub(super) fn solve_edges_owned(
+    w: usize,
+    h: usize,
+    mut wx: Vec<f32>,
+    ex: &[f32],
+    mut wy: Vec<f32>,
+    ey: &[f32],
+    z0: Option<&[f32]>,
+    tolerance: f64,
+    max_iterations: u32,
+) -> Result<(EdgeSolve, bool), RgbnError> {
+    let sys = EdgeSystem {
+        w,
+        h,
+        wx: &wx,
+        ex,
+        wy: &wy,
+        ey,
+    };
+    validate(&sys, z0, tolerance)?;
     let n = w * h;
     if n == 0 {
         return Ok((
@@ -101,23 +155,17 @@ fn solve_edges_guarded(
             false,
         ));
     }
-    // Weights with the out-of-grid edges dropped.
-    let wx: Vec<f32> = sys
-        .wx
-        .par_iter()
-        .enumerate()
-        .map(|(i, &v)| if i % w + 1 < w { v } else { 0.0 })
-        .collect();
-    let wy: Vec<f32> = sys
-        .wy
-        .par_iter()
-        .enumerate()
-        .map(|(i, &v)| if i + w < n { v } else { 0.0 })
-        .collect();
-    let mut b = rhs(sys, &wx, &wy);
+    let mut t = std::time::Instant::now();
+    // The out-of-grid edges dropped.
+    wx.par_chunks_mut(w).for_each(|row| row[w - 1] = 0.0);
+    wy[n - w..].fill(0.0);
+    let mut b = rhs(w, ex, ey, &wx, &wy);
+    tlog("rhs", &mut t);
     let mut mg = Multigrid::new(w, h, wx, wy);
+    tlog("multigrid new", &mut t);
     let l0 = &mg.levels[0];
     let (label, count) = components(w, h, &l0.wx, &l0.wy, &l0.inv_diag);
+    tlog("components", &mut t);
     // b is consistent (zero sum per component) up to rounding; the rounding part is projected
     // out: CG cannot reduce it, and the V-cycle amplifies constants (module docs).
     let means = component_means(&b, &label, count);
@@ -127,9 +175,10 @@ fn solve_edges_guarded(
         }
     });
     let b_norm = dot(&b, &b).sqrt();
+    tlog("b projection", &mut t);
     let mut x: Vec<f64> = match z0 {
-        Some(z) if b_norm > 0.0 => z.par_iter().map(|&v| f64::from(v)).collect(),
-        _ => vec![0.0; n],
+        Some(z) if b_norm > 0.0 => par_vec(n, |i| f64::from(z[i])),
+        _ => par_vec(n, |_| 0.0),
     };
     let (iterations, relative_residual, restarted) = if b_norm > 0.0 {
         pcg(
@@ -144,7 +193,9 @@ fn solve_edges_guarded(
     } else {
         (0, 0.0, false)
     };
+    tlog("pcg", &mut t);
     let z = fix_constants(&x, z0, &label, count);
+    tlog("fix constants", &mut t);
     Ok((
         EdgeSolve {
             z,
@@ -222,10 +273,23 @@ fn validate(sys: &EdgeSystem, z0: Option<&[f32]>, tolerance: f64) -> Result<(), 
     Ok(())
 }
 
+/// A vector of `n` values `f(i)`, filled in parallel (huge pages advised: [`advise_huge_pages`]).
+pub(super) fn par_vec<T: Copy + Default + Send + Sync>(
+    n: usize,
+    f: impl Fn(usize) -> T + Sync + Send,
+) -> Vec<T> {
+    let mut v = vec![T::default(); n];
+    advise_huge_pages(&v);
+    v.par_chunks_mut(1 << 14).enumerate().for_each(|(c, out)| {
+        for (k, o) in out.iter_mut().enumerate() {
+            *o = f((c << 14) + k);
+        }
+    });
+    v
+}
+
 /// `b = Σ_{edges j→i} w e − Σ_{edges i→j} w e` (module docs).
-fn rhs(sys: &EdgeSystem, wx: &[f32], wy: &[f32]) -> Vec<f64> {
-    let (w, n) = (sys.w, sys.w * sys.h);
-    let (ex, ey) = (sys.ex, sys.ey);
+fn rhs(w: usize, ex: &[f32], ey: &[f32], wx: &[f32], wy: &[f32]) -> Vec<f64> {
     // A zero weight times a non-finite target must not poison b.
     let f = |wt: f32, e: f32| {
         if wt > 0.0 {
@@ -234,19 +298,24 @@ fn rhs(sys: &EdgeSystem, wx: &[f32], wy: &[f32]) -> Vec<f64> {
             0.0
         }
     };
-    (0..n)
-        .into_par_iter()
-        .map(|i| {
-            let mut s = -f(wx[i], ex[i]) - f(wy[i], ey[i]);
-            if i % w >= 1 {
-                s += f(wx[i - 1], ex[i - 1]);
-            }
-            if i >= w {
-                s += f(wy[i - w], ey[i - w]);
-            }
-            s
-        })
-        .collect()
+    par_vec(wx.len(), |i| {
+        let mut s = -f(wx[i], ex[i]) - f(wy[i], ey[i]);
+        if i % w >= 1 {
+            s += f(wx[i - 1], ex[i - 1]);
+        }
+        if i >= w {
+            s += f(wy[i - w], ey[i - w]);
+        }
+        s
+    })
+}
+
+/// `⟨a, z⟩` with `z` the V-cycle's `f32` output.
+fn dot_mixed(a: &[f64], z: &[f32]) -> f64 {
+    a.par_chunks(1 << 14)
+        .zip(z.par_chunks(1 << 14))
+        .map(|(a, z)| a.iter().zip(z).map(|(x, &y)| x * f64::from(y)).sum::<f64>())
+        .sum()
 }
 
 /// `y = A x` on level 0's weights; returns `⟨x, y⟩`.
@@ -311,12 +380,11 @@ fn pcg(
     mut pre: Preconditioner,
 ) -> (u32, f64, bool) {
     let n = b.len();
-    let mut ax = vec![0.0f64; n];
+    let mut ax = par_vec(n, |_| 0.0f64);
     apply_a(&mg.levels[0], x, &mut ax);
-    let mut res: Vec<f64> = b.par_iter().zip(&ax).map(|(b, a)| b - a).collect();
+    let mut res = par_vec(n, |i| b[i] - ax[i]);
     let mut rel = dot(&res, &res).sqrt() / b_norm;
-    let mut zv = vec![0.0f64; n];
-    let mut dir = vec![0.0f64; n];
+    let mut dir = par_vec(n, |_| 0.0f64);
     let mut rz = 0.0;
     let mut iterations = 0u32;
     let mut best: Option<(f64, Vec<f64>)> =
@@ -340,15 +408,20 @@ fn pcg(
             }
         }
         if restart {
-            mg.precondition(pre, &res, &mut zv);
-            dir.copy_from_slice(&zv);
-            rz = dot(&res, &zv);
+            mg.precondition(pre, &res);
+            let zv = &mg.levels[0].x;
+            dir.par_iter_mut()
+                .zip(zv)
+                .for_each(|(d, &z)| *d = f64::from(z));
+            rz = dot_mixed(&res, zv);
             restart = false;
             if rz <= 0.0 {
                 break;
             }
         }
+        let mut t = std::time::Instant::now();
         let dad = apply_a(&mg.levels[0], &dir, &mut ax);
+        tlog("apply_a", &mut t);
         if dad <= 0.0 {
             break;
         }
@@ -369,6 +442,7 @@ fn pcg(
             .sum();
         iterations += 1;
         rel = rr.sqrt() / b_norm;
+        tlog("update", &mut t);
         if let Some((best_rel, best_x)) = &mut best {
             if rel < *best_rel {
                 *best_rel = rel;
@@ -378,16 +452,19 @@ fn pcg(
         if rel <= tolerance {
             break;
         }
-        mg.precondition(pre, &res, &mut zv);
-        let rz_new = dot(&res, &zv);
+        mg.precondition(pre, &res);
+        tlog("precondition", &mut t);
+        let zv = &mg.levels[0].x;
+        let rz_new = dot_mixed(&res, zv);
         if rz_new <= 0.0 {
             break;
         }
         let beta = rz_new / rz;
         rz = rz_new;
         dir.par_iter_mut()
-            .zip(&zv)
-            .for_each(|(d, z)| *d = z + beta * *d);
+            .zip(zv)
+            .for_each(|(d, &z)| *d = f64::from(z) + beta * *d);
+        tlog("dot+dir", &mut t);
     }
     (iterations, rel, restarted)
 }
@@ -396,18 +473,15 @@ fn pcg(
 fn fix_constants(x: &[f64], z0: Option<&[f32]>, label: &[u32], count: usize) -> Vec<f32> {
     let mut shift = component_means(x, label, count);
     if let Some(z) = z0 {
-        let z: Vec<f64> = z.par_iter().map(|&v| f64::from(v)).collect();
+        let z = par_vec(z.len(), |i| f64::from(z[i]));
         for (s, m) in shift.iter_mut().zip(component_means(&z, label, count)) {
             *s -= m;
         }
     }
-    x.par_iter()
-        .zip(label)
-        .map(|(&v, &l)| match l {
-            u32::MAX => 0.0,
-            l => (v - shift[l as usize]) as f32,
-        })
-        .collect()
+    par_vec(x.len(), |i| match label[i] {
+        u32::MAX => 0.0,
+        l => (x[i] - shift[l as usize]) as f32,
+    })
 }
 
 /// The mean of `v` on each component (`label` as from [`components`]).
@@ -485,32 +559,29 @@ pub(super) struct Level {
 
 impl Level {
     pub(super) fn new(w: usize, h: usize, wx: Vec<f32>, wy: Vec<f32>) -> Self {
-        let inv_diag = (0..w * h)
-            .into_par_iter()
-            .map(|i| {
-                let (xx, r) = (i % w, i / w);
-                let mut d = wx[i] + wy[i];
-                if xx >= 1 {
-                    d += wx[i - 1];
-                }
-                if r >= 1 {
-                    d += wy[i - w];
-                }
-                if d > 0.0 {
-                    1.0 / d
-                } else {
-                    0.0
-                }
-            })
-            .collect();
+        let inv_diag = par_vec(w * h, |i| {
+            let (xx, r) = (i % w, i / w);
+            let mut d = wx[i] + wy[i];
+            if xx >= 1 {
+                d += wx[i - 1];
+            }
+            if r >= 1 {
+                d += wy[i - w];
+            }
+            if d > 0.0 {
+                1.0 / d
+            } else {
+                0.0
+            }
+        });
         Self {
             w,
             h,
             wx,
             wy,
             inv_diag,
-            x: vec![0.0; w * h],
-            b: vec![0.0; w * h],
+            x: par_vec(w * h, |_| 0.0),
+            b: par_vec(w * h, |_| 0.0),
         }
     }
 
@@ -519,29 +590,45 @@ impl Level {
         let (w, h) = (self.w, self.h);
         let (cw, ch) = (w.div_ceil(2), h.div_ceil(2));
         let at = |v: &[f32], x: usize, r: usize| if x < w && r < h { v[r * w + x] } else { 0.0 };
-        let wx = (0..cw * ch)
-            .into_par_iter()
-            .map(|i| {
-                let (cx, cr) = (i % cw, i / cw);
-                if cx + 1 >= cw {
-                    return 0.0;
-                }
-                let fx = 2 * cx + 1;
-                0.5 * (at(&self.wx, fx, 2 * cr) + at(&self.wx, fx, 2 * cr + 1))
-            })
-            .collect();
-        let wy = (0..cw * ch)
-            .into_par_iter()
-            .map(|i| {
-                let (cx, cr) = (i % cw, i / cw);
-                if cr + 1 >= ch {
-                    return 0.0;
-                }
-                let fr = 2 * cr + 1;
-                0.5 * (at(&self.wy, 2 * cx, fr) + at(&self.wy, 2 * cx + 1, fr))
-            })
-            .collect();
+        let wx = par_vec(cw * ch, |i| {
+            let (cx, cr) = (i % cw, i / cw);
+            if cx + 1 >= cw {
+                return 0.0;
+            }
+            let fx = 2 * cx + 1;
+            0.5 * (at(&self.wx, fx, 2 * cr) + at(&self.wx, fx, 2 * cr + 1))
+        });
+        let wy = par_vec(cw * ch, |i| {
+            let (cx, cr) = (i % cw, i / cw);
+            if cr + 1 >= ch {
+                return 0.0;
+            }
+            let fr = 2 * cr + 1;
+            0.5 * (at(&self.wy, 2 * cx, fr) + at(&self.wy, 2 * cx + 1, fr))
+        });
         Self::new(cw, ch, wx, wy)
+    }
+
+    /// `x = 0`, then the red half-sweep (`b` from `r` first when given): on red nodes
+    /// `x = b / diag` (their neighbours are black, still 0), black nodes 0. One pass.
+    fn first_sweep(&mut self, r: Option<&[f64]>) {
+        let w = self.w;
+        let inv = &self.inv_diag;
+        self.x
+            .par_chunks_mut(w)
+            .zip(self.b.par_chunks_mut(w))
+            .enumerate()
+            .for_each(|(row, (x, b))| {
+                if let Some(r) = r {
+                    for (b, &v) in b.iter_mut().zip(&r[row * w..(row + 1) * w]) {
+                        *b = v as f32;
+                    }
+                }
+                let inv = &inv[row * w..(row + 1) * w];
+                for (k, ((x, &b), &d)) in x.iter_mut().zip(b.iter()).zip(inv).enumerate() {
+                    *x = if (k + row) % 2 == 0 { b * d } else { 0.0 };
+                }
+            });
     }
 
     /// One Gauss–Seidel half-sweep over the nodes of one colour (`(x + r) % 2 == colour`).
@@ -790,26 +877,28 @@ impl Multigrid {
         Self { levels, coarse }
     }
 
-    fn precondition(&mut self, pre: Preconditioner, r: &[f64], out: &mut [f64]) {
+    /// `levels[0].x ≈ M r` for the preconditioner `M`.
+    fn precondition(&mut self, pre: Preconditioner, r: &[f64]) {
         match pre {
-            Preconditioner::Multigrid => self.apply(r, out),
+            Preconditioner::Multigrid => self.apply(r),
             Preconditioner::Jacobi => {
-                let inv = &self.levels[0].inv_diag;
-                out.par_iter_mut()
-                    .zip(r.par_iter().zip(inv))
-                    .for_each(|(z, (r, &d))| *z = r * f64::from(d));
+                let l0 = &mut self.levels[0];
+                l0.x.par_iter_mut()
+                    .zip(r.par_iter().zip(&l0.inv_diag))
+                    .for_each(|(z, (r, &d))| *z = (r * f64::from(d)) as f32);
             }
         }
     }
 
-    /// `out ≈ A⁻¹ r` by one V-cycle (symmetric: module docs).
-    pub(super) fn apply(&mut self, r: &[f64], out: &mut [f64]) {
-        let l0 = &mut self.levels[0];
-        l0.b.par_iter_mut().zip(r).for_each(|(b, &v)| *b = v as f32);
+    /// `levels[0].x ≈ A⁻¹ r` by one V-cycle (symmetric: module docs).
+    pub(super) fn apply(&mut self, r: &[f64]) {
+        if self.levels.len() == 1 {
+            let l0 = &mut self.levels[0];
+            l0.b.par_iter_mut().zip(r).for_each(|(b, &v)| *b = v as f32);
+        } else {
+            self.levels[0].first_sweep(Some(r));
+        }
         self.vcycle(0);
-        out.par_iter_mut()
-            .zip(&self.levels[0].x)
-            .for_each(|(o, &v)| *o = f64::from(v));
     }
 
     fn vcycle(&mut self, k: usize) {
@@ -819,8 +908,9 @@ impl Multigrid {
             self.coarse.solve(&l.b, &mut l.x);
             return;
         }
-        l.x.par_iter_mut().for_each(|v| *v = 0.0);
-        l.gs_colour(0);
+        if k > 0 {
+            l.first_sweep(None);
+        }
         l.gs_colour(1);
         let (fine, coarse) = self.levels.split_at_mut(k + 1);
         fine[k].restrict_residual(&mut coarse[0]);
