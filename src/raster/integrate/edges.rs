@@ -41,14 +41,6 @@ use crate::raster::buf::advise_huge_pages;
 use crate::raster::par::SharedMut;
 use rayon::prelude::*;
 
-// TEMP diagnostics
-pub(super) fn tlog(what: &str, t: &mut std::time::Instant) {
-    if std::env::var_os("RGBN_DIAG").is_some() {
-        eprintln!("  {what}: {:.1} ms", t.elapsed().as_secs_f64() * 1e3);
-    }
-    *t = std::time::Instant::now();
-}
-
 /// Minimise `Σ_i wx[i]·(z[i+1] − z[i] − ex[i])² + Σ_i wy[i]·(z[i+w] − z[i] − ey[i])²`
 /// (row-major `w × h`; `wx[i]` is the edge from `i` to its right neighbour, ignored in the
 /// last column; `wy[i]` the edge from `i` to the pixel below, ignored in the last row; weight
@@ -155,17 +147,13 @@ pub(super) fn solve_edges_owned(
             false,
         ));
     }
-    let mut t = std::time::Instant::now();
     // The out-of-grid edges dropped.
     wx.par_chunks_mut(w).for_each(|row| row[w - 1] = 0.0);
     wy[n - w..].fill(0.0);
     let mut b = rhs(w, ex, ey, &wx, &wy);
-    tlog("rhs", &mut t);
     let mut mg = Multigrid::new(w, h, wx, wy);
-    tlog("multigrid new", &mut t);
     let l0 = &mg.levels[0];
     let (label, count) = components(w, h, &l0.wx, &l0.wy, &l0.inv_diag);
-    tlog("components", &mut t);
     // b is consistent (zero sum per component) up to rounding; the rounding part is projected
     // out: CG cannot reduce it, and the V-cycle amplifies constants (module docs).
     let means = component_means(&b, &label, count);
@@ -175,10 +163,9 @@ pub(super) fn solve_edges_owned(
         }
     });
     let b_norm = dot(&b, &b).sqrt();
-    tlog("b projection", &mut t);
     let mut x: Vec<f64> = match z0 {
         Some(z) if b_norm > 0.0 => par_vec(n, |i| f64::from(z[i])),
-        _ => par_vec(n, |_| 0.0),
+        _ => zeros(n),
     };
     let (iterations, relative_residual, restarted) = if b_norm > 0.0 {
         pcg(
@@ -193,9 +180,7 @@ pub(super) fn solve_edges_owned(
     } else {
         (0, 0.0, false)
     };
-    tlog("pcg", &mut t);
     let z = fix_constants(&x, z0, &label, count);
-    tlog("fix constants", &mut t);
     Ok((
         EdgeSolve {
             z,
@@ -271,6 +256,13 @@ fn validate(sys: &EdgeSystem, z0: Option<&[f32]>, tolerance: f64) -> Result<(), 
         ));
     }
     Ok(())
+}
+
+/// `n` zeros, untouched until written (huge pages advised: [`advise_huge_pages`]).
+fn zeros<T: Copy + Default>(n: usize) -> Vec<T> {
+    let v = vec![T::default(); n];
+    advise_huge_pages(&v);
+    v
 }
 
 /// A vector of `n` values `f(i)`, filled in parallel (huge pages advised: [`advise_huge_pages`]).
@@ -380,11 +372,11 @@ fn pcg(
     mut pre: Preconditioner,
 ) -> (u32, f64, bool) {
     let n = b.len();
-    let mut ax = par_vec(n, |_| 0.0f64);
+    let mut ax = zeros::<f64>(n);
     apply_a(&mg.levels[0], x, &mut ax);
     let mut res = par_vec(n, |i| b[i] - ax[i]);
     let mut rel = dot(&res, &res).sqrt() / b_norm;
-    let mut dir = par_vec(n, |_| 0.0f64);
+    let mut dir = zeros::<f64>(n);
     let mut rz = 0.0;
     let mut iterations = 0u32;
     let mut best: Option<(f64, Vec<f64>)> =
@@ -419,9 +411,7 @@ fn pcg(
                 break;
             }
         }
-        let mut t = std::time::Instant::now();
         let dad = apply_a(&mg.levels[0], &dir, &mut ax);
-        tlog("apply_a", &mut t);
         if dad <= 0.0 {
             break;
         }
@@ -442,7 +432,6 @@ fn pcg(
             .sum();
         iterations += 1;
         rel = rr.sqrt() / b_norm;
-        tlog("update", &mut t);
         if let Some((best_rel, best_x)) = &mut best {
             if rel < *best_rel {
                 *best_rel = rel;
@@ -453,7 +442,6 @@ fn pcg(
             break;
         }
         mg.precondition(pre, &res);
-        tlog("precondition", &mut t);
         let zv = &mg.levels[0].x;
         let rz_new = dot_mixed(&res, zv);
         if rz_new <= 0.0 {
@@ -464,7 +452,6 @@ fn pcg(
         dir.par_iter_mut()
             .zip(zv)
             .for_each(|(d, &z)| *d = f64::from(z) + beta * *d);
-        tlog("dot+dir", &mut t);
     }
     (iterations, rel, restarted)
 }
@@ -501,24 +488,41 @@ fn component_means(v: &[f64], label: &[u32], count: usize) -> Vec<f64> {
 /// edge (`u32::MAX` for nodes without one) and the number of components.
 fn components(w: usize, h: usize, wx: &[f32], wy: &[f32], inv_diag: &[f32]) -> (Vec<u32>, usize) {
     let n = w * h;
-    let mut parent: Vec<u32> = (0..n as u32).collect();
-    fn find(p: &mut [u32], mut i: u32) -> u32 {
-        while p[i as usize] != i {
-            let g = p[p[i as usize] as usize];
-            p[i as usize] = g;
+    let mut parent: Vec<u32> = par_vec(n, |i| i as u32);
+    fn find(p: &mut [u32], base: usize, mut i: u32) -> u32 {
+        while p[i as usize - base] != i {
+            let g = p[p[i as usize - base] as usize - base];
+            p[i as usize - base] = g;
             i = g;
         }
         i
     }
-    for i in 0..n {
-        for (wt, j) in [(wx[i], i + 1), (wy[i], i + w)] {
-            if wt > 0.0 {
-                let (a, b) = (find(&mut parent, i as u32), find(&mut parent, j as u32));
-                if a != b {
-                    // The smaller index stays root: roots are met first in a forward scan.
-                    let (lo, hi) = if a < b { (a, b) } else { (b, a) };
-                    parent[hi as usize] = lo;
-                }
+    // The smaller index stays root: a root is its component's first node in a forward scan.
+    fn union(p: &mut [u32], base: usize, i: usize, j: usize) {
+        let (a, b) = (find(p, base, i as u32), find(p, base, j as u32));
+        if a != b {
+            let (lo, hi) = if a < b { (a, b) } else { (b, a) };
+            p[hi as usize - base] = lo;
+        }
+    }
+    // Bands of rows in parallel (every parent inside its band), then the edges between bands.
+    let band = h.div_ceil(32).max(1) * w;
+    parent.par_chunks_mut(band).enumerate().for_each(|(k, p)| {
+        let base = k * band;
+        for li in 0..p.len() {
+            let i = base + li;
+            if wx[i] > 0.0 {
+                union(p, base, i, i + 1);
+            }
+            if li + w < p.len() && wy[i] > 0.0 {
+                union(p, base, i, i + w);
+            }
+        }
+    });
+    for start in (band..n).step_by(band) {
+        for i in start - w..start {
+            if wy[i] > 0.0 {
+                union(&mut parent, 0, i, i + w);
             }
         }
     }
@@ -528,7 +532,7 @@ fn components(w: usize, h: usize, wx: &[f32], wy: &[f32], inv_diag: &[f32]) -> (
         if inv_diag[i] == 0.0 {
             continue;
         }
-        let r = find(&mut parent, i as u32) as usize;
+        let r = find(&mut parent, 0, i as u32) as usize;
         if r == i {
             label[i] = count as u32;
             count += 1;
@@ -580,8 +584,8 @@ impl Level {
             wx,
             wy,
             inv_diag,
-            x: par_vec(w * h, |_| 0.0),
-            b: par_vec(w * h, |_| 0.0),
+            x: zeros(w * h),
+            b: zeros(w * h),
         }
     }
 
