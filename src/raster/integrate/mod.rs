@@ -66,10 +66,10 @@
 //!   level), in `f64` for the Krylov vectors and `f32` inside the V-cycle, warm-started from
 //!   the DCT solution of the edge values with the off-domain edges set to 0. Each connected
 //!   component of the mask has its own free constant (the warm start's mean on it); the result
-//!   has zero mean over the mask. Pixels outside the mask keep the warm start (a smooth fill carrying no
-//!   information). A pixel with no edge inside the mask (a single-pixel component) gets
-//!   height 0 and is counted in [`IntegrationReport::isolated_pixels`]; a mask with no edge at
-//!   all is an error naming the mask.
+//!   has zero mean over the mask. Pixels outside the mask keep the warm start (a smooth fill
+//!   carrying no information). A pixel with no edge inside the mask (a single-pixel component)
+//!   gets height 0 and is counted in [`IntegrationReport::isolated_pixels`]; a mask with no
+//!   edge at all is an error naming the mask.
 //!
 //! # Sampled normals: averaged vs forward (history)
 //!
