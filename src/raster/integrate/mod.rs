@@ -60,15 +60,16 @@
 //!   (coverage ≥ 0.5) are equations (averaged edge values thus only average two samples
 //!   inside), so nothing outside the object (background normals, depth discontinuities at the
 //!   silhouette) leaks in. The masked Laplacian is solved by conjugate gradients
-//!   preconditioned with one geometric-multigrid V-cycle (documented in the `masked` source:
-//!   coverage-aggregated coarse masks, rediscretised masked Laplacians, red-black Gauss–Seidel),
-//!   in `f64` for the Krylov vectors and `f32` inside the V-cycle, warm-started from the DCT
-//!   solution of the edge values with the off-domain edges set to 0. Each connected component
-//!   of the mask has its own free constant (kept from the warm start); the result has zero mean
-//!   over the mask. Pixels outside the mask keep the warm start (a smooth fill carrying no
-//!   information). A pixel with no edge inside the mask (a single-pixel component) gets
-//!   height 0 and is counted in [`IntegrationReport::isolated_pixels`]; a mask with no edge at
-//!   all is an error naming the mask.
+//!   preconditioned with one geometric-multigrid V-cycle (the weighted-edge solver of the
+//!   `edges` source, weight 1 inside the mask: coverage-aggregated coarse levels,
+//!   rediscretised Laplacians, red-black Gauss–Seidel, exact pseudo-inverse on the coarsest
+//!   level), in `f64` for the Krylov vectors and `f32` inside the V-cycle, warm-started from
+//!   the DCT solution of the edge values with the off-domain edges set to 0. Each connected
+//!   component of the mask has its own free constant (the warm start's mean on it); the result
+//!   has zero mean over the mask. Pixels outside the mask keep the warm start (a smooth fill
+//!   carrying no information). A pixel with no edge inside the mask (a single-pixel component)
+//!   gets height 0 and is counted in [`IntegrationReport::isolated_pixels`]; a mask with no
+//!   edge at all is an error naming the mask.
 //!
 //! # Sampled normals: averaged vs forward (history)
 //!
@@ -105,6 +106,7 @@
 //!   (discrete Poisson with Neumann boundaries on non-rectangular domains).
 
 mod dct;
+mod edges;
 mod fft;
 mod frankot;
 mod masked;
@@ -118,7 +120,6 @@ pub use super::gradient::Differences;
 use super::gradient::GradientField;
 use super::{Plane, RgbnImage};
 use crate::error::RgbnError;
-use crate::raster::buf;
 use dct::poisson_dct;
 use frankot::frankot_chellappa;
 use masked::masked_poisson;
@@ -266,7 +267,7 @@ pub fn integrate_gradients(
             }
             report.domain_pixels = domain;
             report.isolated_pixels = isolated;
-            let (z, it, rel) = masked_poisson(g, m, params);
+            let (z, it, rel) = masked_poisson(g, m, params)?;
             report.iterations = it;
             report.relative_residual = rel;
             z
@@ -613,17 +614,8 @@ fn edge_rms(z: Option<&[f32]>, g: &GradientField, domain: Option<&[f32]>, d: Dif
     }
 }
 
-/// The divergence `b = Dᵀ e` (module docs) of the model's edge values; with a domain only edges
-/// inside it count.
-fn divergence(g: &GradientField, domain: Option<&[f32]>, d: Differences) -> Vec<f32> {
-    let mut b = buf::zeroed_f32(g.width * g.height);
-    b.par_chunks_mut(g.width)
-        .enumerate()
-        .for_each(|(r, out)| divergence_row(g, domain, d, r, out));
-    b
-}
-
-/// Row `r` of [`divergence`] into `out`.
+/// Row `r` of the divergence `b = Dᵀ e` (module docs) of the model's edge values into `out`;
+/// with a domain only edges inside it count.
 fn divergence_row(
     g: &GradientField,
     domain: Option<&[f32]>,
@@ -720,6 +712,7 @@ fn averaged_divergence_row(g: &GradientField, r: usize, out: &mut [f32]) {
 mod tests {
     use super::test_util::*;
     use super::*;
+    use crate::raster::buf;
     use crate::raster::gradient::gradient_of_normal;
     use crate::raster::sample::Surface;
 
