@@ -146,19 +146,6 @@ mod convergence_tests {
         half_frame_ellipse_converges(1920, 2160);
     }
 
-    #[test]
-    #[ignore = "slow (4K); run with --ignored in a release build for timings"]
-    fn multigrid_cg_converges_at_4k_on_the_bench_mask() {
-        for (w, h) in [(1920, 1080), (3840, 2160)] {
-            let t = std::time::Instant::now();
-            half_frame_ellipse_converges(w, h);
-            eprintln!(
-                "{w}×{h}: {:.2} s including the test field",
-                t.elapsed().as_secs_f64()
-            );
-        }
-    }
-
     fn half_frame_ellipse_converges(w: usize, h: usize) {
         let (img, _) = Surface::gaussians_for(h).render(w, h);
         let g = GradientField::from_normals(&img);
