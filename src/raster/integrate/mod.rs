@@ -106,6 +106,7 @@
 
 mod bini;
 mod dct;
+mod edges;
 mod fft;
 mod frankot;
 mod masked;
@@ -121,7 +122,6 @@ pub use super::gradient::Differences;
 use super::gradient::GradientField;
 use super::{Plane, RgbnImage};
 use crate::error::RgbnError;
-use crate::raster::buf;
 use dct::poisson_dct;
 use frankot::frankot_chellappa;
 use masked::masked_poisson;
@@ -418,7 +418,7 @@ fn integrate_field(
             }
             report.domain_pixels = domain;
             report.isolated_pixels = isolated;
-            let (z, it, rel) = masked_poisson(g, m, params);
+            let (z, it, rel) = masked_poisson(g, m, params)?;
             report.iterations = it;
             report.relative_residual = rel;
             z
@@ -821,17 +821,8 @@ fn edge_rms(z: Option<&[f32]>, g: &GradientField, domain: Option<&[f32]>, d: Dif
     }
 }
 
-/// The divergence `b = Dᵀ e` (module docs) of the model's edge values; with a domain only edges
-/// inside it count.
-fn divergence(g: &GradientField, domain: Option<&[f32]>, d: Differences) -> Vec<f32> {
-    let mut b = buf::zeroed_f32(g.width * g.height);
-    b.par_chunks_mut(g.width)
-        .enumerate()
-        .for_each(|(r, out)| divergence_row(g, domain, d, r, out));
-    b
-}
-
-/// Row `r` of [`divergence`] into `out`.
+/// Row `r` of the divergence `b = Dᵀ e` (module docs) of the model's edge values into `out`;
+/// with a domain only edges inside it count.
 fn divergence_row(
     g: &GradientField,
     domain: Option<&[f32]>,
@@ -928,6 +919,7 @@ fn averaged_divergence_row(g: &GradientField, r: usize, out: &mut [f32]) {
 mod tests {
     use super::test_util::*;
     use super::*;
+    use crate::raster::buf;
     use crate::raster::gradient::gradient_of_normal;
     use crate::raster::sample::Surface;
 
