@@ -41,6 +41,7 @@
 
 use super::super::gradient::NZ_EPSILON;
 use super::perspective::{Camera, Pinhole};
+use super::edges::{solve_edges, EdgeSystem};
 use super::inside;
 use crate::error::RgbnError;
 use rayon::prelude::*;
@@ -222,7 +223,7 @@ pub(super) fn bilateral(
             wy: &wy,
             ey: &ey,
         };
-        let sol = solve_weighted_edges(&sys, Some(&u), p.solve_tolerance, p.solve_max_iterations)?;
+        let sol = solve_edges(&sys, Some(&u), p.solve_tolerance, p.solve_max_iterations)?;
         u = sol.z;
         out.solver_iterations += sol.iterations;
         let sol_it = sol.iterations;
@@ -287,118 +288,6 @@ pub(super) fn bilateral(
     out.energy = energy;
     out.u = u;
     Ok(out)
-}
-
-/// Minimise `Σ wx (z[i+1] − z[i] − ex)² + Σ wy (z[i+w] − z[i] − ey)²` (the interface of the
-/// multigrid edge solver; this Jacobi-preconditioned CG stands in until it is merged).
-pub(super) struct EdgeSystem<'a> {
-    pub w: usize,
-    pub h: usize,
-    pub wx: &'a [f32],
-    pub ex: &'a [f32],
-    pub wy: &'a [f32],
-    pub ey: &'a [f32],
-}
-
-pub(super) struct EdgeSolve {
-    pub z: Vec<f32>,
-    pub iterations: u32,
-    pub relative_residual: f64,
-}
-
-fn apply(sys: &EdgeSystem, x: &[f64], y: &mut [f64]) {
-    let (w, h) = (sys.w, sys.h);
-    y.par_chunks_mut(w).enumerate().for_each(|(r, out)| {
-        for (c, o) in out.iter_mut().enumerate() {
-            let i = r * w + c;
-            let mut s = 0.0;
-            if c + 1 < w {
-                s += f64::from(sys.wx[i]) * (x[i] - x[i + 1]);
-            }
-            if c >= 1 {
-                s += f64::from(sys.wx[i - 1]) * (x[i] - x[i - 1]);
-            }
-            if r + 1 < h {
-                s += f64::from(sys.wy[i]) * (x[i] - x[i + w]);
-            }
-            if r >= 1 {
-                s += f64::from(sys.wy[i - w]) * (x[i] - x[i - w]);
-            }
-            *o = s;
-        }
-    });
-}
-
-fn dot(a: &[f64], b: &[f64]) -> f64 {
-    a.par_iter().zip(b).map(|(x, y)| x * y).sum()
-}
-
-pub(super) fn solve_weighted_edges(
-    sys: &EdgeSystem,
-    z0: Option<&[f32]>,
-    tolerance: f64,
-    max_iterations: u32,
-) -> Result<EdgeSolve, RgbnError> {
-    let (w, h) = (sys.w, sys.h);
-    let n = w * h;
-    let mut b = vec![0.0f64; n];
-    let mut diag = vec![0.0f64; n];
-    for i in 0..n {
-        let (c, r) = (i % w, i / w);
-        if c + 1 < w {
-            let (ww, e) = (f64::from(sys.wx[i]), f64::from(sys.ex[i]));
-            b[i] -= ww * e;
-            b[i + 1] += ww * e;
-            diag[i] += ww;
-            diag[i + 1] += ww;
-        }
-        if r + 1 < h {
-            let (ww, e) = (f64::from(sys.wy[i]), f64::from(sys.ey[i]));
-            b[i] -= ww * e;
-            b[i + w] += ww * e;
-            diag[i] += ww;
-            diag[i + w] += ww;
-        }
-    }
-    let mut x: Vec<f64> = z0.map_or(vec![0.0; n], |z| z.iter().map(|&v| f64::from(v)).collect());
-    let bn = dot(&b, &b).sqrt();
-    let mut ax = vec![0.0; n];
-    apply(sys, &x, &mut ax);
-    let mut r: Vec<f64> = b.iter().zip(&ax).map(|(b, a)| b - a).collect();
-    let pre = |r: &[f64], z: &mut [f64]| {
-        z.par_iter_mut()
-            .zip(r)
-            .zip(&diag)
-            .for_each(|((z, r), d)| *z = if *d > 0.0 { r / d } else { 0.0 });
-    };
-    let mut z = vec![0.0; n];
-    pre(&r, &mut z);
-    let mut p = z.clone();
-    let mut rz = dot(&r, &z);
-    let mut it = 0;
-    let mut rel = if bn > 0.0 { dot(&r, &r).sqrt() / bn } else { 0.0 };
-    while rel > tolerance && it < max_iterations {
-        apply(sys, &p, &mut ax);
-        let pap = dot(&p, &ax);
-        if !(pap > 0.0) {
-            break;
-        }
-        let alpha = rz / pap;
-        x.par_iter_mut().zip(&p).for_each(|(x, p)| *x += alpha * p);
-        r.par_iter_mut().zip(&ax).for_each(|(r, a)| *r -= alpha * a);
-        pre(&r, &mut z);
-        let rz2 = dot(&r, &z);
-        let beta = rz2 / rz;
-        rz = rz2;
-        p.par_iter_mut().zip(&z).for_each(|(p, z)| *p = z + beta * *p);
-        it += 1;
-        rel = dot(&r, &r).sqrt() / bn;
-    }
-    Ok(EdgeSolve {
-        z: x.iter().map(|&v| v as f32).collect(),
-        iterations: it,
-        relative_residual: rel,
-    })
 }
 
 #[cfg(test)]
