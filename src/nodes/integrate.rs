@@ -186,13 +186,14 @@ impl Operator for SaveMesh {
         i: &Inputs<'_>,
         ctx: &RunContext,
     ) -> Result<Vec<Value>, RgbnError> {
-        let params = p.params()?;
+        let img = i.rgbn("image")?;
+        let params = p.params_for(img.width(), img.height())?;
         let path = check_output(&p.path, ctx)?;
         let height = i
             .scalar("height")?
             .ok_or_else(|| RgbnError::InvalidImage("input \"height\" is not connected".into()))?;
         let protected: Vec<&Path> = ctx.protected.iter().map(PathBuf::as_path).collect();
-        let (v, t) = save_mesh(height, i.rgbn("image")?, &path, &protected, &params)?;
+        let (v, t) = save_mesh(height, img, &path, &protected, &params)?;
         Ok(vec![Value::Number(v as f64), Value::Number(t as f64)])
     }
 }
