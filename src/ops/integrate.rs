@@ -301,7 +301,10 @@ impl SaveMeshSettings {
     pub fn params(&self) -> Result<MeshParams, RgbnError> {
         if self.camera == CameraModel::KFile {
             if self.k_file.is_empty() {
-                return Err(RgbnError::param("k_file", "camera k_file needs a K file path"));
+                return Err(RgbnError::param(
+                    "k_file",
+                    "camera k_file needs a K file path",
+                ));
             }
             return Self {
                 camera: CameraModel::Orthographic,

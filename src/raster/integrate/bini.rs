@@ -40,9 +40,9 @@
 //! integration's `tolerance`.
 
 use super::super::gradient::NZ_EPSILON;
-use super::perspective::{Camera, Pinhole};
 use super::edges::{solve_edges, EdgeSystem};
 use super::inside;
+use super::perspective::{Camera, Pinhole};
 use crate::error::RgbnError;
 use rayon::prelude::*;
 
@@ -169,8 +169,12 @@ pub(super) fn bilateral(
         clamped: rw.clamped,
         ..Default::default()
     };
-    let (mut wx, mut ex, mut wy, mut ey) =
-        (vec![0.0f32; n], vec![0.0f32; n], vec![0.0f32; n], vec![0.0f32; n]);
+    let (mut wx, mut ex, mut wy, mut ey) = (
+        vec![0.0f32; n],
+        vec![0.0f32; n],
+        vec![0.0f32; n],
+        vec![0.0f32; n],
+    );
     for _ in 0..p.max_irls {
         // Edge system from the current weights.
         wx.par_chunks_mut(w)
@@ -192,8 +196,8 @@ pub(super) fn bilateral(
                         let b = (1.0 - f64::from(wv[j])) * sj * sj;
                         let ww = a + b;
                         if ww > 0.0 {
-                            let t = (a * f64::from(rw.cx[i]) / si + b * f64::from(rw.cx[j]) / sj)
-                                / ww;
+                            let t =
+                                (a * f64::from(rw.cx[i]) / si + b * f64::from(rw.cx[j]) / sj) / ww;
                             wxr[x] = (ww * inv_ref2) as f32;
                             exr[x] = t as f32;
                         }

@@ -372,7 +372,11 @@ fn bilateral_height(
         .sum::<f64>()
         / domain.max(1) as f64;
     for (i, v) in u.iter_mut().enumerate() {
-        *v = if ins(i) { (f64::from(*v) - mean) as f32 } else { 0.0 };
+        *v = if ins(i) {
+            (f64::from(*v) - mean) as f32
+        } else {
+            0.0
+        };
     }
     let z = Plane::from_vec(w, h, u)?;
     let report = IntegrationReport {

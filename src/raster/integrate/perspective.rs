@@ -124,9 +124,8 @@ impl Pinhole {
                 }
             }
         })?;
-        let bad = |detail: String| {
-            RgbnError::param("k_file", format!("{detail}: {}", path.display()))
-        };
+        let bad =
+            |detail: String| RgbnError::param("k_file", format!("{detail}: {}", path.display()));
         let mut rows: Vec<Vec<f64>> = Vec::new();
         for line in text.lines() {
             let line = line.split('#').next().unwrap_or("").trim();
@@ -136,7 +135,10 @@ impl Pinhole {
             let row = line
                 .split(|c: char| c.is_whitespace() || c == ',')
                 .filter(|s| !s.is_empty())
-                .map(|s| s.parse::<f64>().map_err(|_| bad(format!("not a number {s:?}"))))
+                .map(|s| {
+                    s.parse::<f64>()
+                        .map_err(|_| bad(format!("not a number {s:?}")))
+                })
                 .collect::<Result<Vec<f64>, _>>()?;
             rows.push(row);
         }
@@ -175,28 +177,32 @@ impl Pinhole {
 /// The log-depth gradients `(∂ℓ/∂x, ∂ℓ/∂y)` of the module docs for a `w × h` image's normal
 /// planes, `d` clamped to [`NZ_EPSILON`] (counted in `clamped`).
 #[must_use]
-pub fn log_depth_gradients(normal: &[Vec<f32>; 3], w: usize, h: usize, cam: &Pinhole) -> GradientField {
+pub fn log_depth_gradients(
+    normal: &[Vec<f32>; 3],
+    w: usize,
+    h: usize,
+    cam: &Pinhole,
+) -> GradientField {
     let mut g = GradientField::zeros(w, h);
     let eps = f64::from(NZ_EPSILON);
-    let clamped = g
-        .p
-        .par_chunks_mut(w.max(1))
-        .zip(g.q.par_chunks_mut(w.max(1)))
-        .enumerate()
-        .map(|(r, (pr, qr))| {
-            let mut clamped = 0usize;
-            for x in 0..w {
-                let i = r * w + x;
-                let n = [normal[0][i], normal[1][i], normal[2][i]];
-                let d = cam.facing(n, x, r);
-                clamped += usize::from(!(d >= eps));
-                let d = if d >= eps { d } else { eps };
-                pr[x] = (f64::from(n[0]) / (cam.fx * d)) as f32;
-                qr[x] = (f64::from(n[1]) / (cam.fy * d)) as f32;
-            }
-            clamped
-        })
-        .sum();
+    let clamped =
+        g.p.par_chunks_mut(w.max(1))
+            .zip(g.q.par_chunks_mut(w.max(1)))
+            .enumerate()
+            .map(|(r, (pr, qr))| {
+                let mut clamped = 0usize;
+                for x in 0..w {
+                    let i = r * w + x;
+                    let n = [normal[0][i], normal[1][i], normal[2][i]];
+                    let d = cam.facing(n, x, r);
+                    clamped += usize::from(!(d >= eps));
+                    let d = if d >= eps { d } else { eps };
+                    pr[x] = (f64::from(n[0]) / (cam.fx * d)) as f32;
+                    qr[x] = (f64::from(n[1]) / (cam.fy * d)) as f32;
+                }
+                clamped
+            })
+            .sum();
     g.clamped = clamped;
     g
 }
@@ -219,7 +225,11 @@ pub fn height_of_log_depth(ell: &mut [f32], domain: Option<&[f32]>, fx: f64) {
     let mean = if n > 0 { s / n as f64 } else { 0.0 };
     ell.par_iter_mut().for_each(|v| {
         let l = f64::from(*v) - mean;
-        let l = if l.is_finite() { l.clamp(-MAX_LOG, MAX_LOG) } else { 0.0 };
+        let l = if l.is_finite() {
+            l.clamp(-MAX_LOG, MAX_LOG)
+        } else {
+            0.0
+        };
         *v = (-fx * l.exp()) as f32;
     });
 }
@@ -250,7 +260,11 @@ pub(super) mod tests {
         for r in 0..h {
             for x in 0..w {
                 let i = r * w + x;
-                let d = [(x as f64 - cam.cx) / cam.fx, -(r as f64 - cam.cy) / cam.fy, -1.0];
+                let d = [
+                    (x as f64 - cam.cx) / cam.fx,
+                    -(r as f64 - cam.cy) / cam.fy,
+                    -1.0,
+                ];
                 let dd = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
                 let dc = d[0] * centre[0] + d[1] * centre[1] + d[2] * centre[2];
                 let cc = centre.iter().map(|v| v * v).sum::<f64>();
@@ -270,7 +284,11 @@ pub(super) mod tests {
                 let Some((t, on_sphere)) = hit else { continue };
                 let nn = if on_sphere {
                     let p = [t * d[0], t * d[1], t * d[2]];
-                    [(p[0] - centre[0]) / rad, (p[1] - centre[1]) / rad, (p[2] - centre[2]) / rad]
+                    [
+                        (p[0] - centre[0]) / rad,
+                        (p[1] - centre[1]) / rad,
+                        (p[2] - centre[2]) / rad,
+                    ]
                 } else {
                     let np = plane.unwrap_or([0.0, 0.0, 1.0]);
                     let l = (np[0] * np[0] + np[1] * np[1] + np[2] * np[2]).sqrt();
@@ -376,7 +394,9 @@ pub(super) mod tests {
         let sphere: Vec<f32> = (0..w * h)
             .map(|i| {
                 let n = [img.normal()[0][i], img.normal()[1][i], img.normal()[2][i]];
-                f32::from(u8::from(sphere[i] > 0.5 && cam.facing(n, i % w, i / w) >= 0.15))
+                f32::from(u8::from(
+                    sphere[i] > 0.5 && cam.facing(n, i % w, i / w) >= 0.15,
+                ))
             })
             .collect();
         img.set_mask(Some(sphere.clone())).unwrap();
@@ -403,7 +423,10 @@ pub(super) mod tests {
             (a.0 + d * (f64::from(z.data()[i]) - mg), a.1 + d * d)
         });
         let s = so / oo;
-        let zo_fit: Vec<f32> = zo.iter().map(|&v| (s * (f64::from(v) - mo) + mg) as f32).collect();
+        let zo_fit: Vec<f32> = zo
+            .iter()
+            .map(|&v| (s * (f64::from(v) - mo) + mg) as f32)
+            .collect();
         let eo = scaled_depth_error(&zo_fit, z.data(), &sphere);
         eprintln!(
             "perspective sphere {w}×{h}: pinhole masked_poisson relative depth error {ep:.4} \
@@ -447,7 +470,11 @@ pub(super) mod tests {
         assert!(c.validate().unwrap_err().to_string().contains("focal_px"));
         (c.fx, c.fy) = (1.0, 1.0);
         c.cy = f64::NAN;
-        assert!(c.validate().unwrap_err().to_string().contains("principal_y"));
+        assert!(c
+            .validate()
+            .unwrap_err()
+            .to_string()
+            .contains("principal_y"));
     }
 
     #[test]
