@@ -104,13 +104,13 @@ impl CameraSpec<'_> {
         Ok(match self.model {
             CameraModel::Orthographic => Camera::Orthographic,
             CameraModel::Pinhole => {
-                if !(self.focal_px > 0.0) {
+                if self.focal_px.is_nan() || self.focal_px <= 0.0 {
                     return Err(RgbnError::param(
                         "focal_px",
                         format!("a focal length must be > 0, got {}", self.focal_px),
                     ));
                 }
-                if !(self.focal_y_px >= 0.0) {
+                if self.focal_y_px.is_nan() || self.focal_y_px < 0.0 {
                     return Err(RgbnError::param(
                         "focal_y_px",
                         format!(

@@ -137,7 +137,7 @@ pub fn build_mesh(
     if params.camera.is_some() {
         let behind = (0..w * h)
             .into_par_iter()
-            .filter(|&i| inside(i) && !(height.data()[i] < 0.0))
+            .filter(|&i| inside(i) && (height.data()[i].is_nan() || height.data()[i] >= 0.0))
             .count();
         if behind > 0 {
             return Err(RgbnError::param(

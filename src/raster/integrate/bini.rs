@@ -110,13 +110,13 @@ fn rows(normal: &[Vec<f32>; 3], w: usize, h: usize, cam: &Camera, dom: &[bool]) 
                 match cam {
                     Camera::Orthographic => {
                         let nz = f64::from(nn[2]);
-                        clamped += usize::from(!(nz >= eps));
+                        clamped += usize::from(nz.is_nan() || nz < eps);
                         let s = if nz >= eps { nz } else { eps } as f32;
                         (sx[x], sy[x], cx[x], cy[x]) = (s, s, -nn[0], -nn[1]);
                     }
                     Camera::Pinhole(c) => {
                         let d = c.facing(nn, x, r);
-                        clamped += usize::from(!(d >= eps));
+                        clamped += usize::from(d.is_nan() || d < eps);
                         let d = if d >= eps { d } else { eps };
                         (sx[x], sy[x], cx[x], cy[x]) =
                             ((c.fx * d) as f32, (c.fy * d) as f32, nn[0], nn[1]);
@@ -285,7 +285,7 @@ pub(super) fn bilateral(
         if std::env::var_os("RGBN_BINI_TRACE").is_some() {
             eprintln!("bini: energy {old:.6e} -> {energy:.6e}, solver {sol_it} it");
         }
-        if !(old > 0.0) || (energy - old).abs() / old < p.irls_tolerance {
+        if old.is_nan() || old <= 0.0 || (energy - old).abs() / old < p.irls_tolerance {
             break;
         }
     }

@@ -509,7 +509,8 @@ pub fn integrate_normals(
             .filter(|&i| ins(i))
             .filter(|&i| {
                 let n = [img.normal()[0][i], img.normal()[1][i], img.normal()[2][i]];
-                !(cam.facing(n, i % w, i / w) >= f64::from(super::gradient::NZ_EPSILON))
+                let d = cam.facing(n, i % w, i / w);
+                d.is_nan() || d < f64::from(super::gradient::NZ_EPSILON)
             })
             .count();
         if clamped == faces {

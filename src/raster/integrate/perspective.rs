@@ -195,7 +195,7 @@ pub fn log_depth_gradients(
                     let i = r * w + x;
                     let n = [normal[0][i], normal[1][i], normal[2][i]];
                     let d = cam.facing(n, x, r);
-                    clamped += usize::from(!(d >= eps));
+                    clamped += usize::from(d.is_nan() || d < eps);
                     let d = if d >= eps { d } else { eps };
                     pr[x] = (f64::from(n[0]) / (cam.fx * d)) as f32;
                     qr[x] = (f64::from(n[1]) / (cam.fy * d)) as f32;
