@@ -35,8 +35,28 @@
 //! makes the restricted residuals slightly inconsistent; Gauss–Seidel sweeps on an inconsistent
 //! singular system drift along the null space). The V-cycle runs in `f32` (it only needs to be
 //! a good approximate inverse), the Krylov vectors in `f64`.
+//!
+//! # Why (the 4K divergence, issue 17)
+//!
+//! Until this module the coarsest level was solved by 2 × 40 red-black Gauss–Seidel sweeps
+//! from 0, and `b` was the `f32` divergence. On the bench's half-frame ellipse at
+//! 1920 × 2160 and 3840 × 2160 MG-PCG fell to 3e-5, then diverged (to 6e7). Measured at
+//! 1920 × 2160: the V-cycle was symmetric (`⟨M r₁, r₂⟩` vs `⟨r₁, M r₂⟩` agree to 1e-7 on
+//! random consistent vectors) and positive; the cause was the **null space**. The `f32`
+//! divergence is consistent only to rounding: the residual kept a fixed component along the
+//! constants of 8e-10 · ‖b‖ that CG cannot remove, and the V-cycle amplified constants
+//! enormously (restriction sums 4ᵏ children per level, and Gauss–Seidel on the singular
+//! coarsest system with an inconsistent right-hand side drifts linearly with the sweep
+//! count: `⟨M 1, 1⟩ / ⟨1, 1⟩` ≈ 1e6–1e7 against ≈ 1 on the range). Once the residual
+//! reached ≈ 1e-5 (null fraction 3.5e-4, iteration 7) that component dominated
+//! `⟨r, M r⟩`, CG's step `α` jumped from ≈ 1.1 to 2, then 28 and 38, and the residual grew.
+//! The fix: `b` is projected onto the range in `f64` (component means subtracted, so CG's
+//! residual stays consistent to `f64` rounding) and the coarsest level is the exact
+//! pseudo-inverse above. MG-PCG now converges by itself there (8 iterations from 0, 6 from
+//! the DCT warm start at 3840 × 2160); the Jacobi restart is kept only as a guard ([`pcg`]).
 
 use crate::error::RgbnError;
+use crate::raster::buf::advise_huge_pages;
 use crate::raster::par::SharedMut;
 use rayon::prelude::*;
 
@@ -72,6 +92,9 @@ pub(crate) struct EdgeSolve {
 /// # Errors
 /// Slices whose lengths are not `w·h`, negative or non-finite weights, non-finite targets on
 /// an edge of positive weight, a non-finite `z0`, or a tolerance outside (0, 1).
+// The entry point for bilateral normal integration (branch `bini`); masked Poisson calls
+// [`solve_edges_owned`].
+#[cfg_attr(not(test), allow(dead_code))]
 pub(crate) fn solve_edges(
     sys: &EdgeSystem,
     z0: Option<&[f32]>,
@@ -82,6 +105,7 @@ pub(crate) fn solve_edges(
 }
 
 /// [`solve_edges`], and whether the CG guard fired (the Jacobi restart of [`pcg`]).
+#[cfg_attr(not(test), allow(dead_code))]
 fn solve_edges_guarded(
     sys: &EdgeSystem,
     z0: Option<&[f32]>,
@@ -89,7 +113,48 @@ fn solve_edges_guarded(
     max_iterations: u32,
 ) -> Result<(EdgeSolve, bool), RgbnError> {
     validate(sys, z0, tolerance)?;
-    let (w, h) = (sys.w, sys.h);
+    let copy = |v: &[f32]| {
+        let mut c = par_vec(v.len(), |_| 0.0f32);
+        c.par_chunks_mut(1 << 14)
+            .zip(v.par_chunks(1 << 14))
+            .for_each(|(c, v)| c.copy_from_slice(v));
+        c
+    };
+    solve_edges_owned(
+        sys.w,
+        sys.h,
+        copy(sys.wx),
+        sys.ex,
+        copy(sys.wy),
+        sys.ey,
+        z0,
+        tolerance,
+        max_iterations,
+    )
+}
+
+/// [`solve_edges_guarded`] taking the weights by value (no copy).
+#[allow(clippy::too_many_arguments)]
+pub(super) fn solve_edges_owned(
+    w: usize,
+    h: usize,
+    mut wx: Vec<f32>,
+    ex: &[f32],
+    mut wy: Vec<f32>,
+    ey: &[f32],
+    z0: Option<&[f32]>,
+    tolerance: f64,
+    max_iterations: u32,
+) -> Result<(EdgeSolve, bool), RgbnError> {
+    let sys = EdgeSystem {
+        w,
+        h,
+        wx: &wx,
+        ex,
+        wy: &wy,
+        ey,
+    };
+    validate(&sys, z0, tolerance)?;
     let n = w * h;
     if n == 0 {
         return Ok((
@@ -101,20 +166,10 @@ fn solve_edges_guarded(
             false,
         ));
     }
-    // Weights with the out-of-grid edges dropped.
-    let wx: Vec<f32> = sys
-        .wx
-        .par_iter()
-        .enumerate()
-        .map(|(i, &v)| if i % w + 1 < w { v } else { 0.0 })
-        .collect();
-    let wy: Vec<f32> = sys
-        .wy
-        .par_iter()
-        .enumerate()
-        .map(|(i, &v)| if i + w < n { v } else { 0.0 })
-        .collect();
-    let mut b = rhs(sys, &wx, &wy);
+    // The out-of-grid edges dropped.
+    wx.par_chunks_mut(w).for_each(|row| row[w - 1] = 0.0);
+    wy[n - w..].fill(0.0);
+    let mut b = rhs(w, ex, ey, &wx, &wy);
     let mut mg = Multigrid::new(w, h, wx, wy);
     let l0 = &mg.levels[0];
     let (label, count) = components(w, h, &l0.wx, &l0.wy, &l0.inv_diag);
@@ -128,8 +183,8 @@ fn solve_edges_guarded(
     });
     let b_norm = dot(&b, &b).sqrt();
     let mut x: Vec<f64> = match z0 {
-        Some(z) if b_norm > 0.0 => z.par_iter().map(|&v| f64::from(v)).collect(),
-        _ => vec![0.0; n],
+        Some(z) if b_norm > 0.0 => par_vec(n, |i| f64::from(z[i])),
+        _ => zeros(n),
     };
     let (iterations, relative_residual, restarted) = if b_norm > 0.0 {
         pcg(
@@ -222,10 +277,30 @@ fn validate(sys: &EdgeSystem, z0: Option<&[f32]>, tolerance: f64) -> Result<(), 
     Ok(())
 }
 
+/// `n` zeros, untouched until written (huge pages advised: [`advise_huge_pages`]).
+fn zeros<T: Copy + Default>(n: usize) -> Vec<T> {
+    let v = vec![T::default(); n];
+    advise_huge_pages(&v);
+    v
+}
+
+/// A vector of `n` values `f(i)`, filled in parallel (huge pages advised: [`advise_huge_pages`]).
+pub(super) fn par_vec<T: Copy + Default + Send + Sync>(
+    n: usize,
+    f: impl Fn(usize) -> T + Sync + Send,
+) -> Vec<T> {
+    let mut v = vec![T::default(); n];
+    advise_huge_pages(&v);
+    v.par_chunks_mut(1 << 14).enumerate().for_each(|(c, out)| {
+        for (k, o) in out.iter_mut().enumerate() {
+            *o = f((c << 14) + k);
+        }
+    });
+    v
+}
+
 /// `b = Σ_{edges j→i} w e − Σ_{edges i→j} w e` (module docs).
-fn rhs(sys: &EdgeSystem, wx: &[f32], wy: &[f32]) -> Vec<f64> {
-    let (w, n) = (sys.w, sys.w * sys.h);
-    let (ex, ey) = (sys.ex, sys.ey);
+fn rhs(w: usize, ex: &[f32], ey: &[f32], wx: &[f32], wy: &[f32]) -> Vec<f64> {
     // A zero weight times a non-finite target must not poison b.
     let f = |wt: f32, e: f32| {
         if wt > 0.0 {
@@ -234,19 +309,24 @@ fn rhs(sys: &EdgeSystem, wx: &[f32], wy: &[f32]) -> Vec<f64> {
             0.0
         }
     };
-    (0..n)
-        .into_par_iter()
-        .map(|i| {
-            let mut s = -f(wx[i], ex[i]) - f(wy[i], ey[i]);
-            if i % w >= 1 {
-                s += f(wx[i - 1], ex[i - 1]);
-            }
-            if i >= w {
-                s += f(wy[i - w], ey[i - w]);
-            }
-            s
-        })
-        .collect()
+    par_vec(wx.len(), |i| {
+        let mut s = -f(wx[i], ex[i]) - f(wy[i], ey[i]);
+        if i % w >= 1 {
+            s += f(wx[i - 1], ex[i - 1]);
+        }
+        if i >= w {
+            s += f(wy[i - w], ey[i - w]);
+        }
+        s
+    })
+}
+
+/// `⟨a, z⟩` with `z` the V-cycle's `f32` output.
+fn dot_mixed(a: &[f64], z: &[f32]) -> f64 {
+    a.par_chunks(1 << 14)
+        .zip(z.par_chunks(1 << 14))
+        .map(|(a, z)| a.iter().zip(z).map(|(x, &y)| x * f64::from(y)).sum::<f64>())
+        .sum()
 }
 
 /// `y = A x` on level 0's weights; returns `⟨x, y⟩`.
@@ -311,12 +391,11 @@ fn pcg(
     mut pre: Preconditioner,
 ) -> (u32, f64, bool) {
     let n = b.len();
-    let mut ax = vec![0.0f64; n];
+    let mut ax = zeros::<f64>(n);
     apply_a(&mg.levels[0], x, &mut ax);
-    let mut res: Vec<f64> = b.par_iter().zip(&ax).map(|(b, a)| b - a).collect();
+    let mut res = par_vec(n, |i| b[i] - ax[i]);
     let mut rel = dot(&res, &res).sqrt() / b_norm;
-    let mut zv = vec![0.0f64; n];
-    let mut dir = vec![0.0f64; n];
+    let mut dir = zeros::<f64>(n);
     let mut rz = 0.0;
     let mut iterations = 0u32;
     let mut best: Option<(f64, Vec<f64>)> =
@@ -340,9 +419,12 @@ fn pcg(
             }
         }
         if restart {
-            mg.precondition(pre, &res, &mut zv);
-            dir.copy_from_slice(&zv);
-            rz = dot(&res, &zv);
+            mg.precondition(pre, &res);
+            let zv = &mg.levels[0].x;
+            dir.par_iter_mut()
+                .zip(zv)
+                .for_each(|(d, &z)| *d = f64::from(z));
+            rz = dot_mixed(&res, zv);
             restart = false;
             if rz <= 0.0 {
                 break;
@@ -378,16 +460,17 @@ fn pcg(
         if rel <= tolerance {
             break;
         }
-        mg.precondition(pre, &res, &mut zv);
-        let rz_new = dot(&res, &zv);
+        mg.precondition(pre, &res);
+        let zv = &mg.levels[0].x;
+        let rz_new = dot_mixed(&res, zv);
         if rz_new <= 0.0 {
             break;
         }
         let beta = rz_new / rz;
         rz = rz_new;
         dir.par_iter_mut()
-            .zip(&zv)
-            .for_each(|(d, z)| *d = z + beta * *d);
+            .zip(zv)
+            .for_each(|(d, &z)| *d = f64::from(z) + beta * *d);
     }
     (iterations, rel, restarted)
 }
@@ -396,18 +479,15 @@ fn pcg(
 fn fix_constants(x: &[f64], z0: Option<&[f32]>, label: &[u32], count: usize) -> Vec<f32> {
     let mut shift = component_means(x, label, count);
     if let Some(z) = z0 {
-        let z: Vec<f64> = z.par_iter().map(|&v| f64::from(v)).collect();
+        let z = par_vec(z.len(), |i| f64::from(z[i]));
         for (s, m) in shift.iter_mut().zip(component_means(&z, label, count)) {
             *s -= m;
         }
     }
-    x.par_iter()
-        .zip(label)
-        .map(|(&v, &l)| match l {
-            u32::MAX => 0.0,
-            l => (v - shift[l as usize]) as f32,
-        })
-        .collect()
+    par_vec(x.len(), |i| match label[i] {
+        u32::MAX => 0.0,
+        l => (x[i] - shift[l as usize]) as f32,
+    })
 }
 
 /// The mean of `v` on each component (`label` as from [`components`]).
@@ -427,24 +507,41 @@ fn component_means(v: &[f64], label: &[u32], count: usize) -> Vec<f64> {
 /// edge (`u32::MAX` for nodes without one) and the number of components.
 fn components(w: usize, h: usize, wx: &[f32], wy: &[f32], inv_diag: &[f32]) -> (Vec<u32>, usize) {
     let n = w * h;
-    let mut parent: Vec<u32> = (0..n as u32).collect();
-    fn find(p: &mut [u32], mut i: u32) -> u32 {
-        while p[i as usize] != i {
-            let g = p[p[i as usize] as usize];
-            p[i as usize] = g;
+    let mut parent: Vec<u32> = par_vec(n, |i| i as u32);
+    fn find(p: &mut [u32], base: usize, mut i: u32) -> u32 {
+        while p[i as usize - base] != i {
+            let g = p[p[i as usize - base] as usize - base];
+            p[i as usize - base] = g;
             i = g;
         }
         i
     }
-    for i in 0..n {
-        for (wt, j) in [(wx[i], i + 1), (wy[i], i + w)] {
+    // The smaller index stays root: a root is its component's first node in a forward scan.
+    fn union(p: &mut [u32], base: usize, i: usize, j: usize) {
+        let (a, b) = (find(p, base, i as u32), find(p, base, j as u32));
+        if a != b {
+            let (lo, hi) = if a < b { (a, b) } else { (b, a) };
+            p[hi as usize - base] = lo;
+        }
+    }
+    // Bands of rows in parallel (every parent inside its band), then the edges between bands.
+    let band = h.div_ceil(32).max(1) * w;
+    parent.par_chunks_mut(band).enumerate().for_each(|(k, p)| {
+        let base = k * band;
+        for li in 0..p.len() {
+            let i = base + li;
+            if wx[i] > 0.0 {
+                union(p, base, i, i + 1);
+            }
+            if li + w < p.len() && wy[i] > 0.0 {
+                union(p, base, i, i + w);
+            }
+        }
+    });
+    for start in (band..n).step_by(band) {
+        for (i, &wt) in wy.iter().enumerate().take(start).skip(start - w) {
             if wt > 0.0 {
-                let (a, b) = (find(&mut parent, i as u32), find(&mut parent, j as u32));
-                if a != b {
-                    // The smaller index stays root: roots are met first in a forward scan.
-                    let (lo, hi) = if a < b { (a, b) } else { (b, a) };
-                    parent[hi as usize] = lo;
-                }
+                union(&mut parent, 0, i, i + w);
             }
         }
     }
@@ -454,7 +551,7 @@ fn components(w: usize, h: usize, wx: &[f32], wy: &[f32], inv_diag: &[f32]) -> (
         if inv_diag[i] == 0.0 {
             continue;
         }
-        let r = find(&mut parent, i as u32) as usize;
+        let r = find(&mut parent, 0, i as u32) as usize;
         if r == i {
             label[i] = count as u32;
             count += 1;
@@ -485,32 +582,29 @@ pub(super) struct Level {
 
 impl Level {
     pub(super) fn new(w: usize, h: usize, wx: Vec<f32>, wy: Vec<f32>) -> Self {
-        let inv_diag = (0..w * h)
-            .into_par_iter()
-            .map(|i| {
-                let (xx, r) = (i % w, i / w);
-                let mut d = wx[i] + wy[i];
-                if xx >= 1 {
-                    d += wx[i - 1];
-                }
-                if r >= 1 {
-                    d += wy[i - w];
-                }
-                if d > 0.0 {
-                    1.0 / d
-                } else {
-                    0.0
-                }
-            })
-            .collect();
+        let inv_diag = par_vec(w * h, |i| {
+            let (xx, r) = (i % w, i / w);
+            let mut d = wx[i] + wy[i];
+            if xx >= 1 {
+                d += wx[i - 1];
+            }
+            if r >= 1 {
+                d += wy[i - w];
+            }
+            if d > 0.0 {
+                1.0 / d
+            } else {
+                0.0
+            }
+        });
         Self {
             w,
             h,
             wx,
             wy,
             inv_diag,
-            x: vec![0.0; w * h],
-            b: vec![0.0; w * h],
+            x: zeros(w * h),
+            b: zeros(w * h),
         }
     }
 
@@ -519,29 +613,45 @@ impl Level {
         let (w, h) = (self.w, self.h);
         let (cw, ch) = (w.div_ceil(2), h.div_ceil(2));
         let at = |v: &[f32], x: usize, r: usize| if x < w && r < h { v[r * w + x] } else { 0.0 };
-        let wx = (0..cw * ch)
-            .into_par_iter()
-            .map(|i| {
-                let (cx, cr) = (i % cw, i / cw);
-                if cx + 1 >= cw {
-                    return 0.0;
-                }
-                let fx = 2 * cx + 1;
-                0.5 * (at(&self.wx, fx, 2 * cr) + at(&self.wx, fx, 2 * cr + 1))
-            })
-            .collect();
-        let wy = (0..cw * ch)
-            .into_par_iter()
-            .map(|i| {
-                let (cx, cr) = (i % cw, i / cw);
-                if cr + 1 >= ch {
-                    return 0.0;
-                }
-                let fr = 2 * cr + 1;
-                0.5 * (at(&self.wy, 2 * cx, fr) + at(&self.wy, 2 * cx + 1, fr))
-            })
-            .collect();
+        let wx = par_vec(cw * ch, |i| {
+            let (cx, cr) = (i % cw, i / cw);
+            if cx + 1 >= cw {
+                return 0.0;
+            }
+            let fx = 2 * cx + 1;
+            0.5 * (at(&self.wx, fx, 2 * cr) + at(&self.wx, fx, 2 * cr + 1))
+        });
+        let wy = par_vec(cw * ch, |i| {
+            let (cx, cr) = (i % cw, i / cw);
+            if cr + 1 >= ch {
+                return 0.0;
+            }
+            let fr = 2 * cr + 1;
+            0.5 * (at(&self.wy, 2 * cx, fr) + at(&self.wy, 2 * cx + 1, fr))
+        });
         Self::new(cw, ch, wx, wy)
+    }
+
+    /// `x = 0`, then the red half-sweep (`b` from `r` first when given): on red nodes
+    /// `x = b / diag` (their neighbours are black, still 0), black nodes 0. One pass.
+    fn first_sweep(&mut self, r: Option<&[f64]>) {
+        let w = self.w;
+        let inv = &self.inv_diag;
+        self.x
+            .par_chunks_mut(w)
+            .zip(self.b.par_chunks_mut(w))
+            .enumerate()
+            .for_each(|(row, (x, b))| {
+                if let Some(r) = r {
+                    for (b, &v) in b.iter_mut().zip(&r[row * w..(row + 1) * w]) {
+                        *b = v as f32;
+                    }
+                }
+                let inv = &inv[row * w..(row + 1) * w];
+                for (k, ((x, &b), &d)) in x.iter_mut().zip(b.iter()).zip(inv).enumerate() {
+                    *x = if (k + row) % 2 == 0 { b * d } else { 0.0 };
+                }
+            });
     }
 
     /// One Gauss–Seidel half-sweep over the nodes of one colour (`(x + r) % 2 == colour`).
@@ -724,9 +834,9 @@ impl CoarseSolver {
         let n = b.len();
         let mut v: Vec<f64> = b.iter().map(|&v| f64::from(v)).collect();
         self.project_means(&mut v);
-        for i in 0..n {
-            if self.pinned[i] || self.label[i] == u32::MAX {
-                v[i] = 0.0;
+        for ((v, &pinned), &label) in v.iter_mut().zip(&self.pinned).zip(&self.label) {
+            if pinned || label == u32::MAX {
+                *v = 0.0;
             }
         }
         let l = &self.chol;
@@ -790,26 +900,28 @@ impl Multigrid {
         Self { levels, coarse }
     }
 
-    fn precondition(&mut self, pre: Preconditioner, r: &[f64], out: &mut [f64]) {
+    /// `levels[0].x ≈ M r` for the preconditioner `M`.
+    fn precondition(&mut self, pre: Preconditioner, r: &[f64]) {
         match pre {
-            Preconditioner::Multigrid => self.apply(r, out),
+            Preconditioner::Multigrid => self.apply(r),
             Preconditioner::Jacobi => {
-                let inv = &self.levels[0].inv_diag;
-                out.par_iter_mut()
-                    .zip(r.par_iter().zip(inv))
-                    .for_each(|(z, (r, &d))| *z = r * f64::from(d));
+                let l0 = &mut self.levels[0];
+                l0.x.par_iter_mut()
+                    .zip(r.par_iter().zip(&l0.inv_diag))
+                    .for_each(|(z, (r, &d))| *z = (r * f64::from(d)) as f32);
             }
         }
     }
 
-    /// `out ≈ A⁻¹ r` by one V-cycle (symmetric: module docs).
-    pub(super) fn apply(&mut self, r: &[f64], out: &mut [f64]) {
-        let l0 = &mut self.levels[0];
-        l0.b.par_iter_mut().zip(r).for_each(|(b, &v)| *b = v as f32);
+    /// `levels[0].x ≈ A⁻¹ r` by one V-cycle (symmetric: module docs).
+    pub(super) fn apply(&mut self, r: &[f64]) {
+        if self.levels.len() == 1 {
+            let l0 = &mut self.levels[0];
+            l0.b.par_iter_mut().zip(r).for_each(|(b, &v)| *b = v as f32);
+        } else {
+            self.levels[0].first_sweep(Some(r));
+        }
         self.vcycle(0);
-        out.par_iter_mut()
-            .zip(&self.levels[0].x)
-            .for_each(|(o, &v)| *o = f64::from(v));
     }
 
     fn vcycle(&mut self, k: usize) {
@@ -819,8 +931,9 @@ impl Multigrid {
             self.coarse.solve(&l.b, &mut l.x);
             return;
         }
-        l.x.par_iter_mut().for_each(|v| *v = 0.0);
-        l.gs_colour(0);
+        if k > 0 {
+            l.first_sweep(None);
+        }
         l.gs_colour(1);
         let (fine, coarse) = self.levels.split_at_mut(k + 1);
         fine[k].restrict_residual(&mut coarse[0]);
@@ -1021,10 +1134,12 @@ mod tests {
                     .max_by(|&i, &j| a[i][c].abs().total_cmp(&a[j][c].abs()))
                     .unwrap();
                 a.swap(c, p);
-                for r in c + 1..n {
-                    let f = a[r][c] / a[c][c];
-                    for k in c..=n {
-                        a[r][k] -= f * a[c][k];
+                let (top, rest) = a.split_at_mut(c + 1);
+                let pivot = &top[c];
+                for row in rest {
+                    let f = row[c] / pivot[c];
+                    for (x, p) in row[c..].iter_mut().zip(&pivot[c..]) {
+                        *x -= f * p;
                     }
                 }
             }

@@ -60,15 +60,16 @@
 //!   (coverage ≥ 0.5) are equations (averaged edge values thus only average two samples
 //!   inside), so nothing outside the object (background normals, depth discontinuities at the
 //!   silhouette) leaks in. The masked Laplacian is solved by conjugate gradients
-//!   preconditioned with one geometric-multigrid V-cycle (documented in the `masked` source:
-//!   coverage-aggregated coarse masks, rediscretised masked Laplacians, red-black Gauss–Seidel),
-//!   in `f64` for the Krylov vectors and `f32` inside the V-cycle, warm-started from the DCT
-//!   solution of the edge values with the off-domain edges set to 0. Each connected component
-//!   of the mask has its own free constant (kept from the warm start); the result has zero mean
-//!   over the mask. Pixels outside the mask keep the warm start (a smooth fill carrying no
-//!   information). A pixel with no edge inside the mask (a single-pixel component) gets
-//!   height 0 and is counted in [`IntegrationReport::isolated_pixels`]; a mask with no edge at
-//!   all is an error naming the mask.
+//!   preconditioned with one geometric-multigrid V-cycle (the weighted-edge solver of the
+//!   `edges` source, weight 1 inside the mask: coverage-aggregated coarse levels,
+//!   rediscretised Laplacians, red-black Gauss–Seidel, exact pseudo-inverse on the coarsest
+//!   level), in `f64` for the Krylov vectors and `f32` inside the V-cycle, warm-started from
+//!   the DCT solution of the edge values with the off-domain edges set to 0. Each connected
+//!   component of the mask has its own free constant (the warm start's mean on it); the result
+//!   has zero mean over the mask. Pixels outside the mask keep the warm start (a smooth fill
+//!   carrying no information). A pixel with no edge inside the mask (a single-pixel component)
+//!   gets height 0 and is counted in [`IntegrationReport::isolated_pixels`]; a mask with no
+//!   edge at all is an error naming the mask.
 //!
 //! # Sampled normals: averaged vs forward (history)
 //!
