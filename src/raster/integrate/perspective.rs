@@ -449,7 +449,10 @@ pub(super) mod tests {
         )
         .unwrap();
         let k = Pinhole::from_k_file(&p).unwrap();
-        assert_eq!((k.fx, k.cy), (3.772077471010729823e+03, 255.125));
+        assert_eq!(
+            (k.fx, k.cy),
+            ("3.772077471010729823e+03".parse().unwrap(), 255.125)
+        );
         for bad in [
             "1 0 2\n0 1 2\n",
             "1 0 2 3\n0 1 2\n0 0 1\n",
