@@ -26,10 +26,14 @@ impl Operator for IntegrateNode {
             "integrate",
             "Integrate to height",
             "analysis",
-            "Integrates the normals' gradients to a height (least squares, Simchony et al. / Frankot & Chellappa / masked Poisson): zero mean over the domain, in pixels, y up.",
+            "Integrates the normals' gradients to a height (least squares, Simchony et al. / Frankot & Chellappa / masked Poisson; bilateral normal integration, Cao et al. 2022, keeps depth discontinuities): zero mean over the domain, in pixels, y up. With a pinhole camera (focal length and principal point, or a K file) the log-depth is integrated and the height is −Z for a depth Z up to scale.",
         )
         .input(PortSpec::new("image", PortType::Rgbn, "Image (its mask is the masked_poisson domain)."))
-        .output(PortSpec::new("height", PortType::Scalar, "Height in pixels."))
+        .output(PortSpec::new(
+            "height",
+            PortType::Scalar,
+            "Height in pixels (orthographic), or −Z for the depth Z (pinhole; geometric mean focal_px over the domain).",
+        ))
         .output(PortSpec::new(
             "rms_residual",
             PortType::Number,
@@ -40,7 +44,8 @@ impl Operator for IntegrateNode {
         p.params().map(|_| ())
     }
     fn run(p: &IntegrateSettings, i: &Inputs<'_>, _: &RunContext) -> Result<Vec<Value>, RgbnError> {
-        let (z, rep) = integrate_normals(i.rgbn("image")?, &p.params()?)?;
+        let img = i.rgbn("image")?;
+        let (z, rep) = integrate_normals(img, &p.params_for(img.width(), img.height())?)?;
         Ok(vec![
             Value::Scalar(Arc::new(z)),
             Value::Number(rep.rms_residual),
@@ -84,10 +89,11 @@ impl Operator for ProjectNode {
         p.params().map(|_| ())
     }
     fn run(p: &IntegrateSettings, i: &Inputs<'_>, _: &RunContext) -> Result<Vec<Value>, RgbnError> {
+        let img = i.rgbn("image")?;
         let params = ProjectParams {
-            integrate: p.params()?,
+            integrate: p.params_for(img.width(), img.height())?,
         };
-        let (img, z, rep) = project_integrable(i.rgbn("image")?, &params)?;
+        let (img, z, rep) = project_integrable(img, &params)?;
         Ok(vec![
             Value::Rgbn(img),
             Value::Scalar(Arc::new(z)),
@@ -180,13 +186,14 @@ impl Operator for SaveMesh {
         i: &Inputs<'_>,
         ctx: &RunContext,
     ) -> Result<Vec<Value>, RgbnError> {
-        let params = p.params()?;
+        let img = i.rgbn("image")?;
+        let params = p.params_for(img.width(), img.height())?;
         let path = check_output(&p.path, ctx)?;
         let height = i
             .scalar("height")?
             .ok_or_else(|| RgbnError::InvalidImage("input \"height\" is not connected".into()))?;
         let protected: Vec<&Path> = ctx.protected.iter().map(PathBuf::as_path).collect();
-        let (v, t) = save_mesh(height, i.rgbn("image")?, &path, &protected, &params)?;
+        let (v, t) = save_mesh(height, img, &path, &protected, &params)?;
         Ok(vec![Value::Number(v as f64), Value::Number(t as f64)])
     }
 }

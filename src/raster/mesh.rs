@@ -10,6 +10,13 @@
 //! encoded as sRGB 8-bit (`uchar red/green/blue` in PLY; `v x y z r g b` in [0, 1] in OBJ, the
 //! common MeshLab extension).
 //!
+//! With a [pinhole camera](MeshParams::camera) the height is the `−Z` of a depth `Z` (the
+//! pinhole output of [`crate::raster::integrate::integrate_normals`]) and each vertex is the
+//! camera-frame point `z_scale · ((x − cx)·Z/fx, −(row − cy)·Z/fy, −Z)` (`x` right, `y` up,
+//! the camera at the origin looking along `−z`: the frame of the normals, so the image's
+//! normals are the vertex normals as they are); `pixel_size` is not used and `z_scale`
+//! (> 0) is a uniform scale.
+//!
 //! Files are written atomically (temporary file + rename, see [`io::write_atomic`]).
 //!
 //! # References
@@ -18,6 +25,7 @@
 //! - Wavefront Technologies, "Object files (.obj)", Advanced Visualizer manual, appendix B.
 
 use super::gradient::NZ_EPSILON;
+use super::integrate::Pinhole;
 use super::{io, srgb, Plane, RgbnImage};
 use crate::error::RgbnError;
 use rayon::prelude::*;
@@ -46,6 +54,9 @@ pub struct MeshParams {
     pub z_scale: f32,
     /// World size of one pixel (x and y spacing), finite and > 0.
     pub pixel_size: f32,
+    /// A pinhole camera: vertices are unprojected from the depth `−height` (module docs).
+    #[serde(default)]
+    pub camera: Option<Pinhole>,
 }
 
 impl Default for MeshParams {
@@ -54,6 +65,7 @@ impl Default for MeshParams {
             format: MeshFormat::PlyBinary,
             z_scale: 1.0,
             pixel_size: 1.0,
+            camera: None,
         }
     }
 }
@@ -66,6 +78,15 @@ impl MeshParams {
         }
         if !(self.pixel_size.is_finite() && self.pixel_size > 0.0) {
             return Err(RgbnError::param("pixel_size", "must be finite and > 0"));
+        }
+        if let Some(c) = &self.camera {
+            c.validate()?;
+            if self.z_scale <= 0.0 {
+                return Err(RgbnError::param(
+                    "z_scale",
+                    "must be > 0 with a pinhole camera (a uniform scale of the points)",
+                ));
+            }
         }
         Ok(())
     }
@@ -112,6 +133,21 @@ pub fn build_mesh(
     let total: usize = row_counts.iter().sum();
     if total == 0 {
         return Err(RgbnError::EmptyMask { what: "the mesh" });
+    }
+    if params.camera.is_some() {
+        let behind = (0..w * h)
+            .into_par_iter()
+            .filter(|&i| inside(i) && (height.data()[i].is_nan() || height.data()[i] >= 0.0))
+            .count();
+        if behind > 0 {
+            return Err(RgbnError::param(
+                "height",
+                format!(
+                    "a pinhole mesh needs the height −Z < 0 of a pinhole integration; \
+                     {behind} pixels inside have height ≥ 0 (or NaN)"
+                ),
+            ));
+        }
     }
     if total >= u32::MAX as usize {
         return Err(RgbnError::param(
@@ -172,12 +208,18 @@ pub fn build_mesh(
                 if !inside(i) {
                     continue;
                 }
-                pos[k] = [
-                    x as f32 * params.pixel_size,
-                    -(r as f32) * params.pixel_size,
-                    zd[i] * params.z_scale,
-                ];
-                let v = [s * nx[i], s * ny[i], nz[i].max(NZ_EPSILON)];
+                let v = if let Some(cam) = &params.camera {
+                    let p = cam.point(x, r, -f64::from(zd[i]));
+                    pos[k] = p.map(|c| (c * f64::from(params.z_scale)) as f32);
+                    [nx[i], ny[i], nz[i]]
+                } else {
+                    pos[k] = [
+                        x as f32 * params.pixel_size,
+                        -(r as f32) * params.pixel_size,
+                        zd[i] * params.z_scale,
+                    ];
+                    [s * nx[i], s * ny[i], nz[i].max(NZ_EPSILON)]
+                };
                 let len = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
                 nor[k] = if len.is_finite() && len > 0.0 {
                     v.map(|c| c / len)
@@ -416,6 +458,7 @@ mod tests {
             format: MeshFormat::Obj,
             z_scale: 2.0,
             pixel_size: 0.5,
+            camera: None,
         };
         save_mesh(&z, &img, &p, &[], &params).unwrap();
         let text = std::fs::read_to_string(&p).unwrap();

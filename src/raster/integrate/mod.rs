@@ -105,15 +105,18 @@
 //! - Y. Quéau, J.-D. Durou, J.-F. Aujol, "Normal integration: a survey", JMIV 60, 2018
 //!   (discrete Poisson with Neumann boundaries on non-rectangular domains).
 
+mod bini;
 mod dct;
 mod edges;
 mod fft;
 mod frankot;
 mod masked;
+pub mod perspective;
 mod projection;
 #[cfg(test)]
 mod test_util;
 
+pub use perspective::{Camera, Pinhole};
 pub use projection::{project_integrable, ProjectParams, ProjectionReport};
 
 pub use super::gradient::Differences;
@@ -140,6 +143,10 @@ pub enum IntegrationMethod {
     /// multigrid V-cycle, warm-started from the DCT solution. Without a mask it equals
     /// `PoissonDct`.
     MaskedPoisson,
+    /// Bilateral normal integration (Cao et al. 2022, [`bini`] source docs): iteratively
+    /// reweighted least squares with one-sided equations, keeping depth discontinuities.
+    /// Over the mask (all pixels without one).
+    Bilateral,
 }
 
 /// Parameters of [`integrate_gradients`] / [`integrate_normals`].
@@ -153,6 +160,30 @@ pub struct IntegrateParams {
     /// The edge model (module docs); [`Differences::Averaged`] unless named.
     #[serde(default)]
     pub differences: Differences,
+    /// The camera (orthographic unless named). With a pinhole camera the log-depth is
+    /// integrated and the result is the height `−Z` of a depth `Z` up to scale
+    /// ([`perspective`] docs).
+    #[serde(default)]
+    pub camera: Camera,
+    /// Bilateral: the sigmoid sharpness `k` (0 = plain least squares), finite, ≥ 0.
+    #[serde(default = "default_sharpness")]
+    pub sharpness: f64,
+    /// Bilateral: the cap on reweighting (IRLS) iterations, ≥ 1.
+    #[serde(default = "default_irls_iterations")]
+    pub irls_iterations: u32,
+    /// Bilateral: stop when the relative energy change is below this, in (0, 1).
+    #[serde(default = "default_irls_tolerance")]
+    pub irls_tolerance: f64,
+}
+
+fn default_sharpness() -> f64 {
+    2.0
+}
+fn default_irls_iterations() -> u32 {
+    150
+}
+fn default_irls_tolerance() -> f64 {
+    1e-4
 }
 
 impl Default for IntegrateParams {
@@ -162,6 +193,10 @@ impl Default for IntegrateParams {
             max_iterations: 2000,
             tolerance: 1e-6,
             differences: Differences::Averaged,
+            camera: Camera::Orthographic,
+            sharpness: default_sharpness(),
+            irls_iterations: default_irls_iterations(),
+            irls_tolerance: default_irls_tolerance(),
         }
     }
 }
@@ -177,6 +212,24 @@ impl IntegrateParams {
                 "tolerance",
                 format!("must be in (0, 1), got {}", self.tolerance),
             ));
+        }
+        if !(self.sharpness.is_finite() && self.sharpness >= 0.0) {
+            return Err(RgbnError::param(
+                "sharpness",
+                format!("must be finite and ≥ 0, got {}", self.sharpness),
+            ));
+        }
+        if self.irls_iterations == 0 {
+            return Err(RgbnError::param("irls_iterations", "must be at least 1"));
+        }
+        if !(self.irls_tolerance > 0.0 && self.irls_tolerance < 1.0) {
+            return Err(RgbnError::param(
+                "irls_tolerance",
+                format!("must be in (0, 1), got {}", self.irls_tolerance),
+            ));
+        }
+        if let Camera::Pinhole(c) = &self.camera {
+            c.validate()?;
         }
         Ok(())
     }
@@ -197,6 +250,11 @@ pub struct IntegrationReport {
     pub rms_residual: f64,
     /// Domain pixels with no edge inside the domain (single-pixel components): height 0.
     pub isolated_pixels: usize,
+    /// Bilateral: reweighting (IRLS) iterations done (0 for the other methods).
+    pub irls_iterations: u32,
+    /// Domain pixels whose `n_z` (pinhole: the facing term `d`) was below
+    /// [`NZ_EPSILON`](super::gradient::NZ_EPSILON) and clamped (bilateral and pinhole only).
+    pub clamped_pixels: usize,
 }
 
 /// Coverage ≥ 0.5 counts as inside.
@@ -237,6 +295,23 @@ pub fn integrate_gradients(
     params: &IntegrateParams,
 ) -> Result<(Plane, IntegrationReport), RgbnError> {
     params.validate()?;
+    if let Camera::Pinhole(_) = params.camera {
+        return Err(RgbnError::param(
+            "camera",
+            "a pinhole camera integrates normals (integrate_normals), not a gradient field",
+        ));
+    }
+    if params.method == IntegrationMethod::Bilateral {
+        check_field(g)?;
+        check_mask(mask, g.width, g.height)?;
+        let normal = g.to_normals();
+        return bilateral_height(&normal, g, mask, params);
+    }
+    integrate_field(g, mask, params)
+}
+
+/// The field's planes match its size.
+fn check_field(g: &GradientField) -> Result<(), RgbnError> {
     let (w, h) = (g.width, g.height);
     if w == 0 || h == 0 || g.p.len() != w * h || g.q.len() != w * h {
         return Err(RgbnError::InvalidImage(format!(
@@ -245,6 +320,87 @@ pub fn integrate_gradients(
             g.q.len()
         )));
     }
+    Ok(())
+}
+
+/// Bilateral integration of normal planes (`g` their gradient field in the chosen camera's
+/// frame: the log-depth gradients with a pinhole camera), the result `u` (height or
+/// log-depth) with zero mean over the domain, 0 outside.
+fn bilateral_height(
+    normal: &[Vec<f32>; 3],
+    g: &GradientField,
+    mask: Option<&[f32]>,
+    params: &IntegrateParams,
+) -> Result<(Plane, IntegrationReport), RgbnError> {
+    let (w, h) = (g.width, g.height);
+    let (domain, isolated) = match mask {
+        Some(m) => domain_counts(m, w, h),
+        None => domain_counts(&vec![1.0; w * h], w, h),
+    };
+    if domain > 1 && isolated == domain {
+        return Err(RgbnError::param(
+            "mask",
+            format!(
+                "the integration domain ({domain} pixels) has no two neighbouring pixels \
+                 inside: no edge to integrate"
+            ),
+        ));
+    }
+    let bp = bini::BilateralParams {
+        sharpness: params.sharpness,
+        max_irls: params.irls_iterations,
+        irls_tolerance: params.irls_tolerance,
+        solve_tolerance: params.tolerance,
+        solve_max_iterations: params.max_iterations,
+    };
+    let out = bini::bilateral(normal, w, h, mask, &params.camera, &bp)?;
+    if out.clamped == domain {
+        return Err(RgbnError::param(
+            "image",
+            format!(
+                "no pixel of the integration domain ({domain} pixels) faces the camera \
+                 (every normal is edge-on or turned away): nothing to integrate"
+            ),
+        ));
+    }
+    let mut u = out.u;
+    let ins = |i: usize| mask.is_none_or(|m| inside(m[i]));
+    let mean = u
+        .iter()
+        .enumerate()
+        .filter(|(i, _)| ins(*i))
+        .map(|(_, &v)| f64::from(v))
+        .sum::<f64>()
+        / domain.max(1) as f64;
+    for (i, v) in u.iter_mut().enumerate() {
+        *v = if ins(i) {
+            (f64::from(*v) - mean) as f32
+        } else {
+            0.0
+        };
+    }
+    let z = Plane::from_vec(w, h, u)?;
+    let report = IntegrationReport {
+        method: IntegrationMethod::Bilateral,
+        domain_pixels: domain,
+        iterations: out.solver_iterations,
+        relative_residual: out.relative_residual,
+        rms_residual: edge_rms(Some(z.data()), g, mask, params.differences),
+        isolated_pixels: isolated,
+        irls_iterations: out.irls_iterations,
+        clamped_pixels: out.clamped,
+    };
+    Ok((z, report))
+}
+
+/// [`integrate_gradients`] for the least-squares methods (orthographic frame).
+fn integrate_field(
+    g: &GradientField,
+    mask: Option<&[f32]>,
+    params: &IntegrateParams,
+) -> Result<(Plane, IntegrationReport), RgbnError> {
+    let (w, h) = (g.width, g.height);
+    check_field(g)?;
     check_mask(mask, w, h)?;
     let mut report = IntegrationReport {
         method: params.method,
@@ -307,15 +463,72 @@ fn domain_counts(m: &[f32], w: usize, h: usize) -> (usize, usize) {
 }
 
 /// Integrates an image's normals (through [`GradientField::from_normals`]); the image's mask is
-/// the domain of [`IntegrationMethod::MaskedPoisson`].
+/// the domain of [`IntegrationMethod::MaskedPoisson`] and [`IntegrationMethod::Bilateral`].
+///
+/// With a [pinhole](Camera::Pinhole) camera the log-depth gradients of
+/// [`perspective::log_depth_gradients`] are integrated by the chosen method and the result is
+/// the height `−Z` of the depth `Z` (geometric mean `fx` over the domain; [`perspective`]
+/// docs); `rms_residual` is then in log-depth units.
 ///
 /// # Errors
-/// As [`integrate_gradients`].
+/// As [`integrate_gradients`]; with a pinhole camera or the bilateral method also a domain in
+/// which no normal faces the camera.
 pub fn integrate_normals(
     img: &RgbnImage,
     params: &IntegrateParams,
 ) -> Result<(Plane, IntegrationReport), RgbnError> {
-    integrate_gradients(&GradientField::from_normals(img), img.mask(), params)
+    params.validate()?;
+    let (w, h) = (img.width(), img.height());
+    let cam = match params.camera {
+        Camera::Orthographic => {
+            if params.method == IntegrationMethod::Bilateral {
+                check_mask(img.mask(), w, h)?;
+                let g = GradientField::from_normals(img);
+                return bilateral_height(img.normal(), &g, img.mask(), params);
+            }
+            return integrate_gradients(&GradientField::from_normals(img), img.mask(), params);
+        }
+        Camera::Pinhole(c) => c,
+    };
+    check_mask(img.mask(), w, h)?;
+    let g = perspective::log_depth_gradients(img.normal(), w, h, &cam);
+    let (mut ell, mut report, domain) = if params.method == IntegrationMethod::Bilateral {
+        let (z, rep) = bilateral_height(img.normal(), &g, img.mask(), params)?;
+        (z, rep, img.mask())
+    } else {
+        let ortho = IntegrateParams {
+            camera: Camera::Orthographic,
+            ..params.clone()
+        };
+        let (z, mut rep) = integrate_field(&g, img.mask(), &ortho)?;
+        let dom = (params.method == IntegrationMethod::MaskedPoisson)
+            .then_some(img.mask())
+            .flatten();
+        let ins = |i: usize| dom.is_none_or(|m| inside(m[i]));
+        let faces = (0..w * h).filter(|&i| ins(i)).count();
+        let clamped = (0..w * h)
+            .filter(|&i| ins(i))
+            .filter(|&i| {
+                let n = [img.normal()[0][i], img.normal()[1][i], img.normal()[2][i]];
+                let d = cam.facing(n, i % w, i / w);
+                d.is_nan() || d < f64::from(super::gradient::NZ_EPSILON)
+            })
+            .count();
+        if clamped == faces {
+            return Err(RgbnError::param(
+                "image",
+                format!(
+                    "no pixel of the integration domain ({faces} pixels) faces the camera \
+                     (every normal is edge-on or turned away): nothing to integrate"
+                ),
+            ));
+        }
+        rep.clamped_pixels = clamped;
+        (z, rep, dom)
+    };
+    perspective::height_of_log_depth(ell.data_mut(), domain, cam.fx);
+    report.method = params.method;
+    Ok((ell, report))
 }
 
 /// The non-integrable fraction `F = ‖e − D z*‖ / ‖e‖` over the edge equations of the module
