@@ -478,7 +478,9 @@ pub fn combine_one(
                     }
                 }
                 CombineMode::Blend => slerp(a, b, w),
-                _ => rotate_between(n, b, a),
+                // From the base as saturated the same way: a base below the horizon
+                // threshold with no edit (b = n) is then no rotation at all.
+                _ => rotate_between(sat(n, n).0, b, a),
             };
             (r, a, b_saturated)
         }
@@ -762,6 +764,22 @@ mod tests {
             let v = normalize3([f64::from(x), f64::from(y), f64::from(z)]);
             to32(v)
         })
+    }
+
+    #[test]
+    fn rotate_with_no_edit_keeps_the_existing_normal_over_a_grazing_base() {
+        // Found by the property below: a base below the horizon threshold (n_z 0.038) with
+        // weight 0 once rotated the existing normal by the base's own saturation.
+        let n = [0.678_003_4, -0.734_051_2, 0.038_472_26];
+        let p = RotateParams {
+            mode: CombineMode::Rotate,
+            ..RotateParams::default()
+        };
+        let (r, _) = combine_one(n, [0.0, 0.0, 1.0], [0.0, 0.0, 1.0], 0.0, &p);
+        assert!(
+            (0..3).all(|k| (r[k] - [0.0, 0.0, 1.0][k]).abs() < 1e-6),
+            "{r:?}"
+        );
     }
 
     proptest! {
