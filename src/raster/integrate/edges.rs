@@ -172,7 +172,7 @@ pub(super) fn solve_edges_owned(
     let mut b = rhs(w, ex, ey, &wx, &wy);
     let mut mg = Multigrid::new(w, h, wx, wy);
     let l0 = &mg.levels[0];
-    let (label, count) = components(w, h, &l0.wx, &l0.wy, &l0.inv_diag);
+    let (label, count) = components(w, h, &l0.wx, &l0.wy, &l0.inv_diag, &l0.spans);
     // b is consistent (zero sum per component) up to rounding; the rounding part is projected
     // out: CG cannot reduce it, and the V-cycle amplifies constants (module docs).
     let means = component_means(&b, &label, count);
@@ -299,6 +299,23 @@ pub(super) fn par_vec<T: Copy + Default + Send + Sync>(
     v
 }
 
+/// A `w × h` vector filled row by row in parallel: `f(row, out_row)` (huge pages advised).
+pub(super) fn par_rows<T: Copy + Default + Send + Sync>(
+    w: usize,
+    h: usize,
+    f: impl Fn(usize, &mut [T]) + Sync + Send,
+) -> Vec<T> {
+    let mut v = vec![T::default(); w * h];
+    advise_huge_pages(&v);
+    if w > 0 {
+        v.par_chunks_mut(w)
+            .with_min_len(4)
+            .enumerate()
+            .for_each(|(r, out)| f(r, out));
+    }
+    v
+}
+
 /// `b = Σ_{edges j→i} w e − Σ_{edges i→j} w e` (module docs).
 fn rhs(w: usize, ex: &[f32], ey: &[f32], wx: &[f32], wy: &[f32]) -> Vec<f64> {
     // A zero weight times a non-finite target must not poison b.
@@ -309,24 +326,19 @@ fn rhs(w: usize, ex: &[f32], ey: &[f32], wx: &[f32], wy: &[f32]) -> Vec<f64> {
             0.0
         }
     };
-    par_vec(wx.len(), |i| {
-        let mut s = -f(wx[i], ex[i]) - f(wy[i], ey[i]);
-        if i % w >= 1 {
-            s += f(wx[i - 1], ex[i - 1]);
+    par_rows(w, wx.len() / w.max(1), |r, out| {
+        for (x, o) in out.iter_mut().enumerate() {
+            let i = r * w + x;
+            let mut s = -f(wx[i], ex[i]) - f(wy[i], ey[i]);
+            if x >= 1 {
+                s += f(wx[i - 1], ex[i - 1]);
+            }
+            if r >= 1 {
+                s += f(wy[i - w], ey[i - w]);
+            }
+            *o = s;
         }
-        if i >= w {
-            s += f(wy[i - w], ey[i - w]);
-        }
-        s
     })
-}
-
-/// `⟨a, z⟩` with `z` the V-cycle's `f32` output.
-fn dot_mixed(a: &[f64], z: &[f32]) -> f64 {
-    a.par_chunks(1 << 14)
-        .zip(z.par_chunks(1 << 14))
-        .map(|(a, z)| a.iter().zip(z).map(|(x, &y)| x * f64::from(y)).sum::<f64>())
-        .sum()
 }
 
 /// `y = A x` on level 0's weights; returns `⟨x, y⟩`.
@@ -337,7 +349,30 @@ fn apply_a(l: &Level, x: &[f64], y: &mut [f64]) -> f64 {
         .enumerate()
         .map(|(r, out)| {
             let mut xy = 0.0;
-            for (xx, o) in out.iter_mut().enumerate() {
+            let (lo, hi) = l.spans[r];
+            if r >= 1 && r + 1 < h && lo < hi {
+                // An inner row, without branches: the neighbour left of column 0 and right of
+                // column w − 1 are in the rows around, behind edges of weight 0 (the last
+                // column's x weights are 0), and x is finite.
+                let (a, b) = (r * w + lo, r * w + hi);
+                let it = out[lo..hi]
+                    .iter_mut()
+                    .zip(&x[a..b])
+                    .zip(x[a - 1..b - 1].iter().zip(&x[a + 1..b + 1]))
+                    .zip(x[a - w..b - w].iter().zip(&x[a + w..b + w]))
+                    .zip(wx[a - 1..b - 1].iter().zip(&wx[a..b]))
+                    .zip(wy[a - w..b - w].iter().zip(&wy[a..b]));
+                for (((((o, &xi), (&xl, &xr)), (&xu, &xd)), (&wl, &wr)), (&wu, &wd)) in it {
+                    let s = f64::from(wl) * (xi - xl)
+                        + f64::from(wr) * (xi - xr)
+                        + f64::from(wu) * (xi - xu)
+                        + f64::from(wd) * (xi - xd);
+                    *o = s;
+                    xy += xi * s;
+                }
+                return xy;
+            }
+            for (xx, o) in out.iter_mut().enumerate().take(hi).skip(lo) {
                 let i = r * w + xx;
                 let xi = x[i];
                 let mut s = 0.0;
@@ -379,8 +414,11 @@ enum Preconditioner {
 /// the guard restarted with Jacobi).
 ///
 /// Guard: with a fixed symmetric positive semi-definite preconditioner CG's residual cannot
-/// run away, but should rounding ever make it grow past 10× the best seen, the best iterate
-/// is restored and CG restarts with the Jacobi preconditioner (which always converges).
+/// run away, but should rounding ever make it grow past 10× the best seen, CG restarts from
+/// the current iterate with the Jacobi preconditioner (which always converges).
+///
+/// Every vector operation runs over level 0's [spans](Level::spans) only: outside them `b`,
+/// the residual, the direction and `A·dir` are 0, and `x` is not read.
 fn pcg(
     mg: &mut Multigrid,
     b: &[f64],
@@ -391,40 +429,51 @@ fn pcg(
     mut pre: Preconditioner,
 ) -> (u32, f64, bool) {
     let n = b.len();
+    let (w, spans) = (mg.levels[0].w, mg.levels[0].spans.clone());
     let mut ax = zeros::<f64>(n);
-    apply_a(&mg.levels[0], x, &mut ax);
-    let mut res = par_vec(n, |i| b[i] - ax[i]);
-    let mut rel = dot(&res, &res).sqrt() / b_norm;
+    let mut res = zeros::<f64>(n);
+    let residual = |x: &[f64], ax: &mut [f64], res: &mut [f64], l0: &Level| -> f64 {
+        apply_a(l0, x, ax);
+        rows_map(w, &spans, res, |r, lo, hi, res| {
+            let (b, ax) = (&b[r * w + lo..r * w + hi], &ax[r * w + lo..r * w + hi]);
+            let mut s = 0.0;
+            for ((r, b), a) in res.iter_mut().zip(b).zip(ax) {
+                *r = b - a;
+                s += *r * *r;
+            }
+            s
+        })
+        .sqrt()
+            / b_norm
+    };
+    let mut rel = residual(x, &mut ax, &mut res, &mg.levels[0]);
     let mut dir = zeros::<f64>(n);
     let mut rz = 0.0;
     let mut iterations = 0u32;
-    let mut best: Option<(f64, Vec<f64>)> =
-        (pre == Preconditioner::Multigrid).then(|| (rel, x.to_vec()));
+    let mut best = (pre == Preconditioner::Multigrid).then_some(rel);
     let mut restart = true;
     let mut restarted = false;
     while iterations < max_iterations && rel > tolerance {
-        if let Some((best_rel, best_x)) = &best {
-            if rel > 10.0 * best_rel {
-                pre = Preconditioner::Jacobi;
-                x.copy_from_slice(best_x);
-                best = None;
-                restarted = true;
-                apply_a(&mg.levels[0], x, &mut ax);
-                res.par_iter_mut()
-                    .zip(b.par_iter().zip(&ax))
-                    .for_each(|(r, (b, a))| *r = b - a);
-                rel = dot(&res, &res).sqrt() / b_norm;
-                restart = true;
-                continue;
-            }
+        if best.is_some_and(|best| rel > 10.0 * best) {
+            pre = Preconditioner::Jacobi;
+            best = None;
+            restarted = true;
+            rel = residual(x, &mut ax, &mut res, &mg.levels[0]);
+            restart = true;
+            continue;
         }
         if restart {
             mg.precondition(pre, &res);
             let zv = &mg.levels[0].x;
-            dir.par_iter_mut()
-                .zip(zv)
-                .for_each(|(d, &z)| *d = f64::from(z));
-            rz = dot_mixed(&res, zv);
+            rz = rows_map(w, &spans, &mut dir, |r, lo, hi, d| {
+                let (z, res) = (&zv[r * w + lo..r * w + hi], &res[r * w + lo..r * w + hi]);
+                let mut s = 0.0;
+                for ((d, &z), r) in d.iter_mut().zip(z).zip(res) {
+                    *d = f64::from(z);
+                    s += r * *d;
+                }
+                s
+            });
             restart = false;
             if rz <= 0.0 {
                 break;
@@ -436,12 +485,18 @@ fn pcg(
         }
         let alpha = rz / dad;
         let rr: f64 = x
-            .par_chunks_mut(1 << 14)
-            .zip(res.par_chunks_mut(1 << 14))
-            .zip(dir.par_chunks(1 << 14).zip(ax.par_chunks(1 << 14)))
-            .map(|((x, r), (d, a))| {
+            .par_chunks_mut(w)
+            .zip(res.par_chunks_mut(w))
+            .enumerate()
+            .map(|(r, (x, res))| {
+                let (lo, hi) = spans[r];
+                let (d, a) = (&dir[r * w + lo..r * w + hi], &ax[r * w + lo..r * w + hi]);
                 let mut s = 0.0;
-                for ((x, r), (d, a)) in x.iter_mut().zip(r.iter_mut()).zip(d.iter().zip(a)) {
+                for ((x, r), (d, a)) in x[lo..hi]
+                    .iter_mut()
+                    .zip(res[lo..hi].iter_mut())
+                    .zip(d.iter().zip(a))
+                {
                     *x += alpha * d;
                     *r -= alpha * a;
                     s += *r * *r;
@@ -451,36 +506,64 @@ fn pcg(
             .sum();
         iterations += 1;
         rel = rr.sqrt() / b_norm;
-        if let Some((best_rel, best_x)) = &mut best {
-            if rel < *best_rel {
-                *best_rel = rel;
-                best_x.copy_from_slice(x);
-            }
+        if let Some(best) = &mut best {
+            *best = best.min(rel);
         }
         if rel <= tolerance {
             break;
         }
         mg.precondition(pre, &res);
         let zv = &mg.levels[0].x;
-        let rz_new = dot_mixed(&res, zv);
+        let rz_new = rows_map(w, &spans, &mut Vec::new(), |r, lo, hi, _| {
+            let (z, res) = (&zv[r * w + lo..r * w + hi], &res[r * w + lo..r * w + hi]);
+            res.iter()
+                .zip(z)
+                .map(|(x, &y)| x * f64::from(y))
+                .sum::<f64>()
+        });
         if rz_new <= 0.0 {
             break;
         }
         let beta = rz_new / rz;
         rz = rz_new;
-        dir.par_iter_mut()
-            .zip(zv)
-            .for_each(|(d, &z)| *d = f64::from(z) + beta * *d);
+        rows_map(w, &spans, &mut dir, |r, lo, hi, d| {
+            for (d, &z) in d.iter_mut().zip(&zv[r * w + lo..r * w + hi]) {
+                *d = f64::from(z) + beta * *d;
+            }
+            0.0
+        });
     }
     (iterations, rel, restarted)
+}
+
+/// Runs `f(row, lo, hi, out[row·w + lo .. row·w + hi])` on every row's span in parallel and
+/// sums what it returns; with an empty `out`, `f` gets an empty slice.
+fn rows_map<F>(w: usize, spans: &[(usize, usize)], out: &mut [f64], f: F) -> f64
+where
+    F: Fn(usize, usize, usize, &mut [f64]) -> f64 + Sync,
+{
+    if out.is_empty() {
+        return (0..spans.len())
+            .into_par_iter()
+            .with_min_len(4)
+            .map(|r| f(r, spans[r].0, spans[r].1, &mut []))
+            .sum();
+    }
+    out.par_chunks_mut(w)
+        .with_min_len(4)
+        .enumerate()
+        .map(|(r, row)| {
+            let (lo, hi) = spans[r];
+            f(r, lo, hi, &mut row[lo..hi])
+        })
+        .sum()
 }
 
 /// Per connected component, shifts `x` to the mean of `z0` (or 0); pixels without an edge 0.
 fn fix_constants(x: &[f64], z0: Option<&[f32]>, label: &[u32], count: usize) -> Vec<f32> {
     let mut shift = component_means(x, label, count);
     if let Some(z) = z0 {
-        let z = par_vec(z.len(), |i| f64::from(z[i]));
-        for (s, m) in shift.iter_mut().zip(component_means(&z, label, count)) {
+        for (s, m) in shift.iter_mut().zip(component_means(z, label, count)) {
             *s -= m;
         }
     }
@@ -490,24 +573,66 @@ fn fix_constants(x: &[f64], z0: Option<&[f32]>, label: &[u32], count: usize) -> 
     })
 }
 
-/// The mean of `v` on each component (`label` as from [`components`]).
-fn component_means(v: &[f64], label: &[u32], count: usize) -> Vec<f64> {
-    let mut s = vec![(0.0f64, 0usize); count];
-    for (&v, &l) in v.iter().zip(label) {
-        if l != u32::MAX {
-            let e = &mut s[l as usize];
-            e.0 += v;
-            e.1 += 1;
+/// The mean of `v` on each component (`label` as from [`components`]): in parallel chunks
+/// when there are few components, in one pass otherwise.
+fn component_means<T: Copy + Into<f64> + Sync>(v: &[T], label: &[u32], count: usize) -> Vec<f64> {
+    let sums = |v: &[T], label: &[u32]| {
+        let mut s = vec![(0.0f64, 0usize); count];
+        for (&v, &l) in v.iter().zip(label) {
+            if l != u32::MAX {
+                let e = &mut s[l as usize];
+                e.0 += v.into();
+                e.1 += 1;
+            }
         }
-    }
-    s.iter().map(|&(s, c)| s / c as f64).collect()
+        s
+    };
+    let s = if count <= 256 {
+        v.par_chunks(1 << 16)
+            .zip(label.par_chunks(1 << 16))
+            .map(|(v, l)| sums(v, l))
+            .reduce(
+                || vec![(0.0, 0); count],
+                |mut a, b| {
+                    for (a, b) in a.iter_mut().zip(b) {
+                        a.0 += b.0;
+                        a.1 += b.1;
+                    }
+                    a
+                },
+            )
+    } else {
+        sums(v, label)
+    };
+    s.iter().map(|&(s, c)| s / c.max(1) as f64).collect()
 }
 
 /// Connected components through edges of positive weight: a dense label per node with an
 /// edge (`u32::MAX` for nodes without one) and the number of components.
-fn components(w: usize, h: usize, wx: &[f32], wy: &[f32], inv_diag: &[f32]) -> (Vec<u32>, usize) {
+fn components(
+    w: usize,
+    h: usize,
+    wx: &[f32],
+    wy: &[f32],
+    inv_diag: &[f32],
+    spans: &[(usize, usize)],
+) -> (Vec<u32>, usize) {
     let n = w * h;
-    let mut parent: Vec<u32> = par_vec(n, |i| i as u32);
+    // Horizontal runs first: every node of a run of nodes joined by x edges points at the
+    // run's first node (its "start"), which is the only node unions and finds ever touch, so
+    // a non-start node keeps pointing at its start.
+    let mut parent: Vec<u32> = par_rows(w, h, |row, out| {
+        let (lo, hi) = spans[row];
+        for x in lo..hi {
+            let i = row * w + x;
+            out[x] = if x > lo && wx[i - 1] > 0.0 {
+                out[x - 1]
+            } else {
+                i as u32
+            };
+        }
+    });
+    let is_start = |i: usize| i.is_multiple_of(w) || wx[i - 1] <= 0.0;
     fn find(p: &mut [u32], base: usize, mut i: u32) -> u32 {
         while p[i as usize - base] != i {
             let g = p[p[i as usize - base] as usize - base];
@@ -524,41 +649,70 @@ fn components(w: usize, h: usize, wx: &[f32], wy: &[f32], inv_diag: &[f32]) -> (
             p[hi as usize - base] = lo;
         }
     }
+    // The y edges of `row` (to `row + 1`): the runs above and below are joined, once per
+    // pair of runs met in a row.
+    let join_rows = |p: &mut [u32], base: usize, row: usize| {
+        let (lo, hi) = spans[row];
+        let mut last = (u32::MAX, u32::MAX);
+        for i in row * w + lo..row * w + hi {
+            if wy[i] > 0.0 {
+                let a = if is_start(i) { i as u32 } else { p[i - base] };
+                let j = i + w;
+                let b = if is_start(j) { j as u32 } else { p[j - base] };
+                if (a, b) != last {
+                    union(p, base, a as usize, b as usize);
+                    last = (a, b);
+                }
+            }
+        }
+    };
     // Bands of rows in parallel (every parent inside its band), then the edges between bands.
-    let band = h.div_ceil(32).max(1) * w;
+    let band_rows = h.div_ceil(32).max(1);
+    let band = band_rows * w;
     parent.par_chunks_mut(band).enumerate().for_each(|(k, p)| {
         let base = k * band;
-        for li in 0..p.len() {
-            let i = base + li;
-            if wx[i] > 0.0 {
-                union(p, base, i, i + 1);
+        let rows = p.len() / w;
+        for r in 0..rows.saturating_sub(1) {
+            join_rows(p, base, k * band_rows + r);
+        }
+    });
+    for k in 1..h.div_ceil(band_rows) {
+        join_rows(&mut parent, 0, k * band_rows - 1);
+    }
+    // Roots in parallel (read-only walks), dense labels for the roots in index order, then
+    // every node takes its root's label.
+    let root: Vec<u32> = par_rows(w, h, |row, out| {
+        let (lo, hi) = spans[row];
+        for (x, o) in out.iter_mut().enumerate().take(hi).skip(lo) {
+            let mut r = (row * w + x) as u32;
+            while parent[r as usize] != r {
+                r = parent[r as usize];
             }
-            if li + w < p.len() && wy[i] > 0.0 {
-                union(p, base, i, i + w);
+            *o = r;
+        }
+    });
+    let mut label = vec![u32::MAX; n];
+    let mut count = 0usize;
+    for (row, &(lo, hi)) in spans.iter().enumerate() {
+        for i in row * w + lo..row * w + hi {
+            if root[i] == i as u32 && inv_diag[i] != 0.0 {
+                label[i] = count as u32;
+                count += 1;
+            }
+        }
+    }
+    let ptr = SharedMut(label.as_mut_ptr());
+    (0..h).into_par_iter().with_min_len(4).for_each(|row| {
+        let (lo, hi) = spans[row];
+        for i in row * w + lo..row * w + hi {
+            let r = root[i] as usize;
+            if r != i && inv_diag[i] != 0.0 {
+                // SAFETY: each task writes only node i (a non-root) and reads only roots,
+                // which no task writes; i < n.
+                unsafe { *ptr.get().add(i) = *ptr.get().add(r) };
             }
         }
     });
-    for start in (band..n).step_by(band) {
-        for (i, &wt) in wy.iter().enumerate().take(start).skip(start - w) {
-            if wt > 0.0 {
-                union(&mut parent, 0, i, i + w);
-            }
-        }
-    }
-    let mut label = vec![u32::MAX; n];
-    let mut count = 0usize;
-    for i in 0..n {
-        if inv_diag[i] == 0.0 {
-            continue;
-        }
-        let r = find(&mut parent, 0, i as u32) as usize;
-        if r == i {
-            label[i] = count as u32;
-            count += 1;
-        } else {
-            label[i] = label[r];
-        }
-    }
     (label, count)
 }
 
@@ -576,33 +730,48 @@ pub(super) struct Level {
     pub(super) wy: Vec<f32>,
     /// `1 / Σ_j w_ij`, 0 for a node without edges (kept at 0).
     pub(super) inv_diag: Vec<f32>,
+    /// Per row, the columns `lo..hi` from its first to its last node with edges (`0..0`
+    /// without one): every kernel works inside these spans only (a mask covering half of
+    /// the frame costs about half), and the vectors stay 0 outside them.
+    pub(super) spans: Vec<(usize, usize)>,
     x: Vec<f32>,
     b: Vec<f32>,
 }
 
+/// The spans of [`Level::spans`] from a `w`-wide `inv_diag`.
+fn spans_of(inv_diag: &[f32], w: usize) -> Vec<(usize, usize)> {
+    inv_diag
+        .par_chunks(w)
+        .map(|row| match row.iter().position(|&d| d > 0.0) {
+            Some(lo) => (lo, w - row.iter().rev().position(|&d| d > 0.0).unwrap_or(0)),
+            None => (0, 0),
+        })
+        .collect()
+}
+
 impl Level {
     pub(super) fn new(w: usize, h: usize, wx: Vec<f32>, wy: Vec<f32>) -> Self {
-        let inv_diag = par_vec(w * h, |i| {
-            let (xx, r) = (i % w, i / w);
-            let mut d = wx[i] + wy[i];
-            if xx >= 1 {
-                d += wx[i - 1];
-            }
-            if r >= 1 {
-                d += wy[i - w];
-            }
-            if d > 0.0 {
-                1.0 / d
-            } else {
-                0.0
+        let inv_diag = par_rows(w, h, |r, out| {
+            for (xx, o) in out.iter_mut().enumerate() {
+                let i = r * w + xx;
+                let mut d = wx[i] + wy[i];
+                if xx >= 1 {
+                    d += wx[i - 1];
+                }
+                if r >= 1 {
+                    d += wy[i - w];
+                }
+                *o = if d > 0.0 { 1.0 / d } else { 0.0 };
             }
         });
+        let spans = spans_of(&inv_diag, w);
         Self {
             w,
             h,
             wx,
             wy,
             inv_diag,
+            spans,
             x: zeros(w * h),
             b: zeros(w * h),
         }
@@ -613,21 +782,19 @@ impl Level {
         let (w, h) = (self.w, self.h);
         let (cw, ch) = (w.div_ceil(2), h.div_ceil(2));
         let at = |v: &[f32], x: usize, r: usize| if x < w && r < h { v[r * w + x] } else { 0.0 };
-        let wx = par_vec(cw * ch, |i| {
-            let (cx, cr) = (i % cw, i / cw);
-            if cx + 1 >= cw {
-                return 0.0;
+        let wx = par_rows(cw, ch, |cr, out| {
+            for (cx, o) in out.iter_mut().enumerate().take(cw - 1) {
+                let fx = 2 * cx + 1;
+                *o = 0.5 * (at(&self.wx, fx, 2 * cr) + at(&self.wx, fx, 2 * cr + 1));
             }
-            let fx = 2 * cx + 1;
-            0.5 * (at(&self.wx, fx, 2 * cr) + at(&self.wx, fx, 2 * cr + 1))
         });
-        let wy = par_vec(cw * ch, |i| {
-            let (cx, cr) = (i % cw, i / cw);
-            if cr + 1 >= ch {
-                return 0.0;
+        let wy = par_rows(cw, ch, |cr, out| {
+            if cr + 1 < ch {
+                let fr = 2 * cr + 1;
+                for (cx, o) in out.iter_mut().enumerate() {
+                    *o = 0.5 * (at(&self.wy, 2 * cx, fr) + at(&self.wy, 2 * cx + 1, fr));
+                }
             }
-            let fr = 2 * cr + 1;
-            0.5 * (at(&self.wy, 2 * cx, fr) + at(&self.wy, 2 * cx + 1, fr))
         });
         Self::new(cw, ch, wx, wy)
     }
@@ -636,20 +803,22 @@ impl Level {
     /// `x = b / diag` (their neighbours are black, still 0), black nodes 0. One pass.
     fn first_sweep(&mut self, r: Option<&[f64]>) {
         let w = self.w;
-        let inv = &self.inv_diag;
+        let (inv, spans) = (&self.inv_diag, &self.spans);
         self.x
             .par_chunks_mut(w)
             .zip(self.b.par_chunks_mut(w))
             .enumerate()
             .for_each(|(row, (x, b))| {
+                let (lo, hi) = spans[row];
+                let (x, b) = (&mut x[lo..hi], &mut b[lo..hi]);
                 if let Some(r) = r {
-                    for (b, &v) in b.iter_mut().zip(&r[row * w..(row + 1) * w]) {
+                    for (b, &v) in b.iter_mut().zip(&r[row * w + lo..row * w + hi]) {
                         *b = v as f32;
                     }
                 }
-                let inv = &inv[row * w..(row + 1) * w];
+                let inv = &inv[row * w + lo..row * w + hi];
                 for (k, ((x, &b), &d)) in x.iter_mut().zip(b.iter()).zip(inv).enumerate() {
-                    *x = if (k + row) % 2 == 0 { b * d } else { 0.0 };
+                    *x = if (k + lo + row) % 2 == 0 { b * d } else { 0.0 };
                 }
             });
     }
@@ -658,40 +827,69 @@ impl Level {
     fn gs_colour(&mut self, colour: usize) {
         let (w, h) = (self.w, self.h);
         let (wx, wy, inv, b) = (&self.wx, &self.wy, &self.inv_diag, &self.b);
+        let spans = &self.spans;
         let ptr = SharedMut(self.x.as_mut_ptr());
         (0..h).into_par_iter().with_min_len(8).for_each(|r| {
             let p = ptr.get();
-            for xx in ((r + colour) % 2..w).step_by(2) {
+            let (lo, hi) = spans[r];
+            if lo >= hi {
+                return;
+            }
+            let first = lo + (lo + r + colour) % 2;
+            // SAFETY (both loops): this task writes only nodes (xx, r) of colour `colour` (row
+            // r is this task's own); it reads only their four neighbours, which have the other
+            // colour and are written by no task during this half-sweep. All indices are inside
+            // the buffer: checked by the conditions, or (inner loop) r ∈ 1..h−1 and
+            // xx ∈ 1..w−1.
+            let checked = |xx: usize| unsafe {
                 let i = r * w + xx;
-                let d = inv[i];
-                if d == 0.0 {
-                    continue;
-                }
                 let mut s = b[i];
-                // SAFETY: this task writes only node i = (xx, r) of colour `colour` (row r is
-                // this task's own); it reads only its four neighbours, which have the other
-                // colour and are written by no task during this half-sweep. All indices are
-                // inside the buffer (bounds checked by the conditions).
-                unsafe {
-                    if xx >= 1 {
-                        s += wx[i - 1] * *p.add(i - 1);
-                    }
-                    if xx + 1 < w {
-                        s += wx[i] * *p.add(i + 1);
-                    }
-                    if r >= 1 {
-                        s += wy[i - w] * *p.add(i - w);
-                    }
-                    if r + 1 < h {
-                        s += wy[i] * *p.add(i + w);
-                    }
-                    *p.add(i) = s * d;
+                if xx >= 1 {
+                    s += wx[i - 1] * *p.add(i - 1);
                 }
+                if xx + 1 < w {
+                    s += wx[i] * *p.add(i + 1);
+                }
+                if r >= 1 {
+                    s += wy[i - w] * *p.add(i - w);
+                }
+                if r + 1 < h {
+                    s += wy[i] * *p.add(i + w);
+                }
+                // An inert node (d = 0) stays 0 (s is finite).
+                *p.add(i) = s * inv[i];
+            };
+            if r == 0 || r + 1 == h || w < 3 {
+                (first..hi).step_by(2).for_each(checked);
+                return;
+            }
+            // Columns 0 and w − 1 checked; the inner ones without branches.
+            let start = if first == 0 {
+                checked(0);
+                2
+            } else {
+                first
+            };
+            let end = hi.min(w - 1);
+            for xx in (start..end).step_by(2) {
+                let i = r * w + xx;
+                unsafe {
+                    let s = b.get_unchecked(i)
+                        + wx.get_unchecked(i - 1) * *p.add(i - 1)
+                        + wx.get_unchecked(i) * *p.add(i + 1)
+                        + wy.get_unchecked(i - w) * *p.add(i - w)
+                        + wy.get_unchecked(i) * *p.add(i + w);
+                    *p.add(i) = s * inv.get_unchecked(i);
+                }
+            }
+            if hi == w && (w - 1 + r + colour).is_multiple_of(2) {
+                checked(w - 1);
             }
         });
     }
 
-    /// Restricts `b − A x` of this level into `coarse.b` (sum over the 2 × 2 children).
+    /// Restricts `b − A x` of this level into `coarse.b` (sum over the 2 × 2 children), right
+    /// after a black half-sweep: the black children's residuals are 0 and are not computed.
     fn restrict_residual(&self, coarse: &mut Level) {
         let (w, h) = (self.w, self.h);
         let cw = coarse.w;
@@ -717,14 +915,18 @@ impl Level {
             }
             s
         };
+        let cspans = &coarse.spans;
         coarse
             .b
             .par_chunks_mut(cw)
             .enumerate()
             .for_each(|(cr, out)| {
-                for (cx, o) in out.iter_mut().enumerate() {
+                let (lo, hi) = cspans[cr];
+                for (cx, o) in out.iter_mut().enumerate().take(hi).skip(lo) {
                     let (fx, fr) = (2 * cx, 2 * cr);
-                    *o = res(fx, fr) + res(fx + 1, fr) + res(fx, fr + 1) + res(fx + 1, fr + 1);
+                    // The black children (fx + 1, fr) and (fx, fr + 1) were just relaxed: their
+                    // residual is 0 (to rounding), so only the red ones are computed.
+                    *o = res(fx, fr) + res(fx + 1, fr + 1);
                 }
             });
     }
@@ -734,14 +936,15 @@ impl Level {
     fn prolong_add(&mut self, coarse: &Level) {
         let (w, cw) = (self.w, coarse.w);
         let cx = &coarse.x;
-        let inv = &self.inv_diag;
+        let (inv, spans) = (&self.inv_diag, &self.spans);
         self.x
             .par_chunks_mut(w)
             .zip(inv.par_chunks(w))
             .enumerate()
             .for_each(|(r, (row, ir))| {
                 let crow = &cx[(r / 2) * cw..(r / 2 + 1) * cw];
-                for (xx, (v, &d)) in row.iter_mut().zip(ir).enumerate() {
+                let (lo, hi) = spans[r];
+                for (xx, (v, &d)) in row.iter_mut().zip(ir).enumerate().take(hi).skip(lo) {
                     if d > 0.0 {
                         *v += crow[xx / 2];
                     }
@@ -765,7 +968,7 @@ impl CoarseSolver {
     fn new(l: &Level) -> Self {
         let (w, h) = (l.w, l.h);
         let n = w * h;
-        let (label, count) = components(w, h, &l.wx, &l.wy, &l.inv_diag);
+        let (label, count) = components(w, h, &l.wx, &l.wy, &l.inv_diag, &l.spans);
         let mut pinned = vec![false; n];
         let mut seen = vec![false; count];
         for i in 0..n {

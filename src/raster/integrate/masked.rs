@@ -2,7 +2,7 @@
 //! the edges with both ends inside the mask and the model's edge values as targets,
 //! warm-started from the DCT solution (module docs of [`super`]).
 
-use super::edges::{par_vec, solve_edges_owned};
+use super::edges::{par_rows, solve_edges_owned};
 use super::{inside, poisson_dct, IntegrateParams};
 use crate::error::RgbnError;
 use crate::raster::gradient::GradientField;
@@ -27,14 +27,27 @@ pub(super) fn masked_poisson(
     let warm = poisson_dct(g, Some(m), d);
     let e = g.edge_values(d);
     let ins = |i: usize| inside(m[i]);
-    let wx = par_vec(n, |i| {
-        f32::from(u8::from(i % w + 1 < w && ins(i) && ins(i + 1)))
+    let wx = par_rows(w, h, |r, out: &mut [f32]| {
+        for (x, o) in out.iter_mut().enumerate() {
+            let i = r * w + x;
+            *o = f32::from(u8::from(x + 1 < w && ins(i) && ins(i + 1)));
+        }
     });
-    let wy = par_vec(n, |i| {
-        f32::from(u8::from(i + w < n && ins(i) && ins(i + w)))
+    let wy = par_rows(w, h, |r, out: &mut [f32]| {
+        if r + 1 < h {
+            for (x, o) in out.iter_mut().enumerate() {
+                let i = r * w + x;
+                *o = f32::from(u8::from(ins(i) && ins(i + w)));
+            }
+        }
     });
-    // The model's vertical edge (x, r+1)–(x, r) reads z(x, r) − z(x, r+1) = e_q(x, r+1).
-    let ey = par_vec(n, |i| if i + w < n { -e.q[i + w] } else { 0.0 });
+    let ey = par_rows(w, h, |r, out: &mut [f32]| {
+        if r + 1 < h {
+            for (o, &q) in out.iter_mut().zip(&e.q[(r + 1) * w..(r + 2) * w]) {
+                *o = -q;
+            }
+        }
+    });
     let (s, _) = solve_edges_owned(
         w,
         h,
@@ -47,27 +60,39 @@ pub(super) fn masked_poisson(
         params.max_iterations,
     )
     .map_err(|err| RgbnError::param("gradients (masked Poisson)", err.to_string()))?;
-    let has_edge = |i: usize| {
+    let has_edge = |i: usize, x: usize| {
         ins(i)
-            && ((i % w + 1 < w && ins(i + 1))
-                || (i % w >= 1 && ins(i - 1))
+            && ((x + 1 < w && ins(i + 1))
+                || (x >= 1 && ins(i - 1))
                 || (i + w < n && ins(i + w))
                 || (i >= w && ins(i - w)))
     };
-    let (sum, count) = (0..n)
+    let (sum, count) = (0..h)
         .into_par_iter()
-        .filter(|&i| has_edge(i))
-        .map(|i| (f64::from(s.z[i]), 1usize))
+        .map(|r| {
+            let (mut sum, mut count) = (0.0f64, 0usize);
+            for x in 0..w {
+                let i = r * w + x;
+                if has_edge(i, x) {
+                    sum += f64::from(s.z[i]);
+                    count += 1;
+                }
+            }
+            (sum, count)
+        })
         .reduce(|| (0.0, 0), |a, b| (a.0 + b.0, a.1 + b.1));
     let mean = if count > 0 { sum / count as f64 } else { 0.0 };
     let warm = warm.data();
-    let z = par_vec(n, |i| {
-        if !ins(i) {
-            (f64::from(warm[i]) - mean) as f32
-        } else if has_edge(i) {
-            (f64::from(s.z[i]) - mean) as f32
-        } else {
-            0.0
+    let z = par_rows(w, h, |r, out: &mut [f32]| {
+        for (x, o) in out.iter_mut().enumerate() {
+            let i = r * w + x;
+            *o = if !ins(i) {
+                (f64::from(warm[i]) - mean) as f32
+            } else if has_edge(i, x) {
+                (f64::from(s.z[i]) - mean) as f32
+            } else {
+                0.0
+            };
         }
     });
     Ok((
