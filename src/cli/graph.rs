@@ -112,13 +112,15 @@ fn load_graph(path: &Path, sets: &[String]) -> Result<LoadedGraph, CliError> {
     Ok(lg)
 }
 
-/// Applies `--set NODE.PARAM=VALUE` arguments to a loaded graph, in order (each re-validates
-/// the graph). A node is named by id or name; the parameter's text is parsed by its kind.
+/// Applies `--set NODE.PARAM=VALUE` arguments to a loaded graph (in order; the graph is
+/// validated once after all of them, so parameters that depend on each other can be given in
+/// any order). A node is named by id or name; the parameter's text is parsed by its kind.
 ///
 /// # Errors
 /// A usage error for text not of that form; the graph's error for an unknown node or
 /// parameter, or a value out of range.
 pub fn apply_sets(lg: &mut LoadedGraph, sets: &[String]) -> Result<(), CliError> {
+    let mut parsed = Vec::with_capacity(sets.len());
     for s in sets {
         let (lhs, value) = s
             .split_once('=')
@@ -127,7 +129,10 @@ pub fn apply_sets(lg: &mut LoadedGraph, sets: &[String]) -> Result<(), CliError>
             .rsplit_once('.')
             .filter(|(n, p)| !n.is_empty() && !p.is_empty())
             .ok_or_else(|| usage(format!("--set {s:?} is not of the form NODE.PARAM=VALUE")))?;
-        lg.set_param(node, param, value)?;
+        parsed.push((node, param, value));
+    }
+    if !parsed.is_empty() {
+        lg.set_params(&parsed)?;
     }
     Ok(())
 }

@@ -743,6 +743,32 @@ impl LoadedGraph {
         param: &str,
         value: &str,
     ) -> Result<(), GraphError> {
+        self.set_params(&[(node_ref, param, value)])
+    }
+
+    /// Sets several parameters (`(node, param, text)` as [`set_param`](Self::set_param)), then
+    /// validates the graph once: parameters that depend on each other (`camera: k_file` and
+    /// its `k_file`) can be set in any order. Each text is parsed by its parameter's kind
+    /// first; nothing changes on an error.
+    pub fn set_params(&mut self, sets: &[(&str, &str, &str)]) -> Result<(), GraphError> {
+        let mut graph = self.graph.clone();
+        for &(node_ref, param, value) in sets {
+            let (id, v) = self.parse_set(node_ref, param, value)?;
+            if let Some(n) = graph.nodes.get_mut(&id) {
+                n.params.insert(param.to_string(), v);
+            }
+        }
+        *self = Self::from_graph(graph, self.path.clone(), self.base_dir.clone())?;
+        Ok(())
+    }
+
+    /// The node and parsed value of one `NODE.PARAM=VALUE`.
+    fn parse_set(
+        &self,
+        node_ref: &str,
+        param: &str,
+        value: &str,
+    ) -> Result<(NodeId, ParamValue), GraphError> {
         let Some(id) = self.graph.find_node(node_ref) else {
             let names: Vec<String> = self
                 .graph
@@ -779,12 +805,7 @@ impl LoadedGraph {
                 detail,
                 at: at.clone(),
             })?;
-        let mut graph = self.graph.clone();
-        if let Some(n) = graph.nodes.get_mut(&id) {
-            n.params.insert(param.to_string(), v);
-        }
-        *self = Self::from_graph(graph, self.path.clone(), self.base_dir.clone())?;
-        Ok(())
+        Ok((id, v))
     }
 
     /// Connects `source` to input `port` of node `to`, replacing any edge into that port. The

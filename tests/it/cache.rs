@@ -169,6 +169,41 @@ fn changing_an_input_files_bytes_invalidates_its_dependants() {
     assert_eq!(ev.eval(&plan2, &[], &opts).unwrap().misses(), 0);
 }
 
+/// A parameter file that is not an image — `integrate`'s K file — is keyed by its bytes too:
+/// a new focal length re-integrates, the same K again hits.
+#[test]
+fn a_k_file_is_keyed_by_its_bytes() {
+    let d = tempfile::tempdir().unwrap();
+    let k = d.path().join("k.txt");
+    std::fs::write(&k, "100 0 23.5\n0 100 23.5\n0 0 1\n").unwrap();
+    let text = format!(
+        r#"(
+    version: 1,
+    next_id: 3,
+    outputs: {{ "height": (node: 2, port: "height") }},
+    nodes: [
+        (id: 1, op: "surface", params: {{ "shape": Choice("sphere"), "width": Int(48), "height": Int(48) }}),
+        (id: 2, op: "integrate", params: {{ "method": Choice("masked_poisson"), "camera": Choice("k_file"), "k_file": Path({:?}) }}, inputs: {{ "image": Node(1, "image") }}),
+    ],
+)"#,
+        k.display().to_string()
+    );
+    let p = write(d.path(), "k.ron", &text);
+    let lg = LoadedGraph::load(&p).unwrap();
+    let ev = Evaluator::default();
+    let plan = Plan::new(&lg, &BTreeMap::new(), d.path()).unwrap();
+    let opts = EvalOptions::default();
+    let a = ev.eval(&plan, &[], &opts).unwrap();
+    assert_eq!(a.missed_nodes(), vec![1, 2]);
+    assert_eq!(ev.eval(&plan, &[], &opts).unwrap().misses(), 0);
+    // A longer focal length (different bytes and size): integrate runs again and its height
+    // changes (the perspective correction differs); the surface is reused.
+    std::fs::write(&k, "1000 0 23.5\n0 1000 23.5\n0 0 1\n").unwrap();
+    let b = ev.eval(&plan, &[], &opts).unwrap();
+    assert_eq!(b.missed_nodes(), vec![2]);
+    assert_ne!(a.outputs, b.outputs);
+}
+
 #[test]
 fn disk_cache_survives_a_new_evaluator_and_ignores_corrupt_entries() {
     let d = tempfile::tempdir().unwrap();

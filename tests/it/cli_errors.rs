@@ -318,3 +318,57 @@ fn parameter_errors_name_their_parameter() {
         "invalid parameter sigma: no such parameter (did you mean \"sigma_px\"?)"
     );
 }
+
+/// Bad camera input to `integrate` (issue 17): a K file that is not 3 × 3, one with a word in
+/// it, a missing K file and a focal length ≤ 0 are one-line errors naming the node and the
+/// parameter (or the file), exit 2, and no output is written.
+#[test]
+fn bad_camera_parameters_are_one_line_errors_naming_node_and_parameter() {
+    let d = tempfile::tempdir().unwrap();
+    std::fs::write(d.path().join("k23.txt"), "500 0 48\n0 500 48\n").unwrap();
+    std::fs::write(d.path().join("kword.txt"), "500 0 48\n0 five 48\n0 0 1\n").unwrap();
+    let graph = graph_path("integrate.ron").display().to_string();
+    // (Relative paths in a graph are relative to the graph's folder.)
+    let k = |name: &str| format!("2.k_file={}", d.path().join(name).display());
+    let cases: [([String; 2], &str); 4] = [
+        (["2.camera=k_file".into(), k("k23.txt")], "k_file"),
+        (["2.camera=k_file".into(), k("kword.txt")], "k_file"),
+        (["2.camera=k_file".into(), k("missing.txt")], "missing.txt"),
+        (
+            ["2.camera=pinhole".into(), "2.focal_px=0".into()],
+            "focal_px",
+        ),
+    ];
+    for (sets, names) in &cases {
+        let mut args = vec!["eval", graph.as_str(), "-o", "height=h.exr"];
+        for s in sets {
+            args.extend(["--set", s.as_str()]);
+        }
+        let o = rgbn_in(d.path(), &args);
+        let (code, err) = failed(&o);
+        assert_eq!(code, Some(2), "{sets:?}: {err}");
+        assert!(err.contains(names), "{sets:?}: {err}");
+        assert!(
+            err.contains("node 2") || err.contains("integrate"),
+            "{sets:?}: {err}"
+        );
+        assert!(!d.path().join("h.exr").exists(), "{sets:?}");
+    }
+    // The same --set order with a good K file works: the graph is validated after all sets.
+    std::fs::write(d.path().join("k.txt"), "500 0 47.5\n0 500 47.5\n0 0 1\n").unwrap();
+    let o = rgbn_in(
+        d.path(),
+        &[
+            "eval",
+            graph.as_str(),
+            "-o",
+            "height=h.exr",
+            "--set",
+            "2.camera=k_file",
+            "--set",
+            &k("k.txt"),
+        ],
+    );
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    assert!(d.path().join("h.exr").is_file());
+}
