@@ -392,6 +392,62 @@ mod tests {
     }
 
     #[test]
+    fn a_pinhole_mesh_puts_the_vertices_on_the_seen_plane() {
+        // A tilted plane n·P = d seen by a pinhole camera (camera at the origin looking along
+        // −z): the depth along each pixel's ray is Z = d / (n·ray) with ray = ((x − cx)/fx,
+        // −(row − cy)/fy, −1); the height −Z back-projects onto the plane, scaled by z_scale.
+        let (w, h) = (20, 16);
+        let cam = Pinhole {
+            fx: 40.0,
+            fy: 36.0,
+            cx: 9.0,
+            cy: 7.5,
+        };
+        let nrm = [0.2f64, -0.1, -1.0];
+        let d = 5.0f64;
+        let ray = |x: usize, r: usize| {
+            [
+                (x as f64 - cam.cx) / cam.fx,
+                -(r as f64 - cam.cy) / cam.fy,
+                -1.0,
+            ]
+        };
+        let dot = |a: [f64; 3], b: [f64; 3]| a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+        let height = Plane::from_fn(w, h, |x, r| -(d / dot(nrm, ray(x, r))) as f32);
+        let n = w * h;
+        let img = RgbnImage::new(
+            w,
+            h,
+            [vec![0.5; n], vec![0.5; n], vec![0.5; n]],
+            [vec![0.0; n], vec![0.0; n], vec![1.0; n]],
+            None,
+        )
+        .unwrap();
+        let z_scale = 2.0f32;
+        let zs = f64::from(z_scale);
+        let params = MeshParams {
+            z_scale,
+            camera: Some(cam),
+            ..Default::default()
+        };
+        let mesh = build_mesh(&height, &img, &params).unwrap();
+        assert_eq!(mesh.positions.len(), n);
+        for (i, p) in mesh.positions.iter().enumerate() {
+            let p = [f64::from(p[0]), f64::from(p[1]), f64::from(p[2])];
+            let off = (dot(nrm, p) - zs * d).abs();
+            assert!(
+                off <= 1e-4 * zs * d,
+                "vertex {i}: {p:?} is {off} off the plane"
+            );
+            // On pixel (x, row)'s ray: p = s·ray with the ray's −1 in z.
+            let (x, r) = (i % w, i / w);
+            let s = -p[2];
+            let want = ray(x, r);
+            assert!((p[0] - s * want[0]).abs() <= 1e-4 && (p[1] - s * want[1]).abs() <= 1e-4);
+        }
+    }
+
+    #[test]
     fn written_meshes_parse_back_with_the_expected_counts() {
         let (img, z) = Surface::Sphere { radius_px: 10.0 }.render(24, 24);
         let mask = img.mask().unwrap();
