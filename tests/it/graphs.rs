@@ -271,9 +271,10 @@ fn save_node_writes_the_image_where_asked() {
 
 /// The paper's figures as graphs (`graphs/paper/`, issue 13 item 6; docs/gallery.md): each
 /// evaluates on its own from generated inputs, and the non-integrable fraction F tells the
-/// integrable edits from the nonlinear one as §IV and §VII say: stamps (Figs. 4, 12) and the
-/// linear combine (Fig. 10, left) stay surfaces (F ≤ 1e-4, as their unedited inputs), the
-/// rotation combine (Fig. 10, right) does not (F above 1 %, 1000× the linear one).
+/// integrable edits from the others as the paper says: stamps (Figs. 4, 12), pen strokes and
+/// closed regions (Figs. 5, 6) and the linear combine (Fig. 10, left) stay surfaces (F ≤ 1e-4,
+/// as their unedited inputs); the rotation combine (Fig. 10, right) and the feathered brush
+/// (Fig. 1) do not (F above 1 %, 1000× more).
 #[test]
 fn the_paper_figures_evaluate_and_their_edits_read_as_the_paper_says() {
     let mut paths: Vec<_> = std::fs::read_dir(root().join("graphs/paper"))
@@ -289,8 +290,12 @@ fn the_paper_figures_evaluate_and_their_edits_read_as_the_paper_says() {
     assert_eq!(
         stems,
         [
+            "fig01_brush",
             "fig04_cut_and_stamp",
+            "fig05_pen_stroke",
+            "fig06_pen_closed_regions",
             "fig10_linear_vs_rotation",
+            "fig11_bilateral_split",
             "fig12_stamps_in_region"
         ]
     );
@@ -299,7 +304,10 @@ fn the_paper_figures_evaluate_and_their_edits_read_as_the_paper_says() {
     let mut f = std::collections::BTreeMap::new();
     for (path, stem) in paths.iter().zip(&stems) {
         let lg = LoadedGraph::load(path).unwrap_or_else(|e| panic!("{e}"));
-        assert!(example_bindings(&lg).is_empty(), "{stem} needs no input file");
+        assert!(
+            example_bindings(&lg).is_empty(),
+            "{stem} needs no input file"
+        );
         let plan = rgbn::eval::Plan::new(&lg, &Default::default(), out.path()).unwrap();
         let opts = rgbn::eval::EvalOptions {
             curl_stats: true,
@@ -316,6 +324,8 @@ fn the_paper_figures_evaluate_and_their_edits_read_as_the_paper_says() {
     let at = |stem: &str, id: u64| f[&(stem.to_string(), id)];
     for (stem, input, edit) in [
         ("fig04_cut_and_stamp", 2, 4),
+        ("fig05_pen_stroke", 1, 3),
+        ("fig06_pen_closed_regions", 1, 3),
         ("fig10_linear_vs_rotation", 1, 3),
         ("fig12_stamps_in_region", 1, 4),
     ] {
@@ -329,4 +339,11 @@ fn the_paper_figures_evaluate_and_their_edits_read_as_the_paper_says() {
     );
     eprintln!("fig10: linear F {lin:.2e}, rotation F {rot:.2e}");
     assert!(rot >= 0.01 && rot >= 1000.0 * lin, "{lin} {rot}");
+    // The brush's feathered blend m·K(g) + (1 − m)·g is not a gradient (§III): F rises.
+    let (before, after) = (at("fig01_brush", 1), at("fig01_brush", 3));
+    eprintln!("fig01: F {before:.2e} -> {after:.2e}");
+    assert!(
+        after >= 0.01 && after >= 1000.0 * before,
+        "{before} {after}"
+    );
 }
