@@ -131,6 +131,20 @@ fn evaluation_is_lazy() {
     );
 }
 
+/// Writes the two-node graph `text` as `name` in `dir` and evaluates it twice with one
+/// evaluator: both nodes miss, then nothing does. Returns the evaluator, the plan and the first
+/// result.
+fn misses_then_hits(dir: &Path, name: &str, text: &str) -> (Evaluator, Plan, EvalResult) {
+    let lg = LoadedGraph::load(&write(dir, name, text)).unwrap();
+    let ev = Evaluator::default();
+    let plan = Plan::new(&lg, &BTreeMap::new(), dir).unwrap();
+    let opts = EvalOptions::default();
+    let a = ev.eval(&plan, &[], &opts).unwrap();
+    assert_eq!(a.missed_nodes(), vec![1, 2]);
+    assert_eq!(ev.eval(&plan, &[], &opts).unwrap().misses(), 0);
+    (ev, plan, a)
+}
+
 #[test]
 fn changing_an_input_files_bytes_invalidates_its_dependants() {
     let d = tempfile::tempdir().unwrap();
@@ -142,14 +156,8 @@ fn changing_an_input_files_bytes_invalidates_its_dependants() {
     let text = std::fs::read_to_string(graph_path("load.ron"))
         .unwrap()
         .replace("data/image.exr", "in.exr");
-    let p = write(d.path(), "load.ron", &text);
-    let lg = LoadedGraph::load(&p).unwrap();
-    let ev = Evaluator::default();
-    let plan = Plan::new(&lg, &BTreeMap::new(), d.path()).unwrap();
+    let (ev, plan, a) = misses_then_hits(d.path(), "load.ron", &text);
     let opts = EvalOptions::default();
-    let a = ev.eval(&plan, &[], &opts).unwrap();
-    assert_eq!(a.missed_nodes(), vec![1, 2]);
-    assert_eq!(ev.eval(&plan, &[], &opts).unwrap().misses(), 0);
     // Same path, new bytes: a sphere instead of the demo.
     let (sphere, _) = rgbn::raster::sample::Surface::Sphere { radius_px: 20.0 }.render(48, 48);
     rgbn::raster::io::save_exr(
@@ -188,14 +196,8 @@ fn a_k_file_is_keyed_by_its_bytes() {
 )"#,
         k.display().to_string()
     );
-    let p = write(d.path(), "k.ron", &text);
-    let lg = LoadedGraph::load(&p).unwrap();
-    let ev = Evaluator::default();
-    let plan = Plan::new(&lg, &BTreeMap::new(), d.path()).unwrap();
+    let (ev, plan, a) = misses_then_hits(d.path(), "k.ron", &text);
     let opts = EvalOptions::default();
-    let a = ev.eval(&plan, &[], &opts).unwrap();
-    assert_eq!(a.missed_nodes(), vec![1, 2]);
-    assert_eq!(ev.eval(&plan, &[], &opts).unwrap().misses(), 0);
     // A longer focal length (different bytes and size): integrate runs again and its height
     // changes (the perspective correction differs); the surface is reused.
     std::fs::write(&k, "1000 0 23.5\n0 1000 23.5\n0 0 1\n").unwrap();
