@@ -44,6 +44,14 @@
 //!   `u = +d/(W/2)` for open paths (the profile's half `u ∈ [0, 1]`, mirrored) and `±` by the
 //!   inside test for closed paths.
 //!
+//! **Along the path** (§VI's normal textures: a stitched seam, beads, a knotted cord). A
+//! periodic factor `m(v)` (the `along` samples over one period `along_period_px`, linearly
+//! interpolated and wrapped; on a closed path the period is adjusted to `L / round(L /
+//! period)` so `m` closes without a seam) multiplies the relief: `h = f₀ + t(v)·m(v)·(f(u) −
+//! f₀)`, i.e. `t` becomes `t·m` and `t′` becomes `t′m + t m′` in the gradient above. It is a
+//! height like the rest, so the integrable mode stays a surface. The distance-transform mode
+//! has no `v` and ignores it.
+//!
 //! **End caps.** Beyond an end of an open path (the closest point is the end) the stroke
 //! finishes in a cap of radius `W/2`. There `u = s/(W/2)` with `s` the signed distance to the
 //! line of the last segment (continuous across its extension, so an asymmetric profile has no
@@ -253,8 +261,12 @@ crate::params! {
         pub samples_px: Vec<f64> = vec![0.0, 1.0, 0.0] => profile.unit("px"),
         /// Length over which an open path's relief fades in and out at its ends.
         pub taper_px: f64 = 16.0 => float.unit("px").range(0.0, 10_000.0),
-        /// integrable: forward differences of the analytic height (curl 0); analytic: the analytic gradient (curl on medial axes); distance_transform: EDT of the rasterised path (integrable, no taper).
+        /// integrable: forward differences of the analytic height (curl 0); analytic: the analytic gradient (curl on medial axes); distance_transform: EDT of the rasterised path (integrable, no taper, no along-path variation).
         pub mode: PenMode = PenMode::Integrable => choice,
+        /// Relief along the path (§VI normal textures: a stitched seam, beads, a knotted cord): factors at equally spaced points over one period, repeated along the path (periodic, linearly interpolated), multiplying the profile's relief; one value = the same relief all along.
+        pub along: Vec<f64> = vec![1.0] => profile,
+        /// Length of one period of along in pixels (on a closed path adjusted so that a whole number of periods fits).
+        pub along_period_px: f64 = 16.0 => float.unit("px").range(0.5, 10_000.0),
     }
 }
 
@@ -339,6 +351,18 @@ impl PenParams {
                 format!("{taper_px} must be in [0, {MAX_PEN_PX}] pixels"),
             ));
         }
+        if self.along.is_empty() || self.along.iter().any(|v| !v.is_finite() || v.abs() > 1e6) {
+            return Err(RgbnError::param(
+                "along",
+                "needs at least one finite factor (|factor| ≤ 1e6)",
+            ));
+        }
+        if !(self.along_period_px.is_finite() && self.along_period_px > 0.0) {
+            return Err(RgbnError::param(
+                "along_period_px",
+                format!("{} must be a finite length > 0", self.along_period_px),
+            ));
+        }
         let profile = self.shape();
         profile.validate()?;
         if !self.closed {
@@ -374,6 +398,42 @@ struct Stroke<'a> {
     profile: &'a Profile,
     f0: f64,
     closed: bool,
+    along: Along,
+}
+
+/// The periodic factor `m(v)` along the path (module docs, "Along the path").
+#[derive(Clone, Debug)]
+struct Along {
+    factors: Vec<f64>,
+    period: f64,
+}
+
+impl Along {
+    /// From the parameters; on a closed path of length `l` the period becomes `l / round(l /
+    /// period)` so that `m` closes without a seam.
+    fn new(params: &PenParams, l: f64) -> Self {
+        let mut period = params.along_period_px;
+        if params.closed && l > 0.0 {
+            period = l / (l / period).round().max(1.0);
+        }
+        Self {
+            factors: params.along.clone(),
+            period,
+        }
+    }
+
+    /// `(m(v), m′(v))`.
+    fn eval(&self, v: f64) -> (f64, f64) {
+        let n = self.factors.len();
+        if n == 1 {
+            return (self.factors[0], 0.0);
+        }
+        let t = (v / self.period).rem_euclid(1.0) * n as f64;
+        let k = (t.floor() as usize).min(n - 1);
+        let (a, b) = (self.factors[k], self.factors[(k + 1) % n]);
+        let fr = t - k as f64;
+        (a + (b - a) * fr, (b - a) * n as f64 / self.period)
+    }
 }
 
 impl Stroke<'_> {
@@ -414,6 +474,9 @@ impl Stroke<'_> {
             );
             (a * b, da * b - a * db)
         };
+        // The factor along the path folds into the taper: t·m and (t·m)′ = t′m + t m′.
+        let (m, dm) = self.along.eval(pr.arclength_px);
+        let (t, dt) = (t * m, dt * m + t * dm);
         let h = self.f0 + t * (f - self.f0);
         // ∇u (y-up): σ (P − C)/|P − C| / half_w.
         let grad_u = if d > 1e-12 {
@@ -478,6 +541,8 @@ impl Stroke<'_> {
             let (v, tau) = (pr.arclength_px, self.taper);
             smoothstep(0.0, tau, v) * smoothstep(0.0, tau, l - v)
         };
+        // The factor along the path at this end (constant over the cap: v is the end's).
+        let t = t * self.along.eval(pr.arclength_px).0;
         let h = self.f0 + t * k * (f - self.f0);
         if k <= 0.0 {
             return Some((h, [0.0, 0.0]));
@@ -507,13 +572,16 @@ pub fn pen_field(width: usize, height: usize, params: &PenParams) -> Result<PenO
     crate::raster::check_size(width, height, "pen")?;
     let profile = params.shape();
     // Lengths as f32, as the node always passed them (same results as before).
+    let pl = Polyline::new(&params.points_f32(), params.closed);
+    let along = Along::new(params, pl.length_px());
     let stroke = Stroke {
-        pl: Polyline::new(&params.points_f32(), params.closed),
+        pl,
         half_w: f64::from(params.width_px as f32) / 2.0,
         taper: f64::from(params.taper_px as f32),
         profile: &profile,
         f0: profile.eval(-1.0).0,
         closed: params.closed,
+        along,
     };
     match params.mode {
         PenMode::Analytic | PenMode::Integrable => {
@@ -758,6 +826,10 @@ mod tests {
             profile: &shape,
             f0: 0.0,
             closed: false,
+            along: Along {
+                factors: vec![1.0],
+                period: 16.0,
+            },
         };
         let e = 1e-5;
         let mut checked = 0;
@@ -784,6 +856,140 @@ mod tests {
             );
         }
         assert_eq!(checked, 6, "every point is in a cap");
+    }
+
+    #[test]
+    fn relief_varies_along_the_path_as_the_periodic_factors_say() {
+        // A straight horizontal stroke (travel +x, row 40) with a bump profile of height 3 and
+        // factors [1, 0.2] over a 10 px period: on the centre line the height is
+        // 3·m(v), m the periodic linear interpolation (1 at v ≡ 0, 0.2 at v ≡ 5 mod 10);
+        // the integrable field stays a surface and the analytic gradient is the derivative of
+        // the analytic height.
+        let (w, h) = (96, 80);
+        let p = PenParams {
+            points: vec![[8.0, 40.0], [88.0, 40.0]],
+            width_px: 12.0,
+            taper_px: 0.0,
+            along: vec![1.0, 0.2],
+            along_period_px: 10.0,
+            ..PenParams::default()
+        }
+        .with_profile(&Profile::Bump { height_px: 3.0 });
+        let m = |v: f64| {
+            let t = (v / 10.0).rem_euclid(1.0);
+            if t < 0.5 {
+                1.0 - 1.6 * t
+            } else {
+                0.2 + 1.6 * (t - 0.5)
+            }
+        };
+        let analytic = pen_field(
+            w,
+            h,
+            &PenParams {
+                mode: PenMode::Analytic,
+                ..p.clone()
+            },
+        )
+        .unwrap();
+        for x in 12..84 {
+            let want = 3.0 * m(x as f64 - 8.0);
+            let got = f64::from(analytic.height.at(x, 40));
+            assert!((got - want).abs() < 1e-5, "x {x}: {got} vs {want}");
+        }
+        // Integrable: a surface (relative curl at rounding level) whose height at a pixel is
+        // the mean of the analytic height 3·bump(u)·m(v) at its four corners.
+        let integ = pen_field(w, h, &p).unwrap();
+        let rel = integ.gradients.relative_rms_curl(None);
+        assert!(rel < 1e-5, "relative curl {rel}");
+        let bump = |u: f64| 3.0 * (1.0 + (PI * u).cos()) / 2.0;
+        for x in 12..84 {
+            for r in [37usize, 40, 42] {
+                let mut want = 0.0;
+                for (cx, cr) in [(-0.5, -0.5), (0.5, -0.5), (-0.5, 0.5), (0.5, 0.5)] {
+                    let (xc, rc) = (x as f64 + cx, r as f64 + cr);
+                    want += bump((rc - 40.0) / 6.0) * m(xc - 8.0) / 4.0;
+                }
+                let got = f64::from(integ.height.at(x, r));
+                assert!((got - want).abs() < 1e-4, "({x}, {r}): {got} vs {want}");
+            }
+        }
+        // The analytic gradient is the derivative of the analytic height (away from the
+        // pattern's kinks at v ≡ 0, 5 mod 10 and the ends).
+        let shape = p.shape();
+        let stroke = Stroke {
+            pl: Polyline::new(&p.points_f32(), false),
+            half_w: 6.0,
+            taper: 0.0,
+            profile: &shape,
+            f0: 0.0,
+            closed: false,
+            along: Along::new(&p, 80.0),
+        };
+        let e = 1e-5;
+        for &(x, r) in &[(21.3, 38.2), (33.1, 43.0), (47.7, 40.9), (62.4, 36.5)] {
+            let (_, g) = stroke.eval(x, r);
+            let dx = (stroke.eval(x + e, r).0 - stroke.eval(x - e, r).0) / (2.0 * e);
+            let dy = -(stroke.eval(x, r + e).0 - stroke.eval(x, r - e).0) / (2.0 * e);
+            assert!(
+                (g[0] - dx).abs() < 1e-5 && (g[1] - dy).abs() < 1e-5,
+                "({x}, {r}): {g:?} vs ({dx}, {dy})"
+            );
+            assert!(g[0].abs() > 0.01, "the along term is there: {g:?}");
+        }
+    }
+
+    #[test]
+    fn a_closed_path_fits_a_whole_number_of_periods() {
+        // A 200 px square loop with a 30 px period: 200/30 = 6.67 → 7 periods of 28.57 px, so
+        // m(0) = m(L) and the relief has no seam where the loop closes.
+        let p = PenParams {
+            points: vec![[10.0, 10.0], [60.0, 10.0], [60.0, 60.0], [10.0, 60.0]],
+            closed: true,
+            along: vec![1.0, 0.0, 0.5],
+            along_period_px: 30.0,
+            ..PenParams::default()
+        };
+        let a = Along::new(&p, 200.0);
+        assert!((a.period - 200.0 / 7.0).abs() < 1e-12, "{}", a.period);
+        let (m0, _) = a.eval(0.0);
+        let (m_end, _) = a.eval(200.0 - 1e-9);
+        assert!((m0 - m_end).abs() < 1e-6, "{m0} vs {m_end}");
+        // An open path keeps the period as given.
+        assert_eq!(
+            Along::new(&PenParams { closed: false, ..p }, 200.0).period,
+            30.0
+        );
+    }
+
+    #[test]
+    fn bad_along_factors_are_refused_naming_the_parameter() {
+        for (p, name) in [
+            (
+                PenParams {
+                    along: vec![],
+                    ..PenParams::default()
+                },
+                "along",
+            ),
+            (
+                PenParams {
+                    along: vec![1.0, f64::NAN],
+                    ..PenParams::default()
+                },
+                "along",
+            ),
+            (
+                PenParams {
+                    along_period_px: 0.0,
+                    ..PenParams::default()
+                },
+                "along_period_px",
+            ),
+        ] {
+            let e = pen_field(32, 32, &p).unwrap_err().to_string();
+            assert!(e.contains(name) && !e.contains('\n'), "{e}");
+        }
     }
 
     #[test]
