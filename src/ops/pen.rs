@@ -811,6 +811,20 @@ mod tests {
         }
     }
 
+    /// Asserts that the stroke's analytic gradient at `(x, row)` is the central difference of
+    /// its height (y-up: ∂/∂y = −∂/∂row) within 1e-5, and returns it.
+    fn gradient_is_the_derivative(stroke: &Stroke<'_>, x: f64, r: f64) -> [f64; 2] {
+        let e = 1e-5;
+        let (_, g) = stroke.eval(x, r);
+        let dx = (stroke.eval(x + e, r).0 - stroke.eval(x - e, r).0) / (2.0 * e);
+        let dy = -(stroke.eval(x, r + e).0 - stroke.eval(x, r - e).0) / (2.0 * e);
+        assert!(
+            (g[0] - dx).abs() < 1e-5 && (g[1] - dy).abs() < 1e-5,
+            "({x}, {r}): {g:?} vs ({dx}, {dy})"
+        );
+        g
+    }
+
     #[test]
     fn analytic_end_cap_gradient_is_the_derivative_of_its_height() {
         // Central differences of the cap's height against the analytic gradient, at points
@@ -831,7 +845,6 @@ mod tests {
                 period: 16.0,
             },
         };
-        let e = 1e-5;
         let mut checked = 0;
         for &(x, r) in &[
             (15.3, 31.2),
@@ -841,14 +854,7 @@ mod tests {
             (47.1, 17.9),
             (49.5, 24.4),
         ] {
-            let (_, g) = stroke.eval(x, r);
-            // y-up: ∂/∂y = −∂/∂row.
-            let dx = (stroke.eval(x + e, r).0 - stroke.eval(x - e, r).0) / (2.0 * e);
-            let dy = -(stroke.eval(x, r + e).0 - stroke.eval(x, r - e).0) / (2.0 * e);
-            assert!(
-                (g[0] - dx).abs() < 1e-5 && (g[1] - dy).abs() < 1e-5,
-                "({x}, {r}): {g:?} vs ({dx}, {dy})"
-            );
+            gradient_is_the_derivative(&stroke, x, r);
             checked += usize::from(
                 stroke
                     .end_cap(&stroke.pl.project([x, r]).unwrap())
@@ -926,15 +932,8 @@ mod tests {
             closed: false,
             along: Along::new(&p, 80.0),
         };
-        let e = 1e-5;
         for &(x, r) in &[(21.3, 38.2), (33.1, 43.0), (47.7, 40.9), (62.4, 36.5)] {
-            let (_, g) = stroke.eval(x, r);
-            let dx = (stroke.eval(x + e, r).0 - stroke.eval(x - e, r).0) / (2.0 * e);
-            let dy = -(stroke.eval(x, r + e).0 - stroke.eval(x, r - e).0) / (2.0 * e);
-            assert!(
-                (g[0] - dx).abs() < 1e-5 && (g[1] - dy).abs() < 1e-5,
-                "({x}, {r}): {g:?} vs ({dx}, {dy})"
-            );
+            let g = gradient_is_the_derivative(&stroke, x, r);
             assert!(g[0].abs() > 0.01, "the along term is there: {g:?}");
         }
     }
