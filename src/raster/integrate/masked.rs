@@ -41,6 +41,7 @@ pub(super) fn masked_poisson(
             }
         }
     });
+    // The model's vertical edge (x, r+1)–(x, r) reads z(x, r) − z(x, r+1) = e_q(x, r+1).
     let ey = par_rows(w, h, |r, out: &mut [f32]| {
         if r + 1 < h {
             for (o, &q) in out.iter_mut().zip(&e.q[(r + 1) * w..(r + 2) * w]) {
