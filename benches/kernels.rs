@@ -4,6 +4,7 @@
 //! Run: `cargo bench --bench kernels` (set `RAYON_NUM_THREADS=2` to match the peer runs).
 
 use criterion::{criterion_group, criterion_main, Criterion};
+use rgbn::ops::bilateral::BilateralParams;
 use rgbn::ops::filter::{
     filter_gradients, filter_normals, filter_normals_general, FilterOptions, Kernel,
 };
@@ -78,6 +79,19 @@ fn kernels(c: &mut Criterion) {
             )
             .unwrap()
         })
+    });
+    // Issue 13: the RGBN bilateral, 6 channels (colour and normals filtered, both in the range
+    // weight), 9 × 9 window (σ_s = 2: the disc of radius 4, as OpenCV's d = 9). Peer:
+    // `peer_bench.py --op bilateral9` (OpenCV's 3-channel bilateralFilter, d = 9).
+    let bilateral = BilateralParams {
+        sigma_spatial_px: 2.0,
+        sigma_color: 0.1,
+        sigma_normal: 0.2,
+        filter_color: true,
+        ..BilateralParams::default()
+    };
+    group.bench_function("bilateral_rgbn_9x9", |b| {
+        b.iter(|| rgbn::ops::bilateral::bilateral(black_box(&img), &bilateral).unwrap())
     });
     let g0 = GradientField::from_normals(&img);
     group.bench_function("gauss8_on_gradient_field", |b| {

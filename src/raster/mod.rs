@@ -6,8 +6,10 @@
 //! Conventions (see `ARCHITECTURE.md`): colour is linear light; normals are unit vectors in the
 //! OpenGL frame (`+x` right, `+y` up, `+z` towards the viewer).
 
+pub mod bilateral;
 pub mod buf;
 pub mod convolve;
+pub(crate) mod fastmath;
 pub mod gradient;
 pub mod integrate;
 pub mod io;

@@ -15,6 +15,7 @@ pub use inspect::InspectParams;
 use crate::error::RgbnError;
 use crate::ops::params::Choice;
 use crate::raster::buf;
+use crate::raster::fastmath::{exp2_fast, log2_fast, ROUND};
 use crate::raster::gradient::GradientField;
 use crate::raster::srgb::{srgb8_lut_encode, SRGB8_LUT_SIZE};
 use crate::raster::RgbnImage;
@@ -372,48 +373,6 @@ struct RelightRow<'a> {
 /// Pixels shaded together: the light loop runs over a chunk's lanes (vectorised), then the
 /// sRGB table lookups and RGBA stores run per pixel.
 const CHUNK: usize = 64;
-
-/// `log2(x)` for normal `x > 0`, within 3e-7 of the exact value (absolute for `|log2 x| ≤ 1`,
-/// relative beyond): `x = m · 2^e` with `m ∈ [√½, √2)`, then `log2 m = 2/ln 2 · atanh(t)`,
-/// `t = (m − 1)/(m + 1)`, as an odd series to `t⁹` (`|t| < 0.172`, first dropped term `< 2e-10`).
-/// Branch-free, so it vectorises.
-#[inline(always)]
-fn log2_fast(x: f32) -> f32 {
-    let bits = x.to_bits();
-    // 0x3f35_04f3 is √½: subtracting its bits makes the exponent field that of x/√½ (so e is
-    // the exponent with m ∈ [√½, √2)); adding them back to the mantissa bits rebuilds m.
-    let shifted = bits.wrapping_sub(0x3f35_04f3);
-    let e = (shifted as i32) >> 23;
-    let m = f32::from_bits((shifted & 0x007f_ffff).wrapping_add(0x3f35_04f3));
-    let t = (m - 1.0) / (m + 1.0);
-    let t2 = t * t;
-    let series =
-        t * (2.0 + t2 * (2.0 / 3.0 + t2 * (2.0 / 5.0 + t2 * (2.0 / 7.0 + t2 * (2.0 / 9.0)))));
-    e as f32 + series * std::f32::consts::LOG2_E
-}
-
-/// `1.5 · 2²³`: adding it to `|v| < 2²²` rounds `v` to the nearest integer (ties to even), which
-/// is then the low bits of the sum's bit pattern — a float → int conversion that vectorises
-/// (Rust's saturating `as i32` does not, on x86).
-const ROUND: f32 = 12_582_912.0;
-
-/// `2^y` for `y ≤ 0` (flushed to `2^−126` below −126), within 3e-7 relative of `f32::exp2`:
-/// nearest integer `i` by [`ROUND`], `2^f` for `f ∈ [−½, ½]` by its Taylor series to `f⁶`
-/// (remainder `< 2e-7`), scaled by building `2^i`'s bits. Branch-free.
-#[inline(always)]
-fn exp2_fast(y: f32) -> f32 {
-    let y = y.max(-126.0);
-    let big = y + ROUND;
-    let r = big - ROUND;
-    let f = (y - r) * std::f32::consts::LN_2;
-    let p = 1.0
-        + f * (1.0
-            + f * (1.0 / 2.0
-                + f * (1.0 / 6.0 + f * (1.0 / 24.0 + f * (1.0 / 120.0 + f * (1.0 / 720.0))))));
-    // big's bits are 0x4b40_0000 + i; (i + 127) << 23 is 2^i (the 0x4b40_0000 shifts out).
-    let scale = f32::from_bits(big.to_bits().wrapping_add(127) << 23);
-    p * scale
-}
 
 /// `x^s` for `x ∈ [0, 1]`, `s ≥ 0` (`0^0 = 1`, as `powf`).
 #[inline(always)]
