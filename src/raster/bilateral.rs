@@ -29,21 +29,33 @@
 //!
 //! A bilateral filter is not separable, so this is a windowed brute force, made cheap:
 //! - the disc window (`r = 4`: 49 taps, as OpenCV's `bilateralFilter` with `d = 9`);
-//! - all three factors in one exponential, `2^−(a + b + c)` with the constants folded in, by the
-//!   branch-free [`exp2_fast`] (3e-7 relative);
-//! - the angle from the chord: `t = ½|n − n′|² = 1 − n·n′` (accurate for small angles, where
-//!   `1 − dot` in `f32` is not) and `acos(1 − t)` by Abramowitz & Stegun 4.4.46 (`2e-8`);
-//! - tiles of [`TILE_H`] × [`TILE_W`] pixels copied with their halo into a zero-padded local
-//!   buffer (border and masked pixels have validity 0), so the tap loop has no branches and the
-//!   working set stays in L2;
+//! - **each pair once**: the weight is symmetric, `w(P, Q) = w(Q, P)`, so the disc kernel
+//!   ([`Kernel::tile_sym`]) evaluates it for the half disc only and adds it to both ends —
+//!   about 0.55× the exponentials at [`SYM_TILE_H`]-row tiles, halo pairs included;
+//! - all three factors in one exponential, `2^−(a + b + c)` with the constants folded in, by a
+//!   branch-free `exp2` (3e-7 relative) with fused multiply-adds;
+//! - the angle without a square root: `δ² = acos(1 − t)² = t·G(t)` with `t = 1 − n·n′` and `G`
+//!   a degree-6 polynomial (8e-7 relative) where σ_n makes every pixel beyond 90° weigh
+//!   < 1e-8 (σ_n ≤ 0.259 rad); beyond that, `acos` by Abramowitz & Stegun 4.4.46 (2e-8);
+//! - tiles copied with their halo into padded local planes a fixed, not-power-of-two stride
+//!   apart (one pointer and immediate offsets per tap, no cache-set aliasing). Border, masked
+//!   and non-finite pixels get validity 0 — and, when colour is in the range, a colour
+//!   (`FAR_COLOR`) so far from any other that their weight is the `exp2` floor 2^−126, which
+//!   saves the validity load and multiply. The tap loop has no branches and the working set
+//!   stays in L2;
 //! - [`LANES`] output pixels of a row per step, each tap one contiguous load per plane: the
-//!   compiler vectorises the lane loop (AVX-512 or AVX2 twins chosen at run time).
+//!   compiler vectorises the lane loop (AVX-512 or AVX2 twins with FMA chosen at run time; a
+//!   portable twin without FMA, compared with them in the tests).
 //!
-//! Its agreement with a brute-force `f64` evaluation of the formula above (true `exp`, `acos`,
-//! square window test) is tested in `ops::bilateral` to 1e-5.
+//! Discs wider than `SYM_MAX_RADIUS` take one weight per tap ([`Kernel::tile`]). With a
+//! `stride` s > 1 the disc is sampled on the grid `s·(i, j)`: the wide-σ approximation of
+//! [`crate::ops::bilateral`] (a constant number of taps whatever σ_s).
+//!
+//! Its agreement with a brute-force `f64` evaluation of the formula above (true `exp` and
+//! `acos`) is tested in `ops::bilateral` to 1e-5.
 
 use super::fastmath::{exp2_neg, madd};
-use super::gradient::{gradient_of_normal, normal_of_gradient};
+use super::gradient::{normal_of_gradient, NZ_EPSILON};
 use crate::raster::buf;
 use rayon::prelude::*;
 
@@ -51,6 +63,20 @@ use rayon::prelude::*;
 pub const LANES: usize = 16;
 /// Rows of a tile (one rayon task computes a band of this many rows).
 pub const TILE_H: usize = 16;
+/// Rows of a tile of the symmetric (disc) kernel: taller, so the halo rows whose pairs are
+/// computed for nothing are fewer.
+pub const SYM_TILE_H: usize = 64;
+/// Largest radius run by the symmetric kernel (its planes must fit in [`STRIDE`]); wider discs
+/// take one weight per tap.
+const SYM_MAX_RADIUS: usize = 32;
+
+/// The half disc `{(dx, dy) : dx² + dy² ≤ r², dy > 0 or (dy = 0 and dx > 0)}`.
+fn taps_half(r: usize) -> impl Iterator<Item = (isize, isize)> {
+    let r = r as isize;
+    (0..=r)
+        .flat_map(move |dy| (-r..=r).map(move |dx| (dx, dy)))
+        .filter(move |&(dx, dy)| dx * dx + dy * dy <= r * r && (dy > 0 || dx > 0))
+}
 /// Columns of a tile.
 pub const TILE_W: usize = 256;
 
@@ -68,8 +94,11 @@ pub enum RangeMetric {
 pub struct Spec {
     /// Spatial σ in pixels.
     pub sigma_spatial: f32,
-    /// Window radius in pixels (the disc `dx² + dy² ≤ r²`).
+    /// Window radius in pixels: the disc `dx² + dy² ≤ r²`.
     pub radius: usize,
+    /// Tap spacing in pixels: 1 is every pixel of the window; `s > 1` samples the disc on the
+    /// grid `s·(i, j)` (the wide-σ approximation: (2r/s + 1)²-ish taps whatever σ).
+    pub stride: usize,
     /// Colour σ (linear RGB distance).
     pub sigma_color: Option<f32>,
     /// Normal σ (radians for the angle, unitless for `1 − n·n′`).
@@ -105,6 +134,9 @@ const P: usize = 6;
 const Q: usize = 7;
 const VALID: usize = 8;
 const PLANES: usize = 9;
+/// The accumulator planes of the symmetric tile (Σwp, Σwq, Σw, Σwc₀, Σwc₁, Σwc₂) start here.
+const ACC: usize = PLANES;
+const ACCS: usize = 6;
 /// The colour of invalid pixels in the local planes (see `Kernel::fill`).
 const FAR_COLOR: f32 = 1e18;
 
@@ -216,8 +248,8 @@ fn filter_with(input: &Input<'_>, spec: &Spec, twin: Twin) -> Output {
             color: out_c,
         };
     }
-    let band = TILE_H * w;
-    let nb = h.div_ceil(TILE_H);
+    let band = kernel.tile_h * w;
+    let nb = h.div_ceil(kernel.tile_h);
     let mut colors: Vec<Option<[&mut [f32]; 3]>> = match out_c.as_mut() {
         Some([a, b, c]) => a
             .chunks_mut(band)
@@ -241,7 +273,7 @@ fn filter_with(input: &Input<'_>, spec: &Spec, twin: Twin) -> Output {
         || vec![0.0f32; kernel.scratch_len()],
         |scratch, (b, (((x, y), z), c))| {
             let mut out = BandOut { n: [x, y, z], c };
-            kernel.band(input, b * TILE_H, &mut out, scratch);
+            kernel.band(input, b * kernel.tile_h, &mut out, scratch);
         },
     );
     Output {
@@ -265,9 +297,43 @@ struct BandOut<'a> {
     c: Option<[&'a mut [f32]; 3]>,
 }
 
+/// Calls `$self.$method::<COL, NRM, FC, F>(args)` with the kernel's flags as constants.
+macro_rules! dispatch {
+    ($self:ident, $method:ident, $f:ident, $($arg:expr),*) => {
+        match ($self.col, $self.nrm, $self.fc) {
+            (false, NRM_NONE, false) => $self.$method::<false, NRM_NONE, false, $f>($($arg),*),
+            (false, NRM_NONE, true) => $self.$method::<false, NRM_NONE, true, $f>($($arg),*),
+            (false, NRM_ANGLE, false) => $self.$method::<false, NRM_ANGLE, false, $f>($($arg),*),
+            (false, NRM_ANGLE, true) => $self.$method::<false, NRM_ANGLE, true, $f>($($arg),*),
+            (false, NRM_ANGLE_NARROW, false) => {
+                $self.$method::<false, NRM_ANGLE_NARROW, false, $f>($($arg),*)
+            }
+            (false, NRM_ANGLE_NARROW, true) => {
+                $self.$method::<false, NRM_ANGLE_NARROW, true, $f>($($arg),*)
+            }
+            (false, _, false) => $self.$method::<false, NRM_DOT, false, $f>($($arg),*),
+            (false, _, true) => $self.$method::<false, NRM_DOT, true, $f>($($arg),*),
+            (true, NRM_NONE, false) => $self.$method::<true, NRM_NONE, false, $f>($($arg),*),
+            (true, NRM_NONE, true) => $self.$method::<true, NRM_NONE, true, $f>($($arg),*),
+            (true, NRM_ANGLE, false) => $self.$method::<true, NRM_ANGLE, false, $f>($($arg),*),
+            (true, NRM_ANGLE, true) => $self.$method::<true, NRM_ANGLE, true, $f>($($arg),*),
+            (true, NRM_ANGLE_NARROW, false) => {
+                $self.$method::<true, NRM_ANGLE_NARROW, false, $f>($($arg),*)
+            }
+            (true, NRM_ANGLE_NARROW, true) => {
+                $self.$method::<true, NRM_ANGLE_NARROW, true, $f>($($arg),*)
+            }
+            (true, _, false) => $self.$method::<true, NRM_DOT, false, $f>($($arg),*),
+            (true, _, true) => $self.$method::<true, NRM_DOT, true, $f>($($arg),*),
+        }
+    };
+}
+
 /// The filter with its constants folded (exponents in base 2).
 struct Kernel {
-    radius: usize,
+    /// Halo widths: columns left and right, rows above and below.
+    rx: usize,
+    ry: usize,
     /// Tile width (TILE_W, or less for very wide windows).
     tile_w: usize,
     /// Local buffer width: [`TILE_W`] + 2r, rounded so the last lane group fits.
@@ -282,34 +348,60 @@ struct Kernel {
     nrm: u8,
     fc: bool,
     twin: Twin,
+    /// Symmetric pairs ([`Kernel::tile_sym`]) or one weight per tap (discs wider than
+    /// `SYM_MAX_RADIUS`).
+    sym: bool,
+    /// Rows of a tile (and of a band).
+    tile_h: usize,
+    /// The half disc of [`Kernel::tile_sym`]: `(offset, spatial exponent)`, `dy` varying
+    /// fastest so consecutive taps touch different rows of the accumulators.
+    half_taps: Vec<(isize, f32)>,
 }
 
 impl Kernel {
     fn new(spec: &Spec) -> Self {
         let r = spec.radius;
-        let lh = TILE_H + 2 * r;
+        let sym = r <= SYM_MAX_RADIUS;
+        let (rx, ry) = if sym { (2 * r, r) } else { (r, r) };
+        let tile_h = if sym { SYM_TILE_H } else { TILE_H };
+        let slack = if sym { LANES } else { 0 };
+        let lh = tile_h + 2 * ry;
         // The widest tile (≤ TILE_W, a multiple of LANES) whose halo'd planes fit in STRIDE.
-        let tile_w = TILE_W.min((STRIDE / lh - 2 * r) / LANES * LANES).max(LANES);
-        let lw = tile_w + 2 * r;
+        let tile_w = TILE_W
+            .min((STRIDE / lh).saturating_sub(2 * rx + slack) / LANES * LANES)
+            .max(LANES);
+        let lw = tile_w + 2 * rx + slack;
         debug_assert!(
             lw * lh <= STRIDE,
             "radius {r} too large for the local planes"
         );
         let log2e = std::f32::consts::LOG2_E;
         let ks = log2e / (2.0 * spec.sigma_spatial * spec.sigma_spatial);
-        let ri = r as isize;
+        let (ri, rxi, ryi) = (r as isize, rx as isize, ry as isize);
+        let st = spec.stride.max(1) as isize;
         let mut taps = Vec::new();
-        for dy in -ri..=ri {
-            for dx in -ri..=ri {
+        for dy in -ryi..=ryi {
+            for dx in -rxi..=rxi {
                 let d2 = dx * dx + dy * dy;
-                if d2 <= ri * ri {
+                if d2 <= ri * ri && dx % st == 0 && dy % st == 0 {
                     taps.push((dy * lw as isize + dx, d2 as f32 * ks));
                 }
             }
         }
+        let st = spec.stride.max(1) as isize;
+        let mut half: Vec<(isize, isize, f32)> = taps_half(r / spec.stride.max(1))
+            .map(|(dx, dy)| (dx * st, dy * st))
+            .map(|(dx, dy)| (dx, dy, (dx * dx + dy * dy) as f32 * ks))
+            .collect();
+        half.sort_by_key(|&(dx, dy, _)| (dx, dy));
+        let half_taps = half
+            .into_iter()
+            .map(|(dx, dy, st)| (dy * lw as isize + dx, st))
+            .collect();
         let k = |s: Option<f32>| s.map_or(0.0, |s| log2e / (2.0 * s * s));
         Self {
-            radius: r,
+            rx,
+            ry,
             tile_w,
             lw,
             lh,
@@ -330,11 +422,15 @@ impl Kernel {
             },
             fc: spec.filter_color,
             twin: Twin::Widest,
+            sym,
+            tile_h,
+            half_taps,
         }
     }
 
     fn scratch_len(&self) -> usize {
-        (PLANES - 1) * STRIDE + self.lw * self.lh
+        let planes = if self.sym { ACC + ACCS } else { PLANES };
+        (planes - 1) * STRIDE + self.lw * self.lh
     }
 
     /// Rows `r0..r0 + TILE_H` (clipped), tile by tile. Dispatches to the widest vector twin.
@@ -386,39 +482,10 @@ impl Kernel {
             let tw = self.tile_w.min(input.width - x0);
             self.fill(input, r0, x0, s);
             let at = TileAt { r0, x0, tw, rows };
-            match (self.col, self.nrm, self.fc) {
-                (false, NRM_NONE, false) => {
-                    self.tile::<false, NRM_NONE, false, F>(input, at, s, out)
-                }
-                (false, NRM_NONE, true) => self.tile::<false, NRM_NONE, true, F>(input, at, s, out),
-                (false, NRM_ANGLE, false) => {
-                    self.tile::<false, NRM_ANGLE, false, F>(input, at, s, out)
-                }
-                (false, NRM_ANGLE, true) => {
-                    self.tile::<false, NRM_ANGLE, true, F>(input, at, s, out)
-                }
-                (false, NRM_ANGLE_NARROW, false) => {
-                    self.tile::<false, NRM_ANGLE_NARROW, false, F>(input, at, s, out)
-                }
-                (false, NRM_ANGLE_NARROW, true) => {
-                    self.tile::<false, NRM_ANGLE_NARROW, true, F>(input, at, s, out)
-                }
-                (false, _, false) => self.tile::<false, NRM_DOT, false, F>(input, at, s, out),
-                (false, _, true) => self.tile::<false, NRM_DOT, true, F>(input, at, s, out),
-                (true, NRM_NONE, false) => self.tile::<true, NRM_NONE, false, F>(input, at, s, out),
-                (true, NRM_NONE, true) => self.tile::<true, NRM_NONE, true, F>(input, at, s, out),
-                (true, NRM_ANGLE, false) => {
-                    self.tile::<true, NRM_ANGLE, false, F>(input, at, s, out)
-                }
-                (true, NRM_ANGLE, true) => self.tile::<true, NRM_ANGLE, true, F>(input, at, s, out),
-                (true, NRM_ANGLE_NARROW, false) => {
-                    self.tile::<true, NRM_ANGLE_NARROW, false, F>(input, at, s, out)
-                }
-                (true, NRM_ANGLE_NARROW, true) => {
-                    self.tile::<true, NRM_ANGLE_NARROW, true, F>(input, at, s, out)
-                }
-                (true, _, false) => self.tile::<true, NRM_DOT, false, F>(input, at, s, out),
-                (true, _, true) => self.tile::<true, NRM_DOT, true, F>(input, at, s, out),
+            if self.sym {
+                dispatch!(self, tile_sym, F, input, at, s, out);
+            } else {
+                dispatch!(self, tile, F, input, at, s, out);
             }
             x0 += self.tile_w;
         }
@@ -428,7 +495,8 @@ impl Kernel {
     /// image, masked out (< ½) or not finite get validity 0 and zero values.
     #[inline(always)]
     fn fill(&self, input: &Input<'_>, r0: usize, x0: usize, s: &mut [f32]) {
-        let (w, h, r, lw) = (input.width, input.height, self.radius, self.lw);
+        let (w, h, lw) = (input.width, input.height, self.lw);
+        let (rx, ry) = (self.rx, self.ry);
         let mut it = s.chunks_mut(STRIDE);
         let mut pl: [&mut [f32]; PLANES] = std::array::from_fn(|_| it.next().expect("9 planes"));
         // Outside the image: validity 0, values 0, colour FAR_COLOR.
@@ -439,12 +507,12 @@ impl Kernel {
                 0.0
             }
         };
-        // Local columns lc ↔ image columns x0 + lc − r, clipped to the image.
-        let lc0 = r.saturating_sub(x0);
-        let lc1 = (w + r - x0).min(lw);
+        // Local columns lc ↔ image columns x0 + lc − rx, clipped to the image.
+        let lc0 = rx.saturating_sub(x0);
+        let lc1 = (w + rx - x0).min(lw);
         for lr in 0..self.lh {
             let row = lr * lw;
-            let Some(y) = (r0 + lr).checked_sub(r).filter(|&y| y < h) else {
+            let Some(y) = (r0 + lr).checked_sub(ry).filter(|&y| y < h) else {
                 for (k, p) in pl.iter_mut().enumerate() {
                     p[row..row + lw].fill(pad(k));
                 }
@@ -456,7 +524,7 @@ impl Kernel {
             }
             let [dx, dy, dz, d0, d1, d2, pp, qq, vv] =
                 pl.each_mut().map(|p| &mut p[row + lc0..row + lc1]);
-            let i0 = y * w + x0 + lc0 - r;
+            let i0 = y * w + x0 + lc0 - rx;
             let i1 = i0 + (lc1 - lc0);
             let (nx, ny, nz) = (
                 &input.normal[0][i0..i1],
@@ -475,9 +543,15 @@ impl Kernel {
             d1.copy_from_slice(k1);
             d2.copy_from_slice(k2);
             let mask = input.mask.map(|m| &m[i0..i1]);
-            let (mut all_finite, mut all_valid) = (true, true);
-            for c in 0..lc1 - lc0 {
-                let [p, q] = gradient_of_normal([nx[c], ny[c], nz[c]]);
+            let n = lc1 - lc0;
+            let (pp, qq, vv) = (&mut pp[..n], &mut qq[..n], &mut vv[..n]);
+            // Separate simple loops, so each vectorises.
+            for c in 0..n {
+                let inv = 1.0 / nz[c].max(NZ_EPSILON);
+                pp[c] = -nx[c] * inv;
+                qq[c] = -ny[c] * inv;
+            }
+            for c in 0..n {
                 // x · 0 is 0 for finite x and NaN otherwise: one test for the eight values.
                 let z = 0.0 * nx[c]
                     + 0.0 * ny[c]
@@ -485,16 +559,17 @@ impl Kernel {
                     + 0.0 * k0[c]
                     + 0.0 * k1[c]
                     + 0.0 * k2[c]
-                    + 0.0 * p
-                    + 0.0 * q;
-                let finite = z == 0.0;
-                let inside = mask.is_none_or(|m| m[c] >= 0.5);
-                pp[c] = p;
-                qq[c] = q;
-                vv[c] = if finite && inside { 1.0 } else { 0.0 };
-                all_finite &= finite;
-                all_valid &= finite && inside;
+                    + 0.0 * pp[c]
+                    + 0.0 * qq[c];
+                vv[c] = if z == 0.0 { 1.0 } else { 0.0 };
             }
+            let all_finite = vv.iter().all(|&v| v > 0.0);
+            if let Some(m) = mask {
+                for c in 0..n {
+                    vv[c] = if m[c] >= 0.5 { vv[c] } else { 0.0 };
+                }
+            }
+            let all_valid = vv.iter().all(|&v| v > 0.0);
             if !all_valid {
                 // Invalid pixels get a colour no pixel is near: with a colour term their weight
                 // underflows to 2^−126 ≈ 1e-38 of the centre's (exp2_neg's floor) without the
@@ -521,6 +596,43 @@ impl Kernel {
         }
     }
 
+    /// The weight of the pair `(a, b)` (normal then colour of each) whose spatial exponent is
+    /// `st`; `valid` is b's validity (used without colour: with colour an invalid pixel's
+    /// FAR_COLOR already makes its weight 2^−126).
+    #[inline(always)]
+    fn weight<const COL: bool, const NRM: u8, const F: bool>(
+        &self,
+        st: f32,
+        a: [f32; 6],
+        b: [f32; 6],
+        valid: f32,
+    ) -> f32 {
+        let mut e = st;
+        if COL {
+            let (d0, d1, d2) = (b[3] - a[3], b[4] - a[4], b[5] - a[5]);
+            let d = madd::<F>(d2, d2, madd::<F>(d1, d1, d0 * d0));
+            e = madd::<F>(self.kc, d, e);
+        }
+        if NRM != NRM_NONE {
+            let dot = madd::<F>(b[2], a[2], madd::<F>(b[1], a[1], b[0] * a[0]));
+            let t = (1.0 - dot).max(0.0);
+            let d2 = match NRM {
+                NRM_ANGLE_NARROW => acos_one_minus_sq_narrow::<F>(t.min(1.0)),
+                NRM_ANGLE => {
+                    let d = acos_one_minus::<F>(t.min(2.0));
+                    d * d
+                }
+                _ => t * t,
+            };
+            e = madd::<F>(self.kn, d2, e);
+        }
+        if COL {
+            exp2_neg::<F>(e)
+        } else {
+            valid * exp2_neg::<F>(e)
+        }
+    }
+
     /// The filter over one filled tile (`tw` columns at `x0`, `rows` rows).
     #[inline(always)]
     fn tile<const COL: bool, const NRM: u8, const FC: bool, const F: bool>(
@@ -531,13 +643,12 @@ impl Kernel {
         out: &mut BandOut<'_>,
     ) {
         let TileAt { r0, x0, tw, rows } = at;
-        let (w, r, lw) = (input.width, self.radius, self.lw);
-        let (kc, kn) = (self.kc, self.kn);
+        let (w, lw) = (input.width, self.lw);
         // The LANES values of plane k at local index j.
         let at = |k: usize, j: usize| -> &[f32; LANES] { lanes(&s[k * STRIDE..], j) };
         for ty in 0..rows {
             for tx in (0..tw).step_by(LANES) {
-                let base = (ty + r) * lw + tx + r;
+                let base = (ty + self.ry) * lw + tx + self.rx;
                 let lane = |k| *at(k, base);
                 let (cnx, cny, cnz) = (lane(NX), lane(NY), lane(NZ));
                 let (cc0, cc1, cc2) = (lane(C0), lane(C0 + 1), lane(C0 + 2));
@@ -555,33 +666,12 @@ impl Kernel {
                     let (v0, v1, v2) = (at(C0), at(C0 + 1), at(C0 + 2));
                     let (vp, vq, vm) = (at(P), at(Q), at(VALID));
                     for l in 0..LANES {
-                        let mut e = st;
-                        if COL {
-                            let (d0, d1, d2) = (v0[l] - cc0[l], v1[l] - cc1[l], v2[l] - cc2[l]);
-                            let d = madd::<F>(d2, d2, madd::<F>(d1, d1, d0 * d0));
-                            e = madd::<F>(kc, d, e);
-                        }
-                        if NRM != NRM_NONE {
-                            let dot =
-                                madd::<F>(vz[l], cnz[l], madd::<F>(vy[l], cny[l], vx[l] * cnx[l]));
-                            let t = (1.0 - dot).max(0.0);
-                            let d2 = match NRM {
-                                NRM_ANGLE_NARROW => acos_one_minus_sq_narrow::<F>(t.min(1.0)),
-                                NRM_ANGLE => {
-                                    let d = acos_one_minus::<F>(t.min(2.0));
-                                    d * d
-                                }
-                                _ => t * t,
-                            };
-                            e = madd::<F>(kn, d2, e);
-                        }
-                        // With colour, invalid pixels already weigh 2^−126 (their colour is
-                        // FAR_COLOR); without, the validity plane zeroes them.
-                        let wt = if COL {
-                            exp2_neg::<F>(e)
-                        } else {
-                            vm[l] * exp2_neg::<F>(e)
-                        };
+                        let wt = self.weight::<COL, NRM, F>(
+                            st,
+                            [cnx[l], cny[l], cnz[l], cc0[l], cc1[l], cc2[l]],
+                            [vx[l], vy[l], vz[l], v0[l], v1[l], v2[l]],
+                            vm[l],
+                        );
                         ap[l] = madd::<F>(wt, vp[l], ap[l]);
                         aq[l] = madd::<F>(wt, vq[l], aq[l]);
                         aw[l] += wt;
@@ -595,31 +685,168 @@ impl Kernel {
                 let cv = lane(VALID);
                 let o = ty * w + x0 + tx;
                 for l in 0..LANES.min(tw - tx) {
-                    let i = o + l;
-                    if cv[l] > 0.0 {
-                        let inv = 1.0 / aw[l];
-                        let nrm = normal_of_gradient(ap[l] * inv, aq[l] * inv);
-                        for (o, v) in out.n.iter_mut().zip(nrm) {
-                            o[i] = v;
+                    let sums = [ap[l], aq[l], aw[l], ac[0][l], ac[1][l], ac[2][l]];
+                    emit(
+                        input,
+                        out,
+                        o + l,
+                        (r0 + ty) * w + x0 + tx + l,
+                        cv[l] > 0.0,
+                        sums,
+                    );
+                }
+            }
+        }
+    }
+
+    /// [`Self::tile`] with each pair's weight computed once (it is symmetric: w(P, Q) =
+    /// w(Q, P)) and added to both ends: P runs over the output pixels and the halo pixels above
+    /// and beside them, Q = P + o over the half disc (`dy > 0`, or `dy = 0 < dx`); P's sums
+    /// stay in registers, Q's go to accumulator planes. About 0.55× the exponentials of the
+    /// full disc at 64-row tiles. Needs `rx = 2r`, `ry = r` and the accumulator planes.
+    #[inline(always)]
+    fn tile_sym<const COL: bool, const NRM: u8, const FC: bool, const F: bool>(
+        &self,
+        input: &Input<'_>,
+        at: TileAt,
+        s: &mut [f32],
+        out: &mut BandOut<'_>,
+    ) {
+        let TileAt { r0, x0, tw, rows } = at;
+        let (w, lw, r) = (input.width, self.lw, self.ry);
+        let span = lw * self.lh;
+        let (vals, accs) = s.split_at_mut(ACC * STRIDE);
+        for k in 0..ACCS {
+            accs[k * STRIDE..k * STRIDE + span].fill(0.0);
+        }
+        // P columns: the output's (from rx = 2r) and r on each side, in whole lane groups.
+        let groups = (tw + 2 * r).div_ceil(LANES);
+        for lr in 0..r + rows {
+            for g in 0..groups {
+                let base = lr * lw + r + g * LANES;
+                let c = |k: usize| -> [f32; LANES] { *lanes(&vals[k * STRIDE..], base) };
+                let (cnx, cny, cnz) = (c(NX), c(NY), c(NZ));
+                let (cc0, cc1, cc2) = (c(C0), c(C0 + 1), c(C0 + 2));
+                let cval = c(VALID);
+                let (gp, gq) = (c(P), c(Q));
+                // P's own sums start with itself (weight 1 when valid).
+                let own =
+                    |v: &[f32; LANES]| -> [f32; LANES] { std::array::from_fn(|l| cval[l] * v[l]) };
+                let (mut mp, mut mq, mut mw) = (own(&gp), own(&gq), cval);
+                let (mut m0, mut m1, mut m2) = (own(&cc0), own(&cc1), own(&cc2));
+                for &(off, st) in &self.half_taps {
+                    let j = base.wrapping_add_signed(off);
+                    let blk = &vals[j..j + (PLANES - 1) * STRIDE + LANES];
+                    let at = |k: usize| -> &[f32; LANES] { lanes(blk, k * STRIDE) };
+                    let (vx, vy, vz) = (at(NX), at(NY), at(NZ));
+                    let (v0, v1, v2) = (at(C0), at(C0 + 1), at(C0 + 2));
+                    let (vp, vq, vm) = (at(P), at(Q), at(VALID));
+                    let mut wt = [0.0f32; LANES];
+                    for l in 0..LANES {
+                        wt[l] = self.weight::<COL, NRM, F>(
+                            st,
+                            [cnx[l], cny[l], cnz[l], cc0[l], cc1[l], cc2[l]],
+                            [vx[l], vy[l], vz[l], v0[l], v1[l], v2[l]],
+                            vm[l],
+                        );
+                        if !COL {
+                            wt[l] *= cval[l];
                         }
-                        if let Some(c) = out.c.as_mut() {
-                            for (o, a) in c.iter_mut().zip(&ac) {
-                                o[i] = a[l] * inv;
-                            }
-                        }
-                    } else {
-                        // Masked out or not finite: the input, unchanged.
-                        let g = (r0 + ty) * w + i - ty * w;
-                        for (o, v) in out.n.iter_mut().zip(&input.normal) {
-                            o[i] = v[g];
-                        }
-                        if let Some(c) = out.c.as_mut() {
-                            for (o, v) in c.iter_mut().zip(&input.color) {
-                                o[i] = v[g];
-                            }
+                        mp[l] = madd::<F>(wt[l], vp[l], mp[l]);
+                        mq[l] = madd::<F>(wt[l], vq[l], mq[l]);
+                        mw[l] += wt[l];
+                        if FC {
+                            m0[l] = madd::<F>(wt[l], v0[l], m0[l]);
+                            m1[l] = madd::<F>(wt[l], v1[l], m1[l]);
+                            m2[l] = madd::<F>(wt[l], v2[l], m2[l]);
                         }
                     }
+                    // Q's sums, in the accumulator planes.
+                    let ablk = &mut accs[j..j + (ACCS - 1) * STRIDE + LANES];
+                    add_into::<F>(ablk, 0, &wt, &gp);
+                    add_into::<F>(ablk, STRIDE, &wt, &gq);
+                    add_into::<F>(ablk, 2 * STRIDE, &wt, &[1.0; LANES]);
+                    if FC {
+                        add_into::<F>(ablk, 3 * STRIDE, &wt, &cc0);
+                        add_into::<F>(ablk, 4 * STRIDE, &wt, &cc1);
+                        add_into::<F>(ablk, 5 * STRIDE, &wt, &cc2);
+                    }
                 }
+                let ablk = &mut accs[base..base + (ACCS - 1) * STRIDE + LANES];
+                let one = [1.0; LANES];
+                add_into::<F>(ablk, 0, &one, &mp);
+                add_into::<F>(ablk, STRIDE, &one, &mq);
+                add_into::<F>(ablk, 2 * STRIDE, &one, &mw);
+                if FC {
+                    add_into::<F>(ablk, 3 * STRIDE, &one, &m0);
+                    add_into::<F>(ablk, 4 * STRIDE, &one, &m1);
+                    add_into::<F>(ablk, 5 * STRIDE, &one, &m2);
+                }
+            }
+        }
+        // Row by row, branch-free (it vectorises): the normal of the mean gradient and the
+        // mean colour where the centre is valid, else the input.
+        for ty in 0..rows {
+            let j = (ty + r) * lw + self.rx;
+            let acc = |k: usize| &accs[k * STRIDE + j..k * STRIDE + j + tw];
+            let (sp, sq, sw) = (acc(0), acc(1), acc(2));
+            let valid = &vals[VALID * STRIDE + j..VALID * STRIDE + j + tw];
+            let (o, g) = (ty * w + x0, (r0 + ty) * w + x0);
+            let [ox, oy, oz] = out.n.each_mut().map(|p| &mut p[o..o + tw]);
+            let [ix, iy, iz] = input.normal.map(|p| &p[g..g + tw]);
+            for x in 0..tw {
+                let inv = 1.0 / sw[x];
+                let (p, q) = (sp[x] * inv, sq[x] * inv);
+                let l = 1.0 / madd::<F>(q, q, madd::<F>(p, p, 1.0)).sqrt();
+                let ok = valid[x] > 0.0;
+                ox[x] = if ok { -p * l } else { ix[x] };
+                oy[x] = if ok { -q * l } else { iy[x] };
+                oz[x] = if ok { l } else { iz[x] };
+            }
+            if let Some(c) = out.c.as_mut() {
+                for (k, (oc, ic)) in c.iter_mut().zip(&input.color).enumerate() {
+                    let (oc, ic, sc) = (&mut oc[o..o + tw], &ic[g..g + tw], acc(3 + k));
+                    for x in 0..tw {
+                        oc[x] = if valid[x] > 0.0 { sc[x] / sw[x] } else { ic[x] };
+                    }
+                }
+            }
+        }
+    }
+}
+
+/// `d[off + l] += w[l] · v[l]` for the LANES lanes.
+#[inline(always)]
+fn add_into<const F: bool>(d: &mut [f32], off: usize, w: &[f32; LANES], v: &[f32; LANES]) {
+    let d: &mut [f32; LANES] = (&mut d[off..off + LANES]).try_into().expect("LANES values");
+    for l in 0..LANES {
+        d[l] = madd::<F>(w[l], v[l], d[l]);
+    }
+}
+
+/// Writes output pixel `i` of the band (image pixel `g`): the normal of the mean gradient and
+/// the mean colour from `sums` = (Σwp, Σwq, Σw, Σwc₀, Σwc₁, Σwc₂) when `valid`, else the input.
+#[inline(always)]
+fn emit(input: &Input<'_>, out: &mut BandOut<'_>, i: usize, g: usize, valid: bool, sums: [f32; 6]) {
+    if valid {
+        let inv = 1.0 / sums[2];
+        let nrm = normal_of_gradient(sums[0] * inv, sums[1] * inv);
+        for (o, v) in out.n.iter_mut().zip(nrm) {
+            o[i] = v;
+        }
+        if let Some(c) = out.c.as_mut() {
+            for (o, a) in c.iter_mut().zip(&sums[3..]) {
+                o[i] = a * inv;
+            }
+        }
+    } else {
+        // Masked out or not finite: the input, unchanged.
+        for (o, v) in out.n.iter_mut().zip(&input.normal) {
+            o[i] = v[g];
+        }
+        if let Some(c) = out.c.as_mut() {
+            for (o, v) in c.iter_mut().zip(&input.color) {
+                o[i] = v[g];
             }
         }
     }
@@ -667,6 +894,7 @@ mod tests {
                 let spec = Spec {
                     sigma_spatial: 2.0,
                     radius: 4,
+                    stride: 1,
                     sigma_color: sc,
                     sigma_normal: sn,
                     metric,

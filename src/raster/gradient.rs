@@ -402,6 +402,41 @@ impl GradientField {
     }
 }
 
+/// [`GradientField::curl_stats`] of an image's normals (`GradientField::from_normals(img)
+/// .curl_stats(img.mask())`, bit for bit) without allocating the two gradient planes: each
+/// row pair is converted on the fly.
+#[must_use]
+pub fn curl_stats_of_normals(img: &RgbnImage) -> CurlStats {
+    let (w, h) = (img.width(), img.height());
+    if w < 2 || h < 2 {
+        return CurlStats::default();
+    }
+    let [nx, ny, nz] = img.normal();
+    let mask = img.mask();
+    let grad = |r: usize, p: &mut Vec<f32>, q: &mut Vec<f32>| {
+        p.resize(w, 0.0);
+        q.resize(w, 0.0);
+        let o = r * w..(r + 1) * w;
+        let (nx, ny, nz) = (&nx[o.clone()], &ny[o.clone()], &nz[o]);
+        for x in 0..w {
+            [p[x], q[x]] = gradient_of_normal([nx[x], ny[x], nz[x]]);
+        }
+    };
+    (1..h)
+        .into_par_iter()
+        .map_init(
+            || [(); 4].map(|()| Vec::with_capacity(w)),
+            |[pu, qu, pc, qc], r| {
+                grad(r - 1, pu, qu);
+                grad(r, pc, qc);
+                let m = mask.map(|m| (&m[(r - 1) * w..r * w], &m[r * w..(r + 1) * w]));
+                CurlSums::of_row(pu, qu, pc, qc, m)
+            },
+        )
+        .reduce(CurlSums::default, CurlSums::merge)
+        .stats()
+}
+
 /// `f(x, r)` at the `(w + 1) × (h + 1)` pixel corners, row-major: corner `(x, r)` is the
 /// top-left corner of pixel `(x, r)` (at `(x − ½, r − ½)` in coordinates where pixel centres
 /// are integers). Rows in parallel. See [`GradientField::from_corner_heights`].
