@@ -23,6 +23,22 @@
 //! same weights (`filter_color`). It is a nonlinear filter: the curl of the result is reported,
 //! not guaranteed small.
 //!
+//! # Wide σ_s
+//!
+//! The exact disc has about `π(2σ_s)²` taps: 797 at σ_s = 8 (4.2 s on a 4K image), so its
+//! cost grows with σ_s². From σ_s = 8 px on, [`BilateralMethod::Auto`] samples the disc every
+//! `s = ⌈σ_s/4⌉` px instead (the spatially subsampled bilateral of Banterle et al. 2012, on a
+//! regular grid, still symmetric): a disc of radius 8 samples, about 200 taps, whatever σ_s.
+//! At 4K, 2 threads: σ_s = 8 1.0–1.3 s, 16 1.8 s, 32 1.2–1.6 s (exact at 8: 4.2–5.1 s).
+//! Its error against the exact filter (test
+//! `the_sampled_disc_stays_close_to_the_exact_filter_at_wide_sigma`: a dome with a 5 px
+//! texture and a colour edge, σ_c = 0.2, σ_n = 0.3): mean 0.18° / max 1.8° at σ_s = 8,
+//! 0.49° / 4.3° at 12, 0.33° / 2.9° at 16, where the filter itself moves normals by 6.8° on
+//! average — the error is aliasing of detail finer than `2s`. `method: exact` keeps every
+//! pixel. A bilateral grid or a permutohedral lattice was not used: the range here is 6-D
+//! (colour and normal), where a grid is out of reach and the lattice's kernel is not a
+//! Gaussian in the angle.
+//!
 //! # Split
 //!
 //! [`split`] returns `(base, detail)` with base = the filtered image and detail = the rotation

@@ -514,7 +514,7 @@ fn pcg(
         }
         mg.precondition(pre, &res);
         let zv = &mg.levels[0].x;
-        let rz_new = rows_map(w, &spans, &mut Vec::new(), |r, lo, hi, _| {
+        let rz_new = rows_sum(&spans, |r, lo, hi| {
             let (z, res) = (&zv[r * w + lo..r * w + hi], &res[r * w + lo..r * w + hi]);
             res.iter()
                 .zip(z)
@@ -536,19 +536,22 @@ fn pcg(
     (iterations, rel, restarted)
 }
 
+/// Sums `f(row, lo, hi)` over every row's span, rows in parallel.
+fn rows_sum(spans: &[(usize, usize)], f: impl Fn(usize, usize, usize) -> f64 + Sync) -> f64 {
+    spans
+        .par_iter()
+        .with_min_len(4)
+        .enumerate()
+        .map(|(r, &(lo, hi))| f(r, lo, hi))
+        .sum()
+}
+
 /// Runs `f(row, lo, hi, out[row·w + lo .. row·w + hi])` on every row's span in parallel and
-/// sums what it returns; with an empty `out`, `f` gets an empty slice.
+/// sums what it returns.
 fn rows_map<F>(w: usize, spans: &[(usize, usize)], out: &mut [f64], f: F) -> f64
 where
     F: Fn(usize, usize, usize, &mut [f64]) -> f64 + Sync,
 {
-    if out.is_empty() {
-        return (0..spans.len())
-            .into_par_iter()
-            .with_min_len(4)
-            .map(|r| f(r, spans[r].0, spans[r].1, &mut []))
-            .sum();
-    }
     out.par_chunks_mut(w)
         .with_min_len(4)
         .enumerate()
