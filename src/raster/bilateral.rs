@@ -63,6 +63,8 @@ use rayon::prelude::*;
 pub const LANES: usize = 16;
 /// Rows of a tile (one rayon task computes a band of this many rows).
 pub const TILE_H: usize = 16;
+/// Columns of a tile.
+pub const TILE_W: usize = 256;
 /// Rows of a tile of the symmetric (disc) kernel: taller, so the halo rows whose pairs are
 /// computed for nothing are fewer.
 pub const SYM_TILE_H: usize = 64;
@@ -77,8 +79,6 @@ fn taps_half(r: usize) -> impl Iterator<Item = (isize, isize)> {
         .flat_map(move |dy| (-r..=r).map(move |dx| (dx, dy)))
         .filter(move |&(dx, dy)| dx * dx + dy * dy <= r * r && (dy > 0 || dx > 0))
 }
-/// Columns of a tile.
-pub const TILE_W: usize = 256;
 
 /// How the normal-similarity distance `δ` is measured.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -492,7 +492,8 @@ impl Kernel {
     }
 
     /// Copies the tile at `(x0, r0)` with its halo into the local planes: pixels outside the
-    /// image, masked out (< ½) or not finite get validity 0 and zero values.
+    /// image, masked out (< ½) or not finite get validity 0, finite values (0 where not
+    /// finite) and the colour `FAR_COLOR`.
     #[inline(always)]
     fn fill(&self, input: &Input<'_>, r0: usize, x0: usize, s: &mut [f32]) {
         let (w, h, lw) = (input.width, input.height, self.lw);
