@@ -1,8 +1,8 @@
 //! The band filters of [`crate::ops::band`] as a node: keep or remove a low-, high-, band-pass or
 //! LoG band of the gradients ([`band_filter_image`]).
 
-use super::kit::curl_port;
-use super::{Inputs, OpSpec, Operator, PortSpec, PortType, RunContext, Value};
+use super::kit::{curl_port, kernel_footprint};
+use super::{Footprint, Inputs, OpSpec, Operator, PortSpec, PortType, RunContext, Value};
 use crate::error::RgbnError;
 use crate::ops::band::{band_filter_image, BandParams};
 
@@ -28,6 +28,12 @@ impl Operator for BandNode {
     }
     fn check(p: &BandParams) -> Result<(), RgbnError> {
         p.validate()
+    }
+    fn footprint(p: &BandParams, _input: usize) -> Footprint {
+        match p.band() {
+            Ok(b) => kernel_footprint(p.border, b.kernel().support_px()),
+            Err(_) => Footprint::Global,
+        }
     }
     fn run(p: &BandParams, i: &Inputs<'_>, _: &RunContext) -> Result<Vec<Value>, RgbnError> {
         let (img, curl) = band_filter_image(i.rgbn("image")?, p)?;

@@ -2,7 +2,7 @@
 //! ([`split`]) as its two outputs.
 
 use super::kit::curl_port;
-use super::{Inputs, OpSpec, Operator, PortSpec, PortType, RunContext, Value};
+use super::{Footprint, Inputs, OpSpec, Operator, PortSpec, PortType, RunContext, Value};
 use crate::error::RgbnError;
 use crate::ops::bilateral::{split, BilateralParams};
 
@@ -33,6 +33,12 @@ impl Operator for BilateralNode {
     }
     fn check(p: &BilateralParams) -> Result<(), RgbnError> {
         p.validate()
+    }
+    fn footprint(p: &BilateralParams, _input: usize) -> Footprint {
+        // The disc of radius ⌈2σ_s⌉ (sampled or not); the detail is per pixel.
+        Footprint::Local {
+            halo: (2.0 * p.sigma_spatial_px as f32).ceil() as usize,
+        }
     }
     fn run(p: &BilateralParams, i: &Inputs<'_>, _: &RunContext) -> Result<Vec<Value>, RgbnError> {
         let (base, detail, rep) = split(i.rgbn("image")?, p)?;

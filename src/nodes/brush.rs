@@ -2,10 +2,11 @@
 //! stroke (a polyline swept by a disc with a feather) and/or a mask input ([`brush_image`]).
 //! Several strokes: chain brush nodes, or paint them into a mask.
 
-use super::kit::curl_port;
-use super::{Inputs, OpSpec, Operator, PortSpec, PortType, RunContext, Value};
+use super::kit::{curl_port, kernel_footprint, shift_points};
+use super::{Footprint, Inputs, OpSpec, Operator, PortSpec, PortType, RunContext, Value};
 use crate::error::RgbnError;
 use crate::ops::brush::{brush_image, SimpleBrushParams};
+use crate::ops::filter::Kernel;
 use std::sync::Arc;
 
 /// Filter brush.
@@ -43,6 +44,22 @@ impl Operator for BrushNode {
     }
     fn check(p: &SimpleBrushParams) -> Result<(), RgbnError> {
         p.to_params().map(|_| ())
+    }
+    fn footprint(p: &SimpleBrushParams, input: usize) -> Footprint {
+        match (input, p.to_params()) {
+            (0, Ok(b)) => kernel_footprint(
+                b.filter.border,
+                b.kernels.iter().map(Kernel::support_px).max().unwrap_or(0),
+            ),
+            (_, Ok(_)) => Footprint::POINT,
+            (_, Err(_)) => Footprint::Global,
+        }
+    }
+    fn shifted(p: &SimpleBrushParams, dx: f64, dy: f64) -> SimpleBrushParams {
+        SimpleBrushParams {
+            points: shift_points(&p.points, dx, dy),
+            ..p.clone()
+        }
     }
     fn run(p: &SimpleBrushParams, i: &Inputs<'_>, _: &RunContext) -> Result<Vec<Value>, RgbnError> {
         let img = i.rgbn("image")?;

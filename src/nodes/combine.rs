@@ -1,8 +1,8 @@
 //! The linear combine of [`crate::ops::combine`] as a node (`combine.linear`, with a detail
 //! given as normals or as a height); the rotation combine is in [`super::rotate`].
 
-use super::kit::curl_port;
-use super::{Inputs, OpSpec, Operator, PortSpec, PortType, RunContext, Value};
+use super::kit::{curl_port, kernel_footprint};
+use super::{Footprint, Inputs, OpSpec, Operator, PortSpec, PortType, RunContext, Value};
 use crate::error::RgbnError;
 use crate::ops::combine::{linear_combine_height, linear_combine_images, LinearCombineParams};
 use crate::raster::gradient::GradientField;
@@ -49,6 +49,13 @@ impl Operator for LinearCombineNode {
     }
     fn check(p: &LinearCombineParams) -> Result<(), RgbnError> {
         p.validate()
+    }
+    fn footprint(p: &LinearCombineParams, _input: usize) -> Footprint {
+        // A height or a weight is differentiated (one pixel); a replaced band is filtered.
+        match p.band() {
+            Ok(b) => kernel_footprint(p.border, 1.max(b.map_or(0, |b| b.kernel().support_px()))),
+            Err(_) => Footprint::Global,
+        }
     }
     fn run(
         p: &LinearCombineParams,

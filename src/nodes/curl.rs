@@ -2,7 +2,7 @@
 //! in the integrator's default edge model (`Differences::Averaged`, see
 //! [`crate::raster::gradient`]) as a scalar field, and its relative RMS.
 
-use super::{Inputs, OpSpec, Operator, PortSpec, PortType, RunContext, Value};
+use super::{Footprint, Inputs, OpSpec, Operator, PortSpec, PortType, RunContext, Value};
 use crate::error::RgbnError;
 use crate::ops::params::NoParams;
 use crate::raster::gradient::GradientField;
@@ -27,6 +27,10 @@ impl Operator for CurlOp {
             PortType::Number,
             "RMS(curl) / RMS(|g|) inside the mask.",
         ))
+    }
+    fn footprint(_: &NoParams, _input: usize) -> Footprint {
+        // Averaged edge slopes around a 2×2 block.
+        Footprint::Local { halo: 2 }
     }
     fn run(_: &NoParams, i: &Inputs<'_>, _: &RunContext) -> Result<Vec<Value>, RgbnError> {
         let img = i.rgbn("image")?;

@@ -3,7 +3,8 @@
 //! parameters plus `border` and `mask_aware`. The node adds no maths: it calls
 //! [`filter_normals`] with a one-kernel list.
 
-use super::{Inputs, OpSpec, Operator, PortSpec, PortType, RunContext, Value};
+use super::kit::kernel_footprint;
+use super::{Footprint, Inputs, OpSpec, Operator, PortSpec, PortType, RunContext, Value};
 use crate::error::RgbnError;
 use crate::ops::filter::{
     filter_normals, BoxParams, DenseParams, DogParams, EdgeParams, FilterOptions, GaussianParams,
@@ -56,6 +57,9 @@ impl<K: KernelNode> Operator for FilterOp<K> {
     }
     fn check(p: &FilterParams<K>) -> Result<(), RgbnError> {
         p.kernel.kernel().validate()
+    }
+    fn footprint(p: &FilterParams<K>, _input: usize) -> Footprint {
+        kernel_footprint(p.options.border, p.kernel.kernel().support_px())
     }
     fn run(p: &FilterParams<K>, i: &Inputs<'_>, _: &RunContext) -> Result<Vec<Value>, RgbnError> {
         let (out, _) = filter_normals(i.rgbn("image")?, &[p.kernel.kernel()], &p.options)?;

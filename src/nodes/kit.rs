@@ -1,7 +1,7 @@
 //! Pieces shared by several nodes: the `relative_rms_curl` output that nonlinear (and any
 //! other) editing nodes report.
 
-use super::{PortSpec, PortType};
+use super::{Footprint, PortSpec, PortType};
 use crate::ops::params::{Meta, ParamVisitor};
 use crate::raster::convolve::BorderMode;
 
@@ -38,4 +38,26 @@ pub fn curl_port(what: &str) -> PortSpec {
         ),
         optional: false,
     }
+}
+
+/// The footprint of a kernel of reach `halo` under `border`: local, except with a periodic
+/// border, where a pixel near one edge reads the opposite one.
+#[must_use]
+pub fn kernel_footprint(border: BorderMode, halo: usize) -> Footprint {
+    if border == BorderMode::Wrap {
+        Footprint::Global
+    } else {
+        Footprint::Local { halo }
+    }
+}
+
+/// `points` moved by `(−dx, −dy)` for a crop at `(dx, dy)` ([`super::Operator::shifted`]).
+/// Operators use their points as `f32`; the shift is applied to those values, where moving by
+/// whole pixels is exact, so a crop sees the path exactly where the whole image does.
+#[must_use]
+pub fn shift_points(points: &[[f64; 2]], dx: f64, dy: f64) -> Vec<[f64; 2]> {
+    points
+        .iter()
+        .map(|p| [f64::from(p[0] as f32) - dx, f64::from(p[1] as f32) - dy])
+        .collect()
 }

@@ -5,7 +5,7 @@
 //! files by the hash of their bytes, so editing a file on disk invalidates its dependants and
 //! moving it does not.
 
-use super::{Inputs, OpSpec, Operator, PortSpec, PortType, RunContext, Value};
+use super::{Footprint, Inputs, OpSpec, Operator, PortSpec, PortType, RunContext, Value};
 use crate::error::RgbnError;
 use crate::ops::load::{ApplyMaskParams, DemoParams, LoadMaskParams, LoadParams, SurfaceParams};
 use crate::raster::io::{self, InputSpec, LoadOptions, NormalConvention};
@@ -174,6 +174,9 @@ impl Operator for ApplyMask {
         .input(PortSpec::new("image", PortType::Rgbn, "The image."))
         .input(PortSpec::new("mask", PortType::Mask, "The new mask (same size).").optional())
         .output(PortSpec::new("image", PortType::Rgbn, "The image with the mask."))
+    }
+    fn footprint(_: &ApplyMaskParams, _input: usize) -> Footprint {
+        Footprint::POINT
     }
     fn run(p: &ApplyMaskParams, i: &Inputs<'_>, _: &RunContext) -> Result<Vec<Value>, RgbnError> {
         let mut img = i.rgbn("image")?.clone();

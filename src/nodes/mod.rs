@@ -337,6 +337,30 @@ impl<'a> Inputs<'a> {
     }
 }
 
+/// What part of an input an operator needs to compute part of its outputs: how the evaluator
+/// may compute it region by region (see `eval::region`; GEGL's `get_required_for_output`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Footprint {
+    /// An output pixel depends only on the pixels of this input within `halo` pixels of it
+    /// (Chebyshev distance; 0: a point operation), and on its own position only through the
+    /// parameters [`Operator::shifted`] moves. Run on a crop of the input, the operator gives
+    /// the pixels that lie `halo` or more inside the crop's cut edges exactly as on the whole
+    /// image (within the operator's documented truncation, e.g. a recursive Gaussian's). The
+    /// outputs then have the crop's size.
+    Local {
+        /// Reach in pixels.
+        halo: usize,
+    },
+    /// The input is needed whole: transforms and solvers, statistics, resampling, a periodic
+    /// border, or a small image used everywhere (a stamp).
+    Global,
+}
+
+impl Footprint {
+    /// A point operation.
+    pub const POINT: Self = Self::Local { halo: 0 };
+}
+
 /// A typed node. See the module docs for how to wrap a pure function.
 pub trait Operator: Send + Sync + 'static {
     /// Parameters, declared once through [`Params::visit`].
@@ -368,6 +392,21 @@ pub trait Operator: Send + Sync + 'static {
     /// bytes (gradient planes, transforms, solver vectors): used by the evaluator's estimate of
     /// a plan's peak memory (see `eval::memory`).
     const SCRATCH: f64 = 1.0;
+    /// What input `input` (port order) must provide for a region of the outputs. An operator
+    /// is computed region by region when at least one of its inputs is
+    /// [`Footprint::Local`]; its `Global` inputs are then passed whole, and its `Number`
+    /// outputs are not computed (a consumer of one needs the operator whole). Default: global
+    /// (sources, solvers, sinks).
+    fn footprint(_params: &Self::Params, _input: usize) -> Footprint {
+        Footprint::Global
+    }
+    /// The parameters that compute, on the crop of the inputs whose top-left pixel is `(dx, dy)`
+    /// of the whole image, the same pixels as `params` on the whole image: positions (pen and
+    /// brush points, stamp placements) moved by `(−dx, −dy)`. Default: unchanged (nothing
+    /// positional).
+    fn shifted(params: &Self::Params, _dx: f64, _dy: f64) -> Self::Params {
+        params.clone()
+    }
 }
 
 /// The object-safe face of an [`Operator`], as held by the registry.
@@ -397,6 +436,17 @@ pub trait DynOp: Send + Sync {
     ) -> Option<(usize, usize)>;
     /// [`Operator::SCRATCH`].
     fn scratch(&self) -> f64;
+    /// [`Operator::footprint`] on canonical params (`Global` when they do not parse).
+    fn footprint(&self, values: &BTreeMap<String, ParamValue>, input: usize) -> Footprint;
+    /// Runs on the crop whose top-left pixel is `origin` of the whole image:
+    /// [`Operator::run`] with [`Operator::shifted`] params.
+    fn run_at(
+        &self,
+        values: &BTreeMap<String, ParamValue>,
+        inputs: &[Option<Value>],
+        ctx: &RunContext,
+        origin: (usize, usize),
+    ) -> Result<Vec<Value>, RgbnError>;
 }
 
 struct Entry<T: Operator> {
@@ -458,6 +508,29 @@ impl<T: Operator> DynOp for Entry<T> {
     }
     fn scratch(&self) -> f64 {
         T::SCRATCH
+    }
+    fn footprint(&self, values: &BTreeMap<String, ParamValue>, input: usize) -> Footprint {
+        match params::from_values::<T::Params>(values) {
+            Ok(p) => T::footprint(&p, input),
+            Err(_) => Footprint::Global,
+        }
+    }
+    fn run_at(
+        &self,
+        values: &BTreeMap<String, ParamValue>,
+        inputs: &[Option<Value>],
+        ctx: &RunContext,
+        origin: (usize, usize),
+    ) -> Result<Vec<Value>, RgbnError> {
+        let p: T::Params = params::from_values(values)?;
+        let p = if origin == (0, 0) {
+            p
+        } else {
+            T::shifted(&p, origin.0 as f64, origin.1 as f64)
+        };
+        let out = T::run(&p, &Inputs::new(&self.spec.inputs, inputs), ctx)?;
+        debug_assert_eq!(out.len(), self.spec.outputs.len());
+        Ok(out)
     }
 }
 

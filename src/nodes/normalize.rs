@@ -1,6 +1,6 @@
 //! The normalisation of [`crate::ops::normalize`] as a node.
 
-use super::{Inputs, OpSpec, Operator, PortSpec, PortType, RunContext, Value};
+use super::{Footprint, Inputs, OpSpec, Operator, PortSpec, PortType, RunContext, Value};
 use crate::error::RgbnError;
 use crate::ops::normalize::{normalize, NormalizeParams};
 
@@ -33,6 +33,9 @@ impl Operator for Normalize {
             PortType::Number,
             "Normals lifted to n_z = min_z.",
         ))
+    }
+    fn footprint(_: &NormalizeParams, _input: usize) -> Footprint {
+        Footprint::POINT
     }
     fn run(p: &NormalizeParams, i: &Inputs<'_>, _: &RunContext) -> Result<Vec<Value>, RgbnError> {
         let (img, rep) = normalize(i.rgbn("image")?, p)?;

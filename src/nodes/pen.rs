@@ -1,10 +1,10 @@
 //! The pen of [`crate::ops::pen`] as a node: sculpt a relief along an open or closed path with a
 //! profile ([`apply_pen`]).
 
-use super::kit::curl_port;
-use super::{Inputs, OpSpec, Operator, PortSpec, PortType, RunContext, Value};
+use super::kit::{curl_port, shift_points};
+use super::{Footprint, Inputs, OpSpec, Operator, PortSpec, PortType, RunContext, Value};
 use crate::error::RgbnError;
-use crate::ops::pen::{apply_pen, PenParams};
+use crate::ops::pen::{apply_pen, PenMode, PenParams};
 use std::sync::Arc;
 
 /// Pen.
@@ -34,6 +34,22 @@ impl Operator for PenNode {
     }
     fn check(p: &PenParams) -> Result<(), RgbnError> {
         p.validate()
+    }
+    fn footprint(p: &PenParams, _input: usize) -> Footprint {
+        match p.mode {
+            // Heights differentiated forward, gradients at staggered points: one pixel.
+            PenMode::Integrable | PenMode::Analytic => Footprint::Local { halo: 1 },
+            // Distances from the rasterised path matter up to the stroke's half width and taper.
+            PenMode::DistanceTransform => Footprint::Local {
+                halo: (p.width_px / 2.0 + p.taper_px).ceil() as usize + 2,
+            },
+        }
+    }
+    fn shifted(p: &PenParams, dx: f64, dy: f64) -> PenParams {
+        PenParams {
+            points: shift_points(&p.points, dx, dy),
+            ..p.clone()
+        }
     }
     fn run(p: &PenParams, i: &Inputs<'_>, _: &RunContext) -> Result<Vec<Value>, RgbnError> {
         let (out, rep) = apply_pen(i.rgbn("image")?, p)?;

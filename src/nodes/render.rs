@@ -2,7 +2,7 @@
 //! [`crate::render::View`] (albedo, normals as colour, curl map and the inspection views),
 //! producing display pictures.
 
-use super::{Inputs, OpSpec, Operator, Picture, PortSpec, PortType, RunContext, Value};
+use super::{Footprint, Inputs, OpSpec, Operator, Picture, PortSpec, PortType, RunContext, Value};
 use crate::error::RgbnError;
 use crate::ops::render::{RelightParams, ViewParams};
 use crate::render::{self, View};
@@ -33,6 +33,9 @@ impl Operator for Relight {
     }
     fn check(p: &RelightParams) -> Result<(), RgbnError> {
         p.shading().validate()
+    }
+    fn footprint(_: &RelightParams, _input: usize) -> Footprint {
+        Footprint::POINT
     }
     fn run(p: &RelightParams, i: &Inputs<'_>, _: &RunContext) -> Result<Vec<Value>, RgbnError> {
         let img = i.rgbn("image")?;

@@ -1,7 +1,7 @@
 //! The rotation combine of [`crate::ops::rotate`] as a node (`combine.rotation`).
 
 use super::kit::curl_port;
-use super::{Inputs, OpSpec, Operator, PortSpec, PortType, RunContext, Value};
+use super::{Footprint, Inputs, OpSpec, Operator, PortSpec, PortType, RunContext, Value};
 use crate::error::RgbnError;
 use crate::ops::rotate::{rotation_combine, RotateParams};
 
@@ -49,6 +49,9 @@ impl Operator for RotationCombineNode {
     }
     fn check(p: &RotateParams) -> Result<(), RgbnError> {
         p.validate()
+    }
+    fn footprint(_: &RotateParams, _input: usize) -> Footprint {
+        Footprint::POINT
     }
     fn run(p: &RotateParams, i: &Inputs<'_>, _: &RunContext) -> Result<Vec<Value>, RgbnError> {
         let (img, rep) = rotation_combine(

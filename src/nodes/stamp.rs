@@ -1,8 +1,8 @@
 //! The stamp of [`crate::ops::stamp`] as a node: place an RGBN stamp at positions with an affine map
 //! ([`stamp_image`]).
 
-use super::kit::curl_port;
-use super::{Inputs, OpSpec, Operator, PortSpec, PortType, RunContext, Value};
+use super::kit::{curl_port, shift_points};
+use super::{Footprint, Inputs, OpSpec, Operator, PortSpec, PortType, RunContext, Value};
 use crate::error::RgbnError;
 use crate::ops::stamp::{extract, stamp_image, ExtractParams, StampParams};
 
@@ -37,6 +37,20 @@ impl Operator for StampNode {
     }
     fn check(p: &StampParams) -> Result<(), RgbnError> {
         p.validate()
+    }
+    fn footprint(_: &StampParams, input: usize) -> Footprint {
+        // The stamp is used whole at every placement; target and region are differentiated.
+        if input == 1 {
+            Footprint::Global
+        } else {
+            Footprint::Local { halo: 1 }
+        }
+    }
+    fn shifted(p: &StampParams, dx: f64, dy: f64) -> StampParams {
+        StampParams {
+            positions: shift_points(&p.positions, dx, dy),
+            ..p.clone()
+        }
     }
     fn run(p: &StampParams, i: &Inputs<'_>, _: &RunContext) -> Result<Vec<Value>, RgbnError> {
         let region = i.mask("region")?.map(|m| m.data());

@@ -128,6 +128,34 @@ fn check_taps(name: &str, taps: &[f32]) -> Result<(), RgbnError> {
 }
 
 impl Kernel {
+    /// How far (pixels) an output gradient reaches into the input: the largest Gaussian's
+    /// [`convolve::gaussian_support`], the box radius, half a user kernel (plus one for the
+    /// Laplacian of LoG). Region evaluation crops with it (see
+    /// [`crate::nodes::Footprint`]).
+    #[must_use]
+    pub fn support_px(&self) -> usize {
+        let g = |s: &f32| convolve::gaussian_support(*s);
+        match self {
+            Kernel::Gaussian { sigma_px }
+            | Kernel::Sharpen { sigma_px, .. }
+            | Kernel::HighPass { sigma_px } => g(sigma_px),
+            Kernel::LoG { sigma_px } => g(sigma_px) + 1,
+            Kernel::EdgeEnhance {
+                sigma_fine_px,
+                sigma_coarse_px,
+                ..
+            }
+            | Kernel::DoG {
+                sigma_fine_px,
+                sigma_coarse_px,
+            } => g(sigma_fine_px).max(g(sigma_coarse_px)),
+            Kernel::Box { radius_px } => *radius_px as usize,
+            Kernel::DepthScale { .. } => 0,
+            Kernel::Separable { row, col } => row.len().max(col.len()) / 2,
+            Kernel::Dense { width, height, .. } => (*width).max(*height) / 2,
+        }
+    }
+
     /// Checks every parameter; filtering calls this first.
     pub fn validate(&self) -> Result<(), RgbnError> {
         match self {
