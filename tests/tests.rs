@@ -69,3 +69,9 @@ mod stamp_regions;
 
 #[path = "it/extract.rs"]
 mod extract;
+
+#[path = "it/region.rs"]
+mod region;
+
+#[path = "it/region_props.rs"]
+mod region_props;

@@ -23,6 +23,7 @@
 pub mod cache;
 pub mod disk;
 pub mod memory;
+pub mod region;
 
 pub use cache::{CacheEntry, CacheKey, MemCache};
 pub use disk::DiskCache;
@@ -349,6 +350,18 @@ impl EvalResult {
     }
 }
 
+/// What [`Evaluator::eval_instances`] produced.
+struct Whole {
+    /// Outputs of every instance considered, by index.
+    results: HashMap<usize, Arc<CacheEntry>>,
+    /// Stats of each, in index order.
+    stats: Vec<NodeStats>,
+    /// The memory estimate checked.
+    memory: memory::Estimate,
+    /// Content keys computed on the way.
+    keys: HashMap<usize, CacheKey>,
+}
+
 /// A node that ran: its index, outputs and stats.
 type Ran = (usize, Arc<CacheEntry>, NodeStats);
 
@@ -522,23 +535,10 @@ impl Evaluator {
                 }
             }
         }
-        let mut keys = HashMap::new();
-        let mut results: HashMap<usize, Arc<CacheEntry>> = HashMap::new();
-        let mut visited = HashSet::new();
-        let mut to_run = Vec::new();
-        let mut stats: HashMap<usize, NodeStats> = HashMap::new();
+        let mut slots = Vec::new();
         for c in &roots {
             match c {
-                Conn::Slot(i, _) => self.pull(
-                    plan,
-                    *i,
-                    opts,
-                    &mut keys,
-                    &mut visited,
-                    &mut results,
-                    &mut to_run,
-                    &mut stats,
-                )?,
+                Conn::Slot(i, _) => slots.push(*i),
                 Conn::Unbound { name, at } => {
                     return Err(GraphError::UnboundInput {
                         name: name.clone(),
@@ -547,6 +547,47 @@ impl Evaluator {
                 }
                 Conn::None => {}
             }
+        }
+        let whole = self.eval_instances(plan, &slots, opts)?;
+        let mut out = BTreeMap::new();
+        for (name, c) in names.iter().zip(&roots) {
+            if let Conn::Slot(i, p) = c {
+                if let Some(v) = whole.results.get(i).and_then(|e| e.values.get(*p)) {
+                    out.insert(name.clone(), v.clone());
+                }
+            }
+        }
+        Ok(EvalResult {
+            outputs: out,
+            stats: whole.stats,
+            memory: whole.memory,
+        })
+    }
+
+    /// Evaluates instances `roots` of `plan` whole, with everything they need: their results
+    /// (and those of every instance considered), the stats of each, and the memory estimate.
+    fn eval_instances(
+        &self,
+        plan: &Plan,
+        roots: &[usize],
+        opts: &EvalOptions,
+    ) -> Result<Whole, GraphError> {
+        let mut keys = HashMap::new();
+        let mut results: HashMap<usize, Arc<CacheEntry>> = HashMap::new();
+        let mut visited = HashSet::new();
+        let mut to_run = Vec::new();
+        let mut stats: HashMap<usize, NodeStats> = HashMap::new();
+        for &i in roots {
+            self.pull(
+                plan,
+                i,
+                opts,
+                &mut keys,
+                &mut visited,
+                &mut results,
+                &mut to_run,
+                &mut stats,
+            )?;
         }
         // Refuse before running what would not fit in memory (sizes known without running).
         let cached: HashMap<usize, (usize, usize)> = results
@@ -607,20 +648,13 @@ impl Evaluator {
                 stats.insert(i, st);
             }
         }
-        let mut out = BTreeMap::new();
-        for (name, c) in names.iter().zip(&roots) {
-            if let Conn::Slot(i, p) = c {
-                if let Some(v) = results.get(i).and_then(|e| e.values.get(*p)) {
-                    out.insert(name.clone(), v.clone());
-                }
-            }
-        }
         let mut order: Vec<usize> = stats.keys().copied().collect();
         order.sort_unstable();
-        Ok(EvalResult {
-            outputs: out,
+        Ok(Whole {
+            results,
             stats: order.into_iter().filter_map(|i| stats.remove(&i)).collect(),
             memory: estimate,
+            keys,
         })
     }
 

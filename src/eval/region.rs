@@ -1,0 +1,642 @@
+//! Region evaluation: one graph output computed over a rectangle only, tile by tile
+//! (GEGL's `get_required_for_output`, libvips' regions). This module is the only place that
+//! knows about regions; operators state their [`Footprint`] and nothing else.
+//!
+//! 1. **Modes.** Walking up from the requested output, an instance is *tiled* when it has a
+//!    connected input with a [`Footprint::Local`] footprint, is reached only through such
+//!    inputs, and is not read through a `Number` port; everything else (sources, solvers,
+//!    whatever a global operator reads) is evaluated *whole* with the ordinary evaluator and
+//!    cached as before.
+//! 2. **Tiles.** A tiled instance's output plane is cut into `tile × tile` squares on a grid
+//!    anchored at (0, 0). The requested rectangle asks its instance for the tiles covering it;
+//!    each tile that is not in the memory cache asks every local input for the tiles covering
+//!    it grown by the instance's halo (the largest of its inputs'), recursively.
+//! 3. **Computing a tile.** Its inputs are cropped to the tile grown by the halo (clamped to
+//!    the image, so a crop edge is either a real image edge, where the border mode applies as
+//!    on the whole image, or at least a halo away), global inputs are passed whole, and the
+//!    operator runs on the crop with its positional parameters shifted
+//!    ([`crate::nodes::Operator::shifted`]); the tile is cut out of the result. Tiles of one
+//!    instance run in parallel.
+//! 4. **Caching.** Tiles live in the evaluator's byte-budgeted memory cache under
+//!    (content key, level, tile size, tile position); an edit changes the content key of what
+//!    depends on it, so unchanged instances keep their tiles.
+//!
+//! A tiled result equals the whole-image one: bit for bit where an operator's arithmetic does
+//! not depend on where the image ends, and within the documented truncation of a recursive
+//! Gaussian (an impulse response tail below 0.05 % of its peak) otherwise. `Number` outputs are
+//! not computed for tiles (they summarise a whole image).
+
+// Graph errors carry their location by value; they are cold paths.
+#![allow(clippy::result_large_err)]
+
+use super::{CacheEntry, CacheKey, Conn, EvalOptions, Evaluator, NodeStats, Plan};
+use crate::graph::GraphError;
+use crate::nodes::{Footprint, Picture, PortType, RunContext, Value};
+use crate::ops::params::nearest;
+use crate::raster::{Plane, RgbnImage};
+use rayon::prelude::*;
+use std::collections::{BTreeSet, HashMap};
+use std::sync::atomic::Ordering;
+use std::sync::Arc;
+
+/// A pixel rectangle: columns `x..x + w`, rows `y..y + h` (row 0 at the top).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub struct Rect {
+    /// First column.
+    pub x: usize,
+    /// First row.
+    pub y: usize,
+    /// Columns.
+    pub w: usize,
+    /// Rows.
+    pub h: usize,
+}
+
+impl Rect {
+    /// The rectangle at `(x, y)` of `w × h` pixels.
+    #[must_use]
+    pub fn new(x: usize, y: usize, w: usize, h: usize) -> Self {
+        Self { x, y, w, h }
+    }
+    /// A whole `w × h` image.
+    #[must_use]
+    pub fn full((w, h): (usize, usize)) -> Self {
+        Self::new(0, 0, w, h)
+    }
+    /// One past the last column.
+    #[must_use]
+    pub fn right(&self) -> usize {
+        self.x + self.w
+    }
+    /// One past the last row.
+    #[must_use]
+    pub fn bottom(&self) -> usize {
+        self.y + self.h
+    }
+    /// No pixel.
+    #[must_use]
+    pub fn is_empty(&self) -> bool {
+        self.w == 0 || self.h == 0
+    }
+    /// The pixels both cover (possibly empty).
+    #[must_use]
+    pub fn intersect(&self, o: &Rect) -> Rect {
+        let (x, y) = (self.x.max(o.x), self.y.max(o.y));
+        let (r, b) = (self.right().min(o.right()), self.bottom().min(o.bottom()));
+        Rect::new(x, y, r.saturating_sub(x), b.saturating_sub(y))
+    }
+    /// Grown by `halo` on every side, then clamped to a `size` image.
+    #[must_use]
+    pub fn grow(&self, halo: usize, size: (usize, usize)) -> Rect {
+        let (x, y) = (self.x.saturating_sub(halo), self.y.saturating_sub(halo));
+        let r = (self.right() + halo).min(size.0);
+        let b = (self.bottom() + halo).min(size.1);
+        Rect::new(x, y, r.saturating_sub(x), b.saturating_sub(y))
+    }
+    /// Parses `X,Y,W,H` (pixels).
+    pub fn parse(s: &str) -> Result<Rect, String> {
+        let v: Vec<&str> = s.split(',').map(str::trim).collect();
+        let bad = || format!("region {s:?} must be X,Y,W,H in whole pixels, e.g. 0,0,512,512");
+        if v.len() != 4 {
+            return Err(bad());
+        }
+        let mut n = [0usize; 4];
+        for (o, t) in n.iter_mut().zip(&v) {
+            *o = t.parse().map_err(|_| bad())?;
+        }
+        let r = Rect::new(n[0], n[1], n[2], n[3]);
+        if r.is_empty() {
+            return Err(format!("region {s:?} is empty: W and H must be at least 1"));
+        }
+        Ok(r)
+    }
+}
+
+impl std::fmt::Display for Rect {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "{},{},{},{}", self.x, self.y, self.w, self.h)
+    }
+}
+
+/// Tile side in pixels when none is given (see BENCHMARKS.md, "Tile size").
+pub const DEFAULT_TILE: usize = 256;
+
+/// Options of a region evaluation.
+#[derive(Clone, Copy, Debug)]
+pub struct RegionOptions {
+    /// Tile side in pixels (≥ 16).
+    pub tile: usize,
+}
+
+impl Default for RegionOptions {
+    fn default() -> Self {
+        Self { tile: DEFAULT_TILE }
+    }
+}
+
+/// Tiles computed and reused at one tiled instance.
+#[derive(Clone, Debug)]
+pub struct TileStats {
+    /// The instance's node.
+    pub at: crate::graph::At,
+    /// Operator id.
+    pub op: &'static str,
+    /// Tiles computed.
+    pub computed: usize,
+    /// Tiles taken from the cache.
+    pub cached: usize,
+    /// Pixels of the tiles computed.
+    pub pixels: usize,
+}
+
+/// The result of [`Evaluator::eval_region`].
+#[derive(Clone, Debug)]
+pub struct RegionResult {
+    /// The output over the rectangle (its size is the rectangle's).
+    pub value: Value,
+    /// The rectangle, clamped to the output's size.
+    pub rect: Rect,
+    /// The output's whole size.
+    pub size: (usize, usize),
+    /// The instances evaluated whole (sources, global operators).
+    pub whole: Vec<NodeStats>,
+    /// Per tiled instance, in evaluation order.
+    pub tiles: Vec<TileStats>,
+}
+
+impl RegionResult {
+    /// Tiles computed over all instances.
+    #[must_use]
+    pub fn tiles_computed(&self) -> usize {
+        self.tiles.iter().map(|t| t.computed).sum()
+    }
+    /// Pixels of the tiles computed over all instances.
+    #[must_use]
+    pub fn pixels_computed(&self) -> usize {
+        self.tiles.iter().map(|t| t.pixels).sum()
+    }
+}
+
+#[derive(Clone, Copy, PartialEq, Eq, Debug)]
+enum Mode {
+    Unneeded,
+    Tiled,
+    Whole,
+}
+
+/// The largest halo of an instance's local inputs, `None` when it has no connected local
+/// input (then it is evaluated whole).
+fn local_halo(plan: &Plan, i: usize) -> Option<usize> {
+    let inst = &plan.instances[i];
+    if inst.op.spec().side_effect {
+        return None;
+    }
+    inst.inputs
+        .iter()
+        .enumerate()
+        .filter(|(_, c)| matches!(c, Conn::Slot(..)))
+        .filter_map(|(k, _)| match inst.op.footprint(&inst.params, k) {
+            Footprint::Local { halo } => Some(halo),
+            Footprint::Global => None,
+        })
+        .max()
+}
+
+fn tile_key(key: CacheKey, tile: usize, level: u32, tx: usize, ty: usize) -> CacheKey {
+    let mut h = xxhash_rust::xxh3::Xxh3::new();
+    h.update(b"rgbn-tile-1\0");
+    h.update(&key.to_le_bytes());
+    for v in [tile as u64, u64::from(level), tx as u64, ty as u64] {
+        h.update(&v.to_le_bytes());
+    }
+    h.digest128()
+}
+
+/// The tiles (column, row of the grid) covering `r`.
+fn covering(r: &Rect, tile: usize) -> impl Iterator<Item = (usize, usize)> {
+    let (x0, x1) = (r.x / tile, r.right().div_ceil(tile));
+    let (y0, y1) = (r.y / tile, r.bottom().div_ceil(tile));
+    let empty = r.is_empty();
+    (y0..y1)
+        .flat_map(move |ty| (x0..x1).map(move |tx| (tx, ty)))
+        .filter(move |_| !empty)
+}
+
+fn tile_rect((tx, ty): (usize, usize), tile: usize, size: (usize, usize)) -> Rect {
+    Rect::new(tx * tile, ty * tile, tile, tile).intersect(&Rect::full(size))
+}
+
+/// A tile's column and row in the grid.
+type Tile = (usize, usize);
+
+type TileMap = HashMap<Tile, Arc<CacheEntry>>;
+
+impl Evaluator {
+    /// Evaluates graph output `output` over `rect` only (clamped to the output's size), tile by
+    /// tile (module docs). The instances it cannot tile are evaluated whole and cached as by
+    /// [`Evaluator::eval`].
+    pub fn eval_region(
+        &self,
+        plan: &Plan,
+        output: &str,
+        rect: Rect,
+        ropts: &RegionOptions,
+        opts: &EvalOptions,
+    ) -> Result<RegionResult, GraphError> {
+        let tile = ropts.tile.max(16);
+        let (root, root_port) = match plan.outputs.get(output) {
+            Some(Conn::Slot(i, p)) => (*i, *p),
+            Some(Conn::Unbound { name, at }) => {
+                return Err(GraphError::UnboundInput {
+                    name: name.clone(),
+                    at: at.clone(),
+                })
+            }
+            Some(Conn::None) | None => {
+                return Err(GraphError::Unknown {
+                    what: "graph output",
+                    name: output.to_string(),
+                    suggestion: nearest(output, plan.outputs.keys().map(String::as_str)),
+                    at: plan.at.clone(),
+                })
+            }
+        };
+        if plan.output_types.get(output) == Some(&PortType::Number) {
+            return Err(GraphError::Param {
+                param: "region".into(),
+                detail: format!(
+                    "graph output {output:?} is a number, which has no region; ask for an image, mask, field or picture output"
+                ),
+                at: plan.at.clone(),
+            });
+        }
+        // 1. Modes, from the output up (instances are in topological order).
+        let n = plan.instances.len();
+        let mut mode = vec![Mode::Unneeded; n];
+        mode[root] = if local_halo(plan, root).is_some() {
+            Mode::Tiled
+        } else {
+            Mode::Whole
+        };
+        for i in (0..=root).rev() {
+            if mode[i] == Mode::Unneeded {
+                continue;
+            }
+            let inst = &plan.instances[i];
+            for (k, c) in inst.inputs.iter().enumerate() {
+                let Conn::Slot(j, port) = c else { continue };
+                let number = plan.instances[*j]
+                    .op
+                    .spec()
+                    .outputs
+                    .get(*port)
+                    .is_some_and(|p| p.ty == PortType::Number);
+                let local = mode[i] == Mode::Tiled
+                    && !number
+                    && matches!(inst.op.footprint(&inst.params, k), Footprint::Local { .. })
+                    && local_halo(plan, *j).is_some();
+                mode[*j] = match (mode[*j], local) {
+                    (Mode::Whole, _) | (_, false) => Mode::Whole,
+                    _ => Mode::Tiled,
+                };
+            }
+        }
+        // 2. Whole instances that tiled ones (or the request) read directly.
+        let whole_roots: Vec<usize> = (0..n)
+            .filter(|&j| mode[j] == Mode::Whole)
+            .filter(|&j| {
+                j == root
+                    || plan.instances.iter().enumerate().any(|(i, inst)| {
+                        mode[i] == Mode::Tiled
+                            && inst
+                                .inputs
+                                .iter()
+                                .any(|c| matches!(c, Conn::Slot(s, _) if *s == j))
+                    })
+            })
+            .collect();
+        let whole = self.eval_instances(plan, &whole_roots, opts)?;
+        let mut keys = whole.keys;
+        // 3. Sizes of tiled instances: their first connected local input's.
+        let mut size: Vec<Option<(usize, usize)>> = vec![None; n];
+        for (j, e) in &whole.results {
+            size[*j] = e.values.iter().find_map(super::memory::value_size);
+        }
+        for i in 0..=root {
+            if mode[i] != Mode::Tiled {
+                continue;
+            }
+            let inst = &plan.instances[i];
+            size[i] = inst.inputs.iter().enumerate().find_map(|(k, c)| match c {
+                Conn::Slot(j, _)
+                    if matches!(inst.op.footprint(&inst.params, k), Footprint::Local { .. }) =>
+                {
+                    size[*j]
+                }
+                _ => None,
+            });
+            self.key(plan, i, &mut keys)?;
+        }
+        let Some(out_size) = size[root] else {
+            return Err(GraphError::Param {
+                param: "region".into(),
+                detail: format!("graph output {output:?} has no pixel size"),
+                at: plan.at.clone(),
+            });
+        };
+        let rect = rect.intersect(&Rect::full(out_size));
+        if rect.is_empty() {
+            return Err(GraphError::Param {
+                param: "region".into(),
+                detail: format!(
+                    "the region lies outside graph output {output:?} ({}×{})",
+                    out_size.0, out_size.1
+                ),
+                at: plan.at.clone(),
+            });
+        }
+        if mode[root] == Mode::Whole {
+            let v = whole.results[&root].values[root_port].clone();
+            return Ok(RegionResult {
+                value: crop(&v, rect),
+                rect,
+                size: out_size,
+                whole: whole.stats,
+                tiles: Vec::new(),
+            });
+        }
+        // 4. Tiles wanted per tiled instance, and those to compute (not cached).
+        let mut want: Vec<BTreeSet<(usize, usize)>> = vec![BTreeSet::new(); n];
+        want[root].extend(covering(&rect, tile));
+        let mut have: Vec<TileMap> = vec![HashMap::new(); n];
+        let mut todo: Vec<Vec<(usize, usize)>> = vec![Vec::new(); n];
+        for i in (0..=root).rev() {
+            if mode[i] != Mode::Tiled || want[i].is_empty() {
+                continue;
+            }
+            let inst = &plan.instances[i];
+            let (key, sz) = (keys[&i], size[i].unwrap_or_default());
+            let halo = local_halo(plan, i).unwrap_or(0);
+            let wanted = std::mem::take(&mut want[i]);
+            for t in wanted {
+                if let Some(e) = self.mem_get(tile_key(key, tile, 0, t.0, t.1)) {
+                    have[i].insert(t, e);
+                    continue;
+                }
+                todo[i].push(t);
+                let need = tile_rect(t, tile, sz).grow(halo, sz);
+                for (k, c) in inst.inputs.iter().enumerate() {
+                    let Conn::Slot(j, _) = c else { continue };
+                    if mode[*j] == Mode::Tiled
+                        && matches!(inst.op.footprint(&inst.params, k), Footprint::Local { .. })
+                    {
+                        want[*j].extend(covering(&need, tile));
+                    }
+                }
+            }
+        }
+        // 5. Compute, instance by instance in order, the tiles of each in parallel.
+        let ctx = RunContext {
+            protected: plan.protected.clone(),
+        };
+        let mut tiles = Vec::new();
+        for i in 0..=root {
+            if mode[i] != Mode::Tiled || (todo[i].is_empty() && have[i].is_empty()) {
+                continue;
+            }
+            let inst = &plan.instances[i];
+            let spec = inst.op.spec();
+            let (key, sz) = (keys[&i], size[i].unwrap_or_default());
+            let halo = local_halo(plan, i).unwrap_or(0);
+            let computed: Vec<Result<(Tile, Arc<CacheEntry>), GraphError>> = todo[i]
+                .par_iter()
+                .map(|&t| {
+                    if opts
+                        .cancel
+                        .as_ref()
+                        .is_some_and(|c| c.load(Ordering::Relaxed))
+                    {
+                        return Err(GraphError::Cancelled);
+                    }
+                    let tr = tile_rect(t, tile, sz);
+                    let crop_rect = tr.grow(halo, sz);
+                    let inputs: Vec<Option<Value>> = inst
+                        .inputs
+                        .iter()
+                        .enumerate()
+                        .map(|(k, c)| {
+                            let Conn::Slot(j, port) = c else { return None };
+                            let local = matches!(
+                                inst.op.footprint(&inst.params, k),
+                                Footprint::Local { .. }
+                            );
+                            match (mode[*j], local) {
+                                (Mode::Tiled, _) => Some(assemble(
+                                    &have[*j],
+                                    *port,
+                                    tile,
+                                    size[*j].unwrap_or_default(),
+                                    crop_rect,
+                                )),
+                                (_, true) => whole.results[j]
+                                    .values
+                                    .get(*port)
+                                    .map(|v| crop(v, crop_rect)),
+                                (_, false) => whole.results[j].values.get(*port).cloned(),
+                            }
+                        })
+                        .collect();
+                    let values = inst
+                        .op
+                        .run_at(&inst.params, &inputs, &ctx, (crop_rect.x, crop_rect.y))
+                        .map_err(|source| GraphError::Node {
+                            op: spec.id.to_string(),
+                            source,
+                            at: inst.at.clone(),
+                        })?;
+                    let inner = Rect::new(tr.x - crop_rect.x, tr.y - crop_rect.y, tr.w, tr.h);
+                    let values = values
+                        .iter()
+                        .map(|v| match v {
+                            Value::Number(_) => Value::Number(f64::NAN),
+                            v => crop(v, inner),
+                        })
+                        .collect();
+                    let e = Arc::new(CacheEntry {
+                        values,
+                        curl: None,
+                        fraction: None,
+                    });
+                    self.mem_insert(tile_key(key, tile, 0, t.0, t.1), e.clone());
+                    Ok((t, e))
+                })
+                .collect();
+            let mut st = TileStats {
+                at: inst.at.clone(),
+                op: spec.id,
+                computed: 0,
+                cached: have[i].len(),
+                pixels: 0,
+            };
+            for r in computed {
+                let (t, e) = r?;
+                let tr = tile_rect(t, tile, sz);
+                st.computed += 1;
+                st.pixels += tr.w * tr.h;
+                have[i].insert(t, e);
+            }
+            tiles.push(st);
+        }
+        let value = assemble(&have[root], root_port, tile, out_size, rect);
+        Ok(RegionResult {
+            value,
+            rect,
+            size: out_size,
+            whole: whole.stats,
+            tiles,
+        })
+    }
+
+    fn mem_get(&self, key: CacheKey) -> Option<Arc<CacheEntry>> {
+        super::lock(&self.mem).get(key)
+    }
+
+    fn mem_insert(&self, key: CacheKey, e: Arc<CacheEntry>) {
+        super::lock(&self.mem).insert(key, e);
+    }
+}
+
+/// Copies the `r.w × r.h` block at `(sx, sy)` of `src` (row length `sw`, `c` values per pixel)
+/// to `(dx, dy)` of `dst` (row length `dw`).
+#[allow(clippy::too_many_arguments)]
+fn blit<T: Copy>(
+    src: &[T],
+    sw: usize,
+    (sx, sy): (usize, usize),
+    dst: &mut [T],
+    dw: usize,
+    (dx, dy): (usize, usize),
+    (w, h): (usize, usize),
+    c: usize,
+) {
+    for r in 0..h {
+        let s = ((sy + r) * sw + sx) * c;
+        let d = ((dy + r) * dw + dx) * c;
+        dst[d..d + w * c].copy_from_slice(&src[s..s + w * c]);
+    }
+}
+
+/// A value's pixel size (`None` for numbers).
+fn dims(v: &Value) -> Option<(usize, usize)> {
+    super::memory::value_size(v)
+}
+
+/// An empty value shaped like `like` (same kind, mask present or not), `w × h`.
+fn blank(like: &Value, (w, h): (usize, usize)) -> Value {
+    let n = w * h;
+    match like {
+        Value::Rgbn(img) => {
+            let planes = || std::array::from_fn(|_| vec![0.0f32; n]);
+            let mask = img.mask().map(|_| vec![0.0f32; n]);
+            Value::Rgbn(
+                RgbnImage::new(w, h, planes(), planes(), mask).expect("planes of the right size"),
+            )
+        }
+        Value::Mask(_) => Value::Mask(Arc::new(Plane::filled(w, h, 0.0))),
+        Value::Scalar(_) => Value::Scalar(Arc::new(Plane::filled(w, h, 0.0))),
+        Value::Picture(_) => Value::Picture(Arc::new(Picture {
+            width: w,
+            height: h,
+            rgba: vec![0; 4 * n],
+        })),
+        Value::Number(v) => Value::Number(*v),
+    }
+}
+
+/// Copies `part` (covering `at` of the whole image) into `dst` (covering `to`), where they
+/// overlap.
+fn paste(dst: &mut Value, to: Rect, part: &Value, at: Rect) {
+    let o = to.intersect(&at);
+    if o.is_empty() {
+        return;
+    }
+    let s = (o.x - at.x, o.y - at.y);
+    let d = (o.x - to.x, o.y - to.y);
+    let wh = (o.w, o.h);
+    match (dst, part) {
+        (Value::Rgbn(di), Value::Rgbn(si)) => {
+            let [sc, sn] = [si.color(), si.normal()];
+            for (dp, sp) in di.color_mut().iter_mut().zip(sc) {
+                blit(sp, at.w, s, dp, to.w, d, wh, 1);
+            }
+            for (dp, sp) in di.normal_mut().iter_mut().zip(sn) {
+                blit(sp, at.w, s, dp, to.w, d, wh, 1);
+            }
+            if let (Some(sm), true) = (si.mask(), di.mask().is_some()) {
+                let mut m = di.mask().expect("checked").to_vec();
+                blit(sm, at.w, s, &mut m, to.w, d, wh, 1);
+                di.set_mask(Some(m)).expect("same size");
+            }
+        }
+        (Value::Mask(dp), Value::Mask(sp)) | (Value::Scalar(dp), Value::Scalar(sp)) => {
+            blit(
+                sp.data(),
+                at.w,
+                s,
+                Arc::make_mut(dp).data_mut(),
+                to.w,
+                d,
+                wh,
+                1,
+            );
+        }
+        (Value::Picture(dp), Value::Picture(sp)) => {
+            blit(
+                &sp.rgba,
+                at.w,
+                s,
+                &mut Arc::make_mut(dp).rgba,
+                to.w,
+                d,
+                wh,
+                4,
+            );
+        }
+        _ => {}
+    }
+}
+
+/// `r` (in `v`'s own pixel coordinates) cut out of `v`; numbers are returned as they are.
+#[must_use]
+pub fn crop(v: &Value, r: Rect) -> Value {
+    let Some(sz) = dims(v) else {
+        return v.clone();
+    };
+    if r == Rect::full(sz) {
+        return v.clone();
+    }
+    let mut out = blank(v, (r.w, r.h));
+    paste(&mut out, r, v, Rect::full(sz));
+    out
+}
+
+/// Port `port` of the tiles `have` of a `size` image, over `r`.
+fn assemble(have: &TileMap, port: usize, tile: usize, size: (usize, usize), r: Rect) -> Value {
+    let mut parts = covering(&r, tile).filter_map(|t| {
+        have.get(&t)
+            .and_then(|e| e.values.get(port))
+            .map(|v| (tile_rect(t, tile, size), v))
+    });
+    let Some((first_rect, first)) = parts.next() else {
+        return Value::Number(f64::NAN);
+    };
+    if first_rect == r {
+        return first.clone();
+    }
+    let mut out = blank(first, (r.w, r.h));
+    paste(&mut out, r, first, first_rect);
+    for (at, v) in parts {
+        paste(&mut out, r, v, at);
+    }
+    out
+}
