@@ -1,12 +1,10 @@
 //! Region evaluation on random images: every local operator, border mode, mask and tile size
 //! gives over a random rectangle what the whole-image evaluation gives there.
 
-use crate::common::*;
 use proptest::prelude::*;
 use rgbn::eval::region::{crop, Rect, RegionOptions};
 use rgbn::eval::{EvalOptions, Evaluator, Plan};
 use rgbn::graph::LoadedGraph;
-use rgbn::ops::Value;
 use rgbn::raster::io::{save, SaveOptions};
 use rgbn::raster::RgbnImage;
 use std::collections::BTreeMap;
@@ -24,13 +22,13 @@ fn random_image(w: usize, h: usize, seed: u64) -> RgbnImage {
     };
     let n = w * h;
     let color: [Vec<f32>; 3] = std::array::from_fn(|_| (0..n).map(|_| u()).collect());
-    let mut normal: [Vec<f32>; 3] = std::array::from_fn(|_| vec![0.0; n]);
-    for i in 0..n {
+    let mut normal: [Vec<f32>; 3] = std::array::from_fn(|_| Vec::with_capacity(n));
+    for _ in 0..n {
         let (p, q) = (2.0 * u() - 1.0, 2.0 * u() - 1.0);
         let l = (p * p + q * q + 1.0).sqrt();
-        normal[0][i] = -p / l;
-        normal[1][i] = -q / l;
-        normal[2][i] = 1.0 / l;
+        for (plane, v) in normal.iter_mut().zip([-p / l, -q / l, 1.0 / l]) {
+            plane.push(v);
+        }
     }
     RgbnImage::new(w, h, color, normal, None).unwrap()
 }
