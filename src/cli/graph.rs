@@ -3,6 +3,7 @@
 use super::error::{message, usage, CliError};
 use super::out::Out;
 use crate::error::RgbnError;
+use crate::eval::region::{Rect, RegionOptions, DEFAULT_TILE};
 use crate::eval::{EvalOptions, EvalResult, Evaluator, Plan, Status};
 use crate::graph::{GraphError, LoadedGraph};
 use crate::ops::params::{ParamKind, ParamValue};
@@ -42,6 +43,14 @@ pub struct EvalArgs {
     /// Keep node results in this folder and reuse them across runs.
     #[arg(long, value_name = "DIR")]
     pub cache_dir: Option<PathBuf>,
+    /// Evaluate only this rectangle of the outputs, X,Y,W,H in pixels: the engine computes
+    /// the tiles it covers plus the halos the operators need (whole only where an operator is
+    /// global). Each -o file then holds the rectangle; number outputs have no region.
+    #[arg(long, value_name = "X,Y,W,H", value_parser = Rect::parse)]
+    pub region: Option<Rect>,
+    /// Tile side in pixels for --region.
+    #[arg(long, value_name = "PX", default_value_t = DEFAULT_TILE as u64, value_parser = clap::value_parser!(u64).range(16..=8192))]
+    pub tile: u64,
 }
 
 /// `rgbn batch`.
@@ -302,6 +311,10 @@ pub fn eval_cmd(a: &EvalArgs, out: &mut Out<'_>) -> Result<(), CliError> {
         })),
         curl_stats: a.stats,
     };
+    if let Some(rect) = a.region {
+        pb.finish_and_clear();
+        return eval_region(a, &plan, &ev, rect, &requested, &opts, out);
+    }
     let r = ev.eval(&plan, &names, &opts);
     pb.finish_and_clear();
     let r = r?;
@@ -322,6 +335,70 @@ pub fn eval_cmd(a: &EvalArgs, out: &mut Out<'_>) -> Result<(), CliError> {
     }
     if a.stats {
         print_stats(out, &r, &plan.at.file)?;
+    }
+    Ok(())
+}
+
+/// `rgbn eval --region`: each requested output (every image-like output without -o) over
+/// the rectangle.
+fn eval_region(
+    a: &EvalArgs,
+    plan: &Plan,
+    ev: &Evaluator,
+    rect: Rect,
+    requested: &[(String, PathBuf)],
+    opts: &EvalOptions,
+    out: &mut Out<'_>,
+) -> Result<(), CliError> {
+    let ropts = RegionOptions {
+        tile: a.tile as usize,
+    };
+    let names: Vec<(String, Option<&PathBuf>)> = if requested.is_empty() {
+        plan.output_types
+            .iter()
+            .filter(|(_, t)| **t != PortType::Number)
+            .map(|(n, _)| (n.clone(), None))
+            .collect()
+    } else {
+        requested
+            .iter()
+            .map(|(n, p)| (n.clone(), Some(p)))
+            .collect()
+    };
+    for (name, path) in names {
+        let r = ev.eval_region(plan, &name, rect, &ropts, opts)?;
+        super::interrupt::check()?;
+        let what = format!(
+            "{} of {}×{} at {}",
+            describe_value(&r.value),
+            r.size.0,
+            r.size.1,
+            r.rect
+        );
+        match path {
+            Some(path) => {
+                write_value(&r.value, path, &SaveOptions::default())?;
+                out.line(format_args!("wrote {name} ({what}): {}", path.display()))?;
+            }
+            None => out.line(format_args!("{name}: {what}"))?,
+        }
+        if a.stats {
+            out.line(format_args!(
+                "{:<28} {:<18} {:>9} {:>9} {:>12}",
+                "tiled node", "op", "computed", "cached", "pixels"
+            ))?;
+            for t in &r.tiles {
+                let node = match (t.at.node, &t.at.name) {
+                    (Some(id), Some(n)) => format!("{id} {n}"),
+                    (Some(id), None) => id.to_string(),
+                    _ => t.at.file.clone(),
+                };
+                out.line(format_args!(
+                    "{:<28} {:<18} {:>9} {:>9} {:>12}",
+                    node, t.op, t.computed, t.cached, t.pixels
+                ))?;
+            }
+        }
     }
     Ok(())
 }

@@ -132,3 +132,51 @@ fn every_graph_output_over_a_region_equals_the_whole_results_crop() {
     }
     assert!(tiled > 40, "only {tiled} tiled node evaluations");
 }
+
+#[test]
+fn cli_eval_region_writes_the_rectangle_of_the_whole_output() {
+    let d = tempfile::tempdir().unwrap();
+    let graph = graph_path("filter_gaussian.ron");
+    let part = d.path().join("part.exr");
+    let o = rgbn(&[
+        "eval",
+        graph.to_str().unwrap(),
+        "--region",
+        "10,20,30,40",
+        "--tile",
+        "16",
+        "--stats",
+        "-o",
+        &format!("image={}", part.display()),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(stdout(&o).contains("at 10,20,30,40"), "{}", stdout(&o));
+    let got = rgbn::raster::io::load_exr(&part, &Default::default()).unwrap();
+    let lg = LoadedGraph::load(&graph).unwrap();
+    let whole = eval_all(&Evaluator::default(), &lg, d.path());
+    let want = crop(&whole.outputs["image"], Rect::new(10, 20, 30, 40));
+    // EXR at full precision: the file holds the rectangle's values (σ < 3: exact FIR).
+    let d = max_diff(&want, &Value::Rgbn(got));
+    assert!(d <= 2e-6, "{d}");
+    // A number output has no region; a rectangle outside the image is refused.
+    for (region, msg) in [("0,0,8,8", "no region"), ("500,0,8,8", "outside")] {
+        let o = rgbn(&[
+            "eval",
+            graph.to_str().unwrap(),
+            "--region",
+            region,
+            "-o",
+            &format!(
+                "{}={}",
+                if msg == "no region" { "curl" } else { "image" },
+                d_path(&part)
+            ),
+        ]);
+        assert_eq!(o.status.code(), Some(2), "{region}");
+        assert!(stderr(&o).contains(msg), "{region}: {}", stderr(&o));
+    }
+}
+
+fn d_path(p: &std::path::Path) -> String {
+    p.with_file_name("other.exr").display().to_string()
+}
