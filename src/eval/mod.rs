@@ -377,6 +377,8 @@ pub struct Evaluator {
     mem: Mutex<MemCache>,
     disk: Option<DiskCache>,
     files: Mutex<HashMap<PathBuf, FileStamp>>,
+    /// What each tiled instance was at its last region evaluation (for damage).
+    seen: Mutex<region::History>,
 }
 
 impl std::fmt::Debug for Evaluator {
@@ -408,6 +410,7 @@ impl Evaluator {
             mem: Mutex::new(MemCache::new(budget_bytes)),
             disk: None,
             files: Mutex::new(HashMap::new()),
+            seen: Mutex::new(region::History::default()),
         }
     }
 

@@ -33,9 +33,10 @@ use super::{CacheEntry, CacheKey, Conn, EvalOptions, Evaluator, NodeStats, Plan}
 use crate::graph::GraphError;
 use crate::nodes::{Footprint, Picture, PortType, RunContext, Value};
 use crate::ops::params::nearest;
+use crate::ops::params::ParamValue;
 use crate::raster::{Plane, RgbnImage};
 use rayon::prelude::*;
-use std::collections::{BTreeSet, HashMap};
+use std::collections::{BTreeMap, BTreeSet, HashMap};
 use std::sync::atomic::Ordering;
 use std::sync::Arc;
 
@@ -145,6 +146,9 @@ pub struct TileStats {
     pub computed: usize,
     /// Tiles taken from the cache.
     pub cached: usize,
+    /// Tiles taken from the previous result because an edit cannot have changed them (they
+    /// lie outside its damage).
+    pub reused: usize,
     /// Pixels of the tiles computed.
     pub pixels: usize,
 }
@@ -175,6 +179,69 @@ impl RegionResult {
     pub fn pixels_computed(&self) -> usize {
         self.tiles.iter().map(|t| t.pixels).sum()
     }
+}
+
+/// A tiled instance as last evaluated: what a later evaluation compares with to find what an
+/// edit changed (damage).
+#[derive(Clone, Debug)]
+struct Seen {
+    key: CacheKey,
+    params: BTreeMap<String, ParamValue>,
+    /// Content keys of the inputs in port order.
+    inputs: Vec<Option<CacheKey>>,
+    /// The edits that led to `key`, oldest first: each an earlier key and what changed from
+    /// it to the next one.
+    trail: Trail,
+}
+
+/// Earlier keys of an instance, oldest first, each with the pixels that may differ from it to
+/// the next key (`None`: anywhere).
+type Trail = Vec<(CacheKey, Option<Vec<Rect>>)>;
+
+/// Edits remembered per instance.
+const TRAIL: usize = 16;
+
+/// The pixels that may differ between key `from` of an instance and its current key, from its
+/// trail (`None`: anywhere, or `from` not in the trail).
+fn damage_since(trail: &Trail, from: CacheKey) -> Option<Vec<Rect>> {
+    let mut acc = Vec::new();
+    for (k, d) in trail.iter().rev() {
+        acc.extend(d.as_ref()?.iter().copied());
+        if *k == from {
+            return Some(acc);
+        }
+    }
+    None
+}
+
+/// The evaluator's memory of tiled instances, by (instance index, operator, file, node id):
+/// a plan rebuilt after an edit keeps its indices while the graph's shape stays the same.
+#[derive(Default, Debug)]
+pub(super) struct History {
+    seen: HashMap<(usize, &'static str, String, Option<u64>), Seen>,
+}
+
+/// The damage boxes of an operator as pixel rectangles of a `size` image.
+fn boxes_to_rects(boxes: &[[f64; 4]], size: (usize, usize)) -> Vec<Rect> {
+    boxes
+        .iter()
+        .filter_map(|b| {
+            let clamp = |v: f64, n: usize| {
+                if v.is_nan() {
+                    0
+                } else {
+                    v.clamp(0.0, n as f64) as usize
+                }
+            };
+            let (x0, y0) = (clamp(b[0].floor(), size.0), clamp(b[1].floor(), size.1));
+            let (x1, y1) = (
+                clamp(b[2].ceil() + 1.0, size.0),
+                clamp(b[3].ceil() + 1.0, size.1),
+            );
+            let r = Rect::new(x0, y0, x1.saturating_sub(x0), y1.saturating_sub(y0));
+            (!r.is_empty()).then_some(r)
+        })
+        .collect()
 }
 
 #[derive(Clone, Copy, PartialEq, Eq, Debug)]
@@ -337,6 +404,51 @@ impl Evaluator {
             });
             self.key(plan, i, &mut keys)?;
         }
+        // Damage: what each tiled instance's edit (its parameters, its inputs' damage grown by
+        // its halo) can have changed since it was last evaluated.
+        let mut trails: Vec<Trail> = vec![Vec::new(); n];
+        {
+            let mut hist = super::lock(&self.seen);
+            for i in 0..=root {
+                if mode[i] != Mode::Tiled {
+                    continue;
+                }
+                let inst = &plan.instances[i];
+                let spec = inst.op.spec();
+                let ident = (i, spec.id, inst.at.file.clone(), inst.at.node);
+                let input_keys: Vec<Option<CacheKey>> = inst
+                    .inputs
+                    .iter()
+                    .map(|c| match c {
+                        Conn::Slot(j, port) => keys.get(j).map(|k| k ^ (*port as u128)),
+                        _ => None,
+                    })
+                    .collect();
+                let key = keys[&i];
+                let trail = match hist.seen.get(&ident) {
+                    Some(old) if old.key == key => old.trail.clone(),
+                    Some(old) if old.inputs.len() == input_keys.len() => {
+                        let d = self.damage_of(plan, i, old, &input_keys, &trails, &size);
+                        let mut t = old.trail.clone();
+                        t.push((old.key, d));
+                        let cut = t.len().saturating_sub(TRAIL);
+                        t.drain(..cut);
+                        t
+                    }
+                    _ => Vec::new(),
+                };
+                trails[i] = trail.clone();
+                hist.seen.insert(
+                    ident,
+                    Seen {
+                        key,
+                        params: inst.params.clone(),
+                        inputs: input_keys,
+                        trail,
+                    },
+                );
+            }
+        }
         let Some(out_size) = size[root] else {
             return Err(GraphError::Param {
                 param: "region".into(),
@@ -370,6 +482,7 @@ impl Evaluator {
         want[root].extend(covering(&rect, tile));
         let mut have: Vec<TileMap> = vec![HashMap::new(); n];
         let mut todo: Vec<Vec<(usize, usize)>> = vec![Vec::new(); n];
+        let mut reused = vec![0usize; n];
         for i in (0..=root).rev() {
             if mode[i] != Mode::Tiled || want[i].is_empty() {
                 continue;
@@ -381,6 +494,22 @@ impl Evaluator {
             for t in wanted {
                 if let Some(e) = self.mem_get(tile_key(key, tile, 0, t.0, t.1)) {
                     have[i].insert(t, e);
+                    continue;
+                }
+                // The same tile of an earlier key, if no edit since can have changed it.
+                let tr = tile_rect(t, tile, sz);
+                let earlier = trails[i]
+                    .iter()
+                    .rev()
+                    .map_while(|(k, d)| {
+                        let clear = d.as_ref()?.iter().all(|d| d.intersect(&tr).is_empty());
+                        clear.then_some(*k)
+                    })
+                    .find_map(|k| self.mem_get(tile_key(k, tile, 0, t.0, t.1)));
+                if let Some(e) = earlier {
+                    self.mem_insert(tile_key(key, tile, 0, t.0, t.1), e.clone());
+                    have[i].insert(t, e);
+                    reused[i] += 1;
                     continue;
                 }
                 todo[i].push(t);
@@ -475,7 +604,8 @@ impl Evaluator {
                 at: inst.at.clone(),
                 op: spec.id,
                 computed: 0,
-                cached: have[i].len(),
+                cached: have[i].len() - reused[i],
+                reused: reused[i],
                 pixels: 0,
             };
             for r in computed {
@@ -495,6 +625,49 @@ impl Evaluator {
             whole: whole.stats,
             tiles,
         })
+    }
+
+    /// The pixels instance `i` may have changed since `old`, given its inputs' keys now and the
+    /// changes found for the instances before it (`None`: anywhere).
+    fn damage_of(
+        &self,
+        plan: &Plan,
+        i: usize,
+        old: &Seen,
+        input_keys: &[Option<CacheKey>],
+        trails: &[Trail],
+        size: &[Option<(usize, usize)>],
+    ) -> Option<Vec<Rect>> {
+        let inst = &plan.instances[i];
+        let sz = size[i]?;
+        let mut out = Vec::new();
+        for (k, c) in inst.inputs.iter().enumerate() {
+            if input_keys[k] == old.inputs[k] {
+                continue;
+            }
+            // A changed input: only a tiled one whose change is known from exactly the key
+            // seen last time, through a local footprint.
+            let Conn::Slot(j, port) = c else { return None };
+            let Footprint::Local { halo } = inst.op.footprint(&inst.params, k) else {
+                return None;
+            };
+            let from = old.inputs[k]? ^ (*port as u128);
+            let rects = damage_since(&trails[*j], from)?;
+            out.extend(rects.iter().map(|r| r.grow(halo, sz)));
+        }
+        if inst.params != old.params {
+            let sizes: Vec<Option<(usize, usize)>> = inst
+                .inputs
+                .iter()
+                .map(|c| match c {
+                    Conn::Slot(j, _) => size[*j],
+                    _ => None,
+                })
+                .collect();
+            let boxes = inst.op.damage(&old.params, &inst.params, &sizes)?;
+            out.extend(boxes_to_rects(&boxes, sz));
+        }
+        Some(out)
     }
 
     fn mem_get(&self, key: CacheKey) -> Option<Arc<CacheEntry>> {

@@ -7,6 +7,7 @@ use super::{Footprint, Inputs, OpSpec, Operator, PortSpec, PortType, RunContext,
 use crate::error::RgbnError;
 use crate::ops::brush::{brush_image, SimpleBrushParams};
 use crate::ops::filter::Kernel;
+use crate::ops::geom::{changed_path_bounds, paths_bounds};
 use std::sync::Arc;
 
 /// Filter brush.
@@ -60,6 +61,32 @@ impl Operator for BrushNode {
             points: shift_points(&p.points, dx, dy),
             ..p.clone()
         }
+    }
+    fn damage(
+        old: &SimpleBrushParams,
+        new: &SimpleBrushParams,
+        inputs: &[Option<(usize, usize)>],
+    ) -> Option<Vec<[f64; 4]>> {
+        // g′ = m·K(g) + (1 − m)·g: only the stroke's weight m moves when only its points do.
+        let same_but_points = SimpleBrushParams {
+            points: new.points.clone(),
+            ..old.clone()
+        } == *new;
+        let reach = |p: &SimpleBrushParams| p.radius_px + p.feather_px + 2.0;
+        if same_but_points {
+            return Some(changed_path_bounds(
+                &old.points,
+                &new.points,
+                0.0,
+                reach(new),
+            ));
+        }
+        // Another kernel changes the result wherever m > 0: inside the strokes, unless a mask
+        // input adds to m.
+        if inputs.get(1).is_some_and(Option::is_some) {
+            return None;
+        }
+        paths_bounds(&[&old.points, &new.points], reach(old).max(reach(new))).map(|b| vec![b])
     }
     fn run(p: &SimpleBrushParams, i: &Inputs<'_>, _: &RunContext) -> Result<Vec<Value>, RgbnError> {
         let img = i.rgbn("image")?;

@@ -407,6 +407,18 @@ pub trait Operator: Send + Sync + 'static {
     fn shifted(params: &Self::Params, _dx: f64, _dy: f64) -> Self::Params {
         params.clone()
     }
+    /// Where the outputs can change when the parameters go from `old` to `new` and the inputs
+    /// (sizes in port order, `None` when unconnected) stay the same: boxes
+    /// `[x0, y0, x1, y1]` in pixel coordinates (pixel centres at whole numbers), or `None` for
+    /// anywhere (GEGL's `get_invalidated_by_change`). The evaluator reuses every tile outside
+    /// them. Default: anywhere.
+    fn damage(
+        _old: &Self::Params,
+        _new: &Self::Params,
+        _inputs: &[Option<(usize, usize)>],
+    ) -> Option<Vec<[f64; 4]>> {
+        None
+    }
 }
 
 /// The object-safe face of an [`Operator`], as held by the registry.
@@ -438,6 +450,13 @@ pub trait DynOp: Send + Sync {
     fn scratch(&self) -> f64;
     /// [`Operator::footprint`] on canonical params (`Global` when they do not parse).
     fn footprint(&self, values: &BTreeMap<String, ParamValue>, input: usize) -> Footprint;
+    /// [`Operator::damage`] on canonical params (`None` when they do not parse).
+    fn damage(
+        &self,
+        old: &BTreeMap<String, ParamValue>,
+        new: &BTreeMap<String, ParamValue>,
+        inputs: &[Option<(usize, usize)>],
+    ) -> Option<Vec<[f64; 4]>>;
     /// Runs on the crop whose top-left pixel is `origin` of the whole image:
     /// [`Operator::run`] with [`Operator::shifted`] params.
     fn run_at(
@@ -514,6 +533,16 @@ impl<T: Operator> DynOp for Entry<T> {
             Ok(p) => T::footprint(&p, input),
             Err(_) => Footprint::Global,
         }
+    }
+    fn damage(
+        &self,
+        old: &BTreeMap<String, ParamValue>,
+        new: &BTreeMap<String, ParamValue>,
+        inputs: &[Option<(usize, usize)>],
+    ) -> Option<Vec<[f64; 4]>> {
+        let old: T::Params = params::from_values(old).ok()?;
+        let new: T::Params = params::from_values(new).ok()?;
+        T::damage(&old, &new, inputs)
     }
     fn run_at(
         &self,

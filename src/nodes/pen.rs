@@ -4,6 +4,7 @@
 use super::kit::{curl_port, shift_points};
 use super::{Footprint, Inputs, OpSpec, Operator, PortSpec, PortType, RunContext, Value};
 use crate::error::RgbnError;
+use crate::ops::geom::{changed_path_bounds, paths_bounds};
 use crate::ops::pen::{apply_pen, PenMode, PenParams};
 use std::sync::Arc;
 
@@ -50,6 +51,30 @@ impl Operator for PenNode {
             points: shift_points(&p.points, dx, dy),
             ..p.clone()
         }
+    }
+    fn damage(
+        old: &PenParams,
+        new: &PenParams,
+        _: &[Option<(usize, usize)>],
+    ) -> Option<Vec<[f64; 4]>> {
+        // The relief reaches half the width from the path (plus a pixel of differencing and
+        // half a pixel of rasterisation); a closed path also raises its inside, which its
+        // points' bounding box contains.
+        let reach = |p: &PenParams| p.width_px / 2.0 + 3.0;
+        let same_but_points = PenParams {
+            points: new.points.clone(),
+            ..old.clone()
+        } == *new;
+        if same_but_points && !new.closed {
+            // Arclength from the start is kept; the end taper moves with the end.
+            return Some(changed_path_bounds(
+                &old.points,
+                &new.points,
+                new.taper_px,
+                reach(new),
+            ));
+        }
+        paths_bounds(&[&old.points, &new.points], reach(old).max(reach(new))).map(|b| vec![b])
     }
     fn run(p: &PenParams, i: &Inputs<'_>, _: &RunContext) -> Result<Vec<Value>, RgbnError> {
         let (out, rep) = apply_pen(i.rgbn("image")?, p)?;

@@ -4,7 +4,7 @@
 use super::kit::{curl_port, shift_points};
 use super::{Footprint, Inputs, OpSpec, Operator, PortSpec, PortType, RunContext, Value};
 use crate::error::RgbnError;
-use crate::ops::stamp::{extract, stamp_image, ExtractParams, StampParams};
+use crate::ops::stamp::{extract, placement_bounds, stamp_image, ExtractParams, StampParams};
 
 /// Stamp.
 pub struct StampNode;
@@ -51,6 +51,32 @@ impl Operator for StampNode {
             positions: shift_points(&p.positions, dx, dy),
             ..p.clone()
         }
+    }
+    fn damage(
+        old: &StampParams,
+        new: &StampParams,
+        inputs: &[Option<(usize, usize)>],
+    ) -> Option<Vec<[f64; 4]>> {
+        let (sw, sh) = (*inputs.get(1)?)?;
+        let same_but_positions = StampParams {
+            positions: new.positions.clone(),
+            ..old.clone()
+        } == *new;
+        let (ob, nb) = (placement_bounds(old, sw, sh), placement_bounds(new, sw, sh));
+        if !same_but_positions {
+            return Some(ob.into_iter().chain(nb).collect());
+        }
+        // Placements that moved, appeared or went: their old and new footprints.
+        let f = |p: &[f64; 2]| p.map(|v| v as f32);
+        let mut out = Vec::new();
+        for k in 0..ob.len().max(nb.len()) {
+            let (o, n) = (old.positions.get(k), new.positions.get(k));
+            if o.map(f) != n.map(f) {
+                out.extend(ob.get(k).copied());
+                out.extend(nb.get(k).copied());
+            }
+        }
+        Some(out)
     }
     fn run(p: &StampParams, i: &Inputs<'_>, _: &RunContext) -> Result<Vec<Value>, RgbnError> {
         let region = i.mask("region")?.map(|m| m.data());

@@ -551,3 +551,79 @@ mod tests {
         assert!(err < 1e-3, "{err}");
     }
 }
+
+/// Boxes `[x0, y0, x1, y1]` covering where a stroke along `old` and one along `new` can differ,
+/// for strokes whose effect at a point depends on the path within `reach_px` of it and on the
+/// arclength from the path's start, plus — `back_px` — on the distance to its end (a taper).
+/// Points are compared as the `f32` operators use. The paths share a prefix; what follows it
+/// differs, and so does the part within `back_px` before its end. Empty when equal.
+#[must_use]
+pub fn changed_path_bounds(
+    old: &[[f64; 2]],
+    new: &[[f64; 2]],
+    back_px: f64,
+    reach_px: f64,
+) -> Vec<[f64; 4]> {
+    let f = |p: &[f64; 2]| p.map(|v| v as f32);
+    let k = old
+        .iter()
+        .zip(new)
+        .take_while(|(a, b)| f(a) == f(b))
+        .count();
+    if k == old.len() && k == new.len() {
+        return Vec::new();
+    }
+    let mut out = Vec::new();
+    for path in [old, new] {
+        let pts: Vec<[f32; 2]> = path.iter().map(f).collect();
+        let mut cum = vec![0.0f64; pts.len()];
+        for i in 1..pts.len() {
+            cum[i] = cum[i - 1]
+                + f64::from(pts[i][0] - pts[i - 1][0]).hypot(f64::from(pts[i][1] - pts[i - 1][1]));
+        }
+        // From the last shared vertex at least `back_px` (of arclength) before the prefix's end.
+        let start = match k {
+            0 => 0,
+            _ => {
+                let at = cum[k - 1] - back_px;
+                (0..k).rev().find(|&j| cum[j] <= at).unwrap_or(0)
+            }
+        };
+        let part = &pts[start..];
+        if part.is_empty() {
+            continue;
+        }
+        let mut b = [f64::MAX, f64::MAX, f64::MIN, f64::MIN];
+        for p in part {
+            let (x, y) = (f64::from(p[0]), f64::from(p[1]));
+            b = [b[0].min(x), b[1].min(y), b[2].max(x), b[3].max(y)];
+        }
+        out.push([
+            b[0] - reach_px,
+            b[1] - reach_px,
+            b[2] + reach_px,
+            b[3] + reach_px,
+        ]);
+    }
+    out
+}
+
+/// The bounding box of all `paths`' points grown by `reach_px` (`None` without points).
+#[must_use]
+pub fn paths_bounds(paths: &[&[[f64; 2]]], reach_px: f64) -> Option<[f64; 4]> {
+    let mut b = [f64::MAX, f64::MAX, f64::MIN, f64::MIN];
+    let mut any = false;
+    for p in paths.iter().flat_map(|p| p.iter()) {
+        let (x, y) = (f64::from(p[0] as f32), f64::from(p[1] as f32));
+        b = [b[0].min(x), b[1].min(y), b[2].max(x), b[3].max(y)];
+        any = true;
+    }
+    any.then(|| {
+        [
+            b[0] - reach_px,
+            b[1] - reach_px,
+            b[2] + reach_px,
+            b[3] + reach_px,
+        ]
+    })
+}

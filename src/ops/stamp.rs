@@ -250,6 +250,28 @@ fn inverse(a: [[f64; 2]; 2]) -> [[f64; 2]; 2] {
     ]
 }
 
+/// Each placement's target-pixel box `[x0, y0, x1, y1]` (unclamped) for a `sw × sh` stamp,
+/// grown by two pixels beyond what [`stamp_image`] touches (its boxes' margin and the gradient's
+/// differencing): where moving the placement can change the result.
+#[must_use]
+pub fn placement_bounds(params: &StampParams, sw: usize, sh: usize) -> Vec<[f64; 4]> {
+    let a = params.affine();
+    let (hw, hh) = ((sw.max(1) - 1) as f64 / 2.0, (sh.max(1) - 1) as f64 / 2.0);
+    params
+        .positions_f32()
+        .into_iter()
+        .map(|t| {
+            let mut b = [f64::MAX, f64::MAX, f64::MIN, f64::MIN];
+            for (u, v) in [(-hw, -hh), (hw, -hh), (-hw, hh), (hw, hh)] {
+                let x = f64::from(t[0]) + a[0][0] * u + a[0][1] * v;
+                let r = f64::from(t[1]) - (a[1][0] * u + a[1][1] * v);
+                b = [b[0].min(x), b[1].min(r), b[2].max(x), b[3].max(r)];
+            }
+            [b[0] - 4.0, b[1] - 4.0, b[2] + 4.0, b[3] + 4.0]
+        })
+        .collect()
+}
+
 /// Target-pixel bounding box `[x0, x1) × [r0, r1)` of a placement.
 fn placement_box(
     a: &[[f64; 2]; 2],

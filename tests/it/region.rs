@@ -7,6 +7,7 @@ use rgbn::eval::{EvalOptions, Evaluator, Plan};
 use rgbn::graph::LoadedGraph;
 use rgbn::ops::params::ParamValue;
 use rgbn::ops::{PortType, Value};
+use std::collections::BTreeMap;
 
 /// Largest absolute difference over every channel (pictures in units of 1/255).
 pub fn max_diff(a: &Value, b: &Value) -> f64 {
@@ -179,4 +180,131 @@ fn cli_eval_region_writes_the_rectangle_of_the_whole_output() {
 
 fn d_path(p: &std::path::Path) -> String {
     p.with_file_name("other.exr").display().to_string()
+}
+
+fn points_text(p: &[[f64; 2]]) -> String {
+    p.iter()
+        .map(|q| format!("{}:{}", q[0], q[1]))
+        .collect::<Vec<_>>()
+        .join(",")
+}
+
+/// The tiles of side `tile` that a box `[x0, y0, x1, y1]` touches in a `size` image.
+fn tiles_touching(b: [f64; 4], tile: usize, size: (usize, usize)) -> usize {
+    let c = |v: f64, n: usize| (v.max(0.0) as usize).min(n - 1) / tile;
+    let (x0, x1) = (c(b[0].floor(), size.0), c(b[2].ceil(), size.0));
+    let (y0, y1) = (c(b[1].floor(), size.1), c(b[3].ceil(), size.1));
+    (x1 - x0 + 1) * (y1 - y0 + 1)
+}
+
+#[test]
+fn after_random_pen_stamp_and_brush_edits_the_incremental_result_equals_a_full_recompute() {
+    let d = tempfile::tempdir().unwrap();
+    let (w, h) = (320usize, 240usize);
+    let text = format!(
+        r#"(
+    version: 1,
+    next_id: 7,
+    outputs: {{ "image": (node: 5, port: "image"), "relit": (node: 6, port: "picture") }},
+    nodes: [
+        (id: 1, op: "surface", pos: (0.0, 0.0), params: {{ "width": Int({w}), "height": Int({h}), "shape": Choice("gaussians") }}),
+        (id: 2, op: "surface", pos: (0.0, 0.0), params: {{ "width": Int(20), "height": Int(16), "shape": Choice("gaussians") }}),
+        (id: 3, op: "pen", name: Some("pen"), pos: (0.0, 0.0), params: {{ "points": Points([(40.0, 40.0), (60.0, 50.0)]), "width_px": Float(10.0), "taper_px": Float(8.0) }}, inputs: {{ "image": Node(1, "image") }}),
+        (id: 4, op: "stamp", name: Some("stamp"), pos: (0.0, 0.0), params: {{ "positions": Points([(200.0, 60.0), (100.0, 180.0)]), "angle_rad": Float(0.3) }}, inputs: {{ "image": Node(3, "image"), "stamp": Node(2, "image") }}),
+        (id: 5, op: "brush", name: Some("brush"), pos: (0.0, 0.0), params: {{ "points": Points([(250.0, 200.0)]), "radius_px": Float(6.0), "feather_px": Float(3.0), "sigma_px": Float(2.0) }}, inputs: {{ "image": Node(4, "image") }}),
+        (id: 6, op: "relight", pos: (0.0, 0.0), inputs: {{ "image": Node(5, "image") }}),
+    ],
+)"#
+    );
+    let mut lg = LoadedGraph::from_text(&text, "edits.ron", d.path().to_path_buf()).unwrap();
+    let ev = Evaluator::default();
+    let tile = 32;
+    let ropts = RegionOptions { tile };
+    let opts = EvalOptions::default();
+    let mut rng = Rng(0x2545_f491_4f6c_dd1d);
+    let mut pen = vec![[40.0, 40.0], [60.0, 50.0]];
+    let mut stamps = vec![[200.0, 60.0], [100.0, 180.0]];
+    let mut brush = vec![[250.0, 200.0]];
+    let full = Rect::full((w, h));
+    let mut appended = 0;
+    let plan = Plan::new(&lg, &BTreeMap::new(), d.path()).unwrap();
+    for name in ["image", "relit"] {
+        ev.eval_region(&plan, name, full, &ropts, &opts).unwrap();
+    }
+    let mut prev_full = true;
+    for step in 0..30 {
+        let what = rng.below(5);
+        let mut pen_bound = None;
+        match what {
+            0 | 1 => {
+                // Append a short pen segment, inside the image.
+                let last = *pen.last().unwrap();
+                let a = rng.below(628) as f64 / 100.0;
+                let p = [
+                    (last[0] + 10.0 * a.cos()).clamp(5.0, w as f64 - 5.0),
+                    (last[1] + 10.0 * a.sin()).clamp(5.0, h as f64 - 5.0),
+                ];
+                pen.push(p);
+                lg.set_param("pen", "points", &points_text(&pen)).unwrap();
+                // Independent expectation: the end taper (8 px) reaches back at most one
+                // 10 px segment, the relief half the width (5 px) plus differencing.
+                let back = &pen[pen.len().saturating_sub(3)..];
+                let (mut b0, mut b1) = ([f64::MAX; 2], [f64::MIN; 2]);
+                for q in back {
+                    b0 = [b0[0].min(q[0]), b0[1].min(q[1])];
+                    b1 = [b1[0].max(q[0]), b1[1].max(q[1])];
+                }
+                pen_bound = Some([b0[0] - 9.0, b0[1] - 9.0, b1[0] + 9.0, b1[1] + 9.0]);
+            }
+            2 => {
+                let k = rng.below(stamps.len());
+                stamps[k] = [
+                    20.0 + rng.below(w - 40) as f64,
+                    20.0 + rng.below(h - 40) as f64,
+                ];
+                lg.set_param("stamp", "positions", &points_text(&stamps))
+                    .unwrap();
+            }
+            3 => {
+                brush.push([rng.below(w) as f64, rng.below(h) as f64]);
+                lg.set_param("brush", "points", &points_text(&brush))
+                    .unwrap();
+            }
+            _ => {
+                let width = 6 + rng.below(10);
+                lg.set_param("pen", "width_px", &width.to_string()).unwrap();
+            }
+        }
+        let plan = Plan::new(&lg, &BTreeMap::new(), d.path()).unwrap();
+        // Alternate the whole image and a viewport (tiles outside it are not kept fresh).
+        let rect = if step % 3 == 2 {
+            Rect::new(60, 30, 200, 150)
+        } else {
+            full
+        };
+        let name = if step % 2 == 0 { "image" } else { "relit" };
+        let r = ev
+            .eval_region(&plan, name, rect, &ropts, &opts)
+            .unwrap_or_else(|e| panic!("step {step}: {e}"));
+        let want = Evaluator::default().eval(&plan, &[name], &opts).unwrap();
+        let diff = max_diff(&crop(&want.outputs[name], rect), &r.value);
+        let tol = if name == "relit" { 1.0 / 255.0 } else { 2e-6 };
+        assert!(diff <= tol, "step {step} ({what}): {diff}");
+        // The bound holds when the previous evaluation left every tile of the pen fresh.
+        let at_pen = r.tiles.iter().find(|t| t.op == "pen");
+        if let (Some(b), Some(at_pen), true) = (pen_bound, at_pen, rect == full && prev_full) {
+            let bound = tiles_touching(b, tile, (w, h));
+            assert!(
+                at_pen.computed <= bound,
+                "step {step}: pen recomputed {} tiles, its change touches {bound}",
+                at_pen.computed
+            );
+            if at_pen.reused > 0 {
+                appended += 1;
+            }
+        }
+        prev_full = rect == full;
+    }
+    // Appends did reuse the previous result (not everything was recomputed).
+    assert!(appended >= 3, "{appended}");
 }
