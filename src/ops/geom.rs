@@ -493,65 +493,6 @@ pub(crate) fn rosewood_crop(size: usize) -> Option<crate::raster::RgbnImage> {
     Some(crop)
 }
 
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn edt_matches_brute_force() {
-        let (w, h) = (23, 17);
-        let seeds: Vec<bool> = (0..w * h).map(|i| (i * 7919) % 37 == 3).collect();
-        let d = distance_transform(&seeds, w, h);
-        for r in 0..h {
-            for x in 0..w {
-                let mut best = f64::INFINITY;
-                for (j, s) in seeds.iter().enumerate() {
-                    if *s {
-                        let (sx, sr) = ((j % w) as f64, (j / w) as f64);
-                        best = best.min((x as f64 - sx).hypot(r as f64 - sr));
-                    }
-                }
-                assert!((f64::from(d.at(x, r)) - best).abs() < 1e-5, "({x},{r})");
-            }
-        }
-        assert!(distance_transform(&[false; 6], 3, 2)
-            .data()
-            .iter()
-            .all(|v| v.is_infinite()));
-    }
-
-    #[test]
-    fn projection_side_and_arclength() {
-        // Path going right along row 10; a point above it on screen (smaller row) is on the
-        // left of the direction of travel.
-        let pl = Polyline::new(&[[0.0, 10.0], [20.0, 10.0]], false);
-        let pr = pl.project([5.0, 7.0]).unwrap();
-        assert!((pr.dist_px - 3.0).abs() < 1e-12 && pr.side > 0.0 && pr.interior);
-        assert!((pr.arclength_px - 5.0).abs() < 1e-12);
-        assert!(pl.project([5.0, 12.0]).unwrap().side < 0.0);
-        let sq = Polyline::new(&[[0.0, 0.0], [10.0, 0.0], [10.0, 10.0], [0.0, 10.0]], true);
-        assert!(sq.contains([5.0, 5.0]) && !sq.contains([15.0, 5.0]));
-        assert!((sq.length_px() - 40.0).abs() < 1e-12);
-    }
-
-    #[test]
-    fn least_squares_integration_recovers_a_height() {
-        let z = Plane::from_fn(31, 24, |x, r| {
-            ((x as f32) * 0.3).sin() * 4.0 + (r as f32 * 0.2).cos() * 3.0 + 0.01 * (x * r) as f32
-        });
-        let g = GradientField::from_height(&z);
-        let zi = integrate_least_squares(&g, 1e-10, 5000);
-        let mean = z.data().iter().sum::<f32>() / z.data().len() as f32;
-        let err = z
-            .data()
-            .iter()
-            .zip(zi.data())
-            .map(|(a, b)| (a - mean - b).abs())
-            .fold(0.0f32, f32::max);
-        assert!(err < 1e-3, "{err}");
-    }
-}
-
 /// Boxes `[x0, y0, x1, y1]` covering where a stroke along `old` and one along `new` can differ,
 /// for strokes whose effect at a point depends on the path within `reach_px` of it and on the
 /// arclength from the path's start, plus — `back_px` — on the distance to its end (a taper).
@@ -626,4 +567,63 @@ pub fn paths_bounds(paths: &[&[[f64; 2]]], reach_px: f64) -> Option<[f64; 4]> {
             b[3] + reach_px,
         ]
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn edt_matches_brute_force() {
+        let (w, h) = (23, 17);
+        let seeds: Vec<bool> = (0..w * h).map(|i| (i * 7919) % 37 == 3).collect();
+        let d = distance_transform(&seeds, w, h);
+        for r in 0..h {
+            for x in 0..w {
+                let mut best = f64::INFINITY;
+                for (j, s) in seeds.iter().enumerate() {
+                    if *s {
+                        let (sx, sr) = ((j % w) as f64, (j / w) as f64);
+                        best = best.min((x as f64 - sx).hypot(r as f64 - sr));
+                    }
+                }
+                assert!((f64::from(d.at(x, r)) - best).abs() < 1e-5, "({x},{r})");
+            }
+        }
+        assert!(distance_transform(&[false; 6], 3, 2)
+            .data()
+            .iter()
+            .all(|v| v.is_infinite()));
+    }
+
+    #[test]
+    fn projection_side_and_arclength() {
+        // Path going right along row 10; a point above it on screen (smaller row) is on the
+        // left of the direction of travel.
+        let pl = Polyline::new(&[[0.0, 10.0], [20.0, 10.0]], false);
+        let pr = pl.project([5.0, 7.0]).unwrap();
+        assert!((pr.dist_px - 3.0).abs() < 1e-12 && pr.side > 0.0 && pr.interior);
+        assert!((pr.arclength_px - 5.0).abs() < 1e-12);
+        assert!(pl.project([5.0, 12.0]).unwrap().side < 0.0);
+        let sq = Polyline::new(&[[0.0, 0.0], [10.0, 0.0], [10.0, 10.0], [0.0, 10.0]], true);
+        assert!(sq.contains([5.0, 5.0]) && !sq.contains([15.0, 5.0]));
+        assert!((sq.length_px() - 40.0).abs() < 1e-12);
+    }
+
+    #[test]
+    fn least_squares_integration_recovers_a_height() {
+        let z = Plane::from_fn(31, 24, |x, r| {
+            ((x as f32) * 0.3).sin() * 4.0 + (r as f32 * 0.2).cos() * 3.0 + 0.01 * (x * r) as f32
+        });
+        let g = GradientField::from_height(&z);
+        let zi = integrate_least_squares(&g, 1e-10, 5000);
+        let mean = z.data().iter().sum::<f32>() / z.data().len() as f32;
+        let err = z
+            .data()
+            .iter()
+            .zip(zi.data())
+            .map(|(a, b)| (a - mean - b).abs())
+            .fold(0.0f32, f32::max);
+        assert!(err < 1e-3, "{err}");
+    }
 }
