@@ -507,7 +507,8 @@ impl Evaluator {
                     })
                     .find_map(|k| self.mem_get(tile_key(k, tile, 0, t.0, t.1)));
                 if let Some(e) = earlier {
-                    self.mem_insert(tile_key(key, tile, 0, t.0, t.1), e.clone());
+                    // Not stored again under the new key (the cache counts bytes per entry):
+                    // found through the trail next time too.
                     have[i].insert(t, e);
                     reused[i] += 1;
                     continue;

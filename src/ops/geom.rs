@@ -159,6 +159,22 @@ impl Polyline {
     /// Closest point on the polyline to `p` (pixel coordinates). `None` for an empty polyline.
     #[must_use]
     pub fn project(&self, p: [f64; 2]) -> Option<Projection> {
+        self.project_among(p, 0..self.pts.len().saturating_sub(1))
+    }
+
+    /// Segments: segment `i` joins points `i` and `i + 1` (the closing one included).
+    #[must_use]
+    pub fn segment_count(&self) -> usize {
+        self.pts.len().saturating_sub(1)
+    }
+
+    /// [`Polyline::project`] onto the segments `segs` only (increasing indices): the same
+    /// result whenever the closest segment is among them.
+    pub fn project_among(
+        &self,
+        p: [f64; 2],
+        segs: impl IntoIterator<Item = usize>,
+    ) -> Option<Projection> {
         let first = *self.pts.first()?;
         if self.pts.len() == 1 {
             let d = (p[0] - first[0]).hypot(p[1] - first[1]);
@@ -172,7 +188,7 @@ impl Polyline {
             });
         }
         let mut best: Option<(f64, usize, f64)> = None;
-        for i in 0..self.pts.len() - 1 {
+        for i in segs {
             let (a, b) = (self.pts[i], self.pts[i + 1]);
             let (dx, dy) = (b[0] - a[0], b[1] - a[1]);
             let l2 = dx * dx + dy * dy;
@@ -491,6 +507,96 @@ pub(crate) fn rosewood_crop(size: usize) -> Option<crate::raster::RgbnImage> {
     )
     .expect("the crop is inside the texture");
     Some(crop)
+}
+
+/// The segments of a polyline that come within `reach` pixels of each cell of a grid: a point
+/// farther than `reach` from every segment listed for its cell is farther than `reach` from
+/// the polyline, and the closest segment of a point within `reach` is listed.
+#[derive(Clone, Debug)]
+pub struct SegmentGrid {
+    cell: f64,
+    origin: [f64; 2],
+    cols: usize,
+    rows: usize,
+    /// `start[c]..start[c + 1]` indexes `segs` for cell `c` (row-major).
+    start: Vec<u32>,
+    segs: Vec<u32>,
+}
+
+impl SegmentGrid {
+    /// Over the area `[x0, y0, x1, y1]` with square cells of `cell` pixels.
+    #[must_use]
+    pub fn new(pl: &Polyline, reach: f64, area: [f64; 4], cell: f64) -> Self {
+        let cols = (((area[2] - area[0]) / cell).ceil().max(0.0) as usize) + 1;
+        let rows = (((area[3] - area[1]) / cell).ceil().max(0.0) as usize) + 1;
+        let origin = [area[0], area[1]];
+        let n = pl.segment_count();
+        // The cells each segment's box, grown by `reach`, overlaps (clamped to the grid).
+        let span = |i: usize| -> Option<[usize; 4]> {
+            let (a, b) = (pl.pts[i], pl.pts[i + 1]);
+            let lo = [a[0].min(b[0]) - reach, a[1].min(b[1]) - reach];
+            let hi = [a[0].max(b[0]) + reach, a[1].max(b[1]) + reach];
+            let c =
+                |v: f64, o: f64, m: usize| ((v - o) / cell).floor().clamp(0.0, m as f64) as usize;
+            if hi[0] < origin[0] || hi[1] < origin[1] || lo[0] > area[2] || lo[1] > area[3] {
+                return None;
+            }
+            Some([
+                c(lo[0], origin[0], cols - 1),
+                c(lo[1], origin[1], rows - 1),
+                c(hi[0], origin[0], cols - 1),
+                c(hi[1], origin[1], rows - 1),
+            ])
+        };
+        let mut count = vec![0u32; cols * rows + 1];
+        for i in 0..n {
+            if let Some([c0, r0, c1, r1]) = span(i) {
+                for r in r0..=r1 {
+                    for c in c0..=c1 {
+                        count[r * cols + c + 1] += 1;
+                    }
+                }
+            }
+        }
+        for k in 1..count.len() {
+            count[k] += count[k - 1];
+        }
+        let mut fill = count.clone();
+        let mut segs = vec![0u32; count[cols * rows] as usize];
+        for i in 0..n {
+            if let Some([c0, r0, c1, r1]) = span(i) {
+                for r in r0..=r1 {
+                    for c in c0..=c1 {
+                        let k = r * cols + c;
+                        segs[fill[k] as usize] = i as u32;
+                        fill[k] += 1;
+                    }
+                }
+            }
+        }
+        Self {
+            cell,
+            origin,
+            cols,
+            rows,
+            start: count,
+            segs,
+        }
+    }
+
+    /// The segments listed for the cell of `(x, y)` (increasing; empty outside the area).
+    #[must_use]
+    pub fn at(&self, x: f64, y: f64) -> &[u32] {
+        let (c, r) = (
+            ((x - self.origin[0]) / self.cell).floor(),
+            ((y - self.origin[1]) / self.cell).floor(),
+        );
+        if !(c >= 0.0 && r >= 0.0 && (c as usize) < self.cols && (r as usize) < self.rows) {
+            return &[];
+        }
+        let k = r as usize * self.cols + c as usize;
+        &self.segs[self.start[k] as usize..self.start[k + 1] as usize]
+    }
 }
 
 /// Boxes `[x0, y0, x1, y1]` covering where a stroke along `old` and one along `new` can differ,

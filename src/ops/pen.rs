@@ -74,7 +74,7 @@
 
 use super::geom::{
     check_points, distance_transform, sample_gradient_centres, smoothstep, smoothstep_deriv,
-    Polyline,
+    Polyline, SegmentGrid,
 };
 use crate::error::RgbnError;
 use crate::raster::gradient::{corner_samples, CurlStats, GradientField};
@@ -438,8 +438,11 @@ impl Along {
 
 impl Stroke<'_> {
     /// Sign σ and (height, gradient in y-up) at pixel coordinates `(x, row)`.
-    fn eval(&self, x: f64, row: f64) -> (f64, [f64; 2]) {
-        let Some(pr) = self.pl.project([x, row]) else {
+    fn eval(&self, x: f64, row: f64, segs: &[u32]) -> (f64, [f64; 2]) {
+        let Some(pr) = self
+            .pl
+            .project_among([x, row], segs.iter().map(|&i| i as usize))
+        else {
             return (self.f0, [0.0, 0.0]);
         };
         let d = pr.dist_px;
@@ -456,7 +459,14 @@ impl Stroke<'_> {
         };
         let u = sigma * d / self.half_w;
         if u.abs() >= 1.0 {
-            let level = self.profile.eval(u.signum()).0;
+            // Outside the stroke: f₀ beside an open path (f(1) = f(−1) = f₀ up to the
+            // tolerance of `validate`, taken exactly so no side switches show), f(±1) inside
+            // or outside a closed one.
+            let level = if self.closed {
+                self.profile.eval(u.signum()).0
+            } else {
+                self.f0
+            };
             return (level, [0.0, 0.0]);
         }
         if let Some(cap) = self.end_cap(&pr) {
@@ -585,11 +595,14 @@ pub fn pen_field(width: usize, height: usize, params: &PenParams) -> Result<PenO
     };
     match params.mode {
         PenMode::Analytic | PenMode::Integrable => {
-            // Only pixels near the path's bounding box can be inside the stroke.
-            let b = stroke.pl.bounds();
-            let m = stroke.half_w + 1.0;
-            let near =
-                |x: f64, r: f64| x >= b[0] - m && x <= b[2] + m && r >= b[1] - m && r <= b[3] + m;
+            // Only pixels within the half width of a segment are in the stroke: each is
+            // projected onto the segments near its 16-pixel cell only.
+            let grid = SegmentGrid::new(
+                &stroke.pl,
+                stroke.half_w + 1.0,
+                [-1.0, -1.0, width as f64 + 1.0, height as f64 + 1.0],
+                16.0,
+            );
             let outside_level = |x: f64, r: f64| {
                 if stroke.closed && stroke.pl.contains([x, r]) {
                     profile.eval(1.0).0
@@ -598,20 +611,22 @@ pub fn pen_field(width: usize, height: usize, params: &PenParams) -> Result<PenO
                 }
             };
             let height_at = |x: f64, r: f64| {
-                if near(x, r) {
-                    stroke.eval(x, r).0
-                } else {
+                let segs = grid.at(x, r);
+                if segs.is_empty() {
                     outside_level(x, r)
+                } else {
+                    stroke.eval(x, r, segs).0
                 }
             };
             if params.mode == PenMode::Analytic {
                 let height_plane =
                     Plane::from_fn(width, height, |x, r| height_at(x as f64, r as f64) as f32);
                 let gradients = sample_gradient_centres(width, height, |x, r| {
-                    if near(x, r) {
-                        stroke.eval(x, r).1
-                    } else {
+                    let segs = grid.at(x, r);
+                    if segs.is_empty() {
                         [0.0, 0.0]
+                    } else {
+                        stroke.eval(x, r, segs).1
                     }
                 });
                 return Ok(PenOutput {
@@ -815,9 +830,11 @@ mod tests {
     /// its height (y-up: ∂/∂y = −∂/∂row) within 1e-5, and returns it.
     fn gradient_is_the_derivative(stroke: &Stroke<'_>, x: f64, r: f64) -> [f64; 2] {
         let e = 1e-5;
-        let (_, g) = stroke.eval(x, r);
-        let dx = (stroke.eval(x + e, r).0 - stroke.eval(x - e, r).0) / (2.0 * e);
-        let dy = -(stroke.eval(x, r + e).0 - stroke.eval(x, r - e).0) / (2.0 * e);
+        let all: Vec<u32> = (0..stroke.pl.segment_count() as u32).collect();
+        let ev = |x: f64, r: f64| stroke.eval(x, r, &all);
+        let (_, g) = ev(x, r);
+        let dx = (ev(x + e, r).0 - ev(x - e, r).0) / (2.0 * e);
+        let dy = -(ev(x, r + e).0 - ev(x, r - e).0) / (2.0 * e);
         assert!(
             (g[0] - dx).abs() < 1e-5 && (g[1] - dy).abs() < 1e-5,
             "({x}, {r}): {g:?} vs ({dx}, {dy})"

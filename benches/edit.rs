@@ -1,0 +1,159 @@
+//! Interactive edits on region evaluation (`rgbn::eval::region`): the cost of one local edit
+//! and of showing its relit viewport, which should not grow with the image.
+//!
+//! - `edit/pen_segment_4k`: a 4K image whose pen result is cached; append one 10 px segment to
+//!   a 500 px, 20 px wide path, then produce the relit 1920×1080 viewport around it at 1:1.
+//!   Timed: setting the parameter, planning, and the region evaluation (what the editor does
+//!   per pointer move). Every append is new (no result is ever cached already); after 20 the
+//!   path is reset, untimed.
+//! - `edit/stamp_move_4k`: move one placement of a 64² stamp on 4K by a few pixels and produce
+//!   the relit viewport.
+//!
+//! Run: `cargo bench --bench edit` (set `RAYON_NUM_THREADS=2` to match the other benches).
+
+use criterion::{criterion_group, criterion_main, Criterion};
+use rgbn::eval::region::{Rect, RegionOptions};
+use rgbn::eval::{EvalOptions, Evaluator, Plan};
+use rgbn::graph::LoadedGraph;
+use std::collections::BTreeMap;
+use std::hint::black_box;
+use std::path::Path;
+use std::time::{Duration, Instant};
+
+const W: usize = 3840;
+const H: usize = 2160;
+const VIEW: (usize, usize) = (1920, 1080);
+
+fn points_text(p: &[[f64; 2]]) -> String {
+    p.iter()
+        .map(|q| format!("{:.3}:{:.3}", q[0], q[1]))
+        .collect::<Vec<_>>()
+        .join(",")
+}
+
+fn graph(edit_node: &str) -> LoadedGraph {
+    let text = format!(
+        r#"(
+    version: 1,
+    next_id: 5,
+    outputs: {{ "relit": (node: 4, port: "picture") }},
+    nodes: [
+        (id: 1, op: "surface", pos: (0.0, 0.0), params: {{ "width": Int({W}), "height": Int({H}), "shape": Choice("gaussians") }}),
+        (id: 2, op: "surface", pos: (0.0, 0.0), params: {{ "width": Int(64), "height": Int(64), "shape": Choice("gaussians") }}),
+        {edit_node},
+        (id: 4, op: "relight", pos: (0.0, 0.0), inputs: {{ "image": Node(3, "image") }}),
+    ],
+)"#
+    );
+    LoadedGraph::from_text(&text, "edit.ron", Path::new(".").to_path_buf()).expect("graph")
+}
+
+/// The viewport of `VIEW` pixels centred on `c`, inside the image.
+fn viewport(c: [f64; 2]) -> Rect {
+    let x = (c[0] as usize).saturating_sub(VIEW.0 / 2).min(W - VIEW.0);
+    let y = (c[1] as usize).saturating_sub(VIEW.1 / 2).min(H - VIEW.1);
+    Rect::new(x, y, VIEW.0, VIEW.1)
+}
+
+/// A 500 px path of 10 px segments, a gentle arc through the middle of the image.
+fn base_path() -> Vec<[f64; 2]> {
+    let mut p = vec![[1600.0, 1000.0]];
+    for k in 0..50 {
+        let a = 0.02 * k as f64;
+        let last = p[p.len() - 1];
+        p.push([last[0] + 10.0 * a.cos(), last[1] + 10.0 * a.sin()]);
+    }
+    p
+}
+
+fn pen_segment(c: &mut Criterion) {
+    let mut lg = graph(
+        r#"(id: 3, op: "pen", name: Some("pen"), pos: (0.0, 0.0), params: { "width_px": Float(20.0), "taper_px": Float(16.0), "height_px": Float(2.0) }, inputs: { "image": Node(1, "image") })"#,
+    );
+    let ev = Evaluator::default();
+    let ropts = RegionOptions::default();
+    let opts = EvalOptions::default();
+    let base = base_path();
+    let view = viewport(base[base.len() - 1]);
+    let inputs = BTreeMap::new();
+    let mut eval = |lg: &LoadedGraph| {
+        let plan = Plan::new(lg, &inputs, Path::new(".")).expect("plan");
+        let r = ev
+            .eval_region(&plan, "relit", view, &ropts, &opts)
+            .expect("eval");
+        black_box(r.value);
+    };
+    let mut serial = 0u64;
+    c.bench_function("edit/pen_segment_4k", |b| {
+        b.iter_custom(|iters| {
+            let mut total = Duration::ZERO;
+            let mut path = base.clone();
+            lg.set_param("pen", "points", &points_text(&path))
+                .expect("points");
+            eval(&lg);
+            for i in 0..iters {
+                if i % 20 == 19 {
+                    path = base.clone();
+                    lg.set_param("pen", "points", &points_text(&path))
+                        .expect("points");
+                    eval(&lg);
+                }
+                // A new direction every time: no result of an earlier append is reused.
+                serial += 1;
+                let a = 1.0 + 0.7 * ((serial as f64) * 0.618_034).fract();
+                let last = path[path.len() - 1];
+                path.push([last[0] + 10.0 * a.cos(), last[1] + 10.0 * a.sin()]);
+                let t0 = Instant::now();
+                lg.set_param("pen", "points", &points_text(&path))
+                    .expect("points");
+                eval(&lg);
+                total += t0.elapsed();
+            }
+            total
+        });
+    });
+}
+
+fn stamp_move(c: &mut Criterion) {
+    let positions = [[1800.0, 1000.0], [2300.0, 1300.0], [1500.0, 800.0]];
+    let mut lg = graph(&format!(
+        r#"(id: 3, op: "stamp", name: Some("stamp"), pos: (0.0, 0.0), params: {{ "positions": Points([{}]), "color": Bool(false) }}, inputs: {{ "image": Node(1, "image"), "stamp": Node(2, "image") }})"#,
+        positions
+            .iter()
+            .map(|p| format!("({:.1}, {:.1})", p[0], p[1]))
+            .collect::<Vec<_>>()
+            .join(", ")
+    ));
+    let ev = Evaluator::default();
+    let ropts = RegionOptions::default();
+    let opts = EvalOptions::default();
+    let view = viewport(positions[0]);
+    let inputs = BTreeMap::new();
+    let mut serial = 0u64;
+    c.bench_function("edit/stamp_move_4k", |b| {
+        b.iter(|| {
+            // Placement 0 moves a few pixels, each time to a place it has not been.
+            serial += 1;
+            let t = (serial as f64) * 0.618_034;
+            let mut p = positions;
+            p[0] = [
+                positions[0][0] + 40.0 * t.fract() - 20.0,
+                positions[0][1] + 40.0 * (t * 1.7).fract() - 20.0,
+            ];
+            lg.set_param("stamp", "positions", &points_text(&p))
+                .expect("positions");
+            let plan = Plan::new(&lg, &inputs, Path::new(".")).expect("plan");
+            let r = ev
+                .eval_region(&plan, "relit", view, &ropts, &opts)
+                .expect("eval");
+            black_box(r.value)
+        });
+    });
+}
+
+criterion_group! {
+    name = benches;
+    config = Criterion::default().sample_size(30).measurement_time(Duration::from_secs(10));
+    targets = pen_segment, stamp_move
+}
+criterion_main!(benches);
