@@ -219,6 +219,19 @@ fn damage_since(trail: &Trail, from: CacheKey) -> Option<Vec<Rect>> {
 #[derive(Default, Debug)]
 pub(super) struct History {
     seen: HashMap<(usize, &'static str, String, Option<u64>), Seen>,
+    /// The last result, to patch where an edit changed it rather than assemble it again.
+    last: Option<LastResult>,
+}
+
+/// A region result as returned, with what it was made from.
+#[derive(Debug)]
+struct LastResult {
+    ident: (usize, &'static str, String, Option<u64>),
+    port: usize,
+    rect: Rect,
+    tile: usize,
+    key: CacheKey,
+    value: Value,
 }
 
 /// The damage boxes of an operator as pixel rectangles of a `size` image.
@@ -618,7 +631,51 @@ impl Evaluator {
             }
             tiles.push(st);
         }
-        let value = assemble(&have[root], root_port, tile, out_size, rect);
+        // The previous result of the same request, patched where the edits since can have
+        // changed it (in place when the caller no longer holds it), or assembled anew.
+        let root_inst = &plan.instances[root];
+        let ident = (
+            root,
+            root_inst.op.spec().id,
+            root_inst.at.file.clone(),
+            root_inst.at.node,
+        );
+        let last = super::lock(&self.seen).last.take();
+        let patched = last.and_then(|l| {
+            if (&l.ident, l.port, l.rect, l.tile) != (&ident, root_port, rect, tile) {
+                return None;
+            }
+            let mut value = l.value;
+            let key = keys[&root];
+            if l.key != key {
+                let damage = damage_since(&trails[root], l.key)?;
+                let parts: Vec<(Rect, &Value)> = covering(&rect, tile)
+                    .map(|t| tile_rect(t, tile, out_size))
+                    .filter(|tr| damage.iter().any(|d| !d.intersect(tr).is_empty()))
+                    .map(|tr| {
+                        let t = (tr.x / tile, tr.y / tile);
+                        have[root]
+                            .get(&t)
+                            .and_then(|e| e.values.get(root_port))
+                            .map(|v| (tr, v))
+                    })
+                    .collect::<Option<_>>()?;
+                if !patch(&mut value, rect, &parts) {
+                    return None;
+                }
+            }
+            Some(value)
+        });
+        let value =
+            patched.unwrap_or_else(|| assemble(&have[root], root_port, tile, out_size, rect));
+        super::lock(&self.seen).last = Some(LastResult {
+            ident,
+            port: root_port,
+            rect,
+            tile,
+            key: keys[&root],
+            value: value.clone(),
+        });
         Ok(RegionResult {
             value,
             rect,
@@ -680,24 +737,34 @@ impl Evaluator {
     }
 }
 
-/// Copies the `r.w × r.h` block at `(sx, sy)` of `src` (row length `sw`, `c` values per pixel)
-/// to `(dx, dy)` of `dst` (row length `dw`).
-#[allow(clippy::too_many_arguments)]
-fn blit<T: Copy>(
-    src: &[T],
-    sw: usize,
-    (sx, sy): (usize, usize),
+/// Fills `dst`, the rectangle `r` with `c` values per pixel, from `parts` (each covering a
+/// rectangle, its values row by row), in parallel over rows. `rows[k]` lists the parts that
+/// can cover row `r.y + k` (by index into `parts`).
+fn gather<T: Copy + Send + Sync>(
     dst: &mut [T],
-    dw: usize,
-    (dx, dy): (usize, usize),
-    (w, h): (usize, usize),
+    r: Rect,
     c: usize,
+    parts: &[(Rect, &[T])],
+    rows: &(dyn Fn(usize) -> std::ops::Range<usize> + Sync),
 ) {
-    for r in 0..h {
-        let s = ((sy + r) * sw + sx) * c;
-        let d = ((dy + r) * dw + dx) * c;
-        dst[d..d + w * c].copy_from_slice(&src[s..s + w * c]);
-    }
+    dst.par_chunks_mut(r.w * c)
+        .enumerate()
+        .for_each(|(row, out)| {
+            let y = r.y + row;
+            for (at, src) in &parts[rows(y)] {
+                if y < at.y || y >= at.bottom() {
+                    continue;
+                }
+                let (x0, x1) = (r.x.max(at.x), r.right().min(at.right()));
+                if x0 >= x1 {
+                    continue;
+                }
+                let s = ((y - at.y) * at.w + (x0 - at.x)) * c;
+                let d = (x0 - r.x) * c;
+                let n = (x1 - x0) * c;
+                out[d..d + n].copy_from_slice(&src[s..s + n]);
+            }
+        });
 }
 
 /// A value's pixel size (`None` for numbers).
@@ -705,79 +772,122 @@ fn dims(v: &Value) -> Option<(usize, usize)> {
     super::memory::value_size(v)
 }
 
-/// An empty value shaped like `like` (same kind, mask present or not), `w × h`.
-fn blank(like: &Value, (w, h): (usize, usize)) -> Value {
-    let n = w * h;
-    match like {
+/// `r` assembled from `parts` (same kind, each covering its rectangle, sorted by rows so
+/// that `rows(y)` gives the ones that can cover row `y`). Numbers: the first part's.
+fn gather_value(
+    parts: &[(Rect, &Value)],
+    r: Rect,
+    rows: &(dyn Fn(usize) -> std::ops::Range<usize> + Sync),
+) -> Value {
+    let n = r.w * r.h;
+    let Some((_, first)) = parts.first() else {
+        return Value::Number(f64::NAN);
+    };
+    let plane = |get: &dyn Fn(&Value) -> Option<&[f32]>| -> Vec<f32> {
+        let ps: Vec<(Rect, &[f32])> = parts
+            .iter()
+            .map(|(at, v)| (*at, get(v).unwrap_or(&[])))
+            .collect();
+        let mut out = vec![0.0f32; n];
+        gather(&mut out, r, 1, &ps, rows);
+        out
+    };
+    match first {
         Value::Rgbn(img) => {
-            let planes = || std::array::from_fn(|_| vec![0.0f32; n]);
-            let mask = img.mask().map(|_| vec![0.0f32; n]);
-            Value::Rgbn(
-                RgbnImage::new(w, h, planes(), planes(), mask).expect("planes of the right size"),
-            )
+            let c: [Vec<f32>; 3] = std::array::from_fn(|k| {
+                plane(&|v| match v {
+                    Value::Rgbn(i) => Some(&i.color()[k]),
+                    _ => None,
+                })
+            });
+            let nm: [Vec<f32>; 3] = std::array::from_fn(|k| {
+                plane(&|v| match v {
+                    Value::Rgbn(i) => Some(&i.normal()[k]),
+                    _ => None,
+                })
+            });
+            let mask = img.mask().map(|_| {
+                plane(&|v| match v {
+                    Value::Rgbn(i) => i.mask(),
+                    _ => None,
+                })
+            });
+            Value::Rgbn(RgbnImage::new(r.w, r.h, c, nm, mask).expect("planes of the right size"))
         }
-        Value::Mask(_) => Value::Mask(Arc::new(Plane::filled(w, h, 0.0))),
-        Value::Scalar(_) => Value::Scalar(Arc::new(Plane::filled(w, h, 0.0))),
-        Value::Picture(_) => Value::Picture(Arc::new(Picture {
-            width: w,
-            height: h,
-            rgba: vec![0; 4 * n],
-        })),
+        Value::Mask(_) | Value::Scalar(_) => {
+            let data = plane(&|v| match v {
+                Value::Mask(p) | Value::Scalar(p) => Some(p.data()),
+                _ => None,
+            });
+            let p = Arc::new(Plane::from_vec(r.w, r.h, data).expect("right size"));
+            if matches!(first, Value::Mask(_)) {
+                Value::Mask(p)
+            } else {
+                Value::Scalar(p)
+            }
+        }
+        Value::Picture(_) => {
+            let ps: Vec<(Rect, &[u8])> = parts
+                .iter()
+                .map(|(at, v)| match v {
+                    Value::Picture(p) => (*at, p.rgba.as_slice()),
+                    _ => (*at, &[][..]),
+                })
+                .collect();
+            let mut rgba = vec![0u8; 4 * n];
+            gather(&mut rgba, r, 4, &ps, rows);
+            Value::Picture(Arc::new(Picture {
+                width: r.w,
+                height: r.h,
+                rgba,
+            }))
+        }
         Value::Number(v) => Value::Number(*v),
     }
 }
 
-/// Copies `part` (covering `at` of the whole image) into `dst` (covering `to`), where they
-/// overlap.
-fn paste(dst: &mut Value, to: Rect, part: &Value, at: Rect) {
-    let o = to.intersect(&at);
-    if o.is_empty() {
-        return;
+/// Copies `parts` (each covering its rectangle) into `dst`, which covers `r`, in place where
+/// `dst` is not shared. `false` for kinds it does not patch (images with a mask).
+fn patch(dst: &mut Value, r: Rect, parts: &[(Rect, &Value)]) -> bool {
+    fn copy<T: Copy>(dst: &mut [T], r: Rect, c: usize, src: &[T], at: Rect) {
+        let o = r.intersect(&at);
+        for y in o.y..o.bottom() {
+            let s = ((y - at.y) * at.w + (o.x - at.x)) * c;
+            let d = ((y - r.y) * r.w + (o.x - r.x)) * c;
+            dst[d..d + o.w * c].copy_from_slice(&src[s..s + o.w * c]);
+        }
     }
-    let s = (o.x - at.x, o.y - at.y);
-    let d = (o.x - to.x, o.y - to.y);
-    let wh = (o.w, o.h);
-    match (dst, part) {
-        (Value::Rgbn(di), Value::Rgbn(si)) => {
-            let [sc, sn] = [si.color(), si.normal()];
-            for (dp, sp) in di.color_mut().iter_mut().zip(sc) {
-                blit(sp, at.w, s, dp, to.w, d, wh, 1);
-            }
-            for (dp, sp) in di.normal_mut().iter_mut().zip(sn) {
-                blit(sp, at.w, s, dp, to.w, d, wh, 1);
-            }
-            if let (Some(sm), true) = (si.mask(), di.mask().is_some()) {
-                let mut m = di.mask().expect("checked").to_vec();
-                blit(sm, at.w, s, &mut m, to.w, d, wh, 1);
-                di.set_mask(Some(m)).expect("same size");
+    match dst {
+        Value::Picture(p) => {
+            let rgba = &mut Arc::make_mut(p).rgba;
+            for (at, v) in parts {
+                let Value::Picture(s) = v else { return false };
+                copy(rgba, r, 4, &s.rgba, *at);
             }
         }
-        (Value::Mask(dp), Value::Mask(sp)) | (Value::Scalar(dp), Value::Scalar(sp)) => {
-            blit(
-                sp.data(),
-                at.w,
-                s,
-                Arc::make_mut(dp).data_mut(),
-                to.w,
-                d,
-                wh,
-                1,
-            );
+        Value::Mask(p) | Value::Scalar(p) => {
+            let data = Arc::make_mut(p).data_mut();
+            for (at, v) in parts {
+                let (Value::Mask(s) | Value::Scalar(s)) = v else {
+                    return false;
+                };
+                copy(data, r, 1, s.data(), *at);
+            }
         }
-        (Value::Picture(dp), Value::Picture(sp)) => {
-            blit(
-                &sp.rgba,
-                at.w,
-                s,
-                &mut Arc::make_mut(dp).rgba,
-                to.w,
-                d,
-                wh,
-                4,
-            );
+        Value::Rgbn(img) if img.mask().is_none() => {
+            for (at, v) in parts {
+                let Value::Rgbn(s) = v else { return false };
+                for (d, p) in img.color_mut().iter_mut().zip(s.color()) {
+                    copy(d, r, 1, p, *at);
+                }
+                for (d, p) in img.normal_mut().iter_mut().zip(s.normal()) {
+                    copy(d, r, 1, p, *at);
+                }
+            }
         }
-        _ => {}
+        _ => return false,
     }
+    true
 }
 
 /// `r` (in `v`'s own pixel coordinates) cut out of `v`; numbers are returned as they are.
@@ -789,28 +899,34 @@ pub fn crop(v: &Value, r: Rect) -> Value {
     if r == Rect::full(sz) {
         return v.clone();
     }
-    let mut out = blank(v, (r.w, r.h));
-    paste(&mut out, r, v, Rect::full(sz));
-    out
+    gather_value(&[(Rect::full(sz), v)], r, &|_| 0..1)
 }
 
 /// Port `port` of the tiles `have` of a `size` image, over `r`.
 fn assemble(have: &TileMap, port: usize, tile: usize, size: (usize, usize), r: Rect) -> Value {
-    let mut parts = covering(&r, tile).filter_map(|t| {
-        have.get(&t)
-            .and_then(|e| e.values.get(port))
-            .map(|v| (tile_rect(t, tile, size), v))
-    });
-    let Some((first_rect, first)) = parts.next() else {
-        return Value::Number(f64::NAN);
-    };
-    if first_rect == r {
-        return first.clone();
+    // Parts in tile-row order; the parts of tile row `ty` are `by_row[ty - ty0]..[+1]`.
+    let ty0 = r.y / tile;
+    let mut parts: Vec<(Rect, &Value)> = Vec::new();
+    let mut by_row = vec![0usize];
+    let tiles: Vec<Tile> = covering(&r, tile).collect();
+    let mut ty = ty0;
+    for t in tiles {
+        while t.1 > ty {
+            by_row.push(parts.len());
+            ty += 1;
+        }
+        if let Some(v) = have.get(&t).and_then(|e| e.values.get(port)) {
+            parts.push((tile_rect(t, tile, size), v));
+        }
     }
-    let mut out = blank(first, (r.w, r.h));
-    paste(&mut out, r, first, first_rect);
-    for (at, v) in parts {
-        paste(&mut out, r, v, at);
+    by_row.push(parts.len());
+    if let [(at, v)] = parts.as_slice() {
+        if *at == r {
+            return (*v).clone();
+        }
     }
-    out
+    gather_value(&parts, r, &|y| {
+        let k = (y / tile - ty0).min(by_row.len() - 2);
+        by_row[k]..by_row[k + 1]
+    })
 }

@@ -368,6 +368,47 @@ pub fn stamp_height_from_normals(stamp: &RgbnImage, falloff_px: f32) -> Result<P
     Ok(prepare_masked_stamp_height(&h, &feather, falloff_px))
 }
 
+/// [`stamp_height_from_normals`], remembered for the last few stamps (by the hash of their
+/// normals and mask, and the falloff): a stamp placed region by region, or edited placement
+/// by placement, is integrated once.
+fn prepared_stamp_height(
+    stamp: &RgbnImage,
+    falloff_px: f32,
+) -> Result<std::sync::Arc<Plane>, RgbnError> {
+    use std::sync::{Arc, Mutex};
+    static MEMO: Mutex<Vec<(u128, Arc<Plane>)>> = Mutex::new(Vec::new());
+    let mut h = xxhash_rust::xxh3::Xxh3::new();
+    h.update(&(stamp.width() as u64).to_le_bytes());
+    h.update(&(stamp.height() as u64).to_le_bytes());
+    h.update(&falloff_px.to_bits().to_le_bytes());
+    for plane in stamp.normal() {
+        for v in plane {
+            h.update(&v.to_bits().to_le_bytes());
+        }
+    }
+    if let Some(m) = stamp.mask() {
+        h.update(b"mask");
+        for v in m {
+            h.update(&v.to_bits().to_le_bytes());
+        }
+    }
+    let key = h.digest128();
+    let lock = || {
+        MEMO.lock()
+            .unwrap_or_else(std::sync::PoisonError::into_inner)
+    };
+    if let Some((_, p)) = lock().iter().find(|(k, _)| *k == key) {
+        return Ok(p.clone());
+    }
+    let p = Arc::new(stamp_height_from_normals(stamp, falloff_px)?);
+    let mut memo = lock();
+    if memo.len() >= 8 {
+        memo.remove(0);
+    }
+    memo.push((key, p.clone()));
+    Ok(p)
+}
+
 /// The feathered stamp mask (module docs, "Stamp masks"): 0 outside the mask (coverage < ½),
 /// rising by a quintic smoothstep over `falloff_px` pixels of distance from the outside (1
 /// beyond; a hard edge when `falloff_px` is 0). The stamp's border counts as outside.
@@ -470,7 +511,7 @@ pub fn stamp_image(
             format!("the mask is not the target image's size ({w}×{h})"),
         ));
     }
-    let prepared = stamp_height_from_normals(stamp, params.falloff())?;
+    let prepared = prepared_stamp_height(stamp, params.falloff())?;
     let mut height = stamp_height_field(w, h, &prepared, params)?;
     if let Some(m) = region {
         height
