@@ -71,12 +71,17 @@ fn pen_segment(c: &mut Criterion) {
         r#"(id: 3, op: "pen", name: Some("pen"), pos: (0.0, 0.0), params: { "width_px": Float(20.0), "taper_px": Float(16.0), "height_px": Float(2.0) }, inputs: { "image": Node(1, "image") })"#,
     );
     let ev = Evaluator::default();
-    let ropts = RegionOptions::default();
+    let ropts = RegionOptions {
+        tile: std::env::var("TILE")
+            .ok()
+            .and_then(|t| t.parse().ok())
+            .unwrap_or(256),
+    };
     let opts = EvalOptions::default();
     let base = base_path();
     let view = viewport(base[base.len() - 1]);
     let inputs = BTreeMap::new();
-    let mut eval = |lg: &LoadedGraph| {
+    let eval = |lg: &LoadedGraph| {
         let plan = Plan::new(lg, &inputs, Path::new(".")).expect("plan");
         let r = ev
             .eval_region(&plan, "relit", view, &ropts, &opts)
@@ -125,7 +130,12 @@ fn stamp_move(c: &mut Criterion) {
             .join(", ")
     ));
     let ev = Evaluator::default();
-    let ropts = RegionOptions::default();
+    let ropts = RegionOptions {
+        tile: std::env::var("TILE")
+            .ok()
+            .and_then(|t| t.parse().ok())
+            .unwrap_or(256),
+    };
     let opts = EvalOptions::default();
     let view = viewport(positions[0]);
     let inputs = BTreeMap::new();

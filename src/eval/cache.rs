@@ -29,10 +29,16 @@ impl CacheEntry {
     }
 }
 
-/// Byte-budgeted LRU map from [`CacheKey`] to [`CacheEntry`].
+/// Byte-budgeted LRU map from [`CacheKey`] to [`CacheEntry`]. One entry may be stored under
+/// several keys (a tile an edit did not change, under the old and the new content key): its
+/// bytes count once.
 #[derive(Debug)]
 pub struct MemCache {
     map: HashMap<CacheKey, (Arc<CacheEntry>, u64)>,
+    /// Keys by last use (the LRU order).
+    order: std::collections::BTreeMap<u64, CacheKey>,
+    /// Keys per stored entry (by address).
+    refs: HashMap<usize, usize>,
     bytes: usize,
     budget: usize,
     tick: u64,
@@ -44,6 +50,8 @@ impl MemCache {
     pub fn new(budget: usize) -> Self {
         Self {
             map: HashMap::new(),
+            order: std::collections::BTreeMap::new(),
+            refs: HashMap::new(),
             bytes: 0,
             budget,
             tick: 0,
@@ -53,10 +61,11 @@ impl MemCache {
     pub fn get(&mut self, key: CacheKey) -> Option<Arc<CacheEntry>> {
         self.tick += 1;
         let t = self.tick;
-        self.map.get_mut(&key).map(|(e, used)| {
-            *used = t;
-            e.clone()
-        })
+        let (e, used) = self.map.get_mut(&key)?;
+        self.order.remove(used);
+        *used = t;
+        self.order.insert(t, key);
+        Some(e.clone())
     }
     /// Stores `entry`, evicting least-recently-used entries beyond the budget. An entry larger
     /// than the whole budget is not stored.
@@ -66,15 +75,34 @@ impl MemCache {
             return;
         }
         self.tick += 1;
-        if let Some((old, _)) = self.map.insert(key, (entry, self.tick)) {
-            self.bytes -= old.byte_size();
+        self.add_ref(&entry, size);
+        self.order.insert(self.tick, key);
+        if let Some((old, used)) = self.map.insert(key, (entry, self.tick)) {
+            self.order.remove(&used);
+            self.drop_ref(&old);
         }
-        self.bytes += size;
         while self.bytes > self.budget {
-            let Some((&k, _)) = self.map.iter().min_by_key(|(_, (_, used))| *used) else {
+            let Some((_, k)) = self.order.pop_first() else {
                 break;
             };
             if let Some((e, _)) = self.map.remove(&k) {
+                self.drop_ref(&e);
+            }
+        }
+    }
+    fn add_ref(&mut self, e: &Arc<CacheEntry>, size: usize) {
+        let n = self.refs.entry(Arc::as_ptr(e) as usize).or_insert(0);
+        if *n == 0 {
+            self.bytes += size;
+        }
+        *n += 1;
+    }
+    fn drop_ref(&mut self, e: &Arc<CacheEntry>) {
+        let p = Arc::as_ptr(e) as usize;
+        if let Some(n) = self.refs.get_mut(&p) {
+            *n -= 1;
+            if *n == 0 {
+                self.refs.remove(&p);
                 self.bytes -= e.byte_size();
             }
         }
@@ -97,6 +125,8 @@ impl MemCache {
     /// Drops everything.
     pub fn clear(&mut self) {
         self.map.clear();
+        self.order.clear();
+        self.refs.clear();
         self.bytes = 0;
     }
 }
@@ -124,5 +154,24 @@ mod tests {
         assert!(c.get(2).is_none());
         assert!(c.get(1).is_some() && c.get(3).is_some());
         assert_eq!(c.bytes(), 16);
+    }
+
+    #[test]
+    fn an_entry_under_several_keys_counts_once_until_its_last_key_goes() {
+        let mut c = MemCache::new(24); // three numbers
+        let e = entry(1.0);
+        c.insert(1, e.clone());
+        c.insert(2, e.clone());
+        assert_eq!(c.bytes(), 8);
+        c.insert(3, entry(3.0));
+        c.insert(4, entry(4.0));
+        assert_eq!((c.len(), c.bytes()), (4, 24));
+        // Over budget: the oldest key (1) goes, its entry stays under key 2 (still counted);
+        // then key 2 goes too and the bytes drop.
+        c.insert(5, entry(5.0));
+        assert!(c.get(1).is_none());
+        assert_eq!(c.bytes(), 24);
+        assert!(c.get(2).is_none());
+        assert_eq!(c.len(), 3);
     }
 }

@@ -518,10 +518,17 @@ impl Evaluator {
                         let clear = d.as_ref()?.iter().all(|d| d.intersect(&tr).is_empty());
                         clear.then_some(*k)
                     })
-                    .find_map(|k| self.mem_get(tile_key(k, tile, 0, t.0, t.1)));
-                if let Some(e) = earlier {
-                    // Not stored again under the new key (the cache counts bytes per entry):
-                    // found through the trail next time too.
+                    .enumerate()
+                    .find_map(|(depth, k)| {
+                        self.mem_get(tile_key(k, tile, 0, t.0, t.1))
+                            .map(|e| (depth, e))
+                    });
+                if let Some((depth, e)) = earlier {
+                    // Found far back: stored under the new key too (its bytes count once),
+                    // so it stays reachable however many edits follow.
+                    if depth >= TRAIL / 2 {
+                        self.mem_insert(tile_key(key, tile, 0, t.0, t.1), e.clone());
+                    }
                     have[i].insert(t, e);
                     reused[i] += 1;
                     continue;
