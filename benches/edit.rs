@@ -75,7 +75,7 @@ fn pen_segment(c: &mut Criterion) {
         tile: std::env::var("TILE")
             .ok()
             .and_then(|t| t.parse().ok())
-            .unwrap_or(256),
+            .unwrap_or(128),
     };
     let opts = EvalOptions::default();
     let base = base_path();
@@ -134,7 +134,7 @@ fn stamp_move(c: &mut Criterion) {
         tile: std::env::var("TILE")
             .ok()
             .and_then(|t| t.parse().ok())
-            .unwrap_or(256),
+            .unwrap_or(128),
     };
     let opts = EvalOptions::default();
     let view = viewport(positions[0]);

@@ -906,7 +906,29 @@ pub fn crop(v: &Value, r: Rect) -> Value {
     if r == Rect::full(sz) {
         return v.clone();
     }
-    gather_value(&[(Rect::full(sz), v)], r, &|_| 0..1)
+    // Row by row into fresh vectors (no zero fill first).
+    let rows = |src: &[f32]| -> Vec<f32> {
+        let mut out = Vec::with_capacity(r.w * r.h);
+        for y in r.y..r.bottom() {
+            out.extend_from_slice(&src[y * sz.0 + r.x..y * sz.0 + r.right()]);
+        }
+        out
+    };
+    match v {
+        Value::Rgbn(img) => {
+            let c = img.color().each_ref().map(|p| rows(p));
+            let n = img.normal().each_ref().map(|p| rows(p));
+            let m = img.mask().map(rows);
+            Value::Rgbn(RgbnImage::new(r.w, r.h, c, n, m).expect("planes of the right size"))
+        }
+        Value::Mask(p) => Value::Mask(Arc::new(
+            Plane::from_vec(r.w, r.h, rows(p.data())).expect("right size"),
+        )),
+        Value::Scalar(p) => Value::Scalar(Arc::new(
+            Plane::from_vec(r.w, r.h, rows(p.data())).expect("right size"),
+        )),
+        _ => gather_value(&[(Rect::full(sz), v)], r, &|_| 0..1),
+    }
 }
 
 /// Port `port` of the tiles `have` of a `size` image, over `r`.

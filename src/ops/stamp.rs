@@ -381,16 +381,21 @@ fn prepared_stamp_height(
     h.update(&(stamp.width() as u64).to_le_bytes());
     h.update(&(stamp.height() as u64).to_le_bytes());
     h.update(&falloff_px.to_bits().to_le_bytes());
-    for plane in stamp.normal() {
-        for v in plane {
-            h.update(&v.to_bits().to_le_bytes());
+    let mut feed = |vals: &[f32]| {
+        let mut buf = [0u8; 4096];
+        for chunk in vals.chunks(1024) {
+            for (b, v) in buf.chunks_exact_mut(4).zip(chunk) {
+                b.copy_from_slice(&v.to_bits().to_le_bytes());
+            }
+            h.update(&buf[..4 * chunk.len()]);
         }
+    };
+    for plane in stamp.normal() {
+        feed(plane);
     }
     if let Some(m) = stamp.mask() {
-        h.update(b"mask");
-        for v in m {
-            h.update(&v.to_bits().to_le_bytes());
-        }
+        feed(&[f32::NAN]);
+        feed(m);
     }
     let key = h.digest128();
     let lock = || {
