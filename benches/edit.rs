@@ -8,11 +8,17 @@
 //!   path is reset, untimed.
 //! - `edit/stamp_move_4k`: move one placement of a 64² stamp on 4K by a few pixels and produce
 //!   the relit viewport.
+//! - `tile/…`: whole-image work through tiles by tile side, against the whole-image evaluator
+//!   (the measurement behind `DEFAULT_TILE` and `INTERACTIVE_TILE`).
 //!
-//! Run: `cargo bench --bench edit` (set `RAYON_NUM_THREADS=2` to match the other benches).
+//! The edits use tiles of `INTERACTIVE_TILE` (128) pixels, the side meant for interactive work
+//! (the editor itself does not evaluate by regions yet).
+//!
+//! Run: `cargo bench --no-default-features --bench edit` (set `RAYON_NUM_THREADS=2` to match
+//! the other benches).
 
 use criterion::{criterion_group, criterion_main, Criterion};
-use rgbn::eval::region::{Rect, RegionOptions};
+use rgbn::eval::region::{Rect, RegionOptions, INTERACTIVE_TILE};
 use rgbn::eval::{EvalOptions, Evaluator, Plan};
 use rgbn::graph::LoadedGraph;
 use std::collections::BTreeMap;
@@ -72,10 +78,7 @@ fn pen_segment(c: &mut Criterion) {
     );
     let ev = Evaluator::default();
     let ropts = RegionOptions {
-        tile: std::env::var("TILE")
-            .ok()
-            .and_then(|t| t.parse().ok())
-            .unwrap_or(128),
+        tile: INTERACTIVE_TILE,
     };
     let opts = EvalOptions::default();
     let base = base_path();
@@ -131,10 +134,7 @@ fn stamp_move(c: &mut Criterion) {
     ));
     let ev = Evaluator::default();
     let ropts = RegionOptions {
-        tile: std::env::var("TILE")
-            .ok()
-            .and_then(|t| t.parse().ok())
-            .unwrap_or(128),
+        tile: INTERACTIVE_TILE,
     };
     let opts = EvalOptions::default();
     let view = viewport(positions[0]);
@@ -161,9 +161,53 @@ fn stamp_move(c: &mut Criterion) {
     });
 }
 
+/// Whole-image work through tiles, by tile side, against the whole-image evaluator: a 4K
+/// Gaussian (σ 2: FIR, halo 8; σ 8: recursive, halo 32) and the relit picture, every tile
+/// recomputed (σ changes by 1e-6 each time).
+fn tile_size(c: &mut Criterion) {
+    let mut g = c.benchmark_group("tile");
+    g.sample_size(10).measurement_time(Duration::from_secs(8));
+    for sigma in [2.0, 8.0] {
+        let mut lg = graph(&format!(
+            r#"(id: 3, op: "filter.gaussian", name: Some("blur"), pos: (0.0, 0.0), params: {{ "sigma_px": Float({sigma}) }}, inputs: {{ "image": Node(1, "image") }})"#
+        ));
+        let ev = Evaluator::default();
+        let opts = EvalOptions::default();
+        let inputs = BTreeMap::new();
+        let mut serial = 0u32;
+        let mut next = |lg: &mut LoadedGraph| {
+            serial += 1;
+            let s = sigma + 1e-6 * f64::from(serial);
+            lg.set_param("blur", "sigma_px", &s.to_string())
+                .expect("sigma");
+            Plan::new(lg, &inputs, Path::new(".")).expect("plan")
+        };
+        for tile in [64, 128, 256, 512] {
+            let ropts = RegionOptions { tile };
+            g.bench_function(format!("gauss{sigma}_relight_4k/{tile}"), |b| {
+                b.iter(|| {
+                    let plan = next(&mut lg);
+                    let r = ev
+                        .eval_region(&plan, "relit", Rect::full((W, H)), &ropts, &opts)
+                        .expect("eval");
+                    black_box(r.value)
+                });
+            });
+        }
+        g.bench_function(format!("gauss{sigma}_relight_4k/whole"), |b| {
+            b.iter(|| {
+                let plan = next(&mut lg);
+                let r = ev.eval(&plan, &["relit"], &opts).expect("eval");
+                black_box(r.outputs)
+            });
+        });
+    }
+    g.finish();
+}
+
 criterion_group! {
     name = benches;
     config = Criterion::default().sample_size(30).measurement_time(Duration::from_secs(10));
-    targets = pen_segment, stamp_move
+    targets = pen_segment, stamp_move, tile_size
 }
 criterion_main!(benches);

@@ -119,8 +119,13 @@ impl std::fmt::Display for Rect {
     }
 }
 
-/// Tile side in pixels when none is given (see BENCHMARKS.md, "Tile size").
-pub const DEFAULT_TILE: usize = 256;
+/// Tile side in pixels when none is given: whole-image and batch work, where larger tiles
+/// spend less on halos (see BENCHMARKS.md, "Tile size").
+pub const DEFAULT_TILE: usize = 512;
+
+/// Tile side for interactive edits: a small edit recomputes less (see BENCHMARKS.md, "Tile
+/// size").
+pub const INTERACTIVE_TILE: usize = 128;
 
 /// Options of a region evaluation.
 #[derive(Clone, Copy, Debug)]
