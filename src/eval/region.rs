@@ -412,14 +412,36 @@ impl Evaluator {
                 continue;
             }
             let inst = &plan.instances[i];
-            size[i] = inst.inputs.iter().enumerate().find_map(|(k, c)| match c {
-                Conn::Slot(j, _)
-                    if matches!(inst.op.footprint(&inst.params, k), Footprint::Local { .. }) =>
-                {
-                    size[*j]
+            // Every local input must have the same size: they are cropped alike.
+            let mut first: Option<(&str, (usize, usize))> = None;
+            for (k, c) in inst.inputs.iter().enumerate() {
+                let Conn::Slot(j, port) = c else { continue };
+                if !matches!(inst.op.footprint(&inst.params, k), Footprint::Local { .. }) {
+                    continue;
                 }
-                _ => None,
-            });
+                let s = match whole.results.get(j) {
+                    Some(e) => e.values.get(*port).and_then(super::memory::value_size),
+                    None => size[*j],
+                };
+                let (Some(s), name) = (s, inst.op.spec().inputs[k].name.as_str()) else {
+                    continue;
+                };
+                match first {
+                    None => first = Some((name, s)),
+                    Some((f, fs)) if fs != s => {
+                        return Err(GraphError::Node {
+                            op: inst.op.spec().id.to_string(),
+                            source: crate::error::RgbnError::InvalidImage(format!(
+                                "input {name:?} is {}×{} but input {f:?} is {}×{}: give both the same size",
+                                s.0, s.1, fs.0, fs.1
+                            )),
+                            at: inst.at.clone(),
+                        });
+                    }
+                    Some(_) => {}
+                }
+            }
+            size[i] = first.map(|(_, s)| s);
             self.key(plan, i, &mut keys)?;
         }
         // Damage: what each tiled instance's edit (its parameters, its inputs' damage grown by

@@ -328,3 +328,35 @@ fn after_random_pen_stamp_and_brush_edits_the_incremental_result_equals_a_full_r
     }
     assert_eq!(appended, 8);
 }
+
+#[test]
+fn inputs_of_different_sizes_are_an_error_naming_the_node_not_a_panic() {
+    let d = tempfile::tempdir().unwrap();
+    let mask = root().join("graphs/data/mask.png");
+    let text = format!(
+        r#"(
+    version: 1,
+    next_id: 4,
+    outputs: {{ "image": (node: 3, port: "image") }},
+    nodes: [
+        (id: 1, op: "demo", pos: (0.0, 0.0), params: {{ "size": Int(100) }}),
+        (id: 2, op: "load_mask", pos: (0.0, 0.0), params: {{ "path": Path("{}") }}),
+        (id: 3, op: "apply_mask", name: Some("masked"), pos: (0.0, 0.0), inputs: {{ "image": Node(1, "image"), "mask": Node(2, "mask") }}),
+    ],
+)"#,
+        mask.display()
+    );
+    let lg = LoadedGraph::from_text(&text, "sizes.ron", d.path().to_path_buf()).unwrap();
+    let plan = Plan::new(&lg, &BTreeMap::new(), d.path()).unwrap();
+    let e = Evaluator::default()
+        .eval_region(
+            &plan,
+            "image",
+            Rect::new(0, 0, 40, 40),
+            &RegionOptions { tile: 16 },
+            &EvalOptions::default(),
+        )
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("masked") && e.contains("same size"), "{e}");
+}
