@@ -517,9 +517,37 @@ impl Evaluator {
                 tiles: Vec::new(),
             });
         }
+        // The previous result of the same request, if it can be patched where the edits
+        // since can have changed it: then only the tiles there are wanted.
+        let root_inst = &plan.instances[root];
+        let ident = (
+            root,
+            root_inst.op.spec().id,
+            root_inst.at.file.clone(),
+            root_inst.at.node,
+        );
+        let last = super::lock(&self.seen).last.take().and_then(|l| {
+            let same = (&l.ident, l.port, l.rect, l.tile) == (&ident, root_port, rect, tile);
+            let damage = if l.key == keys[&root] {
+                Some(Vec::new())
+            } else {
+                damage_since(&trails[root], l.key)
+            };
+            match damage {
+                Some(d) if same && patchable(&l.value) => Some((l.value, d)),
+                _ => None,
+            }
+        });
+        let touched = |t: &Tile, d: &[Rect]| {
+            let tr = tile_rect(*t, tile, out_size);
+            d.iter().any(|x| !x.intersect(&tr).is_empty())
+        };
         // 4. Tiles wanted per tiled instance, and those to compute (not cached).
         let mut want: Vec<BTreeSet<(usize, usize)>> = vec![BTreeSet::new(); n];
-        want[root].extend(covering(&rect, tile));
+        match &last {
+            Some((_, d)) => want[root].extend(covering(&rect, tile).filter(|t| touched(t, d))),
+            None => want[root].extend(covering(&rect, tile)),
+        }
         let mut have: Vec<TileMap> = vec![HashMap::new(); n];
         let mut todo: Vec<Vec<(usize, usize)>> = vec![Vec::new(); n];
         let mut reused = vec![0usize; n];
@@ -665,43 +693,21 @@ impl Evaluator {
             }
             tiles.push(st);
         }
-        // The previous result of the same request, patched where the edits since can have
-        // changed it (in place when the caller no longer holds it), or assembled anew.
-        let root_inst = &plan.instances[root];
-        let ident = (
-            root,
-            root_inst.op.spec().id,
-            root_inst.at.file.clone(),
-            root_inst.at.node,
-        );
-        let last = super::lock(&self.seen).last.take();
-        let patched = last.and_then(|l| {
-            if (&l.ident, l.port, l.rect, l.tile) != (&ident, root_port, rect, tile) {
-                return None;
-            }
-            let mut value = l.value;
-            let key = keys[&root];
-            if l.key != key {
-                let damage = damage_since(&trails[root], l.key)?;
+        // Patched in place (when the caller no longer holds it), or assembled anew.
+        let value = match last {
+            Some((mut value, d)) => {
                 let parts: Vec<(Rect, &Value)> = covering(&rect, tile)
-                    .map(|t| tile_rect(t, tile, out_size))
-                    .filter(|tr| damage.iter().any(|d| !d.intersect(tr).is_empty()))
-                    .map(|tr| {
-                        let t = (tr.x / tile, tr.y / tile);
-                        have[root]
-                            .get(&t)
-                            .and_then(|e| e.values.get(root_port))
-                            .map(|v| (tr, v))
+                    .filter(|t| touched(t, &d))
+                    .filter_map(|t| {
+                        let v = have[root].get(&t)?.values.get(root_port)?;
+                        Some((tile_rect(t, tile, out_size), v))
                     })
-                    .collect::<Option<_>>()?;
-                if !patch(&mut value, rect, &parts) {
-                    return None;
-                }
+                    .collect();
+                patch(&mut value, rect, &parts);
+                value
             }
-            Some(value)
-        });
-        let value =
-            patched.unwrap_or_else(|| assemble(&have[root], root_port, tile, out_size, rect));
+            None => assemble(&have[root], root_port, tile, out_size, rect),
+        };
         super::lock(&self.seen).last = Some(LastResult {
             ident,
             port: root_port,
@@ -880,8 +886,17 @@ fn gather_value(
     }
 }
 
+/// Whether [`patch`] updates values like `v` (not images with a mask, nor numbers).
+fn patchable(v: &Value) -> bool {
+    match v {
+        Value::Rgbn(img) => img.mask().is_none(),
+        Value::Number(_) => false,
+        _ => true,
+    }
+}
+
 /// Copies `parts` (each covering its rectangle) into `dst`, which covers `r`, in place where
-/// `dst` is not shared. `false` for kinds it does not patch (images with a mask).
+/// `dst` is not shared. `false` for kinds it does not patch (see [`patchable`]).
 fn patch(dst: &mut Value, r: Rect, parts: &[(Rect, &Value)]) -> bool {
     fn copy<T: Copy>(dst: &mut [T], r: Rect, c: usize, src: &[T], at: Rect) {
         let o = r.intersect(&at);

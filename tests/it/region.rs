@@ -285,8 +285,8 @@ fn after_random_pen_stamp_and_brush_edits_the_incremental_result_equals_a_full_r
         let tol = if name == "relit" { 1.0 / 255.0 } else { 2e-6 };
         assert!(diff <= tol, "step {step} ({what}): {diff}");
     }
-    // Then appends with the pen's own output asked for whole each time (so every tile of its
-    // last result exists): each recomputes only the tiles its change touches.
+    // Then appends with the pen's own output asked for whole each time: each recomputes only
+    // the tiles its change touches.
     let plan = Plan::new(&lg, &BTreeMap::new(), d.path()).unwrap();
     ev.eval_region(&plan, "pen", full, &ropts, &opts).unwrap();
     for step in 0..8 {
@@ -318,8 +318,9 @@ fn after_random_pen_stamp_and_brush_edits_the_incremental_result_equals_a_full_r
             "append {step}"
         );
         let at_pen = r.tiles.iter().find(|t| t.op == "pen").unwrap();
+        // Only the tiles the change touches are even asked for: the last result is patched.
         assert!(
-            at_pen.computed <= bound && at_pen.computed + at_pen.reused == 80,
+            at_pen.computed >= 1 && at_pen.computed + at_pen.reused <= bound,
             "append {step}: pen recomputed {} tiles (reused {}), its change touches {bound}",
             at_pen.computed,
             at_pen.reused
