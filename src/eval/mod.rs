@@ -272,6 +272,16 @@ pub struct EvalOptions {
     pub curl_stats: bool,
 }
 
+impl EvalOptions {
+    /// Whether [`EvalOptions::cancel`] is set.
+    #[must_use]
+    pub fn cancelled(&self) -> bool {
+        self.cancel
+            .as_ref()
+            .is_some_and(|c| c.load(Ordering::Relaxed))
+    }
+}
+
 /// How a node's value was obtained.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Status {
@@ -626,11 +636,7 @@ impl Evaluator {
             let ran: Vec<Result<Ran, GraphError>> = batch
                 .par_iter()
                 .map(|&i| {
-                    if opts
-                        .cancel
-                        .as_ref()
-                        .is_some_and(|c| c.load(Ordering::Relaxed))
-                    {
+                    if opts.cancelled() {
                         return Err(GraphError::Cancelled);
                     }
                     let r = self.run_one(plan, i, keys[&i], &results, &ctx, opts)?;

@@ -37,7 +37,6 @@ use crate::ops::params::ParamValue;
 use crate::raster::{Plane, RgbnImage};
 use rayon::prelude::*;
 use std::collections::{BTreeMap, BTreeSet, HashMap};
-use std::sync::atomic::Ordering;
 use std::sync::Arc;
 
 /// A pixel rectangle: columns `x..x + w`, rows `y..y + h` (row 0 at the top).
@@ -616,11 +615,7 @@ impl Evaluator {
             let computed: Vec<Result<(Tile, Arc<CacheEntry>), GraphError>> = todo[i]
                 .par_iter()
                 .map(|&t| {
-                    if opts
-                        .cancel
-                        .as_ref()
-                        .is_some_and(|c| c.load(Ordering::Relaxed))
-                    {
+                    if opts.cancelled() {
                         return Err(GraphError::Cancelled);
                     }
                     let tr = tile_rect(t, tile, sz);

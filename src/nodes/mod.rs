@@ -512,10 +512,7 @@ impl<T: Operator> DynOp for Entry<T> {
         inputs: &[Option<Value>],
         ctx: &RunContext,
     ) -> Result<Vec<Value>, RgbnError> {
-        let p: T::Params = params::from_values(values)?;
-        let out = T::run(&p, &Inputs::new(&self.spec.inputs, inputs), ctx)?;
-        debug_assert_eq!(out.len(), self.spec.outputs.len());
-        Ok(out)
+        self.run_at(values, inputs, ctx, (0, 0))
     }
     fn out_size(
         &self,
