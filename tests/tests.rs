@@ -75,3 +75,6 @@ mod region;
 
 #[path = "it/region_props.rs"]
 mod region_props;
+
+#[path = "it/streaming.rs"]
+mod streaming;

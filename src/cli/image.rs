@@ -3,17 +3,19 @@
 use super::error::{usage, CliError};
 use super::out::Out;
 use crate::error::RgbnError;
-use crate::ops::filter::{filter_normals, FilterOptions, Kernel};
+use crate::ops::filter::{filter_normals, filter_streamed, FilterOptions, FilterReport, Kernel};
 use crate::raster::convolve::BorderMode;
 use crate::raster::gradient::GradientField;
 use crate::raster::integrate::green_convention_fractions;
+use crate::raster::io::stream::{PngTarget, RowEncoding};
 use crate::raster::io::{
     self, ExrPrecision, Format, InputSpec, LoadOptions, NormalConvention, SaveOptions,
 };
 use crate::raster::sample::demo_medallion;
-use crate::raster::RgbnImage;
+use crate::raster::strips::{self, Opened, StreamInput};
+use crate::raster::{RgbnImage, Validation};
 use crate::render::{self, InspectParams, Light, Shading, View};
-use clap::Args;
+use clap::{Args, ValueEnum};
 use std::path::{Path, PathBuf};
 
 /// Where the input comes from.
@@ -150,6 +152,22 @@ pub struct FilterArgs {
     /// Write EXR as 16-bit half floats.
     #[arg(long)]
     pub half: bool,
+    /// Read and write row by row, in strips, with memory bounded by the strip instead of the
+    /// image: `auto` does for images over 16 Mpx (or the pixel limit) when it can (PNG in, PNG out, any border but
+    /// wrap), `always` insists (and says why not), `never` reads the image whole.
+    #[arg(long, value_enum, default_value_t = StreamMode::Auto)]
+    pub stream: StreamMode,
+}
+
+/// `--stream`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+pub enum StreamMode {
+    /// Stream images over [`strips::AUTO_STREAM_PIXELS`] when the files allow.
+    Auto,
+    /// Stream whatever the size; refuse when the files do not allow it.
+    Always,
+    /// Read the image whole.
+    Never,
 }
 
 /// `--view`'s long help: every view with its documentation and parameters.
@@ -243,12 +261,7 @@ impl InputArgs {
             .expect("checked above")
             .display()
             .to_string();
-        if !r.is_clean() {
-            eprintln!(
-                "rgbn: note: repaired {} NaN/inf and {} zero-length normals (now (0,0,1)), renormalised {}, zeroed {} non-finite colour values: {name}",
-                r.non_finite_normal, r.zero_length_normal, r.non_unit, r.non_finite_color
-            );
-        }
+        note_repairs(&r, &Some(PathBuf::from(&name)));
         Ok((loaded.image, name))
     }
 
@@ -403,19 +416,62 @@ pub(super) fn filter_cmd(a: &FilterArgs, out: &mut Out<'_>) -> Result<(), CliErr
             )));
         }
     }
-    let (img, _) = a.input.load()?;
     let opts = FilterOptions {
         border: a.border,
         mask_aware: a.mask_aware,
     };
+    let convention = if a.out_dx {
+        NormalConvention::DirectX
+    } else {
+        NormalConvention::OpenGl
+    };
+    // Streamed when it can be and should be; else whole, and a refusal for size says why.
+    let mut why_whole = None;
+    if a.input.demo {
+        why_whole = Some("the input is the built-in demo".to_string());
+    } else if a.stream != StreamMode::Never {
+        let png = |p: &Path| Format::of(p).is_ok_and(|f| f == Format::Png);
+        match StreamInput::open(&a.input.spec(), &a.input.load_options())? {
+            Opened::Whole(why) => why_whole = Some(why),
+            Opened::Stream(_) if a.border == BorderMode::Wrap => {
+                why_whole = Some("the wrap border reads the opposite edge of the image".into());
+            }
+            Opened::Stream(_)
+                if !png(&a.output) || a.color_out.as_deref().is_some_and(|c| !png(c)) =>
+            {
+                why_whole = Some("the output is not a PNG (only PNG is written row by row)".into());
+            }
+            Opened::Stream(input) => {
+                let (w, h) = input.size();
+                let px = (w as u64) * (h as u64);
+                if a.stream == StreamMode::Always
+                    || px > strips::AUTO_STREAM_PIXELS
+                    || px > crate::raster::max_pixels()
+                {
+                    return filter_stream(a, *input, &kernels, &opts, convention, out);
+                }
+            }
+        }
+    }
+    if let (StreamMode::Always, Some(why)) = (a.stream, &why_whole) {
+        return Err(usage(format!("--stream always: cannot stream: {why}")));
+    }
+    let img = match a.input.load() {
+        Ok((img, _)) => img,
+        Err(CliError::Rgbn(e @ RgbnError::TooLarge { .. })) => {
+            return Err(match why_whole {
+                Some(why) => usage(format!(
+                    "{e}; filtering it without reading it whole needs PNG in and out, but {why}"
+                )),
+                None => e.into(),
+            })
+        }
+        Err(e) => return Err(e),
+    };
     let (filtered, report) = filter_normals(&img, &kernels, &opts)?;
     let save = SaveOptions {
         bits: a.bits,
-        convention: if a.out_dx {
-            NormalConvention::DirectX
-        } else {
-            NormalConvention::OpenGl
-        },
+        convention,
         precision: if a.half {
             ExrPrecision::Half
         } else {
@@ -427,6 +483,77 @@ pub(super) fn filter_cmd(a: &FilterArgs, out: &mut Out<'_>) -> Result<(), CliErr
     if let Some(c) = &a.color_out {
         io::save_color(&filtered, c, a.bits)?;
     }
+    filter_summary(a, &kernels, &report, out)
+}
+
+/// `rgbn filter` streamed: PNG rows in, strips filtered, PNG rows out ([`strips`]).
+fn filter_stream(
+    a: &FilterArgs,
+    mut input: StreamInput,
+    kernels: &[Kernel],
+    opts: &FilterOptions,
+    convention: NormalConvention,
+    out: &mut Out<'_>,
+) -> Result<(), CliError> {
+    let (w, h) = input.size();
+    let mut normals = PngTarget::create(&a.output, w, h, a.bits)?;
+    let mut colour = match &a.color_out {
+        Some(c) => Some(PngTarget::create(c, w, h, a.bits)?),
+        None => None,
+    };
+    let (report, repaired) = {
+        let mut nrows = normals.rows(RowEncoding::Normal(convention))?;
+        let mut crows = match colour.as_mut() {
+            Some(t) => Some(t.rows(RowEncoding::Srgb)?),
+            None => None,
+        };
+        let mut albedo = Vec::new();
+        let r = filter_streamed(&mut input, kernels, opts, None, |win, n| {
+            super::interrupt::check()?;
+            nrows.write(n)?;
+            if let Some(c) = crows.as_mut() {
+                match win.color {
+                    Some(col) => c.write(col.map(|p| win.core_of(p)))?,
+                    None => {
+                        albedo.resize(n[0].len(), io::DEFAULT_ALBEDO);
+                        c.write([&albedo[..], &albedo[..], &albedo[..]])?;
+                    }
+                }
+            }
+            Ok::<(), CliError>(())
+        })?;
+        nrows.finish()?;
+        if let Some(c) = crows {
+            c.finish()?;
+        }
+        r
+    };
+    normals.commit()?;
+    if let Some(c) = colour {
+        c.commit()?;
+    }
+    note_repairs(&repaired, &a.input.spec().normal.or(a.input.file.clone()));
+    filter_summary(a, kernels, &report, out)
+}
+
+/// The note `InputArgs::load` prints when normals were repaired.
+fn note_repairs(r: &Validation, name: &Option<PathBuf>) {
+    if !r.is_clean() {
+        let name = name.as_deref().unwrap_or(Path::new("")).display();
+        eprintln!(
+            "rgbn: note: repaired {} NaN/inf and {} zero-length normals (now (0,0,1)), renormalised {}, zeroed {} non-finite colour values: {name}",
+            r.non_finite_normal, r.zero_length_normal, r.non_unit, r.non_finite_color
+        );
+    }
+}
+
+/// The line `rgbn filter` ends with.
+fn filter_summary(
+    a: &FilterArgs,
+    kernels: &[Kernel],
+    report: &FilterReport,
+    out: &mut Out<'_>,
+) -> Result<(), CliError> {
     let names: Vec<String> = kernels.iter().map(ToString::to_string).collect();
     out.line(format_args!(
         "filtered with {} ({} border{}): relative RMS curl {:.3e} → {:.3e}; {} pixels clamped; wrote {}",

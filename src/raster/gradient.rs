@@ -407,12 +407,22 @@ impl GradientField {
 /// row pair is converted on the fly.
 #[must_use]
 pub fn curl_stats_of_normals(img: &RgbnImage) -> CurlStats {
-    let (w, h) = (img.width(), img.height());
-    if w < 2 || h < 2 {
-        return CurlStats::default();
-    }
     let [nx, ny, nz] = img.normal();
-    let mask = img.mask();
+    curl_sums_of_normal_rows([nx, ny, nz], img.mask(), img.width(), 1..img.height()).stats()
+}
+
+/// The curl sums of [`curl_stats_of_normals`] over rows `rows` only (each row `r ≥ 1` pairs with
+/// row `r − 1`), of normal planes `w` wide: a strip's share of a whole image's sums.
+#[must_use]
+pub fn curl_sums_of_normal_rows(
+    [nx, ny, nz]: [&[f32]; 3],
+    mask: Option<&[f32]>,
+    w: usize,
+    rows: std::ops::Range<usize>,
+) -> CurlSums {
+    if w < 2 {
+        return CurlSums::default();
+    }
     let grad = |r: usize, p: &mut Vec<f32>, q: &mut Vec<f32>| {
         p.resize(w, 0.0);
         q.resize(w, 0.0);
@@ -422,7 +432,7 @@ pub fn curl_stats_of_normals(img: &RgbnImage) -> CurlStats {
             [p[x], q[x]] = gradient_of_normal([nx[x], ny[x], nz[x]]);
         }
     };
-    (1..h)
+    (rows.start.max(1)..rows.end)
         .into_par_iter()
         .map_init(
             || [(); 4].map(|()| Vec::with_capacity(w)),
@@ -434,7 +444,6 @@ pub fn curl_stats_of_normals(img: &RgbnImage) -> CurlStats {
             },
         )
         .reduce(CurlSums::default, CurlSums::merge)
-        .stats()
 }
 
 /// `f(x, r)` at the `(w + 1) × (h + 1)` pixel corners, row-major: corner `(x, r)` is the

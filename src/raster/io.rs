@@ -18,6 +18,7 @@
 //! any input (see [`check_output`]).
 
 mod openexr;
+pub mod stream;
 pub mod temp;
 
 pub use openexr::{
@@ -330,17 +331,20 @@ fn decode_raster(path: &Path) -> Result<Raster, RgbnError> {
     })
 }
 
+/// A `png` crate error reading `path` (see [`read_or_decode_error`]).
+fn png_decode_error(path: &Path, e: png::DecodingError) -> RgbnError {
+    let detail = e.to_string();
+    match e {
+        png::DecodingError::IoError(io) => read_or_decode_error(path, Some(io), detail),
+        _ => read_or_decode_error(path, None, detail),
+    }
+}
+
 /// Decodes a PNG with the `png` crate: the size is checked before the pixel buffer is
 /// allocated, palette and sub-byte images are expanded to 8 bits, and 16-bit big-endian
 /// samples are converted to `u16` in parallel.
 fn decode_png(path: &Path) -> Result<Raster, RgbnError> {
-    let err = |e: png::DecodingError| {
-        let detail = e.to_string();
-        match e {
-            png::DecodingError::IoError(io) => read_or_decode_error(path, Some(io), detail),
-            _ => read_or_decode_error(path, None, detail),
-        }
-    };
+    let err = |e: png::DecodingError| png_decode_error(path, e);
     let file = std::fs::File::open(path).map_err(|e| RgbnError::Read {
         path: path.into(),
         source: e,
@@ -612,35 +616,11 @@ pub fn write_atomic(
     path: &Path,
     write: impl FnOnce(&mut std::io::BufWriter<std::fs::File>) -> Result<(), String>,
 ) -> Result<(), RgbnError> {
-    let dir = match path.parent() {
-        Some(d) if !d.as_os_str().is_empty() => d,
-        _ => Path::new("."),
-    };
-    if !dir.is_dir() {
-        return Err(RgbnError::MissingDir { path: path.into() });
-    }
-    let name = path.file_name().and_then(|n| n.to_str()).unwrap_or("out");
-    let _writing = temp::WriteGuard::begin();
-    // Temporaries of this target left by a killed process are removed first.
-    temp::clean_stale(dir, Some(name));
-    let tmp = temp::temp_path(dir, name);
-    let werr = |detail: String| RgbnError::Write {
-        detail,
-        path: path.into(),
-    };
-    let result = (|| {
-        let file = std::fs::File::create(&tmp).map_err(|e| werr(e.to_string()))?;
-        let mut buf = std::io::BufWriter::with_capacity(1 << 20, file);
-        write(&mut buf).map_err(werr)?;
-        let file = buf.into_inner().map_err(|e| werr(e.error().to_string()))?;
-        file.sync_data().map_err(|e| werr(e.to_string()))?;
-        drop(file);
-        std::fs::rename(&tmp, path).map_err(|e| werr(e.to_string()))
-    })();
-    if result.is_err() {
-        let _ = std::fs::remove_file(&tmp);
-    }
-    result
+    let file = stream::AtomicFile::create(path)?;
+    let mut buf = std::io::BufWriter::with_capacity(1 << 20, file.handle()?);
+    write(&mut buf).map_err(|e| file.error(e))?;
+    buf.into_inner().map_err(|e| file.error(e.error()))?;
+    file.commit()
 }
 
 /// Writes only the colour: EXR (linear `R,G,B`) or PNG/TIFF (sRGB, 8 or 16 bit).

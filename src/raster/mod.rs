@@ -19,6 +19,7 @@ pub mod ptm;
 pub mod sample;
 pub mod smooth;
 pub mod srgb;
+pub mod strips;
 
 use crate::error::RgbnError;
 use std::sync::Arc;

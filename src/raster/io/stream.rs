@@ -1,0 +1,414 @@
+//! Row-streamed PNG files: read and written a band of rows at a time, so an image larger than
+//! memory passes through with a peak set by the band, not the image (issue 12, item 5; the
+//! strip driver is [`crate::raster::strips`]).
+//!
+//! - [`PngRows`] decodes the next rows of a PNG into `f32` planes as a normal map, linear colour
+//!   or coverage, with the arithmetic of the whole-image loaders ([`super::load_normal_map`],
+//!   [`super::load_color`], [`super::load_mask`]), so a streamed image equals a loaded one.
+//!   Interlaced (Adam7) files store the image in seven passes and cannot be read top to bottom:
+//!   [`PngRows::open`] returns `None` for them and callers read them whole.
+//! - [`PngTarget`] / [`PngRowWriter`] encode rows of normals or colour with the encoding and
+//!   compression of [`super::save_normal_map`] / [`super::save_color`] into an [`AtomicFile`]:
+//!   the target appears, complete, only when [`PngTarget::commit`] succeeds.
+
+use super::temp;
+use super::{open_check, png_decode_error, NormalConvention, PNG16_FILTER};
+use crate::error::RgbnError;
+use crate::raster::srgb::{linear_to_srgb, linear_to_srgb8, srgb16_lut, srgb8_lut};
+use std::fs::File;
+use std::io::{BufReader, BufWriter, Write};
+use std::path::{Path, PathBuf};
+
+/// A file written under a temporary name beside its target and renamed over it by
+/// [`commit`](Self::commit); dropped uncommitted (an error, a panic), it removes the temporary
+/// and leaves the target as it was. See [`temp`].
+pub struct AtomicFile {
+    path: PathBuf,
+    tmp: PathBuf,
+    file: File,
+    _writing: temp::WriteGuard,
+}
+
+impl AtomicFile {
+    /// Starts writing `path` (its folder must exist).
+    pub fn create(path: &Path) -> Result<Self, RgbnError> {
+        let dir = match path.parent() {
+            Some(d) if !d.as_os_str().is_empty() => d,
+            _ => Path::new("."),
+        };
+        if !dir.is_dir() {
+            return Err(RgbnError::MissingDir { path: path.into() });
+        }
+        let name = path.file_name().and_then(|n| n.to_str()).unwrap_or("out");
+        let writing = temp::WriteGuard::begin();
+        // Temporaries of this target left by a killed process are removed first.
+        temp::clean_stale(dir, Some(name));
+        let tmp = temp::temp_path(dir, name);
+        let file = File::create(&tmp).map_err(|e| RgbnError::Write {
+            detail: e.to_string(),
+            path: path.into(),
+        })?;
+        Ok(Self {
+            path: path.into(),
+            tmp,
+            file,
+            _writing: writing,
+        })
+    }
+
+    /// A handle to write the bytes through (flush what buffers it before
+    /// [`commit`](Self::commit)).
+    pub fn handle(&self) -> Result<File, RgbnError> {
+        self.file.try_clone().map_err(|e| self.error(e))
+    }
+
+    /// The error of writing the target, `detail` saying what failed.
+    #[must_use]
+    pub fn error(&self, detail: impl ToString) -> RgbnError {
+        RgbnError::Write {
+            detail: detail.to_string(),
+            path: self.path.clone(),
+        }
+    }
+
+    /// Flushes, syncs and renames the temporary over the target.
+    pub fn commit(mut self) -> Result<(), RgbnError> {
+        self.file.sync_data().map_err(|e| self.error(e))?;
+        std::fs::rename(&self.tmp, &self.path).map_err(|e| self.error(e))?;
+        // Renamed: nothing left to remove.
+        self.tmp = PathBuf::new();
+        Ok(())
+    }
+}
+
+impl Drop for AtomicFile {
+    fn drop(&mut self) {
+        if !self.tmp.as_os_str().is_empty() {
+            let _ = std::fs::remove_file(&self.tmp);
+        }
+    }
+}
+
+/// How decoded samples become `f32`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum RowMap {
+    /// A normal map: `v/(2^bits−1)·2 − 1`, `y` negated in the DirectX convention.
+    Normal(NormalConvention),
+    /// sRGB colour to linear light.
+    Srgb,
+    /// `v/(2^bits−1)` (masks).
+    Unit,
+}
+
+/// A PNG read top to bottom, a band of rows at a time.
+pub struct PngRows {
+    path: PathBuf,
+    reader: png::Reader<BufReader<File>>,
+    width: usize,
+    height: usize,
+    channels: usize,
+    sixteen: bool,
+    /// Rows read so far.
+    row: usize,
+}
+
+impl PngRows {
+    /// Opens `path` and reads its header; `None` for an interlaced file (not readable in row
+    /// order). Palette and sub-byte images are expanded to 8 bits.
+    pub fn open(path: &Path) -> Result<Option<Self>, RgbnError> {
+        open_check(path)?;
+        let file = File::open(path).map_err(|e| RgbnError::Read {
+            path: path.into(),
+            source: e,
+        })?;
+        // Rows are decoded one at a time: no image-sized buffer, so no size limit here.
+        let limits = png::Limits { bytes: usize::MAX };
+        let mut dec =
+            png::Decoder::new_with_limits(BufReader::with_capacity(1 << 20, file), limits);
+        dec.set_transformations(png::Transformations::EXPAND);
+        let reader = dec.read_info().map_err(|e| png_decode_error(path, e))?;
+        let info = reader.info();
+        if info.interlaced {
+            return Ok(None);
+        }
+        let (width, height) = (info.width as usize, info.height as usize);
+        if width == 0 || height == 0 {
+            return Err(RgbnError::Decode {
+                detail: format!("image has no pixels ({width}×{height})"),
+                path: path.into(),
+            });
+        }
+        let (ct, depth) = reader.output_color_type();
+        Ok(Some(Self {
+            path: path.into(),
+            reader,
+            width,
+            height,
+            channels: ct.samples(),
+            sixteen: depth == png::BitDepth::Sixteen,
+            row: 0,
+        }))
+    }
+
+    /// Width and height in pixels.
+    #[must_use]
+    pub fn size(&self) -> (usize, usize) {
+        (self.width, self.height)
+    }
+
+    /// Samples per pixel after expansion (1 grey, 2 grey + alpha, 3 RGB, 4 RGBA).
+    #[must_use]
+    pub fn channels(&self) -> usize {
+        self.channels
+    }
+
+    /// The file.
+    #[must_use]
+    pub fn path(&self) -> &Path {
+        &self.path
+    }
+
+    /// Decodes the next `planes[0].len() / width` rows into `planes` (channel `k` into plane
+    /// `k`; a greyscale file repeats its channel), mapped by `map`. A file that ends early is a
+    /// decode error naming the row.
+    pub fn read(&mut self, planes: &mut [&mut [f32]], map: RowMap) -> Result<(), RgbnError> {
+        let w = self.width;
+        let rows = planes.first().map_or(0, |p| p.len() / w);
+        let c = self.channels;
+        let max = if self.sixteen { 65535.0 } else { 255.0 };
+        let lut8 = srgb8_lut();
+        let lut16 = srgb16_lut();
+        let f = |v: u16, k: usize| -> f32 {
+            match map {
+                RowMap::Normal(conv) => {
+                    let n = f32::from(v) * (2.0 / max) - 1.0;
+                    if k == 1 && conv == NormalConvention::DirectX {
+                        -n
+                    } else {
+                        n
+                    }
+                }
+                RowMap::Srgb if self.sixteen => lut16[usize::from(v)],
+                RowMap::Srgb => lut8[usize::from(v)],
+                RowMap::Unit => f32::from(v) / max,
+            }
+        };
+        for r in 0..rows {
+            let row = match self.reader.next_row() {
+                Ok(Some(row)) => row,
+                Ok(None) => {
+                    return Err(RgbnError::Decode {
+                        detail: format!(
+                            "the image data ends after row {} of {}",
+                            self.row, self.height
+                        ),
+                        path: self.path.clone(),
+                    })
+                }
+                Err(e) => {
+                    let mut err = png_decode_error(&self.path, e);
+                    if let RgbnError::Decode { detail, .. } = &mut err {
+                        *detail = format!("{detail} (at row {} of {})", self.row, self.height);
+                    }
+                    return Err(err);
+                }
+            };
+            let data = row.data();
+            for (k, plane) in planes.iter_mut().enumerate() {
+                let ch = k.min(c - 1);
+                let out = &mut plane[r * w..(r + 1) * w];
+                if self.sixteen {
+                    for (x, o) in out.iter_mut().enumerate() {
+                        let i = 2 * (x * c + ch);
+                        *o = f(u16::from_be_bytes([data[i], data[i + 1]]), k);
+                    }
+                } else {
+                    for (x, o) in out.iter_mut().enumerate() {
+                        *o = f(u16::from(data[x * c + ch]), k);
+                    }
+                }
+            }
+            self.row += 1;
+        }
+        Ok(())
+    }
+}
+
+/// What a [`PngRowWriter`] writes.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum RowEncoding {
+    /// Normals as a normal map: `round((n+1)/2·(2^bits−1))` (RGB).
+    Normal(NormalConvention),
+    /// Linear colour as sRGB (RGB).
+    Srgb,
+}
+
+/// A PNG being written: its header is out, its rows go through [`rows`](Self::rows), and
+/// [`commit`](Self::commit) ends it and renames it into place.
+pub struct PngTarget {
+    file: AtomicFile,
+    writer: png::Writer<BufWriter<File>>,
+    width: usize,
+    height: usize,
+    bits: u8,
+}
+
+impl PngTarget {
+    /// Starts `path`: a `width × height` RGB PNG of `bits` (8 or 16) per sample, compressed
+    /// as [`super::save_normal_map`] does.
+    pub fn create(path: &Path, width: usize, height: usize, bits: u8) -> Result<Self, RgbnError> {
+        let file = AtomicFile::create(path)?;
+        let out = BufWriter::with_capacity(1 << 20, file.handle()?);
+        let (w, h) = (
+            u32::try_from(width).map_err(|e| file.error(e))?,
+            u32::try_from(height).map_err(|e| file.error(e))?,
+        );
+        let mut enc = png::Encoder::new(out, w, h);
+        enc.set_color(png::ColorType::Rgb);
+        let sixteen = bits == 16;
+        enc.set_depth(if sixteen {
+            png::BitDepth::Sixteen
+        } else {
+            png::BitDepth::Eight
+        });
+        enc.set_compression(png::Compression::Fast);
+        enc.set_filter(if sixteen {
+            PNG16_FILTER
+        } else {
+            png::Filter::Adaptive
+        });
+        let writer = enc.write_header().map_err(|e| file.error(e))?;
+        Ok(Self {
+            file,
+            writer,
+            width,
+            height,
+            bits,
+        })
+    }
+
+    /// The row writer (call once; its [`finish`](PngRowWriter::finish) before
+    /// [`commit`](Self::commit)).
+    pub fn rows(&mut self, encoding: RowEncoding) -> Result<PngRowWriter<'_>, RgbnError> {
+        let stream = self
+            .writer
+            .stream_writer_with_size(1 << 16)
+            .map_err(|e| self.file.error(e))?;
+        Ok(PngRowWriter {
+            stream,
+            path: &self.file.path,
+            width: self.width,
+            height: self.height,
+            sixteen: self.bits == 16,
+            encoding,
+            row: 0,
+            bytes: Vec::new(),
+        })
+    }
+
+    /// Ends the PNG and renames it over the target.
+    pub fn commit(self) -> Result<(), RgbnError> {
+        let Self { file, writer, .. } = self;
+        writer.finish().map_err(|e| file.error(e))?;
+        file.commit()
+    }
+}
+
+/// The rows of a [`PngTarget`], a band at a time.
+pub struct PngRowWriter<'a> {
+    stream: png::StreamWriter<'a, BufWriter<File>>,
+    path: &'a Path,
+    width: usize,
+    height: usize,
+    sixteen: bool,
+    encoding: RowEncoding,
+    /// Rows written so far.
+    row: usize,
+    bytes: Vec<u8>,
+}
+
+impl PngRowWriter<'_> {
+    fn error(&self, detail: impl ToString) -> RgbnError {
+        RgbnError::Write {
+            detail: detail.to_string(),
+            path: self.path.into(),
+        }
+    }
+
+    /// Encodes planes `[a, b, c]` (normal x, y, z or linear R, G, B) into `self.bytes` as PNG
+    /// samples, with the arithmetic of the whole-image writers.
+    fn encode(&mut self, planes: [&[f32]; 3]) {
+        use rayon::prelude::*;
+        const CHUNK: usize = 4096;
+        let n = planes[0].len();
+        let sixteen = self.sixteen;
+        let per = if sixteen { 6 } else { 3 };
+        self.bytes.clear();
+        self.bytes.resize(n * per, 0);
+        let scale = if sixteen { 65535.0 } else { 255.0 };
+        let enc = self.encoding;
+        let sample = move |v: f32, k: usize| -> u16 {
+            match enc {
+                RowEncoding::Normal(conv) => {
+                    let v = if k == 1 && conv == NormalConvention::DirectX {
+                        -v
+                    } else {
+                        v
+                    };
+                    ((v.clamp(-1.0, 1.0) + 1.0) * 0.5 * scale + 0.5).min(scale) as u16
+                }
+                RowEncoding::Srgb if sixteen => {
+                    (linear_to_srgb(v.clamp(0.0, 1.0)) * 65535.0 + 0.5) as u16
+                }
+                RowEncoding::Srgb => u16::from(linear_to_srgb8(v)),
+            }
+        };
+        self.bytes
+            .par_chunks_mut(CHUNK * per)
+            .enumerate()
+            .for_each(|(ci, out)| {
+                let base = ci * CHUNK;
+                for (i, px) in out.chunks_exact_mut(per).enumerate() {
+                    for (k, plane) in planes.iter().enumerate() {
+                        let s = sample(plane[base + i], k);
+                        if sixteen {
+                            px[2 * k..2 * k + 2].copy_from_slice(&s.to_be_bytes());
+                        } else {
+                            px[k] = s as u8;
+                        }
+                    }
+                }
+            });
+    }
+
+    /// Appends the next rows: planes `[a, b, c]` of the same whole number of rows.
+    pub fn write(&mut self, planes: [&[f32]; 3]) -> Result<(), RgbnError> {
+        let rows = planes[0].len() / self.width;
+        if self.row + rows > self.height {
+            return Err(self.error(format!(
+                "{} rows written to a {}-row image",
+                self.row + rows,
+                self.height
+            )));
+        }
+        self.encode(planes);
+        self.row += rows;
+        let r = self.stream.write_all(&self.bytes);
+        r.map_err(|e| self.error(e))
+    }
+
+    /// Checks that every row was written and ends the image data.
+    pub fn finish(self) -> Result<(), RgbnError> {
+        if self.row != self.height {
+            return Err(self.error(format!(
+                "only {} of {} rows were written",
+                self.row, self.height
+            )));
+        }
+        let path = self.path;
+        self.stream.finish().map_err(|e| RgbnError::Write {
+            detail: e.to_string(),
+            path: path.into(),
+        })
+    }
+}

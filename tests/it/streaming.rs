@@ -1,0 +1,364 @@
+//! Streaming (issue 12, item 5): an image filtered strip by strip from row-streamed PNGs equals
+//! the whole-image filter; a truncated file is a one-line error that leaves no output behind.
+
+use super::common::{rgbn, stderr};
+use rgbn::ops::filter::{filter_normals, filter_streamed, stream_halo, FilterOptions, Kernel};
+use rgbn::raster::convolve::BorderMode;
+use rgbn::raster::io::{self, Format, InputSpec, LoadOptions, NormalConvention};
+use rgbn::raster::strips::{Opened, StreamInput};
+use rgbn::raster::RgbnImage;
+use rgbn::RgbnError;
+use std::path::Path;
+
+/// A relief of sines and a bump, its normals (exact for the height), a colour ramp and a soft
+/// disc mask.
+fn relief(w: usize, h: usize, seed: u64) -> RgbnImage {
+    let s = seed as f32;
+    let n = w * h;
+    let (mut nx, mut ny, mut nz) = (vec![0.0; n], vec![0.0; n], vec![0.0; n]);
+    let mut c = [vec![0.0; n], vec![0.0; n], vec![0.0; n]];
+    let mut m = vec![0.0; n];
+    for y in 0..h {
+        for x in 0..w {
+            let (fx, fy) = (x as f32, y as f32);
+            let p = 0.6 * (fx / (3.0 + s)).cos() * (fy / 5.0).cos() + 0.3 * ((fx + fy) / 2.3).cos();
+            let q =
+                -0.4 * (fx / (3.0 + s)).sin() * (fy / 5.0).sin() + 0.3 * ((fx + fy) / 2.3).cos();
+            let l = (1.0 + p * p + q * q).sqrt();
+            let i = y * w + x;
+            (nx[i], ny[i], nz[i]) = (-p / l, -q / l, 1.0 / l);
+            c[0][i] = fx / w as f32;
+            c[1][i] = fy / h as f32;
+            c[2][i] = 0.5;
+            let r = ((fx - w as f32 / 2.0).powi(2) + (fy - h as f32 / 2.0).powi(2)).sqrt();
+            m[i] = (w.min(h) as f32 / 2.5 - r).clamp(0.0, 1.0);
+        }
+    }
+    RgbnImage::new(w, h, c, [nx, ny, nz], Some(m)).unwrap()
+}
+
+/// Writes `img` as a normal map PNG of `bits`, an 8-bit colour PNG and an 8-bit mask PNG.
+fn write_files(dir: &Path, img: &RgbnImage, bits: u8) -> InputSpec {
+    let (w, h) = (img.width(), img.height());
+    let normal = dir.join(format!("n{bits}.png"));
+    io::save_normal_map(img, &normal, bits, NormalConvention::OpenGl).unwrap();
+    let color = dir.join("c.png");
+    io::save_color(img, &color, 8).unwrap();
+    let mask = dir.join("m.png");
+    let bytes: Vec<u8> = img
+        .mask()
+        .unwrap()
+        .iter()
+        .map(|v| (v * 255.0).round() as u8)
+        .collect();
+    io::write_raster8(&bytes, w, h, 1, Format::Png, &mask).unwrap();
+    InputSpec {
+        rgbn: None,
+        color: Some(color),
+        normal: Some(normal),
+        mask: Some(mask),
+    }
+}
+
+/// The streamed filter's normals (all rows) and report.
+fn streamed(
+    spec: &InputSpec,
+    kernels: &[Kernel],
+    opts: &FilterOptions,
+    strip: usize,
+) -> ([Vec<f32>; 3], rgbn::ops::filter::FilterReport) {
+    let Opened::Stream(mut input) = StreamInput::open(spec, &LoadOptions::default()).unwrap()
+    else {
+        panic!("PNG files stream")
+    };
+    let mut out: [Vec<f32>; 3] = Default::default();
+    let mut cores = Vec::new();
+    let (report, _) = filter_streamed(&mut input, kernels, opts, Some(strip), |win, n| {
+        cores.push((win.y0 + win.core.start, win.core.len()));
+        for (o, p) in out.iter_mut().zip(n) {
+            o.extend_from_slice(p);
+        }
+        Ok::<(), RgbnError>(())
+    })
+    .unwrap();
+    // The strips tile the image top to bottom, each `strip` rows but the last.
+    let mut y = 0;
+    for (y0, rows) in &cores {
+        assert_eq!(*y0, y);
+        y += rows;
+    }
+    (out, report)
+}
+
+fn max_diff(a: &[Vec<f32>; 3], b: &[Vec<f32>; 3]) -> f32 {
+    a.iter()
+        .zip(b)
+        .flat_map(|(a, b)| a.iter().zip(b).map(|(x, y)| (x - y).abs()))
+        .fold(0.0, f32::max)
+}
+
+#[test]
+fn finite_kernels_streamed_equal_the_whole_image_bit_for_bit() {
+    // 8-bit normals are not unit length once decoded, so both paths renormalise every pixel
+    // with the same arithmetic: the inputs agree bit for bit, and so must every FIR result.
+    let d = tempfile::tempdir().unwrap();
+    let img = relief(53, 71, 1);
+    let spec = write_files(d.path(), &img, 8);
+    let whole_in = io::load(&spec, &LoadOptions::default()).unwrap().image;
+    let kernel_lists: [&[Kernel]; 4] = [
+        &[Kernel::Gaussian { sigma_px: 1.5 }],
+        &[Kernel::Sharpen {
+            sigma_px: 1.2,
+            amount: 0.8,
+        }],
+        &[
+            Kernel::Gaussian { sigma_px: 0.8 },
+            Kernel::DepthScale { scale: 2.0 },
+        ],
+        &[Kernel::LoG { sigma_px: 1.0 }],
+    ];
+    for kernels in kernel_lists {
+        for border in [BorderMode::Mirror, BorderMode::Clamp, BorderMode::Zero] {
+            for mask_aware in [false, true] {
+                let opts = FilterOptions { border, mask_aware };
+                let (want, wr) = filter_normals(&whole_in, kernels, &opts).unwrap();
+                let want = want.normal().clone();
+                let halo = stream_halo(kernels, &opts).unwrap();
+                for strip in [1, 5, 17, 200] {
+                    let (got, r) = streamed(&spec, kernels, &opts, strip);
+                    let what = format!(
+                        "{kernels:?} {border:?} mask_aware={mask_aware} strip={strip} halo={halo}"
+                    );
+                    assert_eq!(max_diff(&got, &want), 0.0, "{what}");
+                    assert_eq!(r.clamped, wr.clamped, "{what}");
+                    // The report sums the same rows: equal up to summation order.
+                    let rel = |a: f64, b: f64| (a - b).abs() / b.abs().max(1e-12);
+                    assert!(
+                        rel(r.curl_before.rms_curl, wr.curl_before.rms_curl) < 1e-9,
+                        "{what}"
+                    );
+                    assert!(
+                        rel(r.curl_after.rms_curl, wr.curl_after.rms_curl) < 1e-4,
+                        "{what}: {} vs {}",
+                        r.curl_after.rms_curl,
+                        wr.curl_after.rms_curl
+                    );
+                }
+            }
+        }
+    }
+}
+
+#[test]
+fn sixteen_bit_and_box_streamed_agree_within_a_millionth() {
+    // 16-bit normals decode within 1e-3 of unit length: the whole-image loader keeps them,
+    // the stream renormalises (p = −nx/nz is unchanged but for rounding); a box filter runs a
+    // sum along each column, whose rounding depends on where the column starts.
+    let d = tempfile::tempdir().unwrap();
+    let img = relief(40, 90, 2);
+    let spec = write_files(d.path(), &img, 16);
+    let whole_in = io::load(&spec, &LoadOptions::default()).unwrap().image;
+    for kernels in [
+        vec![Kernel::Gaussian { sigma_px: 2.0 }],
+        vec![Kernel::Box { radius_px: 3 }],
+    ] {
+        let opts = FilterOptions::default();
+        let (want, _) = filter_normals(&whole_in, &kernels, &opts).unwrap();
+        for strip in [3, 16, 64] {
+            let (got, _) = streamed(&spec, &kernels, &opts, strip);
+            let e = max_diff(&got, want.normal());
+            assert!(e <= 1e-6, "{kernels:?} strip {strip}: {e:e}");
+        }
+    }
+}
+
+#[test]
+fn a_recursive_gaussian_streamed_is_within_its_documented_truncation() {
+    // σ ≥ 3 runs Deriche's recursive filter, cut at 4σ for a strip: per column pass a pixel
+    // moves by at most the tail's mass (< 3.5e-4) times the largest difference between the
+    // samples beyond the cut and those the border mode invents (≤ 2·max|g|); a normal moves
+    // no more than its gradient.
+    let d = tempfile::tempdir().unwrap();
+    let img = relief(48, 160, 3);
+    let spec = write_files(d.path(), &img, 8);
+    let whole_in = io::load(&spec, &LoadOptions::default()).unwrap().image;
+    let g = rgbn::GradientField::from_normals(&whole_in);
+    let gmax = g.p.iter().chain(&g.q).fold(0.0f32, |a, v| a.max(v.abs()));
+    for sigma_px in [3.0, 6.5] {
+        let kernels = [Kernel::Gaussian { sigma_px }];
+        let opts = FilterOptions::default();
+        let (want, _) = filter_normals(&whole_in, &kernels, &opts).unwrap();
+        let mut worst = 0.0f32;
+        for strip in [7, 30] {
+            let (got, _) = streamed(&spec, &kernels, &opts, strip);
+            worst = worst.max(max_diff(&got, want.normal()));
+        }
+        let bound = 3.5e-4 * 2.0 * gmax;
+        assert!(worst <= bound, "σ {sigma_px}: {worst:e} > {bound:e}");
+        // And the cut is where it matters: a strip of the whole height is exact.
+        let (got, _) = streamed(&spec, &kernels, &opts, 160);
+        assert_eq!(max_diff(&got, want.normal()), 0.0);
+    }
+}
+
+#[test]
+fn the_cli_streams_png_to_png_and_the_result_matches_reading_whole() {
+    let d = tempfile::tempdir().unwrap();
+    let img = relief(64, 48, 4);
+    let spec = write_files(d.path(), &img, 16);
+    let n = spec.normal.as_ref().unwrap().display().to_string();
+    let c = spec.color.as_ref().unwrap().display().to_string();
+    let m = spec.mask.as_ref().unwrap().display().to_string();
+    let run = |mode: &str| {
+        let (o, co) = (
+            d.path().join(format!("o_{mode}.png")),
+            d.path().join(format!("c_{mode}.png")),
+        );
+        let out = rgbn(&[
+            "filter",
+            "--normal",
+            &n,
+            "--color",
+            &c,
+            "--mask",
+            &m,
+            "--mask-aware",
+            "-k",
+            "gauss:1.5",
+            "-k",
+            "sharpen:1,0.5",
+            "--bits",
+            "16",
+            "--stream",
+            mode,
+            "-o",
+            o.to_str().unwrap(),
+            "--color-out",
+            co.to_str().unwrap(),
+        ]);
+        assert!(out.status.success(), "{}", stderr(&out));
+        (
+            std::fs::read(o).unwrap(),
+            std::fs::read(co).unwrap(),
+            String::from_utf8_lossy(&out.stdout).into_owned(),
+        )
+    };
+    let (sn, sc, sline) = run("always");
+    let (wn, wc, wline) = run("never");
+    // Pixels: decode both and compare (the encoders are the same, so are the bytes).
+    let decode = |b: &[u8]| image::load_from_memory(b).unwrap().into_rgb16().into_raw();
+    let (a, b) = (decode(&sn), decode(&wn));
+    let worst = a.iter().zip(&b).map(|(x, y)| x.abs_diff(*y)).max().unwrap();
+    // Within one 16-bit step (the streamed input is renormalised, see above).
+    assert!(worst <= 1, "{worst}");
+    assert_eq!(decode(&sc), decode(&wc), "colour passes through unchanged");
+    assert_eq!(
+        sline.split(';').next(),
+        wline.split(';').next(),
+        "{sline} / {wline}"
+    );
+}
+
+#[test]
+fn a_truncated_png_is_a_one_line_error_and_the_target_is_untouched() {
+    let d = tempfile::tempdir().unwrap();
+    let img = relief(96, 120, 5);
+    let spec = write_files(d.path(), &img, 16);
+    let full = std::fs::read(spec.normal.as_ref().unwrap()).unwrap();
+    let cut = d.path().join("cut.png");
+    std::fs::write(&cut, &full[..full.len() * 3 / 5]).unwrap();
+    let target = d.path().join("out.png");
+    std::fs::write(&target, b"the previous output").unwrap();
+    for mode in ["always", "never"] {
+        let o = rgbn(&[
+            "filter",
+            cut.to_str().unwrap(),
+            "-k",
+            "gauss:2",
+            "--stream",
+            mode,
+            "-o",
+            target.to_str().unwrap(),
+        ]);
+        let err = stderr(&o);
+        assert_eq!(o.status.code(), Some(2), "{mode}: {err}");
+        assert_eq!(err.lines().count(), 1, "{mode}: {err}");
+        assert!(err.contains("cut.png"), "{mode}: {err}");
+        assert_eq!(std::fs::read(&target).unwrap(), b"the previous output");
+        let names: Vec<String> = std::fs::read_dir(d.path())
+            .unwrap()
+            .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+            .collect();
+        assert!(
+            names.iter().all(|n| !n.ends_with(".tmp")),
+            "{mode}: {names:?}"
+        );
+        if mode == "always" {
+            // The streamed reader says where the data ran out.
+            assert!(err.contains("row"), "{err}");
+        }
+    }
+}
+
+#[test]
+fn what_cannot_stream_says_why() {
+    let d = tempfile::tempdir().unwrap();
+    let img = relief(32, 24, 6);
+    let spec = write_files(d.path(), &img, 16);
+    let n = spec.normal.as_ref().unwrap().to_str().unwrap().to_string();
+    let exr = d.path().join("in.exr");
+    io::save(&img, &exr, &io::SaveOptions::default()).unwrap();
+    let cases: [(&[&str], &str); 3] = [
+        (&["--border", "wrap"], "wrap border"),
+        (&["-o", "x.exr"], "output is not a PNG"),
+        (&[], "EXR"),
+    ];
+    for (extra, why) in cases {
+        let input = if why == "EXR" {
+            exr.to_str().unwrap()
+        } else {
+            &n
+        };
+        let mut args = vec!["filter", input, "-k", "gauss:1", "--stream", "always"];
+        args.extend_from_slice(extra);
+        if !extra.contains(&"-o") {
+            args.extend_from_slice(&["-o", "y.png"]);
+        }
+        let o = std::process::Command::new(env!("CARGO_BIN_EXE_rgbn"))
+            .current_dir(d.path())
+            .args(&args)
+            .output()
+            .unwrap();
+        let err = stderr(&o);
+        assert_eq!(o.status.code(), Some(2), "{args:?}: {err}");
+        assert!(err.contains("cannot stream") && err.contains(why), "{err}");
+    }
+    // Over the pixel limit, whole reading is refused and the refusal says why it was needed.
+    let o = std::process::Command::new(env!("CARGO_BIN_EXE_rgbn"))
+        .current_dir(d.path())
+        .env("RGBN_MAX_PIXELS", "100")
+        .args([
+            "filter",
+            exr.to_str().unwrap(),
+            "-k",
+            "gauss:1",
+            "-o",
+            "z.png",
+        ])
+        .output()
+        .unwrap();
+    let err = stderr(&o);
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    assert!(
+        err.contains("too large") && err.contains("needs PNG in and out") && err.contains("EXR"),
+        "{err}"
+    );
+    // A PNG over the limit streams whatever --stream auto's own threshold.
+    let o = std::process::Command::new(env!("CARGO_BIN_EXE_rgbn"))
+        .current_dir(d.path())
+        .env("RGBN_MAX_PIXELS", "100")
+        .args(["filter", &n, "-k", "gauss:1", "-o", "z.png"])
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", stderr(&o));
+}
