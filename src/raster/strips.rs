@@ -244,11 +244,84 @@ fn add_validation(a: Validation, b: Validation) -> Validation {
     }
 }
 
+/// Rows `y0..y1` of the files, decoded and repaired.
+struct Band {
+    y0: usize,
+    y1: usize,
+    normal: [Vec<f32>; 3],
+    color: Option<[Vec<f32>; 3]>,
+    mask: Option<Vec<f32>>,
+    repaired: Validation,
+}
+
+/// Reads the next `y1 − y0` rows of `input` (rows `y0..y1`).
+fn read_band(input: &mut StreamInput, y0: usize, y1: usize) -> Result<Band, RgbnError> {
+    let n = (y1 - y0) * input.size().0;
+    let planes = || -> [Vec<f32>; 3] { std::array::from_fn(|_| vec![0.0; n]) };
+    let mut normal = planes();
+    {
+        let [nx, ny, nz] = &mut normal;
+        let mut p = [&mut nx[..], &mut ny[..], &mut nz[..]];
+        input
+            .normal
+            .read(&mut p, RowMap::Normal(input.opts.convention))?;
+    }
+    let [nx, ny, nz] = &mut normal;
+    let repaired = repair_normals([nx, ny, nz]);
+    if input.opts.strict && !repaired.is_clean() {
+        let (count, kind) = if repaired.zero_length_normal > 0 {
+            (repaired.zero_length_normal, "zero-length")
+        } else {
+            (repaired.non_unit, "not unit length")
+        };
+        return Err(RgbnError::InvalidNormals {
+            count,
+            kind: format!("{kind}, in rows {y0}..{y1}"),
+            path: input.normal.path().into(),
+        });
+    }
+    let color = match input.color.as_mut() {
+        Some(r) => {
+            let mut c = planes();
+            let [c0, c1, c2] = &mut c;
+            r.read(&mut [c0, c1, c2], RowMap::Srgb)?;
+            Some(c)
+        }
+        None => None,
+    };
+    let mask = match input.mask.as_mut() {
+        Some(r) => {
+            let mut m = vec![0.0; n];
+            r.read(&mut [&mut m], RowMap::Unit)?;
+            Some(m)
+        }
+        None => None,
+    };
+    Ok(Band {
+        y0,
+        y1,
+        normal,
+        color,
+        mask,
+        repaired,
+    })
+}
+
+/// The strips: `(y0, y1)` rows each, `strip` rows but the last.
+fn strip_ranges(h: usize, strip: usize) -> impl Iterator<Item = (usize, usize)> {
+    (0..h)
+        .step_by(strip)
+        .map(move |y0| (y0, (y0 + strip).min(h)))
+}
+
 /// Runs `f` on every strip of `input`, top to bottom: strips of `strip` rows (see
 /// [`strip_rows`]) in windows grown by `halo` rows each way. Returns what was repaired in the
-/// normals (as [`crate::raster::io::load`] reports it). With `strict` loading, the first strip
-/// with a normal that needs repair stops with [`RgbnError::InvalidNormals`] (its count is that
-/// strip's).
+/// normals (as [`crate::raster::io::load`] reports it). With `strict` loading, the first band
+/// of rows with a normal that needs repair stops with [`RgbnError::InvalidNormals`] (its count
+/// is that band's).
+///
+/// The files are decoded on a thread of their own, one band ahead of `f`: decoding (inflate)
+/// is sequential, and overlaps the strips' parallel work.
 pub fn for_each_strip<E: From<RgbnError>>(
     input: &mut StreamInput,
     halo: usize,
@@ -263,68 +336,70 @@ pub fn for_each_strip<E: From<RgbnError>>(
         ..Planes::default()
     };
     let mut repaired = Validation::default();
-    let mut y0 = 0;
-    while y0 < h {
-        let y1 = (y0 + strip).min(h);
-        let (a, b) = (y0.saturating_sub(halo), (y1 + halo).min(h));
-        // Drop the rows above the new window; keep the overlap; read the rest.
-        let drop_rows = a.saturating_sub(win.y0).min(win.rows);
-        for p in win.all_mut() {
-            p.drain(..drop_rows * w);
-        }
-        win.y0 = a;
-        win.rows -= drop_rows;
-        let have = win.y0 + win.rows;
-        let new = b - have;
-        let old = win.rows * w;
-        let len = (win.rows + new) * w;
-        for p in win.all_mut() {
-            p.resize(len, 0.0);
-        }
-        {
-            let [nx, ny, nz] = &mut win.normal;
-            let mut planes = [&mut nx[old..], &mut ny[old..], &mut nz[old..]];
-            input
-                .normal
-                .read(&mut planes, RowMap::Normal(input.opts.convention))?;
-            let v = repair_normals(planes);
-            if input.opts.strict && !v.is_clean() {
-                let (count, kind) = if v.zero_length_normal > 0 {
-                    (v.zero_length_normal, "zero-length")
-                } else {
-                    (v.non_unit, "not unit length")
-                };
-                return Err(RgbnError::InvalidNormals {
-                    count,
-                    kind: format!("{kind}, in rows {have}..{b}"),
-                    path: input.normal.path().into(),
+    let path = input.normal.path().to_path_buf();
+    std::thread::scope(|scope| {
+        // A rendezvous: one band decoded ahead, waiting, never two.
+        let (tx, rx) = std::sync::mpsc::sync_channel::<Result<Band, RgbnError>>(0);
+        scope.spawn(move || {
+            // Each strip's window ends `halo` rows below it: the rows to read next.
+            let mut read = 0;
+            for (_, y1) in strip_ranges(h, strip) {
+                let b = (y1 + halo).min(h);
+                if b == read {
+                    continue;
                 }
-                .into());
+                let band = read_band(input, read, b);
+                let failed = band.is_err();
+                // A closed channel: the consumer stopped (an error of its own).
+                if tx.send(band).is_err() || failed {
+                    return;
+                }
+                read = b;
             }
-            repaired = add_validation(repaired, v);
+        });
+        for (y0, y1) in strip_ranges(h, strip) {
+            let (a, b) = (y0.saturating_sub(halo), (y1 + halo).min(h));
+            // Drop the rows above the new window; keep the overlap; append what was read.
+            let drop_rows = a.saturating_sub(win.y0).min(win.rows);
+            for p in win.all_mut() {
+                p.drain(..drop_rows * w);
+            }
+            win.y0 = a;
+            win.rows -= drop_rows;
+            while win.y0 + win.rows < b {
+                // Only a panic ends the reader without a band or an error (and the scope
+                // re-raises it).
+                let band = rx.recv().map_err(|_| RgbnError::Decode {
+                    detail: "the reading thread stopped".into(),
+                    path: path.clone(),
+                })??;
+                debug_assert_eq!(band.y0, win.y0 + win.rows);
+                let len = (win.rows + band.y1 - band.y0) * w;
+                let news = band
+                    .normal
+                    .iter()
+                    .chain(band.color.iter().flatten())
+                    .chain(band.mask.as_ref());
+                for (p, new) in win.all_mut().zip(news) {
+                    // Exactly: a doubling growth would hold up to twice the window.
+                    p.reserve_exact(len.saturating_sub(p.len()));
+                    p.extend_from_slice(new);
+                }
+                win.rows += band.y1 - band.y0;
+                repaired = add_validation(repaired, band.repaired);
+            }
+            let [nx, ny, nz] = &win.normal;
+            let view = Window {
+                width: w,
+                height: h,
+                y0: a,
+                core: y0 - a..y1 - a,
+                normal: [nx, ny, nz],
+                color: win.color.as_ref().map(|[r, g, b]| [&r[..], &g[..], &b[..]]),
+                mask: win.mask.as_deref(),
+            };
+            f(&view)?;
         }
-        if let (Some(r), Some([c0, c1, c2])) = (input.color.as_mut(), win.color.as_mut()) {
-            r.read(
-                &mut [&mut c0[old..], &mut c1[old..], &mut c2[old..]],
-                RowMap::Srgb,
-            )?;
-        }
-        if let (Some(r), Some(m)) = (input.mask.as_mut(), win.mask.as_mut()) {
-            r.read(&mut [&mut m[old..]], RowMap::Unit)?;
-        }
-        win.rows += new;
-        let [nx, ny, nz] = &win.normal;
-        let view = Window {
-            width: w,
-            height: h,
-            y0: a,
-            core: y0 - a..y1 - a,
-            normal: [nx, ny, nz],
-            color: win.color.as_ref().map(|[r, g, b]| [&r[..], &g[..], &b[..]]),
-            mask: win.mask.as_deref(),
-        };
-        f(&view)?;
-        y0 = y1;
-    }
-    Ok(repaired)
+        Ok(repaired)
+    })
 }
