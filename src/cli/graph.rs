@@ -1,15 +1,20 @@
 //! The graph commands of the CLI: `eval`, `batch`, `check`, `ops` (a part of [`crate::cli`]).
 
 use super::error::{message, usage, CliError};
+use super::image::StreamMode;
 use super::out::Out;
 use crate::error::RgbnError;
 use crate::eval::region::{Rect, RegionOptions, DEFAULT_TILE};
+use crate::eval::stream::{StreamPlan, Streamable};
 use crate::eval::{EvalOptions, EvalResult, Evaluator, Plan, Status};
 use crate::graph::{GraphError, LoadedGraph};
 use crate::ops::params::{ParamKind, ParamValue};
 use crate::ops::save::write_value;
 use crate::ops::{registry, PortType, Value};
+use crate::raster::io::stream::{PngTarget, RowEncoding};
 use crate::raster::io::{self, SaveOptions};
+use crate::raster::io::{Format, NormalConvention};
+use crate::raster::strips;
 use clap::Args;
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -51,6 +56,15 @@ pub struct EvalArgs {
     /// Tile side in pixels for --region.
     #[arg(long, value_name = "PX", default_value_t = DEFAULT_TILE as u64, value_parser = clap::value_parser!(u64).range(16..=8192))]
     pub tile: u64,
+    /// Evaluate strip by strip, reading and writing rows, with memory bounded by the strip:
+    /// `auto` does for images over 16 Mpx (or the pixel limit) when the graph allows (one
+    /// `load` of PNG files, local operators only, image and picture outputs written as PNG),
+    /// `always` insists (and says why not), `never` evaluates whole images.
+    #[arg(long, value_enum, default_value_t = StreamMode::Auto)]
+    pub stream: StreamMode,
+    /// Rows per strip when streaming (default: 8 Mpx worth, at least 64 rows and four halos).
+    #[arg(long, value_name = "ROWS", value_parser = clap::value_parser!(u64).range(1..))]
+    pub strip_rows: Option<u64>,
 }
 
 /// `rgbn batch`.
@@ -299,6 +313,42 @@ pub fn eval_cmd(a: &EvalArgs, out: &mut Out<'_>) -> Result<(), CliError> {
         requested.push((name.to_string(), path));
     }
     let names: Vec<&str> = requested.iter().map(|(n, _)| n.as_str()).collect();
+    // Streamed when it can be and should be.
+    let why_whole = if a.stream == StreamMode::Never {
+        None
+    } else if a.region.is_some() {
+        Some("--region evaluates tiles of a rectangle".to_string())
+    } else if a.stats {
+        Some("--stats reports per-node numbers of a whole-image run".to_string())
+    } else if requested.is_empty() {
+        Some("no output is written (-o NAME=PATH)".to_string())
+    } else if let Some((_, p)) = requested
+        .iter()
+        .find(|(_, p)| Format::of(p).ok() != Some(Format::Png))
+    {
+        Some(format!(
+            "{} is not a PNG (only PNG is written row by row)",
+            p.display()
+        ))
+    } else {
+        match StreamPlan::new(&plan, &names)? {
+            Streamable::No(why) => Some(why),
+            Streamable::Yes(sp) => {
+                let (w, h) = sp.size();
+                let px = (w as u64) * (h as u64);
+                if a.stream == StreamMode::Always
+                    || px > strips::AUTO_STREAM_PIXELS
+                    || px > crate::raster::max_pixels()
+                {
+                    return eval_stream(&plan, *sp, &requested, a.strip_rows, out);
+                }
+                None
+            }
+        }
+    };
+    if let (StreamMode::Always, Some(why)) = (a.stream, &why_whole) {
+        return Err(usage(format!("--stream always: cannot stream: {why}")));
+    }
     let ev = evaluator(a.cache_dir.as_deref())?;
     let pb = progress_bar(0);
     let pb2 = pb.clone();
@@ -335,6 +385,64 @@ pub fn eval_cmd(a: &EvalArgs, out: &mut Out<'_>) -> Result<(), CliError> {
     }
     if a.stats {
         print_stats(out, &r, &plan.at.file)?;
+    }
+    Ok(())
+}
+
+/// `rgbn eval` streamed ([`crate::eval::stream`]): images as 16-bit normal maps and pictures as
+/// RGBA PNGs, written row by row.
+fn eval_stream(
+    plan: &Plan,
+    sp: StreamPlan<'_>,
+    requested: &[(String, PathBuf)],
+    strip_rows: Option<u64>,
+    out: &mut Out<'_>,
+) -> Result<(), CliError> {
+    let (w, h) = sp.size();
+    let mut targets = Vec::new();
+    for (name, path) in requested {
+        targets.push(match plan.output_types.get(name) {
+            Some(PortType::Picture) => PngTarget::create_rgba8(path, w, h)?,
+            _ => PngTarget::create(path, w, h, SaveOptions::default().bits)?,
+        });
+    }
+    {
+        let mut rows = Vec::new();
+        for t in &mut targets {
+            rows.push(t.rows(RowEncoding::Normal(NormalConvention::OpenGl))?);
+        }
+        let cancel = super::interrupt::flag();
+        let cancelled = || {
+            cancel
+                .as_ref()
+                .is_some_and(|c| c.load(std::sync::atomic::Ordering::Relaxed))
+        };
+        sp.run(strip_rows.map(|r| r as usize), cancelled, |_, values| {
+            super::interrupt::check()?;
+            for (r, v) in rows.iter_mut().zip(values) {
+                match v {
+                    Value::Rgbn(img) => {
+                        let [x, y, z] = img.normal();
+                        r.write([x, y, z])?;
+                    }
+                    Value::Picture(p) => r.write_rgba8(&p.rgba)?,
+                    other => unreachable!("streamed outputs are images and pictures: {other:?}"),
+                }
+            }
+            Ok::<(), CliError>(())
+        })?;
+        for r in rows {
+            r.finish()?;
+        }
+    }
+    for t in targets {
+        t.commit()?;
+    }
+    for (name, path) in requested {
+        out.line(format_args!(
+            "wrote {name} ({w}×{h}, streamed): {}",
+            path.display()
+        ))?;
     }
     Ok(())
 }

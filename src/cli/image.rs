@@ -157,6 +157,9 @@ pub struct FilterArgs {
     /// wrap), `always` insists (and says why not), `never` reads the image whole.
     #[arg(long, value_enum, default_value_t = StreamMode::Auto)]
     pub stream: StreamMode,
+    /// Rows per strip when streaming (default: 8 Mpx worth, at least 64 rows and four halos).
+    #[arg(long, value_name = "ROWS", value_parser = clap::value_parser!(u64).range(1..))]
+    pub strip_rows: Option<u64>,
 }
 
 /// `--stream`.
@@ -508,7 +511,8 @@ fn filter_stream(
             None => None,
         };
         let mut albedo = Vec::new();
-        let r = filter_streamed(&mut input, kernels, opts, None, |win, n| {
+        let strip = a.strip_rows.map(|r| r as usize);
+        let r = filter_streamed(&mut input, kernels, opts, strip, |win, n| {
             super::interrupt::check()?;
             nrows.write(n)?;
             if let Some(c) = crows.as_mut() {

@@ -24,6 +24,7 @@ pub mod cache;
 pub mod disk;
 pub mod memory;
 pub mod region;
+pub mod stream;
 
 pub use cache::{CacheEntry, CacheKey, MemCache};
 pub use disk::DiskCache;

@@ -362,3 +362,155 @@ fn what_cannot_stream_says_why() {
         .unwrap();
     assert!(o.status.success(), "{}", stderr(&o));
 }
+
+/// A graph: image → pen stroke (positional) → Gaussian → outputs the image and its relighting.
+const PEN_GRAPH: &str = r#"(
+    version: 1,
+    next_id: 4,
+    inputs: { "image": (ty: Rgbn, doc: "The input.") },
+    outputs: {
+        "image": (node: 2, port: "image"),
+        "relit": (node: 3, port: "picture"),
+    },
+    nodes: [
+        (
+            id: 1,
+            op: "pen",
+            pos: (0.0, 0.0),
+            params: {
+                "height_px": Float(3.0),
+                "points": Points([(5.0, 10.0), (40.0, 60.0), (20.0, 110.0)]),
+                "profile": Choice("bump"),
+                "width_px": Float(8.0),
+                "taper_px": Float(6.0),
+            },
+            inputs: { "image": Input("image") },
+        ),
+        (
+            id: 2,
+            op: "filter.gaussian",
+            pos: (200.0, 0.0),
+            params: { "sigma_px": Float(1.5) },
+            inputs: { "image": Node(1, "image") },
+        ),
+        (
+            id: 3,
+            op: "relight",
+            pos: (400.0, 0.0),
+            inputs: { "image": Node(2, "image") },
+        ),
+    ],
+)"#;
+
+#[test]
+fn eval_streams_a_graph_of_local_nodes_and_equals_the_whole_image_run() {
+    let d = tempfile::tempdir().unwrap();
+    let img = relief(48, 128, 7);
+    let spec = write_files(d.path(), &img, 8);
+    let graph = d.path().join("pen.ron");
+    std::fs::write(&graph, PEN_GRAPH).unwrap();
+    let n = spec.normal.as_ref().unwrap().display().to_string();
+    let run = |mode: &str, strip: &str| {
+        let (o, r) = (
+            d.path().join(format!("o_{mode}{strip}.png")),
+            d.path().join(format!("r_{mode}{strip}.png")),
+        );
+        let mut args = vec![
+            "eval".to_string(),
+            graph.display().to_string(),
+            "-i".into(),
+            format!("image={n}"),
+            "-o".into(),
+            format!("image={}", o.display()),
+            "-o".into(),
+            format!("relit={}", r.display()),
+            "--stream".into(),
+            mode.into(),
+        ];
+        if !strip.is_empty() {
+            args.extend(["--strip-rows".into(), strip.into()]);
+        }
+        let a: Vec<&str> = args.iter().map(String::as_str).collect();
+        let out = rgbn(&a);
+        assert!(out.status.success(), "{}", stderr(&out));
+        let text = String::from_utf8_lossy(&out.stdout).into_owned();
+        assert_eq!(text.contains("streamed"), mode == "always", "{text}");
+        let img = |p: &Path| image::open(p).unwrap();
+        (
+            img(&o).into_rgb16().into_raw(),
+            img(&r).into_rgba8().into_raw(),
+        )
+    };
+    let (wi, wr) = run("never", "");
+    for strip in ["1", "9", "40", ""] {
+        let (si, sr) = run("always", strip);
+        // 8-bit normals: both paths renormalise alike, and every kernel here is finite: the
+        // same numbers, so the same samples (the stroke moved by a strip's offset would not be).
+        let differ = |a: &[u16], b: &[u16]| a.iter().zip(b).filter(|(x, y)| x != y).count();
+        assert_eq!(si.len(), wi.len());
+        assert_eq!(differ(&si, &wi), 0, "image samples differ, strip {strip}");
+        assert_eq!(sr.len(), wr.len());
+        let relit_differ = sr.iter().zip(&wr).filter(|(x, y)| x != y).count();
+        assert_eq!(relit_differ, 0, "relit samples differ, strip {strip}");
+    }
+}
+
+#[test]
+fn eval_says_why_a_graph_cannot_stream() {
+    let d = tempfile::tempdir().unwrap();
+    let img = relief(32, 24, 8);
+    let spec = write_files(d.path(), &img, 16);
+    let n = spec.normal.as_ref().unwrap().display().to_string();
+    let graphs = Path::new(env!("CARGO_MANIFEST_DIR")).join("graphs");
+    let cases: [(&str, Vec<String>, &str); 3] = [
+        // The demo source is not a file.
+        (
+            "demo.ron",
+            vec!["-o".into(), "relit=r.png".into()],
+            "source other than a file",
+        ),
+        // Integration needs the whole image.
+        (
+            "input_image.ron",
+            vec![
+                "-i".into(),
+                format!("image={n}"),
+                "-o".into(),
+                "image=i.exr".into(),
+            ],
+            "not a PNG",
+        ),
+        (
+            "input_image.ron",
+            vec![
+                "-i".into(),
+                format!("image={n}"),
+                "-o".into(),
+                "image=i.png".into(),
+                "--stats".into(),
+            ],
+            "--stats",
+        ),
+    ];
+    for (g, extra, why) in cases {
+        let mut args = vec![
+            "eval".to_string(),
+            graphs.join(g).display().to_string(),
+            "--stream".into(),
+            "always".into(),
+        ];
+        args.extend(extra);
+        let o = std::process::Command::new(env!("CARGO_BIN_EXE_rgbn"))
+            .current_dir(d.path())
+            .args(&args)
+            .output()
+            .unwrap();
+        let err = stderr(&o);
+        assert_eq!(o.status.code(), Some(2), "{args:?}: {err}");
+        assert_eq!(err.lines().count(), 1, "{err}");
+        assert!(
+            err.contains("cannot stream") && err.contains(why),
+            "{args:?}: {err}"
+        );
+    }
+}

@@ -257,6 +257,22 @@ impl PngTarget {
     /// Starts `path`: a `width × height` RGB PNG of `bits` (8 or 16) per sample, compressed
     /// as [`super::save_normal_map`] does.
     pub fn create(path: &Path, width: usize, height: usize, bits: u8) -> Result<Self, RgbnError> {
+        Self::start(path, width, height, bits, png::ColorType::Rgb)
+    }
+
+    /// Starts `path`: a `width × height` 8-bit RGBA PNG (pictures), written with
+    /// [`PngRowWriter::write_rgba8`].
+    pub fn create_rgba8(path: &Path, width: usize, height: usize) -> Result<Self, RgbnError> {
+        Self::start(path, width, height, 8, png::ColorType::Rgba)
+    }
+
+    fn start(
+        path: &Path,
+        width: usize,
+        height: usize,
+        bits: u8,
+        color: png::ColorType,
+    ) -> Result<Self, RgbnError> {
         let file = AtomicFile::create(path)?;
         let out = BufWriter::with_capacity(1 << 20, file.handle()?);
         let (w, h) = (
@@ -264,7 +280,7 @@ impl PngTarget {
             u32::try_from(height).map_err(|e| file.error(e))?,
         );
         let mut enc = png::Encoder::new(out, w, h);
-        enc.set_color(png::ColorType::Rgb);
+        enc.set_color(color);
         let sixteen = bits == 16;
         enc.set_depth(if sixteen {
             png::BitDepth::Sixteen
@@ -394,6 +410,21 @@ impl PngRowWriter<'_> {
         self.encode(planes);
         self.row += rows;
         let r = self.stream.write_all(&self.bytes);
+        r.map_err(|e| self.error(e))
+    }
+
+    /// Appends the next rows of an RGBA target: `4 · width` bytes per row.
+    pub fn write_rgba8(&mut self, bytes: &[u8]) -> Result<(), RgbnError> {
+        let rows = bytes.len() / (4 * self.width);
+        if self.row + rows > self.height {
+            return Err(self.error(format!(
+                "{} rows written to a {}-row image",
+                self.row + rows,
+                self.height
+            )));
+        }
+        self.row += rows;
+        let r = self.stream.write_all(bytes);
         r.map_err(|e| self.error(e))
     }
 

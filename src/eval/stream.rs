@@ -1,0 +1,287 @@
+//! Streamed evaluation: a plan whose requested outputs depend, through local operators only, on
+//! one `load` of PNG files is run strip by strip ([`crate::raster::strips`]), so `rgbn eval`
+//! processes images larger than memory with a peak set by the strip.
+//!
+//! Per strip, the `load` instance yields the strip's window (the strip grown by the plan's
+//! halo, [`StreamPlan::halo`]), and every instance on the way to the outputs runs on that
+//! window as on a crop ([`crate::nodes::DynOp::run_at`], positional parameters shifted), in
+//! plan order; the outputs' core rows are handed on. As with region evaluation
+//! ([`super::region`]), the halo is each instance's largest local footprint added up along the
+//! longest path, so the core rows are what a whole-image run gives (bit for bit for finite
+//! kernels; within the documented truncation of a recursive Gaussian otherwise).
+//!
+//! Nothing is cached: a streamed run reads each file once, top to bottom.
+
+// Graph errors carry their location by value; they are cold paths.
+#![allow(clippy::result_large_err)]
+
+use super::region::{crop, Rect};
+use super::{Conn, Plan};
+use crate::error::RgbnError;
+use crate::graph::GraphError;
+use crate::nodes::{Footprint, PortType, RunContext, Value};
+use crate::ops::load::LoadParams;
+use crate::ops::params::from_values;
+use crate::raster::io::{InputSpec, LoadOptions, NormalConvention};
+use crate::raster::strips::{self, Opened, StreamInput};
+use std::path::PathBuf;
+
+/// A plan that can be streamed, with its opened input.
+pub struct StreamPlan<'p> {
+    plan: &'p Plan,
+    /// The `load` instance.
+    source: usize,
+    /// The instances to run per strip, in plan order (the source excluded).
+    order: Vec<usize>,
+    /// The requested outputs: instance, port.
+    outputs: Vec<(usize, usize)>,
+    input: StreamInput,
+    halo: usize,
+}
+
+/// What [`StreamPlan::new`] found.
+pub enum Streamable<'p> {
+    /// The plan streams.
+    Yes(Box<StreamPlan<'p>>),
+    /// It does not, for this reason.
+    No(String),
+}
+
+impl<'p> StreamPlan<'p> {
+    /// Checks that `outputs` (graph output names) can be streamed from `plan`: each an image or
+    /// a picture, all depending on one `load` of PNG files through operators whose inputs are
+    /// all local ([`Footprint::Local`]), none read through a number port. Opens the files.
+    pub fn new(plan: &'p Plan, outputs: &[&str]) -> Result<Streamable<'p>, GraphError> {
+        let no = |s: String| Ok(Streamable::No(s));
+        let mut outs = Vec::new();
+        for name in outputs {
+            let Some(Conn::Slot(i, port)) = plan.outputs.get(*name) else {
+                return no(format!("graph output {name:?} is not connected to a node"));
+            };
+            match plan.output_types.get(*name) {
+                Some(PortType::Rgbn | PortType::Picture) => outs.push((*i, *port)),
+                Some(t) => {
+                    return no(format!(
+                        "graph output {name:?} is a {t:?}; only images and pictures are written row by row"
+                    ))
+                }
+                None => return no(format!("graph output {name:?} has no type")),
+            }
+        }
+        if outs.is_empty() {
+            return no("no output is requested".into());
+        }
+        // Instances needed, and the context each output of theirs needs (the halo).
+        let n = plan.instances.len();
+        let mut need: Vec<Option<usize>> = vec![None; n];
+        for &(i, _) in &outs {
+            need[i] = Some(0);
+        }
+        let mut source = None;
+        let mut order = Vec::new();
+        for i in (0..n).rev() {
+            let Some(below) = need[i] else { continue };
+            let inst = &plan.instances[i];
+            let spec = inst.op.spec();
+            let node = |why: &str| {
+                format!(
+                    "node {} ({}) {why}",
+                    inst.at.node.map_or_else(|| "?".into(), |id| id.to_string()),
+                    spec.id
+                )
+            };
+            if spec.id == "load" {
+                if source.is_some_and(|s| s != i) {
+                    return no("the outputs depend on more than one loaded image".into());
+                }
+                source = Some(i);
+                continue;
+            }
+            if spec.side_effect {
+                return no(node("writes files"));
+            }
+            let mut connected = false;
+            let mut halo = 0;
+            for (k, c) in inst.inputs.iter().enumerate() {
+                match c {
+                    Conn::Slot(j, port) => {
+                        connected = true;
+                        let number = plan.instances[*j]
+                            .op
+                            .spec()
+                            .outputs
+                            .get(*port)
+                            .is_some_and(|p| p.ty == PortType::Number);
+                        if number {
+                            return no(node("reads a number, which summarises a whole image"));
+                        }
+                        match inst.op.footprint(&inst.params, k) {
+                            Footprint::Local { halo: h } => halo = halo.max(h),
+                            Footprint::Global => {
+                                return no(node(&format!(
+                                    "needs its whole input {:?}",
+                                    spec.inputs[k].name
+                                )))
+                            }
+                        }
+                    }
+                    Conn::Unbound { name, .. } => {
+                        return no(format!("graph input {name:?} is not bound"))
+                    }
+                    Conn::None => {}
+                }
+            }
+            if !connected {
+                return no(node("is a source other than a file"));
+            }
+            for c in &inst.inputs {
+                if let Conn::Slot(j, _) = c {
+                    need[*j] = Some(need[*j].unwrap_or(0).max(below + halo));
+                }
+            }
+            order.push(i);
+        }
+        order.reverse();
+        let Some(source) = source else {
+            return no("the outputs depend on no loaded image".into());
+        };
+        let p: LoadParams =
+            from_values(&plan.instances[source].params).map_err(|e| GraphError::Param {
+                param: "path".into(),
+                detail: e.to_string(),
+                at: plan.instances[source].at.clone(),
+            })?;
+        let opt = |s: &str| (!s.is_empty()).then(|| PathBuf::from(s));
+        let spec = InputSpec {
+            rgbn: None,
+            normal: Some(PathBuf::from(&p.path)),
+            color: opt(&p.color),
+            mask: opt(&p.mask),
+        };
+        let lopts = LoadOptions {
+            convention: if p.dx {
+                NormalConvention::DirectX
+            } else {
+                NormalConvention::OpenGl
+            },
+            exr_rgb_is_normal: p.exr_rgb_is_normal,
+            strict: p.strict,
+        };
+        let at = plan.instances[source].at.clone();
+        let input = match StreamInput::open(&spec, &lopts).map_err(|source| GraphError::Node {
+            op: "load".into(),
+            source,
+            at,
+        })? {
+            Opened::Stream(s) => *s,
+            Opened::Whole(why) => return no(why),
+        };
+        Ok(Streamable::Yes(Box::new(StreamPlan {
+            plan,
+            source,
+            order,
+            outputs: outs,
+            halo: need[source].unwrap_or(0),
+            input,
+        })))
+    }
+
+    /// Rows of context per strip edge: the footprints added up along the longest path.
+    #[must_use]
+    pub fn halo(&self) -> usize {
+        self.halo
+    }
+
+    /// The image's width and height.
+    #[must_use]
+    pub fn size(&self) -> (usize, usize) {
+        self.input.size()
+    }
+
+    /// Runs the plan strip by strip (`strip` rows each, by default
+    /// [`strips::strip_rows`]); `out` receives, per strip, its first row and the requested
+    /// outputs' values over its rows, in the order requested.
+    pub fn run<E: From<GraphError>>(
+        mut self,
+        strip: Option<usize>,
+        cancelled: impl Fn() -> bool,
+        mut out: impl FnMut(usize, &[Value]) -> Result<(), E>,
+    ) -> Result<(), E> {
+        let (w, _) = self.input.size();
+        let halo = self.halo;
+        let strip = strip.unwrap_or_else(|| strips::strip_rows(w, halo));
+        let plan = self.plan;
+        let ctx = RunContext {
+            protected: plan.protected.clone(),
+        };
+        let source_at = plan.instances[self.source].at.clone();
+        let node_err = |i: usize, source: RgbnError| GraphError::Node {
+            op: plan.instances[i].op.spec().id.to_string(),
+            source,
+            at: plan.instances[i].at.clone(),
+        };
+        let (order, outputs, src) = (&self.order, &self.outputs, self.source);
+        let mut failed: Option<E> = None;
+        let r = strips::for_each_strip(&mut self.input, halo, strip, |win| {
+            if cancelled() {
+                return Err(Fail::Graph(GraphError::Cancelled));
+            }
+            let mut values: Vec<Option<Vec<Value>>> = vec![None; plan.instances.len()];
+            values[src] = Some(vec![Value::Rgbn(win.image()?)]);
+            for &i in order {
+                let inst = &plan.instances[i];
+                let inputs: Vec<Option<Value>> = inst
+                    .inputs
+                    .iter()
+                    .map(|c| match c {
+                        Conn::Slot(j, port) => {
+                            values[*j].as_ref().and_then(|v| v.get(*port)).cloned()
+                        }
+                        _ => None,
+                    })
+                    .collect();
+                let v = inst
+                    .op
+                    .run_at(&inst.params, &inputs, &ctx, (0, win.y0))
+                    .map_err(|e| Fail::Graph(node_err(i, e)))?;
+                values[i] = Some(v);
+            }
+            let core = Rect::new(0, win.core.start, w, win.core.len());
+            let got: Vec<Value> = outputs
+                .iter()
+                .map(|&(i, port)| crop(&values[i].as_ref().expect("computed above")[port], core))
+                .collect();
+            out(win.y0 + win.core.start, &got).map_err(|e| {
+                failed = Some(e);
+                Fail::Out
+            })
+        });
+        match r {
+            Ok(_) => Ok(()),
+            Err(Fail::Out) => Err(failed.expect("set with Fail::Out")),
+            Err(Fail::Graph(e)) => Err(e.into()),
+            Err(Fail::Read(source)) => Err(GraphError::Node {
+                op: "load".into(),
+                source,
+                at: source_at,
+            }
+            .into()),
+        }
+    }
+}
+
+/// Why a strip stopped.
+enum Fail {
+    /// An operator failed (or the run was cancelled).
+    Graph(GraphError),
+    /// Reading the files failed.
+    Read(RgbnError),
+    /// The consumer of the outputs failed (its error is kept aside).
+    Out,
+}
+
+impl From<RgbnError> for Fail {
+    fn from(e: RgbnError) -> Self {
+        Fail::Read(e)
+    }
+}
