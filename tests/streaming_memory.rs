@@ -1,7 +1,8 @@
 //! Streaming under a memory budget (issue 12, item 5): a 20000 × 12000 normal map (240 Mpx,
-//! ten times what fits whole in this test's budget) goes through `rgbn filter` in this process
-//! while a counting global allocator records the peak of live heap bytes; the output equals the
-//! whole-image filter on crops of the input.
+//! ten times what fits whole in this test's budget) goes through `rgbn filter` and `rgbn eval`
+//! in this process while a counting global allocator records the peak of live heap bytes; the
+//! filter's output equals the whole-image filter on crops of the input, and the graph's output
+//! (the same Gaussian as a node) equals the filter's, every row.
 //!
 //! Its own test binary: the counting allocator sees every allocation of the process.
 
@@ -154,8 +155,40 @@ impl Rows {
     }
 }
 
+/// Runs the CLI in this process; returns the peak of live heap bytes above the start.
+fn peak_of(args: &[&str]) -> usize {
+    let base = LIVE.load(Ordering::Relaxed);
+    PEAK.store(base, Ordering::Relaxed);
+    let mut all = vec!["rgbn"];
+    all.extend_from_slice(args);
+    let code = rgbn::cli::run(all);
+    assert_eq!(code, rgbn::cli::error::Exit::Ok, "{args:?}");
+    PEAK.load(Ordering::Relaxed) - base
+}
+
+fn mib(b: usize) -> f64 {
+    b as f64 / 1048576.0
+}
+
+/// The Gaussian of the filter command as a graph node.
+const GRAPH: &str = r#"(
+    version: 1,
+    next_id: 2,
+    inputs: { "image": (ty: Rgbn, doc: "The input.") },
+    outputs: { "image": (node: 1, port: "image") },
+    nodes: [
+        (
+            id: 1,
+            op: "filter.gaussian",
+            pos: (0.0, 0.0),
+            params: { "sigma_px": Float(1.5) },
+            inputs: { "image": Input("image") },
+        ),
+    ],
+)"#;
+
 #[test]
-fn a_240_megapixel_image_filters_within_a_400_mib_budget_and_equals_whole_image_crops() {
+fn a_240_megapixel_image_streams_through_filter_and_eval_within_a_400_mib_budget() {
     let d = tempfile::tempdir().unwrap();
     let input = d.path().join("big.png");
     let output = d.path().join("out.png");
@@ -165,10 +198,7 @@ fn a_240_megapixel_image_filters_within_a_400_mib_budget_and_equals_whole_image_
 
     let kernel = "gauss:1.5";
     let t0 = std::time::Instant::now();
-    let base = LIVE.load(Ordering::Relaxed);
-    PEAK.store(base, Ordering::Relaxed);
-    let code = rgbn::cli::run([
-        "rgbn",
+    let peak = peak_of(&[
         "filter",
         input.to_str().unwrap(),
         "-k",
@@ -176,20 +206,49 @@ fn a_240_megapixel_image_filters_within_a_400_mib_budget_and_equals_whole_image_
         "-o",
         output.to_str().unwrap(),
     ]);
-    let peak = PEAK.load(Ordering::Relaxed) - base;
-    assert_eq!(code, rgbn::cli::error::Exit::Ok);
-    assert!(
-        peak <= BUDGET,
-        "peak heap {:.0} MiB over the budget of {} MiB",
-        peak as f64 / 1048576.0,
-        BUDGET >> 20
-    );
     eprintln!(
         "filter {W}×{H} in {:?}: peak heap {:.0} MiB (budget {} MiB)",
         t0.elapsed(),
-        peak as f64 / 1048576.0,
+        mib(peak),
         BUDGET >> 20
     );
+    assert!(
+        peak <= BUDGET,
+        "filter: peak heap {:.0} MiB over the budget",
+        mib(peak)
+    );
+
+    let graph = d.path().join("gauss.ron");
+    std::fs::write(&graph, GRAPH).unwrap();
+    let evaluated = d.path().join("eval.png");
+    let t0 = std::time::Instant::now();
+    let peak = peak_of(&[
+        "eval",
+        graph.to_str().unwrap(),
+        "-i",
+        &format!("image={}", input.display()),
+        "-o",
+        &format!("image={}", evaluated.display()),
+    ]);
+    eprintln!(
+        "eval {W}×{H} in {:?}: peak heap {:.0} MiB (budget {} MiB)",
+        t0.elapsed(),
+        mib(peak),
+        BUDGET >> 20
+    );
+    assert!(
+        peak <= BUDGET,
+        "eval: peak heap {:.0} MiB over the budget",
+        mib(peak)
+    );
+    let (mut a, mut b) = (Rows::open(&output), Rows::open(&evaluated));
+    for y in (0..H).step_by(500) {
+        let y1 = (y + 500).min(H);
+        assert!(
+            a.rows(y, y1) == b.rows(y, y1),
+            "eval and filter differ in rows {y}..{y1}"
+        );
+    }
 
     // Crops of full rows: at the top edge, in the middle (across a strip boundary, wherever it
     // falls), at the bottom edge. The whole-image filter runs on the crop grown by the halo.

@@ -62,7 +62,7 @@ pub struct EvalArgs {
     /// `always` insists (and says why not), `never` evaluates whole images.
     #[arg(long, value_enum, default_value_t = StreamMode::Auto)]
     pub stream: StreamMode,
-    /// Rows per strip when streaming (default: 8 Mpx worth, at least 64 rows and four halos).
+    /// Rows per strip when streaming (default: 4 Mpx worth, at least 64 rows and four halos).
     #[arg(long, value_name = "ROWS", value_parser = clap::value_parser!(u64).range(1..))]
     pub strip_rows: Option<u64>,
 }
@@ -331,7 +331,7 @@ pub fn eval_cmd(a: &EvalArgs, out: &mut Out<'_>) -> Result<(), CliError> {
             p.display()
         ))
     } else {
-        match StreamPlan::new(&plan, &names)? {
+        match StreamPlan::check(&plan, &names)? {
             Streamable::No(why) => Some(why),
             Streamable::Yes(sp) => {
                 let (w, h) = sp.size();
@@ -417,20 +417,27 @@ fn eval_stream(
                 .as_ref()
                 .is_some_and(|c| c.load(std::sync::atomic::Ordering::Relaxed))
         };
-        sp.run(strip_rows.map(|r| r as usize), cancelled, |_, values| {
-            super::interrupt::check()?;
-            for (r, v) in rows.iter_mut().zip(values) {
-                match v {
-                    Value::Rgbn(img) => {
-                        let [x, y, z] = img.normal();
-                        r.write([x, y, z])?;
+        sp.run(
+            strip_rows.map(|r| r as usize),
+            cancelled,
+            |_, values, core| {
+                super::interrupt::check()?;
+                let (a, b) = (core.start * w, core.end * w);
+                for (r, v) in rows.iter_mut().zip(values) {
+                    match v {
+                        Value::Rgbn(img) => {
+                            let [x, y, z] = img.normal();
+                            r.write([&x[a..b], &y[a..b], &z[a..b]])?;
+                        }
+                        Value::Picture(p) => r.write_rgba8(&p.rgba[4 * a..4 * b])?,
+                        other => {
+                            unreachable!("streamed outputs are images and pictures: {other:?}")
+                        }
                     }
-                    Value::Picture(p) => r.write_rgba8(&p.rgba)?,
-                    other => unreachable!("streamed outputs are images and pictures: {other:?}"),
                 }
-            }
-            Ok::<(), CliError>(())
-        })?;
+                Ok::<(), CliError>(())
+            },
+        )?;
         for r in rows {
             r.finish()?;
         }

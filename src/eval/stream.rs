@@ -15,7 +15,6 @@
 // Graph errors carry their location by value; they are cold paths.
 #![allow(clippy::result_large_err)]
 
-use super::region::{crop, Rect};
 use super::{Conn, Plan};
 use crate::error::RgbnError;
 use crate::graph::GraphError;
@@ -39,7 +38,7 @@ pub struct StreamPlan<'p> {
     halo: usize,
 }
 
-/// What [`StreamPlan::new`] found.
+/// What [`StreamPlan::check`] found.
 pub enum Streamable<'p> {
     /// The plan streams.
     Yes(Box<StreamPlan<'p>>),
@@ -51,7 +50,7 @@ impl<'p> StreamPlan<'p> {
     /// Checks that `outputs` (graph output names) can be streamed from `plan`: each an image or
     /// a picture, all depending on one `load` of PNG files through operators whose inputs are
     /// all local ([`Footprint::Local`]), none read through a number port. Opens the files.
-    pub fn new(plan: &'p Plan, outputs: &[&str]) -> Result<Streamable<'p>, GraphError> {
+    pub fn check(plan: &'p Plan, outputs: &[&str]) -> Result<Streamable<'p>, GraphError> {
         let no = |s: String| Ok(Streamable::No(s));
         let mut outs = Vec::new();
         for name in outputs {
@@ -198,18 +197,22 @@ impl<'p> StreamPlan<'p> {
         self.input.size()
     }
 
-    /// Runs the plan strip by strip (`strip` rows each, by default
-    /// [`strips::strip_rows`]); `out` receives, per strip, its first row and the requested
-    /// outputs' values over its rows, in the order requested.
+    /// Runs the plan strip by strip (`strip` rows each, by default half the pixels of
+    /// [`strips::strip_rows`]); `out` receives, per strip, its first row, the requested outputs'
+    /// values over its window, in the order requested, and the window rows that are the strip's
+    /// (the rest is halo: write only these).
     pub fn run<E: From<GraphError>>(
         mut self,
         strip: Option<usize>,
         cancelled: impl Fn() -> bool,
-        mut out: impl FnMut(usize, &[Value]) -> Result<(), E>,
+        mut out: impl FnMut(usize, &[Value], std::ops::Range<usize>) -> Result<(), E>,
     ) -> Result<(), E> {
         let (w, _) = self.input.size();
         let halo = self.halo;
-        let strip = strip.unwrap_or_else(|| strips::strip_rows(w, halo));
+        // A graph holds more planes per pixel than the filter command (the source as an
+        // image with its colour, each node's output): half its strip.
+        let strip =
+            strip.unwrap_or_else(|| strips::strip_rows_of(w, halo, strips::STRIP_PIXELS / 2));
         let plan = self.plan;
         let ctx = RunContext {
             protected: plan.protected.clone(),
@@ -222,12 +225,12 @@ impl<'p> StreamPlan<'p> {
         };
         let (order, outputs, src) = (&self.order, &self.outputs, self.source);
         let mut failed: Option<E> = None;
-        let r = strips::for_each_strip(&mut self.input, halo, strip, |win| {
+        let r = strips::for_each_strip_image(&mut self.input, halo, strip, |img, y0, core| {
             if cancelled() {
                 return Err(Fail::Graph(GraphError::Cancelled));
             }
             let mut values: Vec<Option<Vec<Value>>> = vec![None; plan.instances.len()];
-            values[src] = Some(vec![Value::Rgbn(win.image()?)]);
+            values[src] = Some(vec![Value::Rgbn(img.clone())]);
             for &i in order {
                 let inst = &plan.instances[i];
                 let inputs: Vec<Option<Value>> = inst
@@ -242,16 +245,17 @@ impl<'p> StreamPlan<'p> {
                     .collect();
                 let v = inst
                     .op
-                    .run_at(&inst.params, &inputs, &ctx, (0, win.y0))
+                    .run_at(&inst.params, &inputs, &ctx, (0, y0))
                     .map_err(|e| Fail::Graph(node_err(i, e)))?;
                 values[i] = Some(v);
             }
-            let core = Rect::new(0, win.core.start, w, win.core.len());
             let got: Vec<Value> = outputs
                 .iter()
-                .map(|&(i, port)| crop(&values[i].as_ref().expect("computed above")[port], core))
+                .map(|&(i, port)| values[i].as_ref().expect("computed above")[port].clone())
                 .collect();
-            out(win.y0 + win.core.start, &got).map_err(|e| {
+            // Only the outputs live on while they are written.
+            drop(values);
+            out(y0 + core.start, &got, core).map_err(|e| {
                 failed = Some(e);
                 Fail::Out
             })

@@ -142,6 +142,9 @@ impl Plane {
     }
 }
 
+/// The planes of an image: colour, normal, mask ([`RgbnImage::into_planes`]).
+pub type ImagePlanes = ([Vec<f32>; 3], [Vec<f32>; 3], Option<Vec<f32>>);
+
 /// Colour + unit normal (+ optional coverage mask) per pixel.
 ///
 /// The three parts are reference-counted and copy-on-write: cloning an image is cheap, and an
@@ -226,6 +229,19 @@ impl RgbnImage {
             normal: Arc::new(normal),
             mask: mask.map(Arc::new),
         })
+    }
+
+    /// The planes back: colour, normal, mask (each taken without a copy when this image holds
+    /// the only reference to it, copied otherwise).
+    #[must_use]
+    pub fn into_planes(self) -> ImagePlanes {
+        let own = |a: Arc<[Vec<f32>; 3]>| Arc::try_unwrap(a).unwrap_or_else(|a| (*a).clone());
+        (
+            own(self.color),
+            own(self.normal),
+            self.mask
+                .map(|m| Arc::try_unwrap(m).unwrap_or_else(|m| (*m).clone())),
+        )
     }
 
     #[must_use]

@@ -31,7 +31,13 @@ pub const STRIP_PIXELS: usize = 8 << 20;
 /// 64 rows and four halos.
 #[must_use]
 pub fn strip_rows(width: usize, halo: usize) -> usize {
-    (STRIP_PIXELS / width.max(1)).max(64).max(4 * halo)
+    strip_rows_of(width, halo, STRIP_PIXELS)
+}
+
+/// The rows per strip for a strip of about `pixels` pixels: at least 64 rows and four halos.
+#[must_use]
+pub fn strip_rows_of(width: usize, halo: usize, pixels: usize) -> usize {
+    (pixels / width.max(1)).max(64).max(4 * halo)
 }
 
 /// The files of an RGBN image opened for reading top to bottom: a normal map and optional
@@ -329,6 +335,63 @@ pub fn for_each_strip<E: From<RgbnError>>(
     mut f: impl FnMut(&Window<'_>) -> Result<(), E>,
 ) -> Result<Validation, E> {
     let (w, h) = input.size();
+    drive(input, halo, strip, |win, y0, core| {
+        let [nx, ny, nz] = &win.normal;
+        f(&Window {
+            width: w,
+            height: h,
+            y0,
+            core,
+            normal: [nx, ny, nz],
+            color: win.color.as_ref().map(|[r, g, b]| [&r[..], &g[..], &b[..]]),
+            mask: win.mask.as_deref(),
+        })
+    })
+}
+
+/// [`for_each_strip`] handing `f` each window as an image, lent without a copy (colour
+/// [`DEFAULT_ALBEDO`] without a colour image), with the image row of its first row and its core
+/// rows. Clones of the image that `f` keeps are its own.
+pub fn for_each_strip_image<E: From<RgbnError>>(
+    input: &mut StreamInput,
+    halo: usize,
+    strip: usize,
+    mut f: impl FnMut(&RgbnImage, usize, Range<usize>) -> Result<(), E>,
+) -> Result<Validation, E> {
+    let w = input.size().0;
+    drive(input, halo, strip, |win, y0, core| {
+        let rows = win.rows;
+        let n = rows * w;
+        let had_color = win.color.is_some();
+        let color = win
+            .color
+            .take()
+            .unwrap_or_else(|| std::array::from_fn(|_| vec![DEFAULT_ALBEDO; n]));
+        let img = RgbnImage::new(
+            w,
+            rows,
+            color,
+            std::mem::take(&mut win.normal),
+            win.mask.take(),
+        )?;
+        let r = f(&img, y0, core);
+        let (color, normal, mask) = img.into_planes();
+        win.normal = normal;
+        win.color = had_color.then_some(color);
+        win.mask = mask;
+        r
+    })
+}
+
+/// The loop of the strip drivers: `f` gets the window's planes, the image row of their first
+/// row and the core rows; it must leave the planes as it found them.
+fn drive<E: From<RgbnError>>(
+    input: &mut StreamInput,
+    halo: usize,
+    strip: usize,
+    mut f: impl FnMut(&mut Planes, usize, Range<usize>) -> Result<(), E>,
+) -> Result<Validation, E> {
+    let (w, h) = input.size();
     let strip = strip.max(1);
     let mut win = Planes {
         color: input.color.as_ref().map(|_| Default::default()),
@@ -388,17 +451,7 @@ pub fn for_each_strip<E: From<RgbnError>>(
                 win.rows += band.y1 - band.y0;
                 repaired = add_validation(repaired, band.repaired);
             }
-            let [nx, ny, nz] = &win.normal;
-            let view = Window {
-                width: w,
-                height: h,
-                y0: a,
-                core: y0 - a..y1 - a,
-                normal: [nx, ny, nz],
-                color: win.color.as_ref().map(|[r, g, b]| [&r[..], &g[..], &b[..]]),
-                mask: win.mask.as_deref(),
-            };
-            f(&view)?;
+            f(&mut win, a, y0 - a..y1 - a)?;
         }
         Ok(repaired)
     })
