@@ -85,6 +85,17 @@ pub struct Plan {
 }
 
 impl Plan {
+    /// Whether output `port` of instance `j` is a number (a summary of a whole image).
+    #[must_use]
+    pub fn is_number(&self, j: usize, port: usize) -> bool {
+        self.instances[j]
+            .op
+            .spec()
+            .outputs
+            .get(port)
+            .is_some_and(|p| p.ty == crate::nodes::PortType::Number)
+    }
+
     /// Flattens `lg`, binding graph inputs to files (`--input NAME=PATH`: RGBN inputs are
     /// loaded with `load`, masks with `load_mask`). Relative output paths of `save` nodes are
     /// resolved against `out_dir`, relative input paths against each graph file's folder.

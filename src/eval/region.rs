@@ -369,12 +369,7 @@ impl Evaluator {
             let inst = &plan.instances[i];
             for (k, c) in inst.inputs.iter().enumerate() {
                 let Conn::Slot(j, port) = c else { continue };
-                let number = plan.instances[*j]
-                    .op
-                    .spec()
-                    .outputs
-                    .get(*port)
-                    .is_some_and(|p| p.ty == PortType::Number);
+                let number = plan.is_number(*j, *port);
                 let local = mode[i] == Mode::Tiled
                     && !number
                     && matches!(inst.op.footprint(&inst.params, k), Footprint::Local { .. })

@@ -21,9 +21,7 @@ use crate::graph::GraphError;
 use crate::nodes::{Footprint, PortType, RunContext, Value};
 use crate::ops::load::LoadParams;
 use crate::ops::params::from_values;
-use crate::raster::io::{InputSpec, LoadOptions, NormalConvention};
 use crate::raster::strips::{self, Opened, StreamInput};
-use std::path::PathBuf;
 
 /// A plan that can be streamed, with its opened input.
 pub struct StreamPlan<'p> {
@@ -105,13 +103,7 @@ impl<'p> StreamPlan<'p> {
                 match c {
                     Conn::Slot(j, port) => {
                         connected = true;
-                        let number = plan.instances[*j]
-                            .op
-                            .spec()
-                            .outputs
-                            .get(*port)
-                            .is_some_and(|p| p.ty == PortType::Number);
-                        if number {
+                        if plan.is_number(*j, *port) {
                             return no(node("reads a number, which summarises a whole image"));
                         }
                         match inst.op.footprint(&inst.params, k) {
@@ -150,23 +142,13 @@ impl<'p> StreamPlan<'p> {
                 detail: e.to_string(),
                 at: plan.instances[source].at.clone(),
             })?;
-        let opt = |s: &str| (!s.is_empty()).then(|| PathBuf::from(s));
-        let spec = InputSpec {
-            rgbn: None,
-            normal: Some(PathBuf::from(&p.path)),
-            color: opt(&p.color),
-            mask: opt(&p.mask),
-        };
-        let lopts = LoadOptions {
-            convention: if p.dx {
-                NormalConvention::DirectX
-            } else {
-                NormalConvention::OpenGl
-            },
-            exr_rgb_is_normal: p.exr_rgb_is_normal,
-            strict: p.strict,
-        };
         let at = plan.instances[source].at.clone();
+        let spec = p.input_spec().map_err(|source| GraphError::Node {
+            op: "load".into(),
+            source,
+            at: at.clone(),
+        })?;
+        let lopts = p.load_options();
         let input = match StreamInput::open(&spec, &lopts).map_err(|source| GraphError::Node {
             op: "load".into(),
             source,

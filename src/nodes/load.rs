@@ -8,10 +8,9 @@
 use super::{Footprint, Inputs, OpSpec, Operator, PortSpec, PortType, RunContext, Value};
 use crate::error::RgbnError;
 use crate::ops::load::{ApplyMaskParams, DemoParams, LoadMaskParams, LoadParams, SurfaceParams};
-use crate::raster::io::{self, InputSpec, LoadOptions, NormalConvention};
+use crate::raster::io;
 use crate::raster::sample::demo_medallion;
 use crate::raster::{check_size, Plane};
-use std::path::PathBuf;
 use std::sync::Arc;
 
 /// The built-in demo medallion ([`demo_medallion`]).
@@ -82,10 +81,6 @@ impl Operator for SurfaceOp {
 /// Loads an RGBN image from files.
 pub struct Load;
 
-fn opt_path(s: &str) -> Option<PathBuf> {
-    (!s.is_empty()).then(|| PathBuf::from(s))
-}
-
 impl Operator for Load {
     type Params = LoadParams;
     fn spec() -> OpSpec {
@@ -108,23 +103,7 @@ impl Operator for Load {
     }
     fn run(p: &LoadParams, _: &Inputs<'_>, _: &RunContext) -> Result<Vec<Value>, RgbnError> {
         Self::check(p)?;
-        let path = PathBuf::from(&p.path);
-        let is_rgbn = io::Format::of(&path)? == io::Format::Exr && !p.exr_rgb_is_normal;
-        let spec = InputSpec {
-            rgbn: is_rgbn.then(|| path.clone()),
-            normal: (!is_rgbn).then(|| path.clone()),
-            color: opt_path(&p.color),
-            mask: opt_path(&p.mask),
-        };
-        let opts = LoadOptions {
-            convention: if p.dx {
-                NormalConvention::DirectX
-            } else {
-                NormalConvention::OpenGl
-            },
-            exr_rgb_is_normal: p.exr_rgb_is_normal,
-            strict: p.strict,
-        };
+        let (spec, opts) = (p.input_spec()?, p.load_options());
         Ok(vec![Value::Rgbn(io::load(&spec, &opts)?.image)])
     }
 }

@@ -1,7 +1,9 @@
 //! Parameters of the source nodes ([`crate::nodes::load`]): files, the demo, analytic surfaces
 //! and masks; the images come from [`crate::raster::io`] and [`crate::raster::sample`].
 
+use crate::raster::io::{Format, InputSpec, LoadOptions, NormalConvention};
 use crate::raster::sample::Surface;
+use std::path::PathBuf;
 
 crate::choice_enum! {
     /// The analytic surfaces offered by the `surface` node.
@@ -87,6 +89,36 @@ crate::params! {
         pub exr_rgb_is_normal: bool = false => bool,
         /// Refuse NaN/inf/zero-length normals instead of repairing them.
         pub strict: bool = false => bool,
+    }
+}
+
+impl LoadParams {
+    /// The files to read: an RGBN EXR (unless its RGB is a normal pass), else a normal map,
+    /// with the optional colour and mask.
+    pub fn input_spec(&self) -> Result<InputSpec, crate::error::RgbnError> {
+        let path = PathBuf::from(&self.path);
+        let is_rgbn = Format::of(&path)? == Format::Exr && !self.exr_rgb_is_normal;
+        let opt = |s: &str| (!s.is_empty()).then(|| PathBuf::from(s));
+        Ok(InputSpec {
+            rgbn: is_rgbn.then(|| path.clone()),
+            normal: (!is_rgbn).then_some(path),
+            color: opt(&self.color),
+            mask: opt(&self.mask),
+        })
+    }
+
+    /// How to decode them.
+    #[must_use]
+    pub fn load_options(&self) -> LoadOptions {
+        LoadOptions {
+            convention: if self.dx {
+                NormalConvention::DirectX
+            } else {
+                NormalConvention::OpenGl
+            },
+            exr_rgb_is_normal: self.exr_rgb_is_normal,
+            strict: self.strict,
+        }
     }
 }
 

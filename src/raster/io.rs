@@ -763,6 +763,27 @@ fn color_type(channels: usize, sixteen: bool) -> image::ExtendedColorType {
 /// filtering, i.e. the bytes the image crate wrote before.
 const PNG16_FILTER: png::Filter = png::Filter::Up;
 
+/// Sets every PNG rgbn writes to the same format: `color`, 8 or 16 bits, fast compression,
+/// [`PNG16_FILTER`] for 16 bits and adaptive filtering for 8.
+fn png_format<W: std::io::Write>(
+    enc: &mut png::Encoder<'_, W>,
+    color: png::ColorType,
+    sixteen: bool,
+) {
+    enc.set_color(color);
+    enc.set_depth(if sixteen {
+        png::BitDepth::Sixteen
+    } else {
+        png::BitDepth::Eight
+    });
+    enc.set_compression(png::Compression::Fast);
+    enc.set_filter(if sixteen {
+        PNG16_FILTER
+    } else {
+        png::Filter::Adaptive
+    });
+}
+
 /// Writes a PNG with the `png` crate (fast compression). `bytes` are the samples, 16-bit ones
 /// big-endian as PNG stores them.
 fn encode_png(
@@ -803,23 +824,16 @@ fn encode_png_text(
             enc.add_text_chunk((*k).to_string(), (*v).to_string())
                 .map_err(|e| e.to_string())?;
         }
-        enc.set_color(match channels {
-            1 => png::ColorType::Grayscale,
-            2 => png::ColorType::GrayscaleAlpha,
-            4 => png::ColorType::Rgba,
-            _ => png::ColorType::Rgb,
-        });
-        enc.set_depth(if sixteen {
-            png::BitDepth::Sixteen
-        } else {
-            png::BitDepth::Eight
-        });
-        enc.set_compression(png::Compression::Fast);
-        enc.set_filter(if sixteen {
-            PNG16_FILTER
-        } else {
-            png::Filter::Adaptive
-        });
+        png_format(
+            &mut enc,
+            match channels {
+                1 => png::ColorType::Grayscale,
+                2 => png::ColorType::GrayscaleAlpha,
+                4 => png::ColorType::Rgba,
+                _ => png::ColorType::Rgb,
+            },
+            sixteen,
+        );
         let mut wr = enc.write_header().map_err(|e| e.to_string())?;
         wr.write_image_data(bytes).map_err(|e| e.to_string())?;
         wr.finish().map_err(|e| e.to_string())

@@ -178,6 +178,19 @@ pub struct Validation {
 }
 
 impl Validation {
+    /// The counts of both (of two parts of one image).
+    #[must_use]
+    pub fn merge(self, b: Self) -> Self {
+        Validation {
+            pixels: self.pixels + b.pixels,
+            non_finite_color: self.non_finite_color + b.non_finite_color,
+            non_finite_normal: self.non_finite_normal + b.non_finite_normal,
+            zero_length_normal: self.zero_length_normal + b.zero_length_normal,
+            back_facing: self.back_facing + b.back_facing,
+            non_unit: self.non_unit + b.non_unit,
+        }
+    }
+
     /// True when nothing needs repair (back-facing normals are reported, not repaired).
     #[must_use]
     pub fn is_clean(&self) -> bool {
@@ -376,14 +389,7 @@ impl RgbnImage {
                     non_unit,
                 }
             })
-            .reduce(Validation::default, |a, b| Validation {
-                pixels: a.pixels + b.pixels,
-                non_finite_color: a.non_finite_color + b.non_finite_color,
-                non_finite_normal: a.non_finite_normal + b.non_finite_normal,
-                zero_length_normal: a.zero_length_normal + b.zero_length_normal,
-                back_facing: a.back_facing + b.back_facing,
-                non_unit: a.non_unit + b.non_unit,
-            })
+            .reduce(Validation::default, Validation::merge)
     }
 
     /// Repairs what [`validate`](Self::validate) counts: non-finite colour/mask values become 0,

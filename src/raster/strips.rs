@@ -236,18 +236,7 @@ fn repair_normals([nx, ny, nz]: [&mut [f32]; 3]) -> Validation {
             }
             v
         })
-        .reduce(Validation::default, add_validation)
-}
-
-fn add_validation(a: Validation, b: Validation) -> Validation {
-    Validation {
-        pixels: a.pixels + b.pixels,
-        non_finite_color: a.non_finite_color + b.non_finite_color,
-        non_finite_normal: a.non_finite_normal + b.non_finite_normal,
-        zero_length_normal: a.zero_length_normal + b.zero_length_normal,
-        back_facing: a.back_facing + b.back_facing,
-        non_unit: a.non_unit + b.non_unit,
-    }
+        .reduce(Validation::default, Validation::merge)
 }
 
 /// Rows `y0..y1` of the files, decoded and repaired.
@@ -449,7 +438,7 @@ fn drive<E: From<RgbnError>>(
                     p.extend_from_slice(new);
                 }
                 win.rows += band.y1 - band.y0;
-                repaired = add_validation(repaired, band.repaired);
+                repaired = repaired.merge(band.repaired);
             }
             f(&mut win, a, y0 - a..y1 - a)?;
         }

@@ -12,7 +12,7 @@
 //!   the target appears, complete, only when [`PngTarget::commit`] succeeds.
 
 use super::temp;
-use super::{open_check, png_decode_error, NormalConvention, PNG16_FILTER};
+use super::{open_check, png_decode_error, png_format, NormalConvention};
 use crate::error::RgbnError;
 use crate::raster::srgb::{linear_to_srgb, linear_to_srgb8, srgb16_lut, srgb8_lut};
 use std::fs::File;
@@ -280,19 +280,7 @@ impl PngTarget {
             u32::try_from(height).map_err(|e| file.error(e))?,
         );
         let mut enc = png::Encoder::new(out, w, h);
-        enc.set_color(color);
-        let sixteen = bits == 16;
-        enc.set_depth(if sixteen {
-            png::BitDepth::Sixteen
-        } else {
-            png::BitDepth::Eight
-        });
-        enc.set_compression(png::Compression::Fast);
-        enc.set_filter(if sixteen {
-            PNG16_FILTER
-        } else {
-            png::Filter::Adaptive
-        });
+        png_format(&mut enc, color, bits == 16);
         let writer = enc.write_header().map_err(|e| file.error(e))?;
         Ok(Self {
             file,
