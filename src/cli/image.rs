@@ -115,6 +115,11 @@ pub struct RenderArgs {
     /// Output PNG (8-bit sRGB with alpha).
     #[arg(short, long)]
     pub output: PathBuf,
+    /// Read and write row by row, with memory bounded by the strip (the relit, albedo and
+    /// normals views of PNG input): `auto` over 16 Mpx or the pixel limit, `always` insists
+    /// (and says why not), `never` reads the image whole.
+    #[arg(long, value_enum, default_value_t = StreamMode::Auto)]
+    pub stream: StreamMode,
 }
 
 #[derive(Args, Debug)]
@@ -369,7 +374,36 @@ pub(super) fn render_cmd(a: &RenderArgs, out: &mut Out<'_>) -> Result<(), CliErr
             )));
         }
     }
-    let (img, _) = a.input.load()?;
+    // The per-pixel views stream (no pixel reads a neighbour); the others read whole.
+    let why_whole = if a.input.demo {
+        Some("the input is the built-in demo".to_string())
+    } else if !matches!(a.view, View::Relit | View::Albedo | View::Normals) {
+        Some(format!(
+            "the {} view reads neighbourhoods or whole-image statistics (only relit, albedo and normals stream)",
+            a.view.name()
+        ))
+    } else if a.stream == StreamMode::Never {
+        None
+    } else {
+        match StreamInput::open(&a.input.spec(), &a.input.load_options())? {
+            Opened::Whole(why) => Some(why),
+            Opened::Stream(input) => {
+                let (w, h) = input.size();
+                let px = (w as u64) * (h as u64);
+                if a.stream == StreamMode::Always
+                    || px > strips::AUTO_STREAM_PIXELS
+                    || px > crate::raster::max_pixels()
+                {
+                    return render_stream(a, *input, &shading, &params, out);
+                }
+                None
+            }
+        }
+    };
+    if let (StreamMode::Always, Some(why)) = (a.stream, &why_whole) {
+        return Err(usage(format!("--stream always: cannot stream: {why}")));
+    }
+    let img = load_or_say_why(&a.input, why_whole)?;
     let rgba = render::render_with(&img, a.view, &shading, &params)?;
     super::interrupt::check()?;
     if a.view == View::Curvature {
@@ -398,6 +432,54 @@ pub(super) fn render_cmd(a: &RenderArgs, out: &mut Out<'_>) -> Result<(), CliErr
         a.output.display()
     ))?;
     Ok(())
+}
+
+/// `rgbn render` of a per-pixel view, streamed: PNG rows in, RGBA rows out ([`strips`]).
+fn render_stream(
+    a: &RenderArgs,
+    mut input: StreamInput,
+    shading: &Shading,
+    params: &InspectParams,
+    out: &mut Out<'_>,
+) -> Result<(), CliError> {
+    let (w, h) = input.size();
+    let mut target = PngTarget::create_rgba8(&a.output, w, h)?;
+    let repaired = {
+        let mut rows = target.rows(RowEncoding::Srgb)?;
+        let mut rgba = Vec::new();
+        let strip = strips::strip_rows(w, 0);
+        let r = strips::for_each_strip_image(&mut input, 0, strip, |img, _, _| {
+            super::interrupt::check()?;
+            rgba.resize(img.len() * 4, 0);
+            render::render_with_into(img, a.view, shading, params, &mut rgba)?;
+            rows.write_rgba8(&rgba)?;
+            Ok::<(), CliError>(())
+        })?;
+        rows.finish()?;
+        r
+    };
+    target.commit()?;
+    note_repairs(&repaired, &a.input.spec().normal.or(a.input.file.clone()));
+    out.line(format_args!(
+        "wrote {} ({w}×{h}, sRGB 8-bit, streamed): {}",
+        a.view.name(),
+        a.output.display()
+    ))?;
+    Ok(())
+}
+
+/// Loads the input whole; a refusal for size says why it had to be read whole (`why`).
+fn load_or_say_why(input: &InputArgs, why: Option<String>) -> Result<RgbnImage, CliError> {
+    match input.load() {
+        Ok((img, _)) => Ok(img),
+        Err(CliError::Rgbn(e @ RgbnError::TooLarge { .. })) => Err(match why {
+            Some(why) => usage(format!(
+                "{e}; working on it without reading it whole needs PNG in and out, but {why}"
+            )),
+            None => e.into(),
+        }),
+        Err(e) => Err(e),
+    }
 }
 
 pub(super) fn filter_cmd(a: &FilterArgs, out: &mut Out<'_>) -> Result<(), CliError> {
@@ -459,18 +541,7 @@ pub(super) fn filter_cmd(a: &FilterArgs, out: &mut Out<'_>) -> Result<(), CliErr
     if let (StreamMode::Always, Some(why)) = (a.stream, &why_whole) {
         return Err(usage(format!("--stream always: cannot stream: {why}")));
     }
-    let img = match a.input.load() {
-        Ok((img, _)) => img,
-        Err(CliError::Rgbn(e @ RgbnError::TooLarge { .. })) => {
-            return Err(match why_whole {
-                Some(why) => usage(format!(
-                    "{e}; filtering it without reading it whole needs PNG in and out, but {why}"
-                )),
-                None => e.into(),
-            })
-        }
-        Err(e) => return Err(e),
-    };
+    let img = load_or_say_why(&a.input, why_whole)?;
     let (filtered, report) = filter_normals(&img, &kernels, &opts)?;
     let save = SaveOptions {
         bits: a.bits,

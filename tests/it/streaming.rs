@@ -514,3 +514,58 @@ fn eval_says_why_a_graph_cannot_stream() {
         );
     }
 }
+
+#[test]
+fn render_streams_its_per_pixel_views_and_equals_reading_whole() {
+    let d = tempfile::tempdir().unwrap();
+    let img = relief(50, 70, 9);
+    let spec = write_files(d.path(), &img, 8);
+    let arg = |p: &Option<std::path::PathBuf>| p.as_ref().unwrap().display().to_string();
+    let (n, c, m) = (arg(&spec.normal), arg(&spec.color), arg(&spec.mask));
+    for view in ["relit", "albedo", "normals"] {
+        let run = |mode: &str| {
+            let o = d.path().join(format!("{view}_{mode}.png"));
+            let out = rgbn(&[
+                "render",
+                "--normal",
+                &n,
+                "--color",
+                &c,
+                "--mask",
+                &m,
+                "--view",
+                view,
+                "--light",
+                "-1,1,1",
+                "--stream",
+                mode,
+                "-o",
+                o.to_str().unwrap(),
+            ]);
+            assert!(out.status.success(), "{}", stderr(&out));
+            let text = String::from_utf8_lossy(&out.stdout).into_owned();
+            assert_eq!(text.contains("streamed"), mode == "always", "{text}");
+            image::open(&o).unwrap().into_rgba8().into_raw()
+        };
+        let (s, w) = (run("always"), run("never"));
+        assert_eq!(s.len(), 50 * 70 * 4);
+        let differ = s.iter().zip(&w).filter(|(a, b)| a != b).count();
+        assert_eq!(differ, 0, "{view}: {differ} bytes differ");
+    }
+    let o = rgbn(&[
+        "render",
+        &n,
+        "--view",
+        "curvature",
+        "--stream",
+        "always",
+        "-o",
+        d.path().join("k.png").to_str().unwrap(),
+    ]);
+    let err = stderr(&o);
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    assert!(
+        err.contains("cannot stream") && err.contains("curvature"),
+        "{err}"
+    );
+}
