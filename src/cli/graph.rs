@@ -14,7 +14,6 @@ use crate::ops::{registry, PortType, Value};
 use crate::raster::io::stream::{PngTarget, RowEncoding};
 use crate::raster::io::{self, SaveOptions};
 use crate::raster::io::{Format, NormalConvention};
-use crate::raster::strips;
 use clap::Args;
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -334,21 +333,14 @@ pub fn eval_cmd(a: &EvalArgs, out: &mut Out<'_>) -> Result<(), CliError> {
         match StreamPlan::check(&plan, &names)? {
             Streamable::No(why) => Some(why),
             Streamable::Yes(sp) => {
-                let (w, h) = sp.size();
-                let px = (w as u64) * (h as u64);
-                if a.stream == StreamMode::Always
-                    || px > strips::AUTO_STREAM_PIXELS
-                    || px > crate::raster::max_pixels()
-                {
+                if a.stream.streams(sp.size()) {
                     return eval_stream(&plan, *sp, &requested, a.strip_rows, out);
                 }
                 None
             }
         }
     };
-    if let (StreamMode::Always, Some(why)) = (a.stream, &why_whole) {
-        return Err(usage(format!("--stream always: cannot stream: {why}")));
-    }
+    a.stream.allows(why_whole.as_deref())?;
     let ev = evaluator(a.cache_dir.as_deref())?;
     let pb = progress_bar(0);
     let pb2 = pb.clone();

@@ -178,6 +178,29 @@ pub enum StreamMode {
     Never,
 }
 
+impl StreamMode {
+    /// Whether an image of `size` that can be streamed is: always, or in `auto` mode over
+    /// [`strips::AUTO_STREAM_PIXELS`] or the pixel limit.
+    pub(super) fn streams(self, (w, h): (usize, usize)) -> bool {
+        let px = (w as u64) * (h as u64);
+        match self {
+            StreamMode::Always => true,
+            StreamMode::Auto => px > strips::AUTO_STREAM_PIXELS || px > crate::raster::max_pixels(),
+            StreamMode::Never => false,
+        }
+    }
+
+    /// Refuses `always` when the work cannot stream, saying why (`why`).
+    pub(super) fn allows(self, why: Option<&str>) -> Result<(), CliError> {
+        match (self, why) {
+            (StreamMode::Always, Some(why)) => {
+                Err(usage(format!("--stream always: cannot stream: {why}")))
+            }
+            _ => Ok(()),
+        }
+    }
+}
+
 /// `--view`'s long help: every view with its documentation and parameters.
 fn view_help() -> String {
     format!(
@@ -388,21 +411,14 @@ pub(super) fn render_cmd(a: &RenderArgs, out: &mut Out<'_>) -> Result<(), CliErr
         match StreamInput::open(&a.input.spec(), &a.input.load_options())? {
             Opened::Whole(why) => Some(why),
             Opened::Stream(input) => {
-                let (w, h) = input.size();
-                let px = (w as u64) * (h as u64);
-                if a.stream == StreamMode::Always
-                    || px > strips::AUTO_STREAM_PIXELS
-                    || px > crate::raster::max_pixels()
-                {
+                if a.stream.streams(input.size()) {
                     return render_stream(a, *input, &shading, &params, out);
                 }
                 None
             }
         }
     };
-    if let (StreamMode::Always, Some(why)) = (a.stream, &why_whole) {
-        return Err(usage(format!("--stream always: cannot stream: {why}")));
-    }
+    a.stream.allows(why_whole.as_deref())?;
     let img = load_or_say_why(&a.input, why_whole)?;
     let rgba = render::render_with(&img, a.view, &shading, &params)?;
     super::interrupt::check()?;
@@ -527,20 +543,13 @@ pub(super) fn filter_cmd(a: &FilterArgs, out: &mut Out<'_>) -> Result<(), CliErr
                 why_whole = Some("the output is not a PNG (only PNG is written row by row)".into());
             }
             Opened::Stream(input) => {
-                let (w, h) = input.size();
-                let px = (w as u64) * (h as u64);
-                if a.stream == StreamMode::Always
-                    || px > strips::AUTO_STREAM_PIXELS
-                    || px > crate::raster::max_pixels()
-                {
+                if a.stream.streams(input.size()) {
                     return filter_stream(a, *input, &kernels, &opts, convention, out);
                 }
             }
         }
     }
-    if let (StreamMode::Always, Some(why)) = (a.stream, &why_whole) {
-        return Err(usage(format!("--stream always: cannot stream: {why}")));
-    }
+    a.stream.allows(why_whole.as_deref())?;
     let img = load_or_say_why(&a.input, why_whole)?;
     let (filtered, report) = filter_normals(&img, &kernels, &opts)?;
     let save = SaveOptions {
