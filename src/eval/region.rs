@@ -34,6 +34,7 @@ use crate::graph::GraphError;
 use crate::nodes::{Footprint, Picture, PortType, RunContext, Value};
 use crate::ops::params::nearest;
 use crate::ops::params::ParamValue;
+use crate::raster::sample::Window;
 use crate::raster::{Plane, RgbnImage};
 use rayon::prelude::*;
 use std::collections::{BTreeMap, BTreeSet, HashMap};
@@ -269,11 +270,14 @@ enum Mode {
 }
 
 /// The largest halo of an instance's local inputs, `None` when it has no connected local
-/// input (then it is evaluated whole).
+/// input and is not [regional](crate::nodes::Operator::regional) (then it is evaluated whole).
 fn local_halo(plan: &Plan, i: usize) -> Option<usize> {
     let inst = &plan.instances[i];
     if inst.op.spec().side_effect {
         return None;
+    }
+    if regional(plan, i) {
+        return Some(0);
     }
     inst.inputs
         .iter()
@@ -284,6 +288,12 @@ fn local_halo(plan: &Plan, i: usize) -> Option<usize> {
             Footprint::Global => None,
         })
         .max()
+}
+
+/// Whether instance `i` computes any window on its own (its inputs, if any, passed whole).
+fn regional(plan: &Plan, i: usize) -> bool {
+    let inst = &plan.instances[i];
+    inst.op.regional(&inst.params)
 }
 
 fn tile_key(key: CacheKey, tile: usize, level: u32, tx: usize, ty: usize) -> CacheKey {
@@ -372,6 +382,7 @@ impl Evaluator {
                 let number = plan.is_number(*j, *port);
                 let local = mode[i] == Mode::Tiled
                     && !number
+                    && !regional(plan, i)
                     && matches!(inst.op.footprint(&inst.params, k), Footprint::Local { .. })
                     && local_halo(plan, *j).is_some();
                 mode[*j] = match (mode[*j], local) {
@@ -436,6 +447,21 @@ impl Evaluator {
                 }
             }
             size[i] = first.map(|(_, s)| s);
+            if regional(plan, i) {
+                let sizes: Vec<Option<(usize, usize)>> = inst
+                    .inputs
+                    .iter()
+                    .map(|c| match c {
+                        Conn::Slot(j, port) => whole
+                            .results
+                            .get(j)
+                            .and_then(|e| e.values.get(*port))
+                            .and_then(super::memory::value_size),
+                        _ => None,
+                    })
+                    .collect();
+                size[i] = inst.op.out_size(&inst.params, &sizes);
+            }
             self.key(plan, i, &mut keys)?;
         }
         // Damage: what each tiled instance's edit (its parameters, its inputs' damage grown by
@@ -614,6 +640,38 @@ impl Evaluator {
                         return Err(GraphError::Cancelled);
                     }
                     let tr = tile_rect(t, tile, sz);
+                    if regional(plan, i) {
+                        let inputs: Vec<Option<Value>> = inst
+                            .inputs
+                            .iter()
+                            .map(|c| match c {
+                                Conn::Slot(j, port) => whole.results[j].values.get(*port).cloned(),
+                                _ => None,
+                            })
+                            .collect();
+                        let win = Window {
+                            x: tr.x,
+                            y: tr.y,
+                            w: tr.w,
+                            h: tr.h,
+                            scale: 1,
+                        };
+                        let values = inst
+                            .op
+                            .run_region(&inst.params, &inputs, win, &ctx)
+                            .map_err(|source| GraphError::Node {
+                                op: spec.id.to_string(),
+                                source,
+                                at: inst.at.clone(),
+                            })?;
+                        let e = Arc::new(CacheEntry {
+                            values,
+                            curl: None,
+                            fraction: None,
+                        });
+                        self.mem_insert(tile_key(key, tile, 0, t.0, t.1), e.clone());
+                        return Ok((t, e));
+                    }
                     let crop_rect = tr.grow(halo, sz);
                     let inputs: Vec<Option<Value>> = inst
                         .inputs
@@ -961,6 +1019,40 @@ pub fn crop(v: &Value, r: Rect) -> Value {
         )),
         _ => gather_value(&[(Rect::full(sz), v)], r, &|_| 0..1),
     }
+}
+
+/// `v` reduced by `s` ([`crate::raster::pyramid`]); numbers as they are.
+#[must_use]
+pub fn reduce(v: &Value, s: usize) -> Value {
+    use crate::raster::pyramid;
+    if s <= 1 {
+        return v.clone();
+    }
+    match v {
+        Value::Rgbn(img) => Value::Rgbn(pyramid::reduce_rgbn(img, s)),
+        Value::Mask(p) => Value::Mask(Arc::new(pyramid::reduce_plane(p, s))),
+        Value::Scalar(p) => Value::Scalar(Arc::new(pyramid::reduce_plane(p, s))),
+        Value::Picture(p) => {
+            let (width, height) = pyramid::reduced_size((p.width, p.height), s);
+            Value::Picture(Arc::new(Picture {
+                width,
+                height,
+                rgba: pyramid::reduce_rgba8(&p.rgba, p.width, p.height, s),
+            }))
+        }
+        Value::Number(_) => v.clone(),
+    }
+}
+
+/// Window `win` of a full-resolution value: the fine pixels it covers, reduced by its scale.
+#[must_use]
+pub fn window_of(v: &Value, win: Window) -> Value {
+    let s = win.scale.max(1);
+    let Some(sz) = dims(v) else {
+        return v.clone();
+    };
+    let fine = Rect::new(win.x * s, win.y * s, win.w * s, win.h * s).intersect(&Rect::full(sz));
+    reduce(&crop(v, fine), s)
 }
 
 /// Port `port` of the tiles `have` of a `size` image, over `r`.

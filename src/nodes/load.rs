@@ -9,7 +9,7 @@ use super::{Footprint, Inputs, OpSpec, Operator, PortSpec, PortType, RunContext,
 use crate::error::RgbnError;
 use crate::ops::load::{ApplyMaskParams, DemoParams, LoadMaskParams, LoadParams, SurfaceParams};
 use crate::raster::io;
-use crate::raster::sample::demo_medallion;
+use crate::raster::sample::{demo_medallion, demo_window, Window};
 use crate::raster::{check_size, Plane};
 use std::sync::Arc;
 
@@ -34,6 +34,18 @@ impl Operator for Demo {
         let s = p.size as usize;
         check_size(s, s, "demo")?;
         Ok(vec![Value::Rgbn(demo_medallion(s))])
+    }
+    fn regional(_: &DemoParams) -> bool {
+        true
+    }
+    fn run_region(
+        p: &DemoParams,
+        _: &Inputs<'_>,
+        win: Window,
+        _: &RunContext,
+    ) -> Result<Vec<Value>, RgbnError> {
+        check_size(win.w, win.h, "demo")?;
+        Ok(vec![Value::Rgbn(demo_window(p.size as usize, win))])
     }
 }
 
@@ -65,14 +77,30 @@ impl Operator for SurfaceOp {
     fn out_size(p: &SurfaceParams, _: &[Option<(usize, usize)>]) -> Option<(usize, usize)> {
         Some((p.width as usize, p.height as usize))
     }
-    fn run(p: &SurfaceParams, _: &Inputs<'_>, _: &RunContext) -> Result<Vec<Value>, RgbnError> {
+    fn run(
+        p: &SurfaceParams,
+        inputs: &Inputs<'_>,
+        ctx: &RunContext,
+    ) -> Result<Vec<Value>, RgbnError> {
         let (w, h) = (p.width as usize, p.height as usize);
-        check_size(w, h, "surface")?;
-        let s = p.surface(w, h);
+        Self::run_region(p, inputs, Window::full(w, h), ctx)
+    }
+    fn regional(_: &SurfaceParams) -> bool {
+        true
+    }
+    fn run_region(
+        p: &SurfaceParams,
+        _: &Inputs<'_>,
+        win: Window,
+        _: &RunContext,
+    ) -> Result<Vec<Value>, RgbnError> {
+        let full = (p.width as usize, p.height as usize);
+        check_size(win.w, win.h, "surface")?;
+        let s = p.surface(full.0, full.1);
         let (img, z) = if p.analytic_normals {
-            s.render(w, h)
+            s.render_window(full, win)
         } else {
-            s.render_sampled(w, h)
+            s.render_sampled_window(full, win)
         };
         Ok(vec![Value::Rgbn(img), Value::Scalar(Arc::new(z))])
     }

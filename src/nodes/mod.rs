@@ -80,6 +80,7 @@ pub mod stamp;
 
 use crate::error::RgbnError;
 use crate::ops::params::{self, ParamError, ParamInfo, ParamValue, Params};
+use crate::raster::sample::Window;
 use crate::raster::{Plane, RgbnImage};
 use std::collections::BTreeMap;
 use std::marker::PhantomData;
@@ -407,6 +408,27 @@ pub trait Operator: Send + Sync + 'static {
     fn shifted(params: &Self::Params, _dx: f64, _dy: f64) -> Self::Params {
         params.clone()
     }
+    /// Whether the outputs can be computed over any window, at any level of detail, without
+    /// the rest of the image ([`Operator::run_region`]): procedural sources. The region
+    /// evaluator then computes them tile by tile rather than whole. Default: no.
+    fn regional(_params: &Self::Params) -> bool {
+        false
+    }
+    /// The outputs of [`Operator::run`] over `win` of the whole image, at `win.scale`: what
+    /// [`crate::raster::pyramid`] makes of the full-resolution outputs, or (procedural sources)
+    /// the surface sampled on the coarse grid directly. Default: `run` on the whole image, then
+    /// cut and reduced — correct, but it computes everything.
+    fn run_region(
+        params: &Self::Params,
+        inputs: &Inputs<'_>,
+        win: Window,
+        ctx: &RunContext,
+    ) -> Result<Vec<Value>, RgbnError> {
+        Ok(Self::run(params, inputs, ctx)?
+            .iter()
+            .map(|v| crate::eval::region::window_of(v, win))
+            .collect())
+    }
     /// Where the outputs can change when the parameters go from `old` to `new` and the inputs
     /// (sizes in port order, `None` when unconnected) stay the same: boxes
     /// `[x0, y0, x1, y1]` in pixel coordinates (pixel centres at whole numbers), or `None` for
@@ -457,6 +479,16 @@ pub trait DynOp: Send + Sync {
         new: &BTreeMap<String, ParamValue>,
         inputs: &[Option<(usize, usize)>],
     ) -> Option<Vec<[f64; 4]>>;
+    /// [`Operator::regional`] on canonical params (`false` when they do not parse).
+    fn regional(&self, values: &BTreeMap<String, ParamValue>) -> bool;
+    /// [`Operator::run_region`] on canonical params.
+    fn run_region(
+        &self,
+        values: &BTreeMap<String, ParamValue>,
+        inputs: &[Option<Value>],
+        win: Window,
+        ctx: &RunContext,
+    ) -> Result<Vec<Value>, RgbnError>;
     /// Runs on the crop whose top-left pixel is `origin` of the whole image:
     /// [`Operator::run`] with [`Operator::shifted`] params.
     fn run_at(
@@ -540,6 +572,21 @@ impl<T: Operator> DynOp for Entry<T> {
         let old: T::Params = params::from_values(old).ok()?;
         let new: T::Params = params::from_values(new).ok()?;
         T::damage(&old, &new, inputs)
+    }
+    fn regional(&self, values: &BTreeMap<String, ParamValue>) -> bool {
+        params::from_values::<T::Params>(values).is_ok_and(|p| T::regional(&p))
+    }
+    fn run_region(
+        &self,
+        values: &BTreeMap<String, ParamValue>,
+        inputs: &[Option<Value>],
+        win: Window,
+        ctx: &RunContext,
+    ) -> Result<Vec<Value>, RgbnError> {
+        let p: T::Params = params::from_values(values)?;
+        let out = T::run_region(&p, &Inputs::new(&self.spec.inputs, inputs), win, ctx)?;
+        debug_assert_eq!(out.len(), self.spec.outputs.len());
+        Ok(out)
     }
     fn run_at(
         &self,

@@ -16,6 +16,7 @@ pub mod io;
 pub mod mesh;
 pub(crate) mod par;
 pub mod ptm;
+pub mod pyramid;
 pub mod sample;
 pub mod smooth;
 pub mod srgb;

@@ -95,7 +95,15 @@ impl Surface {
     /// a mask where the slope is undefined) and the height plane.
     #[must_use]
     pub fn render(&self, width: usize, height: usize) -> (RgbnImage, Plane) {
-        let (cx, cy) = (width as f64 / 2.0, height as f64 / 2.0);
+        self.render_window((width, height), Window::full(width, height))
+    }
+
+    /// [`Surface::render`] of the `full` image, only over `win` (the same pixels, computed
+    /// independently of the rest of the image).
+    #[must_use]
+    pub fn render_window(&self, full: (usize, usize), win: Window) -> (RgbnImage, Plane) {
+        let (cx, cy) = (full.0 as f64 / 2.0, full.1 as f64 / 2.0);
+        let (width, height) = (win.w, win.h);
         let n = width * height;
         let mut normal = [
             buf::zeroed_f32(n),
@@ -103,24 +111,31 @@ impl Surface {
             buf::filled_f32(n, 1.0),
         ];
         let mut mask = buf::filled_f32(n, 1.0);
+        // Pixel (x, row) of the window's grid is sampled at the middle full-image pixel of
+        // those it covers (itself at full resolution).
+        let s = win.scale as f64;
+        let mid = (s - 1.0) / 2.0;
+        let at = |x: usize, r: usize| {
+            (
+                (win.x + x) as f64 * s + mid - cx,
+                cy - ((win.y + r) as f64 * s + mid),
+            )
+        };
         let z = Plane::from_fn(width, height, |x, r| {
-            self.height(x as f64 - cx, cy - r as f64) as f32
+            let (u, v) = at(x, r);
+            (self.height(u, v) / s) as f32
         });
         let [nx, ny, nz] = &mut normal;
-        let mut any_masked = false;
         for (i, ((a, b), (c, m))) in nx
             .iter_mut()
             .zip(ny.iter_mut())
             .zip(nz.iter_mut().zip(mask.iter_mut()))
             .enumerate()
         {
-            let (u, v) = ((i % width) as f64 - cx, cy - (i / width) as f64);
+            let (u, v) = at(i % width, i / width);
             match self.gradient(u, v) {
                 Some([p, q]) => [*a, *b, *c] = normal_of_gradient(p as f32, q as f32),
-                None => {
-                    *m = 0.0;
-                    any_masked = true;
-                }
+                None => *m = 0.0,
             }
         }
         let img = RgbnImage::new(
@@ -128,10 +143,56 @@ impl Surface {
             height,
             [vec![0.8; n], vec![0.8; n], vec![0.8; n]],
             normal,
-            any_masked.then_some(mask),
+            self.undefined_somewhere(full).then_some(mask),
         )
         .expect("sizes match by construction");
         (img, z)
+    }
+
+    /// Whether the slope is undefined at some pixel centre or corner of a `full` image (then
+    /// its renders carry a mask, whichever part of the image is rendered): the sphere when a
+    /// corner of the image, the farthest point from its centre, lies on or outside it.
+    #[must_use]
+    pub fn undefined_somewhere(&self, full: (usize, usize)) -> bool {
+        match self {
+            Surface::Sphere { radius_px: r } => {
+                // The arithmetic of `gradient` at corner (0, 0).
+                let (u, v) = (-(full.0 as f64 / 2.0), full.1 as f64 / 2.0);
+                r * r - u * u - v * v <= 0.0
+            }
+            _ => false,
+        }
+    }
+}
+
+/// A rectangle of an image: columns `x..x + w`, rows `y..y + h`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Window {
+    /// First column.
+    pub x: usize,
+    /// First row.
+    pub y: usize,
+    /// Columns.
+    pub w: usize,
+    /// Rows.
+    pub h: usize,
+    /// Pixels of the full image per pixel of the window's grid along each axis (`2^level` at a
+    /// level of detail; 1 at full resolution): pixel `(x, row)` covers full-image pixels
+    /// `x·scale .. (x + 1)·scale`, and heights are in the window's pixels.
+    pub scale: usize,
+}
+
+impl Window {
+    /// The whole `w × h` image at full resolution.
+    #[must_use]
+    pub fn full(w: usize, h: usize) -> Self {
+        Self {
+            x: 0,
+            y: 0,
+            w,
+            h,
+            scale: 1,
+        }
     }
 }
 
@@ -231,11 +292,26 @@ fn medallion(u: f64, v: f64, rr: f64) -> (f64, [f32; 3]) {
     (z, c)
 }
 
-/// Heights of `f(u, v)` at the `(width + 1) × (height + 1)` pixel corners ([`corner_samples`]),
-/// with `u = x − cx`, `v = cy − row` for corner `(x, row)`.
-fn corner_heights(width: usize, height: usize, f: impl Fn(f64, f64) -> f64 + Sync) -> Vec<f64> {
-    let (cx, cy) = (width as f64 / 2.0, height as f64 / 2.0);
-    corner_samples(width, height, |x, row| f(x as f64 - cx, cy - row as f64))
+/// Heights of `f(u, v)` at the `(win.w + 1) × (win.h + 1)` pixel corners of `win` in a `full`
+/// image ([`corner_samples`]), with `u = x − cx`, `v = cy − row` for corner `(x, row)` of the
+/// full image and `(cx, cy)` its centre; at a coarser scale, corner `(x, row)` of the window's
+/// grid is corner `(x·scale, row·scale)` of the full image and heights are divided by the
+/// scale (they are in the window's pixels, so slopes are unchanged).
+fn corner_heights(
+    full: (usize, usize),
+    win: Window,
+    f: impl Fn(f64, f64) -> f64 + Sync,
+) -> Vec<f64> {
+    let (cx, cy) = (full.0 as f64 / 2.0, full.1 as f64 / 2.0);
+    if win.scale == 1 {
+        return corner_samples(win.w, win.h, |x, row| {
+            f((win.x + x) as f64 - cx, cy - (win.y + row) as f64)
+        });
+    }
+    let s = win.scale as f64;
+    corner_samples(win.w, win.h, |x, row| {
+        f((win.x + x) as f64 * s - cx, cy - (win.y + row) as f64 * s) / s
+    })
 }
 
 impl Surface {
@@ -246,33 +322,43 @@ impl Surface {
     /// undefined at any of the four corners (outside the sphere or on its rim).
     #[must_use]
     pub fn render_sampled(&self, width: usize, height: usize) -> (RgbnImage, Plane) {
-        let zc = corner_heights(width, height, |u, v| self.height(u, v));
+        self.render_sampled_window((width, height), Window::full(width, height))
+    }
+
+    /// [`Surface::render_sampled`] of the `full` image, only over `win` (the same pixels,
+    /// bit for bit: every corner is sampled on its own).
+    #[must_use]
+    pub fn render_sampled_window(&self, full: (usize, usize), win: Window) -> (RgbnImage, Plane) {
+        let (width, height) = (win.w, win.h);
+        let zc = corner_heights(full, win, |u, v| self.height(u, v));
         let (mut g, z) = GradientField::from_corner_heights(width, height, &zc);
-        let defined = corner_heights(width, height, |u, v| {
-            f64::from(u8::from(self.gradient(u, v).is_some()))
-        });
-        let cw = width + 1;
-        let mask: Vec<f32> = (0..width * height)
-            .map(|i| {
-                let (x, row) = (i % width, i / width);
-                let (a, b) = (row * cw + x, (row + 1) * cw + x);
-                let all = [a, a + 1, b, b + 1].iter().all(|&c| defined[c] > 0.5);
-                f32::from(u8::from(all))
-            })
-            .collect();
-        let any_masked = mask.contains(&0.0);
-        for (i, &m) in mask.iter().enumerate() {
-            if m == 0.0 {
-                (g.p[i], g.q[i]) = (0.0, 0.0);
+        let mask = self.undefined_somewhere(full).then(|| {
+            let defined = corner_heights(full, win, |u, v| {
+                f64::from(u8::from(self.gradient(u, v).is_some()))
+            });
+            let cw = width + 1;
+            let mask: Vec<f32> = (0..width * height)
+                .map(|i| {
+                    let (x, row) = (i % width, i / width);
+                    let (a, b) = (row * cw + x, (row + 1) * cw + x);
+                    let all = [a, a + 1, b, b + 1].iter().all(|&c| defined[c] > 0.5);
+                    f32::from(u8::from(all))
+                })
+                .collect();
+            for (i, &m) in mask.iter().enumerate() {
+                if m == 0.0 {
+                    (g.p[i], g.q[i]) = (0.0, 0.0);
+                }
             }
-        }
+            mask
+        });
         let n = width * height;
         let img = RgbnImage::new(
             width,
             height,
             [vec![0.8; n], vec![0.8; n], vec![0.8; n]],
             g.to_normals(),
-            any_masked.then_some(mask),
+            mask,
         )
         .expect("sizes match by construction");
         (img, z)
@@ -286,28 +372,37 @@ impl Surface {
 /// rounding), and [`demo_height`] is the height that integrating it gives back.
 #[must_use]
 pub fn demo_medallion(size: usize) -> RgbnImage {
-    let n = size * size;
+    demo_window(size, Window::full(size, size))
+}
+
+/// [`demo_medallion`] of a `size × size` image, only over `win` (the same pixels, bit for bit).
+#[must_use]
+pub fn demo_window(size: usize, win: Window) -> RgbnImage {
+    let (w, h) = (win.w, win.h);
+    let n = w * h;
     let c = size as f64 / 2.0;
     let rr = 0.45 * size as f64;
-    let zc = corner_heights(size, size, |u, v| medallion(u, v, rr).0);
-    let (g, _) = GradientField::from_corner_heights(size, size, &zc);
+    let zc = corner_heights((size, size), win, |u, v| medallion(u, v, rr).0);
+    let (g, _) = GradientField::from_corner_heights(w, h, &zc);
     let mut color = [buf::zeroed_f32(n), buf::zeroed_f32(n), buf::zeroed_f32(n)];
-    let rows: Vec<Vec<[f32; 3]>> = (0..size)
+    let s = win.scale as f64;
+    let rows: Vec<Vec<[f32; 3]>> = (0..h)
         .into_par_iter()
         .map(|row| {
-            (0..size)
-                .map(|x| medallion(x as f64 + 0.5 - c, c - row as f64 - 0.5, rr).1)
+            let v = c - ((win.y + row) as f64 + 0.5) * s;
+            (0..w)
+                .map(|x| medallion(((win.x + x) as f64 + 0.5) * s - c, v, rr).1)
                 .collect()
         })
         .collect();
     for (row, cols) in rows.into_iter().enumerate() {
         for (x, col) in cols.into_iter().enumerate() {
             for k in 0..3 {
-                color[k][row * size + x] = col[k];
+                color[k][row * w + x] = col[k];
             }
         }
     }
-    RgbnImage::new(size, size, color, g.to_normals(), None).expect("sizes match by construction")
+    RgbnImage::new(w, h, color, g.to_normals(), None).expect("sizes match by construction")
 }
 
 /// The height of the demo medallion (pixels) at pixel centres — the mean of each pixel's four
@@ -315,7 +410,9 @@ pub fn demo_medallion(size: usize) -> RgbnImage {
 #[must_use]
 pub fn demo_height(size: usize) -> Plane {
     let rr = 0.45 * size as f64;
-    let zc = corner_heights(size, size, |u, v| medallion(u, v, rr).0);
+    let zc = corner_heights((size, size), Window::full(size, size), |u, v| {
+        medallion(u, v, rr).0
+    });
     GradientField::from_corner_heights(size, size, &zc).1
 }
 
