@@ -6,12 +6,15 @@
 //!   Timed: setting the parameter, planning, and the region evaluation (what the editor does
 //!   per pointer move). Every append is new (no result is ever cached already); after 20 the
 //!   path is reset, untimed.
+//! - `edit/pen_segment_16k`: the same on a 16384² image (its procedural source is computed
+//!   tile by tile like everything else, so only the viewport's tiles exist): the cost should
+//!   not depend on the image's size.
 //! - `edit/stamp_move_4k`: move one placement of a 64² stamp on 4K by a few pixels and produce
 //!   the relit viewport.
 //! - `tile/…`: whole-image work through tiles by tile side, against the whole-image evaluator
 //!   (the measurement behind `DEFAULT_TILE` and `INTERACTIVE_TILE`).
 //!
-//! The edits use tiles of `INTERACTIVE_TILE` (128) pixels, the side meant for interactive work
+//! The edits use tiles of `INTERACTIVE_TILE` (64) pixels, the side meant for interactive work
 //! (the editor itself does not evaluate by regions yet).
 //!
 //! Run: `cargo bench --no-default-features --bench edit` (set `RAYON_NUM_THREADS=2` to match
@@ -28,6 +31,8 @@ use std::time::{Duration, Instant};
 
 const W: usize = 3840;
 const H: usize = 2160;
+/// The 16K image of `edit/pen_segment_16k`.
+const BIG: usize = 16384;
 const VIEW: (usize, usize) = (1920, 1080);
 
 fn points_text(p: &[[f64; 2]]) -> String {
@@ -38,13 +43,17 @@ fn points_text(p: &[[f64; 2]]) -> String {
 }
 
 fn graph(edit_node: &str) -> LoadedGraph {
+    graph_of((W, H), edit_node)
+}
+
+fn graph_of((w, h): (usize, usize), edit_node: &str) -> LoadedGraph {
     let text = format!(
         r#"(
     version: 1,
     next_id: 5,
     outputs: {{ "relit": (node: 4, port: "picture") }},
     nodes: [
-        (id: 1, op: "surface", pos: (0.0, 0.0), params: {{ "width": Int({W}), "height": Int({H}), "shape": Choice("gaussians") }}),
+        (id: 1, op: "surface", pos: (0.0, 0.0), params: {{ "width": Int({w}), "height": Int({h}), "shape": Choice("gaussians") }}),
         (id: 2, op: "surface", pos: (0.0, 0.0), params: {{ "width": Int(64), "height": Int(64), "shape": Choice("gaussians") }}),
         {edit_node},
         (id: 4, op: "relight", pos: (0.0, 0.0), inputs: {{ "image": Node(3, "image") }}),
@@ -54,16 +63,16 @@ fn graph(edit_node: &str) -> LoadedGraph {
     LoadedGraph::from_text(&text, "edit.ron", Path::new(".").to_path_buf()).expect("graph")
 }
 
-/// The viewport of `VIEW` pixels centred on `c`, inside the image.
-fn viewport(c: [f64; 2]) -> Rect {
-    let x = (c[0] as usize).saturating_sub(VIEW.0 / 2).min(W - VIEW.0);
-    let y = (c[1] as usize).saturating_sub(VIEW.1 / 2).min(H - VIEW.1);
+/// The viewport of `VIEW` pixels centred on `c`, inside a `w × h` image.
+fn viewport(c: [f64; 2], (w, h): (usize, usize)) -> Rect {
+    let x = (c[0] as usize).saturating_sub(VIEW.0 / 2).min(w - VIEW.0);
+    let y = (c[1] as usize).saturating_sub(VIEW.1 / 2).min(h - VIEW.1);
     Rect::new(x, y, VIEW.0, VIEW.1)
 }
 
-/// A 500 px path of 10 px segments, a gentle arc through the middle of the image.
-fn base_path() -> Vec<[f64; 2]> {
-    let mut p = vec![[1600.0, 1000.0]];
+/// A 500 px path of 10 px segments from `start`, a gentle arc.
+fn base_path(start: [f64; 2]) -> Vec<[f64; 2]> {
+    let mut p = vec![start];
     for k in 0..50 {
         let a = 0.02 * k as f64;
         let last = p[p.len() - 1];
@@ -73,16 +82,21 @@ fn base_path() -> Vec<[f64; 2]> {
 }
 
 fn pen_segment(c: &mut Criterion) {
-    let mut lg = graph(
+    pen_segment_on(c, "edit/pen_segment_4k", (W, H), [1600.0, 1000.0]);
+    pen_segment_on(c, "edit/pen_segment_16k", (BIG, BIG), [8000.0, 8000.0]);
+}
+
+/// `edit/pen_segment_…` on a `size` image, the path starting at `start`.
+fn pen_segment_on(c: &mut Criterion, id: &str, size: (usize, usize), start: [f64; 2]) {
+    let mut lg = graph_of(
+        size,
         r#"(id: 3, op: "pen", name: Some("pen"), pos: (0.0, 0.0), params: { "width_px": Float(20.0), "taper_px": Float(16.0), "height_px": Float(2.0) }, inputs: { "image": Node(1, "image") })"#,
     );
     let ev = Evaluator::default();
-    let ropts = RegionOptions {
-        tile: INTERACTIVE_TILE,
-    };
+    let ropts = RegionOptions::tiles(INTERACTIVE_TILE);
     let opts = EvalOptions::default();
-    let base = base_path();
-    let view = viewport(base[base.len() - 1]);
+    let base = base_path(start);
+    let view = viewport(base[base.len() - 1], size);
     let inputs = BTreeMap::new();
     let eval = |lg: &LoadedGraph| {
         let plan = Plan::new(lg, &inputs, Path::new(".")).expect("plan");
@@ -92,7 +106,7 @@ fn pen_segment(c: &mut Criterion) {
         black_box(r.value);
     };
     let mut serial = 0u64;
-    c.bench_function("edit/pen_segment_4k", |b| {
+    c.bench_function(id, |b| {
         b.iter_custom(|iters| {
             let mut total = Duration::ZERO;
             let mut path = base.clone();
@@ -133,11 +147,9 @@ fn stamp_move(c: &mut Criterion) {
             .join(", ")
     ));
     let ev = Evaluator::default();
-    let ropts = RegionOptions {
-        tile: INTERACTIVE_TILE,
-    };
+    let ropts = RegionOptions::tiles(INTERACTIVE_TILE);
     let opts = EvalOptions::default();
-    let view = viewport(positions[0]);
+    let view = viewport(positions[0], (W, H));
     let inputs = BTreeMap::new();
     let mut serial = 0u64;
     c.bench_function("edit/stamp_move_4k", |b| {
@@ -183,7 +195,7 @@ fn tile_size(c: &mut Criterion) {
             Plan::new(lg, &inputs, Path::new(".")).expect("plan")
         };
         for tile in [64, 128, 256, 512] {
-            let ropts = RegionOptions { tile };
+            let ropts = RegionOptions::tiles(tile);
             g.bench_function(format!("gauss{sigma}_relight_4k/{tile}"), |b| {
                 b.iter(|| {
                     let plan = next(&mut lg);

@@ -457,9 +457,7 @@ fn eval_region(
     opts: &EvalOptions,
     out: &mut Out<'_>,
 ) -> Result<(), CliError> {
-    let ropts = RegionOptions {
-        tile: a.tile as usize,
-    };
+    let ropts = RegionOptions::tiles(a.tile as usize);
     let names: Vec<(String, Option<&PathBuf>)> = if requested.is_empty() {
         plan.output_types
             .iter()

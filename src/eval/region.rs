@@ -125,18 +125,35 @@ pub const DEFAULT_TILE: usize = 512;
 
 /// Tile side for interactive edits: a small edit recomputes less (see BENCHMARKS.md, "Tile
 /// size").
-pub const INTERACTIVE_TILE: usize = 128;
+pub const INTERACTIVE_TILE: usize = 64;
+
+/// The coarsest level of detail (a 2^20 reduction).
+pub const MAX_LEVEL: u32 = 20;
 
 /// Options of a region evaluation.
 #[derive(Clone, Copy, Debug)]
 pub struct RegionOptions {
     /// Tile side in pixels (≥ 16).
     pub tile: usize,
+    /// Level of detail: 0 is full resolution, level `L` the output reduced by `2^L`
+    /// ([`crate::raster::pyramid`]); the rectangle is in the level's pixels.
+    pub level: u32,
 }
 
 impl Default for RegionOptions {
     fn default() -> Self {
-        Self { tile: DEFAULT_TILE }
+        Self {
+            tile: DEFAULT_TILE,
+            level: 0,
+        }
+    }
+}
+
+impl RegionOptions {
+    /// Tiles of `tile` pixels at full resolution.
+    #[must_use]
+    pub fn tiles(tile: usize) -> Self {
+        Self { tile, level: 0 }
     }
 }
 
@@ -235,6 +252,7 @@ struct LastResult {
     port: usize,
     rect: Rect,
     tile: usize,
+    level: u32,
     key: CacheKey,
     value: Value,
 }
@@ -269,11 +287,40 @@ enum Mode {
     Whole,
 }
 
-/// The largest halo of an instance's local inputs, `None` when it has no connected local
-/// input and is not [regional](crate::nodes::Operator::regional) (then it is evaluated whole).
-fn local_halo(plan: &Plan, i: usize) -> Option<usize> {
+/// Parameters per instance at a level of detail.
+type LevelParams = [Option<BTreeMap<String, ParamValue>>];
+
+/// The parameters of every instance at level `level` (reduction `s`): their own at level 0 and
+/// for regional sources (which sample the level themselves), [`crate::nodes::Operator::scaled`]
+/// otherwise (`None`: no coarse form).
+fn level_params(plan: &Plan, level: u32, s: usize) -> Vec<Option<BTreeMap<String, ParamValue>>> {
+    plan.instances
+        .iter()
+        .map(|inst| {
+            if level == 0 || inst.op.regional(&inst.params) {
+                Some(inst.params.clone())
+            } else {
+                inst.op.scaled(&inst.params, s as f64)
+            }
+        })
+        .collect()
+}
+
+/// Input `k`'s footprint of instance `i` with its parameters at the level.
+fn footprint(plan: &Plan, lp: &LevelParams, i: usize, k: usize) -> Footprint {
     let inst = &plan.instances[i];
-    if inst.op.spec().side_effect {
+    match &lp[i] {
+        Some(p) => inst.op.footprint(p, k),
+        None => Footprint::Global,
+    }
+}
+
+/// The largest halo of an instance's local inputs, `None` when it has no connected local
+/// input and is not [regional](crate::nodes::Operator::regional), or has no form at the level
+/// (then it is evaluated whole).
+fn local_halo(plan: &Plan, lp: &LevelParams, i: usize) -> Option<usize> {
+    let inst = &plan.instances[i];
+    if inst.op.spec().side_effect || lp[i].is_none() {
         return None;
     }
     if regional(plan, i) {
@@ -283,7 +330,7 @@ fn local_halo(plan: &Plan, i: usize) -> Option<usize> {
         .iter()
         .enumerate()
         .filter(|(_, c)| matches!(c, Conn::Slot(..)))
-        .filter_map(|(k, _)| match inst.op.footprint(&inst.params, k) {
+        .filter_map(|(k, _)| match footprint(plan, lp, i, k) {
             Footprint::Local { halo } => Some(halo),
             Footprint::Global => None,
         })
@@ -338,6 +385,9 @@ impl Evaluator {
         opts: &EvalOptions,
     ) -> Result<RegionResult, GraphError> {
         let tile = ropts.tile.max(16);
+        let level = ropts.level.min(MAX_LEVEL);
+        let s = 1usize << level;
+        let lp = level_params(plan, level, s);
         let (root, root_port) = match plan.outputs.get(output) {
             Some(Conn::Slot(i, p)) => (*i, *p),
             Some(Conn::Unbound { name, at }) => {
@@ -367,7 +417,7 @@ impl Evaluator {
         // 1. Modes, from the output up (instances are in topological order).
         let n = plan.instances.len();
         let mut mode = vec![Mode::Unneeded; n];
-        mode[root] = if local_halo(plan, root).is_some() {
+        mode[root] = if local_halo(plan, &lp, root).is_some() {
             Mode::Tiled
         } else {
             Mode::Whole
@@ -383,8 +433,8 @@ impl Evaluator {
                 let local = mode[i] == Mode::Tiled
                     && !number
                     && !regional(plan, i)
-                    && matches!(inst.op.footprint(&inst.params, k), Footprint::Local { .. })
-                    && local_halo(plan, *j).is_some();
+                    && matches!(footprint(plan, &lp, i, k), Footprint::Local { .. })
+                    && local_halo(plan, &lp, *j).is_some();
                 mode[*j] = match (mode[*j], local) {
                     (Mode::Whole, _) | (_, false) => Mode::Whole,
                     _ => Mode::Tiled,
@@ -407,6 +457,27 @@ impl Evaluator {
             .collect();
         let whole = self.eval_instances(plan, &whole_roots, opts)?;
         let mut keys = whole.keys;
+        // The whole results at the level: reduced (and cached so) at a coarse one.
+        let wv: HashMap<usize, Arc<CacheEntry>> = whole
+            .results
+            .iter()
+            .map(|(j, e)| {
+                if s == 1 {
+                    return (*j, e.clone());
+                }
+                let k = tile_key(keys[j], 0, level, 0, 0);
+                let r = self.mem_get(k).unwrap_or_else(|| {
+                    let r = Arc::new(CacheEntry {
+                        values: e.values.iter().map(|v| reduce(v, s)).collect(),
+                        curl: None,
+                        fraction: None,
+                    });
+                    self.mem_insert(k, r.clone());
+                    r
+                });
+                (*j, r)
+            })
+            .collect();
         // 3. Sizes of tiled instances: their first connected local input's.
         let mut size: Vec<Option<(usize, usize)>> = vec![None; n];
         for (j, e) in &whole.results {
@@ -421,7 +492,7 @@ impl Evaluator {
             let mut first: Option<(&str, (usize, usize))> = None;
             for (k, c) in inst.inputs.iter().enumerate() {
                 let Conn::Slot(j, port) = c else { continue };
-                if !matches!(inst.op.footprint(&inst.params, k), Footprint::Local { .. }) {
+                if !matches!(footprint(plan, &lp, i, k), Footprint::Local { .. }) {
                     continue;
                 }
                 let s = match whole.results.get(j) {
@@ -509,7 +580,11 @@ impl Evaluator {
                 );
             }
         }
-        let Some(out_size) = size[root] else {
+        let lsize: Vec<Option<(usize, usize)>> = size
+            .iter()
+            .map(|z| z.map(|z| crate::raster::pyramid::reduced_size(z, s)))
+            .collect();
+        let Some(out_size) = lsize[root] else {
             return Err(GraphError::Param {
                 param: "region".into(),
                 detail: format!("graph output {output:?} has no pixel size"),
@@ -528,7 +603,7 @@ impl Evaluator {
             });
         }
         if mode[root] == Mode::Whole {
-            let v = whole.results[&root].values[root_port].clone();
+            let v = wv[&root].values[root_port].clone();
             return Ok(RegionResult {
                 value: crop(&v, rect),
                 rect,
@@ -547,7 +622,10 @@ impl Evaluator {
             root_inst.at.node,
         );
         let last = super::lock(&self.seen).last.take().and_then(|l| {
-            let same = (&l.ident, l.port, l.rect, l.tile) == (&ident, root_port, rect, tile);
+            // Damage is in full-resolution pixels: a coarse level takes tiles from the cache by
+            // key only, and is not patched.
+            let same = (&l.ident, l.port, l.rect, l.tile, l.level, level)
+                == (&ident, root_port, rect, tile, 0, 0);
             let damage = if l.key == keys[&root] {
                 Some(Vec::new())
             } else {
@@ -576,17 +654,19 @@ impl Evaluator {
                 continue;
             }
             let inst = &plan.instances[i];
-            let (key, sz) = (keys[&i], size[i].unwrap_or_default());
-            let halo = local_halo(plan, i).unwrap_or(0);
+            let (key, sz) = (keys[&i], lsize[i].unwrap_or_default());
+            let halo = local_halo(plan, &lp, i).unwrap_or(0);
             let wanted = std::mem::take(&mut want[i]);
             for t in wanted {
-                if let Some(e) = self.mem_get(tile_key(key, tile, 0, t.0, t.1)) {
+                if let Some(e) = self.mem_get(tile_key(key, tile, level, t.0, t.1)) {
                     have[i].insert(t, e);
                     continue;
                 }
-                // The same tile of an earlier key, if no edit since can have changed it.
+                // The same tile of an earlier key, if no edit since can have changed it (at full
+                // resolution, where damage is known).
                 let tr = tile_rect(t, tile, sz);
-                let earlier = trails[i]
+                let trail: &[_] = if level == 0 { &trails[i] } else { &[] };
+                let earlier = trail
                     .iter()
                     .rev()
                     .map_while(|(k, d)| {
@@ -595,14 +675,14 @@ impl Evaluator {
                     })
                     .enumerate()
                     .find_map(|(depth, k)| {
-                        self.mem_get(tile_key(k, tile, 0, t.0, t.1))
+                        self.mem_get(tile_key(k, tile, level, t.0, t.1))
                             .map(|e| (depth, e))
                     });
                 if let Some((depth, e)) = earlier {
                     // Found far back: stored under the new key too (its bytes count once),
                     // so it stays reachable however many edits follow.
                     if depth >= TRAIL / 2 {
-                        self.mem_insert(tile_key(key, tile, 0, t.0, t.1), e.clone());
+                        self.mem_insert(tile_key(key, tile, level, t.0, t.1), e.clone());
                     }
                     have[i].insert(t, e);
                     reused[i] += 1;
@@ -613,7 +693,7 @@ impl Evaluator {
                 for (k, c) in inst.inputs.iter().enumerate() {
                     let Conn::Slot(j, _) = c else { continue };
                     if mode[*j] == Mode::Tiled
-                        && matches!(inst.op.footprint(&inst.params, k), Footprint::Local { .. })
+                        && matches!(footprint(plan, &lp, i, k), Footprint::Local { .. })
                     {
                         want[*j].extend(covering(&need, tile));
                     }
@@ -631,8 +711,10 @@ impl Evaluator {
             }
             let inst = &plan.instances[i];
             let spec = inst.op.spec();
-            let (key, sz) = (keys[&i], size[i].unwrap_or_default());
-            let halo = local_halo(plan, i).unwrap_or(0);
+            let (key, sz) = (keys[&i], lsize[i].unwrap_or_default());
+            let halo = local_halo(plan, &lp, i).unwrap_or(0);
+            // Tiled instances have parameters at the level (see `local_halo`).
+            let params = lp[i].as_ref().unwrap_or(&inst.params);
             let computed: Vec<Result<(Tile, Arc<CacheEntry>), GraphError>> = todo[i]
                 .par_iter()
                 .map(|&t| {
@@ -645,7 +727,7 @@ impl Evaluator {
                             .inputs
                             .iter()
                             .map(|c| match c {
-                                Conn::Slot(j, port) => whole.results[j].values.get(*port).cloned(),
+                                Conn::Slot(j, port) => wv[j].values.get(*port).cloned(),
                                 _ => None,
                             })
                             .collect();
@@ -654,22 +736,22 @@ impl Evaluator {
                             y: tr.y,
                             w: tr.w,
                             h: tr.h,
-                            scale: 1,
+                            scale: s,
                         };
-                        let values = inst
-                            .op
-                            .run_region(&inst.params, &inputs, win, &ctx)
-                            .map_err(|source| GraphError::Node {
-                                op: spec.id.to_string(),
-                                source,
-                                at: inst.at.clone(),
-                            })?;
+                        let values =
+                            inst.op
+                                .run_region(params, &inputs, win, &ctx)
+                                .map_err(|source| GraphError::Node {
+                                    op: spec.id.to_string(),
+                                    source,
+                                    at: inst.at.clone(),
+                                })?;
                         let e = Arc::new(CacheEntry {
                             values,
                             curl: None,
                             fraction: None,
                         });
-                        self.mem_insert(tile_key(key, tile, 0, t.0, t.1), e.clone());
+                        self.mem_insert(tile_key(key, tile, level, t.0, t.1), e.clone());
                         return Ok((t, e));
                     }
                     let crop_rect = tr.grow(halo, sz);
@@ -679,29 +761,24 @@ impl Evaluator {
                         .enumerate()
                         .map(|(k, c)| {
                             let Conn::Slot(j, port) = c else { return None };
-                            let local = matches!(
-                                inst.op.footprint(&inst.params, k),
-                                Footprint::Local { .. }
-                            );
+                            let local =
+                                matches!(footprint(plan, &lp, i, k), Footprint::Local { .. });
                             match (mode[*j], local) {
                                 (Mode::Tiled, _) => Some(assemble(
                                     &have[*j],
                                     *port,
                                     tile,
-                                    size[*j].unwrap_or_default(),
+                                    lsize[*j].unwrap_or_default(),
                                     crop_rect,
                                 )),
-                                (_, true) => whole.results[j]
-                                    .values
-                                    .get(*port)
-                                    .map(|v| crop(v, crop_rect)),
-                                (_, false) => whole.results[j].values.get(*port).cloned(),
+                                (_, true) => wv[j].values.get(*port).map(|v| crop(v, crop_rect)),
+                                (_, false) => wv[j].values.get(*port).cloned(),
                             }
                         })
                         .collect();
                     let values = inst
                         .op
-                        .run_at(&inst.params, &inputs, &ctx, (crop_rect.x, crop_rect.y))
+                        .run_at(params, &inputs, &ctx, (crop_rect.x, crop_rect.y))
                         .map_err(|source| GraphError::Node {
                             op: spec.id.to_string(),
                             source,
@@ -720,7 +797,7 @@ impl Evaluator {
                         curl: None,
                         fraction: None,
                     });
-                    self.mem_insert(tile_key(key, tile, 0, t.0, t.1), e.clone());
+                    self.mem_insert(tile_key(key, tile, level, t.0, t.1), e.clone());
                     Ok((t, e))
                 })
                 .collect();
@@ -761,6 +838,7 @@ impl Evaluator {
             port: root_port,
             rect,
             tile,
+            level,
             key: keys[&root],
             value: value.clone(),
         });

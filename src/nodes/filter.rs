@@ -58,6 +58,12 @@ impl<K: KernelNode> Operator for FilterOp<K> {
     fn check(p: &FilterParams<K>) -> Result<(), RgbnError> {
         p.kernel.kernel().validate()
     }
+    fn scaled(p: &FilterParams<K>, s: f64) -> Option<FilterParams<K>> {
+        Some(FilterParams {
+            kernel: p.kernel.scaled(s)?,
+            options: p.options.clone(),
+        })
+    }
     fn footprint(p: &FilterParams<K>, _input: usize) -> Footprint {
         kernel_footprint(p.options.border, p.kernel.kernel().support_px())
     }

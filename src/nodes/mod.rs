@@ -408,6 +408,14 @@ pub trait Operator: Send + Sync + 'static {
     fn shifted(params: &Self::Params, _dx: f64, _dy: f64) -> Self::Params {
         params.clone()
     }
+    /// The parameters that compute this operator on its inputs reduced by `s` (a level of
+    /// detail, [`crate::raster::pyramid`]) so that the outputs approximate its full-resolution
+    /// outputs reduced by `s`: lengths in pixels divided by `s`, positions mapped with
+    /// [`scale_point`]. `None` when it has no such form (then a coarse level computes it at full
+    /// resolution and reduces it). Default: `None`.
+    fn scaled(_params: &Self::Params, _s: f64) -> Option<Self::Params> {
+        None
+    }
     /// Whether the outputs can be computed over any window, at any level of detail, without
     /// the rest of the image ([`Operator::run_region`]): procedural sources. The region
     /// evaluator then computes them tile by tile rather than whole. Default: no.
@@ -441,6 +449,13 @@ pub trait Operator: Send + Sync + 'static {
     ) -> Option<Vec<[f64; 4]>> {
         None
     }
+}
+
+/// A position of a full-resolution image (pixel centres at whole numbers) on the grid reduced
+/// by `s`, whose pixel `X` covers full-resolution pixels `X·s .. (X + 1)·s`.
+#[must_use]
+pub fn scale_point(p: [f64; 2], s: f64) -> [f64; 2] {
+    p.map(|c| (c - (s - 1.0) / 2.0) / s)
 }
 
 /// The object-safe face of an [`Operator`], as held by the registry.
@@ -479,6 +494,13 @@ pub trait DynOp: Send + Sync {
         new: &BTreeMap<String, ParamValue>,
         inputs: &[Option<(usize, usize)>],
     ) -> Option<Vec<[f64; 4]>>;
+    /// [`Operator::scaled`] on canonical params, as canonical params (`None` also when they do
+    /// not parse).
+    fn scaled(
+        &self,
+        values: &BTreeMap<String, ParamValue>,
+        s: f64,
+    ) -> Option<BTreeMap<String, ParamValue>>;
     /// [`Operator::regional`] on canonical params (`false` when they do not parse).
     fn regional(&self, values: &BTreeMap<String, ParamValue>) -> bool;
     /// [`Operator::run_region`] on canonical params.
@@ -572,6 +594,14 @@ impl<T: Operator> DynOp for Entry<T> {
         let old: T::Params = params::from_values(old).ok()?;
         let new: T::Params = params::from_values(new).ok()?;
         T::damage(&old, &new, inputs)
+    }
+    fn scaled(
+        &self,
+        values: &BTreeMap<String, ParamValue>,
+        s: f64,
+    ) -> Option<BTreeMap<String, ParamValue>> {
+        let p: T::Params = params::from_values(values).ok()?;
+        T::scaled(&p, s).map(|p| params::to_values(&p))
     }
     fn regional(&self, values: &BTreeMap<String, ParamValue>) -> bool {
         params::from_values::<T::Params>(values).is_ok_and(|p| T::regional(&p))

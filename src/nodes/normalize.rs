@@ -37,6 +37,9 @@ impl Operator for Normalize {
     fn footprint(_: &NormalizeParams, _input: usize) -> Footprint {
         Footprint::POINT
     }
+    fn scaled(p: &NormalizeParams, _: f64) -> Option<NormalizeParams> {
+        Some(p.clone())
+    }
     fn run(p: &NormalizeParams, i: &Inputs<'_>, _: &RunContext) -> Result<Vec<Value>, RgbnError> {
         let (img, rep) = normalize(i.rgbn("image")?, p)?;
         let b = rep.before;

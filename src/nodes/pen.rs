@@ -2,7 +2,9 @@
 //! profile ([`apply_pen`]).
 
 use super::kit::{curl_port, shift_points};
-use super::{Footprint, Inputs, OpSpec, Operator, PortSpec, PortType, RunContext, Value};
+use super::{
+    scale_point, Footprint, Inputs, OpSpec, Operator, PortSpec, PortType, RunContext, Value,
+};
 use crate::error::RgbnError;
 use crate::ops::geom::{changed_path_bounds, paths_bounds};
 use crate::ops::pen::{apply_pen, PenMode, PenParams};
@@ -45,6 +47,17 @@ impl Operator for PenNode {
                 halo: (p.width_px / 2.0 + p.taper_px).ceil() as usize + 2,
             },
         }
+    }
+    fn scaled(p: &PenParams, s: f64) -> Option<PenParams> {
+        Some(PenParams {
+            points: p.points.iter().map(|&q| scale_point(q, s)).collect(),
+            width_px: p.width_px / s,
+            height_px: p.height_px / s,
+            samples_px: p.samples_px.iter().map(|v| v / s).collect(),
+            taper_px: p.taper_px / s,
+            along_period_px: p.along_period_px / s,
+            ..p.clone()
+        })
     }
     fn shifted(p: &PenParams, dx: f64, dy: f64) -> PenParams {
         PenParams {

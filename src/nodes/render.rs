@@ -37,6 +37,9 @@ impl Operator for Relight {
     fn footprint(_: &RelightParams, _input: usize) -> Footprint {
         Footprint::POINT
     }
+    fn scaled(p: &RelightParams, _: f64) -> Option<RelightParams> {
+        Some(p.clone())
+    }
     fn run(p: &RelightParams, i: &Inputs<'_>, _: &RunContext) -> Result<Vec<Value>, RgbnError> {
         let img = i.rgbn("image")?;
         let rgba = render::relight(img, &p.shading())?;

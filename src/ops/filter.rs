@@ -714,6 +714,20 @@ fn smooth_window<F: LineFilter>(win: &Window<'_>, f: &F, border: BorderMode) -> 
 pub trait KernelParams: crate::ops::params::Params {
     /// The kernel these parameters describe (validated by [`Kernel::validate`]).
     fn kernel(&self) -> Kernel;
+    /// The same filter on gradients reduced by `s` (a level of detail): widths in pixels
+    /// divided by `s`; `None` where no such form exists (box radii are whole pixels, a LoG's
+    /// response scales with σ⁻², free kernels are taps). Default: `None`.
+    fn scaled(&self, _s: f64) -> Option<Self>
+    where
+        Self: Sized,
+    {
+        None
+    }
+}
+
+/// A Gaussian width at a level `s` times coarser, kept within the parameter's range.
+fn coarser(sigma_px: f64, s: f64) -> f64 {
+    (sigma_px / s).max(0.05)
 }
 
 fn f32s(v: &[f64]) -> Vec<f32> {
@@ -730,6 +744,11 @@ crate::params! {
 }
 
 impl KernelParams for GaussianParams {
+    fn scaled(&self, s: f64) -> Option<Self> {
+        Some(Self {
+            sigma_px: coarser(self.sigma_px, s),
+        })
+    }
     fn kernel(&self) -> Kernel {
         Kernel::Gaussian {
             sigma_px: self.sigma_px as f32,
@@ -766,6 +785,12 @@ crate::params! {
 }
 
 impl KernelParams for SharpenParams {
+    fn scaled(&self, s: f64) -> Option<Self> {
+        Some(Self {
+            sigma_px: coarser(self.sigma_px, s),
+            ..self.clone()
+        })
+    }
     fn kernel(&self) -> Kernel {
         Kernel::Sharpen {
             sigma_px: self.sigma_px as f32,
@@ -788,6 +813,13 @@ crate::params! {
 }
 
 impl KernelParams for EdgeParams {
+    fn scaled(&self, s: f64) -> Option<Self> {
+        Some(Self {
+            sigma_fine_px: coarser(self.sigma_fine_px, s),
+            sigma_coarse_px: coarser(self.sigma_coarse_px, s),
+            ..self.clone()
+        })
+    }
     fn kernel(&self) -> Kernel {
         Kernel::EdgeEnhance {
             sigma_fine_px: self.sigma_fine_px as f32,
@@ -807,6 +839,11 @@ crate::params! {
 }
 
 impl KernelParams for HighPassParams {
+    fn scaled(&self, s: f64) -> Option<Self> {
+        Some(Self {
+            sigma_px: coarser(self.sigma_px, s),
+        })
+    }
     fn kernel(&self) -> Kernel {
         Kernel::HighPass {
             sigma_px: self.sigma_px as f32,
@@ -826,6 +863,13 @@ crate::params! {
 }
 
 impl KernelParams for DogParams {
+    fn scaled(&self, s: f64) -> Option<Self> {
+        Some(Self {
+            sigma_fine_px: coarser(self.sigma_fine_px, s),
+            sigma_coarse_px: coarser(self.sigma_coarse_px, s),
+            ..self.clone()
+        })
+    }
     fn kernel(&self) -> Kernel {
         Kernel::DoG {
             sigma_fine_px: self.sigma_fine_px as f32,
@@ -861,6 +905,9 @@ crate::params! {
 }
 
 impl KernelParams for ScaleParams {
+    fn scaled(&self, _s: f64) -> Option<Self> {
+        Some(self.clone())
+    }
     fn kernel(&self) -> Kernel {
         Kernel::DepthScale {
             scale: self.scale as f32,

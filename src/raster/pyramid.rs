@@ -52,7 +52,8 @@ pub fn reduce_rgbn(img: &RgbnImage, s: usize) -> RgbnImage {
                         }
                     }
                 }
-                let c: [f64; 3] = std::array::from_fn(|k| if cov > 0.0 { acc[k] / cov } else { 0.0 });
+                let c: [f64; 3] =
+                    std::array::from_fn(|k| if cov > 0.0 { acc[k] / cov } else { 0.0 });
                 let v = [acc[3], acc[4], acc[5]];
                 let len = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
                 let n = if len > 1e-12 && len.is_finite() {

@@ -107,7 +107,7 @@ fn every_graph_output_over_a_region_equals_the_whole_results_crop() {
                         &plan,
                         name,
                         rect,
-                        &RegionOptions { tile },
+                        &RegionOptions::tiles(tile),
                         &EvalOptions::default(),
                     )
                     .unwrap_or_else(|e| panic!("{stem}.{name}: {e}"));
@@ -219,7 +219,7 @@ fn after_random_pen_stamp_and_brush_edits_the_incremental_result_equals_a_full_r
     let mut lg = LoadedGraph::from_text(&text, "edits.ron", d.path().to_path_buf()).unwrap();
     let ev = Evaluator::default();
     let tile = 32;
-    let ropts = RegionOptions { tile };
+    let ropts = RegionOptions::tiles(tile);
     let opts = EvalOptions::default();
     let mut rng = Rng(0x2545_f491_4f6c_dd1d);
     let mut pen = vec![[40.0, 40.0], [60.0, 50.0]];
@@ -354,7 +354,7 @@ fn inputs_of_different_sizes_are_an_error_naming_the_node_not_a_panic() {
             &plan,
             "image",
             Rect::new(0, 0, 40, 40),
-            &RegionOptions { tile: 16 },
+            &RegionOptions::tiles(16),
             &EvalOptions::default(),
         )
         .unwrap_err()
@@ -472,5 +472,91 @@ fn procedural_sources_compute_any_window_exactly_and_coarse_levels_match_block_m
             dz <= 0.05 * peak / s as f32 + 1e-3,
             "{id} {params:?}: coarse heights differ by {dz} (peak {peak})"
         );
+    }
+}
+
+/// Levels of detail: a region at level L is the same whatever the tiling and the rectangle
+/// (pan and zoom show the pixels of the whole level); operators with a coarse form run on the
+/// coarse grid and approximate the full result reduced by block means; those without one
+/// (a box blur) are computed at full resolution and reduced, exactly.
+#[test]
+fn a_level_of_detail_is_tiling_independent_and_approximates_the_reduced_full_result() {
+    use rgbn::eval::region::reduce;
+    let d = tempfile::tempdir().unwrap();
+    let graph = |filter: &str| {
+        format!(
+            r#"(
+    version: 1,
+    next_id: 4,
+    outputs: {{ "image": (node: 2, port: "image"), "relit": (node: 3, port: "picture") }},
+    nodes: [
+        (id: 1, op: "surface", pos: (0.0, 0.0), params: {{ "width": Int(300), "height": Int(220), "shape": Choice("gaussians") }}),
+        (id: 2, op: {filter}, inputs: {{ "image": Node(1, "image") }}),
+        (id: 3, op: "relight", pos: (0.0, 0.0), inputs: {{ "image": Node(2, "image") }}),
+    ],
+)"#
+        )
+    };
+    let opts = EvalOptions::default();
+    for (filter, exact) in [
+        (
+            r#""filter.gaussian", pos: (0.0, 0.0), params: { "sigma_px": Float(6.0) }"#,
+            false,
+        ),
+        (
+            r#""filter.box", pos: (0.0, 0.0), params: { "radius_px": Int(3) }"#,
+            true,
+        ),
+    ] {
+        let lg = LoadedGraph::from_text(&graph(filter), "lod.ron", d.path().to_path_buf()).unwrap();
+        let plan = Plan::new(&lg, &BTreeMap::new(), d.path()).unwrap();
+        let whole = Evaluator::default().eval(&plan, &[], &opts).unwrap();
+        for level in [1u32, 2] {
+            let s = 1usize << level;
+            let (lw, lh) = (300usize.div_ceil(s), 220usize.div_ceil(s));
+            for name in ["image", "relit"] {
+                let ev = Evaluator::default();
+                let at = |tile: usize, rect: Rect| {
+                    ev.eval_region(&plan, name, rect, &RegionOptions { tile, level }, &opts)
+                        .unwrap()
+                };
+                let full = at(64, Rect::full((300, 220)));
+                assert_eq!(full.size, (lw, lh), "{filter} level {level}");
+                assert_eq!(full.rect, Rect::full((lw, lh)));
+                // The Gaussian runs tile by tile on the coarse grid; the box is computed whole.
+                let tiled: Vec<&str> = full.tiles.iter().map(|t| t.op).collect();
+                assert_eq!(tiled.contains(&"filter.gaussian"), !exact, "{tiled:?}");
+                assert_eq!(tiled.contains(&"surface"), !exact, "{tiled:?}");
+                // Another tiling, a panned and zoomed-in rectangle.
+                let r = Rect::new(lw / 5, lh / 3, lw / 2, lh / 3);
+                let part = at(16, r);
+                let d = max_diff(&crop(&full.value, r), &part.value);
+                // σ 6 at level 1 is σ 3: the recursive Gaussian, cut at 4σ (see the first test).
+                // Pictures: one 8-bit level.
+                let tiling_tol = match (!exact && level == 1, name) {
+                    (_, "relit") => 1.0 / 255.0,
+                    (true, _) => 2e-3,
+                    _ => 2e-6,
+                };
+                assert!(
+                    d <= tiling_tol,
+                    "{filter} {name} level {level}: tiling changes {d}"
+                );
+                // Against the full-resolution result reduced by block means.
+                let want = reduce(&whole.outputs[name], s);
+                let d = max_diff(&want, &full.value);
+                eprintln!("{filter} {name} level {level}: {d:.2e} from the reduced full result");
+                let tol = match (exact, name) {
+                    (true, "image") => 1e-5,
+                    // Normals: the blur is applied on the coarse grid (σ/s) rather than
+                    // before the block mean.
+                    (false, "image") => 0.02,
+                    // Relighting the mean normal rather than averaging the relit pixels (a
+                    // shading is not linear in the normal), plus one 8-bit level.
+                    _ => 0.02 + 1.0 / 255.0,
+                };
+                assert!(d <= tol, "{filter} {name} level {level}: {d} > {tol}");
+            }
+        }
     }
 }

@@ -278,7 +278,7 @@ proptest! {
         let rect = Rect::new(x, y, 1 + (rw * (w - x) as f64) as usize, 1 + (rh * (h - y) as f64) as usize)
             .intersect(&Rect::full((w, h)));
         let r = Evaluator::default()
-            .eval_region(&plan, "out", rect, &RegionOptions { tile }, &EvalOptions::default())
+            .eval_region(&plan, "out", rect, &RegionOptions::tiles(tile), &EvalOptions::default())
             .unwrap_or_else(|e| panic!("{e}\n{text}"));
         prop_assert!(!r.tiles.is_empty(), "{} was not tiled", node);
         let want = crop(&whole.outputs["out"], rect);
