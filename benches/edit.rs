@@ -11,6 +11,10 @@
 //!   not depend on the image's size.
 //! - `edit/stamp_move_4k`: move one placement of a 64² stamp on 4K by a few pixels and produce
 //!   the relit viewport.
+//! - `view/relight_fit_16k`: a 16384² image fitted into a 1600×1000 window: the level whose
+//!   side first fits within twice the window (level 4, 1024², one coarse pixel per 16×16) is
+//!   relit whole after the light moves. Its source tiles are cached at that level (first, untimed
+//!   evaluation); each iteration is a new light direction, so every relit tile is new.
 //! - `tile/…`: whole-image work through tiles by tile side, against the whole-image evaluator
 //!   (the measurement behind `DEFAULT_TILE` and `INTERACTIVE_TILE`).
 //!
@@ -21,7 +25,7 @@
 //! the other benches).
 
 use criterion::{criterion_group, criterion_main, Criterion};
-use rgbn::eval::region::{Rect, RegionOptions, INTERACTIVE_TILE};
+use rgbn::eval::region::{Rect, RegionOptions, DEFAULT_TILE, INTERACTIVE_TILE};
 use rgbn::eval::{EvalOptions, Evaluator, Plan};
 use rgbn::graph::LoadedGraph;
 use std::collections::BTreeMap;
@@ -173,6 +177,66 @@ fn stamp_move(c: &mut Criterion) {
     });
 }
 
+/// The level at which a `size` image fits a `window`: the finest whose image is at most twice
+/// the window on both axes (a 1–2 Mpx level for a 16K image in a 1600 × 1000 window).
+fn fit_level(size: (usize, usize), window: (usize, usize)) -> u32 {
+    let mut level = 0;
+    while size.0 >> level > 2 * window.0 || size.1 >> level > 2 * window.1 {
+        level += 1;
+    }
+    level
+}
+
+fn relight_fit(c: &mut Criterion) {
+    let text = format!(
+        r#"(
+    version: 1,
+    next_id: 3,
+    outputs: {{ "relit": (node: 2, port: "picture") }},
+    nodes: [
+        (id: 1, op: "surface", pos: (0.0, 0.0), params: {{ "width": Int({BIG}), "height": Int({BIG}), "shape": Choice("gaussians") }}),
+        (id: 2, op: "relight", name: Some("light"), pos: (0.0, 0.0), inputs: {{ "image": Node(1, "image") }}),
+    ],
+)"#
+    );
+    let mut lg =
+        LoadedGraph::from_text(&text, "fit.ron", Path::new(".").to_path_buf()).expect("graph");
+    let ev = Evaluator::default();
+    let level = fit_level((BIG, BIG), (1600, 1000));
+    assert_eq!(level, 4);
+    let ropts = RegionOptions {
+        tile: DEFAULT_TILE,
+        level,
+    };
+    let opts = EvalOptions::default();
+    let inputs = BTreeMap::new();
+    // The whole level, in its own pixels.
+    let full = Rect::full((BIG >> level, BIG >> level));
+    let eval = |lg: &LoadedGraph| {
+        let plan = Plan::new(lg, &inputs, Path::new(".")).expect("plan");
+        let r = ev
+            .eval_region(&plan, "relit", full, &ropts, &opts)
+            .expect("eval");
+        assert_eq!(r.size, (BIG >> level, BIG >> level));
+        black_box(r.value);
+    };
+    eval(&lg);
+    let mut serial = 0u64;
+    c.bench_function("view/relight_fit_16k", |b| {
+        b.iter(|| {
+            serial += 1;
+            let a = std::f64::consts::TAU * ((serial as f64) * 0.618_034).fract();
+            lg.set_param(
+                "light",
+                "light",
+                &format!("{:.6},{:.6},1", 0.6 * a.cos(), 0.6 * a.sin()),
+            )
+            .expect("light");
+            eval(&lg);
+        });
+    });
+}
+
 /// Whole-image work through tiles, by tile side, against the whole-image evaluator: a 4K
 /// Gaussian (σ 2: FIR, halo 8; σ 8: recursive, halo 32) and the relit picture, every tile
 /// recomputed (σ changes by 1e-6 each time).
@@ -220,6 +284,6 @@ fn tile_size(c: &mut Criterion) {
 criterion_group! {
     name = benches;
     config = Criterion::default().sample_size(30).measurement_time(Duration::from_secs(10));
-    targets = pen_segment, stamp_move, tile_size
+    targets = pen_segment, stamp_move, relight_fit, tile_size
 }
 criterion_main!(benches);

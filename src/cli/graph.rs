@@ -52,7 +52,14 @@ pub struct EvalArgs {
     /// global). Each -o file then holds the rectangle; number outputs have no region.
     #[arg(long, value_name = "X,Y,W,H", value_parser = Rect::parse)]
     pub region: Option<Rect>,
-    /// Tile side in pixels for --region.
+    /// Level of detail: the outputs reduced 2^L times by block means (a preview pyramid's
+    /// level L; 0 is full resolution); --region is then in the level's pixels (without it, the
+    /// whole level). Operators with a coarse form (Gaussian-family filters, pen, relight,
+    /// procedural sources) run on the coarse grid; the others run at full resolution and are
+    /// reduced.
+    #[arg(long, value_name = "L", default_value_t = 0, value_parser = clap::value_parser!(u32).range(0..=20))]
+    pub level: u32,
+    /// Tile side in pixels for --region and --level.
     #[arg(long, value_name = "PX", default_value_t = DEFAULT_TILE as u64, value_parser = clap::value_parser!(u64).range(16..=8192))]
     pub tile: u64,
     /// Evaluate strip by strip, reading and writing rows, with memory bounded by the strip:
@@ -315,8 +322,8 @@ pub fn eval_cmd(a: &EvalArgs, out: &mut Out<'_>) -> Result<(), CliError> {
     // Streamed when it can be and should be.
     let why_whole = if a.stream == StreamMode::Never {
         None
-    } else if a.region.is_some() {
-        Some("--region evaluates tiles of a rectangle".to_string())
+    } else if a.region.is_some() || a.level > 0 {
+        Some("--region and --level evaluate tiles of a rectangle".to_string())
     } else if a.stats {
         Some("--stats reports per-node numbers of a whole-image run".to_string())
     } else if requested.is_empty() {
@@ -353,8 +360,12 @@ pub fn eval_cmd(a: &EvalArgs, out: &mut Out<'_>) -> Result<(), CliError> {
         })),
         curl_stats: a.stats,
     };
-    if let Some(rect) = a.region {
+    if a.region.is_some() || a.level > 0 {
         pb.finish_and_clear();
+        // No rectangle: the whole level (the request is clamped to the output).
+        let rect = a
+            .region
+            .unwrap_or(Rect::new(0, 0, usize::MAX / 2, usize::MAX / 2));
         return eval_region(a, &plan, &ev, rect, &requested, &opts, out);
     }
     let r = ev.eval(&plan, &names, &opts);
@@ -457,7 +468,10 @@ fn eval_region(
     opts: &EvalOptions,
     out: &mut Out<'_>,
 ) -> Result<(), CliError> {
-    let ropts = RegionOptions::tiles(a.tile as usize);
+    let ropts = RegionOptions {
+        tile: a.tile as usize,
+        level: a.level,
+    };
     let names: Vec<(String, Option<&PathBuf>)> = if requested.is_empty() {
         plan.output_types
             .iter()
@@ -473,8 +487,13 @@ fn eval_region(
     for (name, path) in names {
         let r = ev.eval_region(plan, &name, rect, &ropts, opts)?;
         super::interrupt::check()?;
+        let level = if a.level > 0 {
+            format!(" (level {}: reduced {}×)", a.level, 1u64 << a.level)
+        } else {
+            String::new()
+        };
         let what = format!(
-            "{} of {}×{} at {}",
+            "{} of {}×{}{level} at {}",
             describe_value(&r.value),
             r.size.0,
             r.size.1,

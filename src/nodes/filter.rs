@@ -61,7 +61,7 @@ impl<K: KernelNode> Operator for FilterOp<K> {
     fn scaled(p: &FilterParams<K>, s: f64) -> Option<FilterParams<K>> {
         Some(FilterParams {
             kernel: p.kernel.scaled(s)?,
-            options: p.options.clone(),
+            options: p.options,
         })
     }
     fn footprint(p: &FilterParams<K>, _input: usize) -> Footprint {

@@ -867,7 +867,6 @@ impl KernelParams for DogParams {
         Some(Self {
             sigma_fine_px: coarser(self.sigma_fine_px, s),
             sigma_coarse_px: coarser(self.sigma_coarse_px, s),
-            ..self.clone()
         })
     }
     fn kernel(&self) -> Kernel {

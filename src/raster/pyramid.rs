@@ -31,6 +31,7 @@ pub fn reduce_rgbn(img: &RgbnImage, s: usize) -> RgbnImage {
     let (cw, ch) = reduced_size((w, h), s);
     let (color, normal, mask) = (img.color(), img.normal(), img.mask());
     // Per coarse row: 3 colour, 3 normal, 1 coverage values per coarse pixel.
+    #[allow(clippy::needless_range_loop)] // `cx` indexes seven planes and the span
     let rows: Vec<[Vec<f32>; 7]> = (0..ch)
         .into_par_iter()
         .map(|cy| {
@@ -71,7 +72,7 @@ pub fn reduce_rgbn(img: &RgbnImage, s: usize) -> RgbnImage {
         })
         .collect();
     let plane = |k: usize| -> Vec<f32> { rows.iter().flat_map(|r| r[k].iter().copied()).collect() };
-    let color = std::array::from_fn(|k| plane(k));
+    let color = std::array::from_fn(&plane);
     let normal = std::array::from_fn(|k| plane(3 + k));
     let mask = mask.map(|_| plane(6));
     RgbnImage::new(cw, ch, color, normal, mask).expect("planes of the reduced size")
@@ -155,8 +156,8 @@ mod tests {
         assert!((r.color()[0][1] - 0.5).abs() < 1e-6);
         assert!((r.mask().unwrap()[1] - 0.5).abs() < 1e-6);
         // Equal unit normals stay themselves.
-        for k in 0..3 {
-            assert!((r.normal()[k][0] - n[k]).abs() < 1e-6);
+        for (plane, want) in r.normal().iter().zip(n) {
+            assert!((plane[0] - want).abs() < 1e-6);
         }
     }
 

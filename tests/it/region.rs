@@ -560,3 +560,49 @@ fn a_level_of_detail_is_tiling_independent_and_approximates_the_reduced_full_res
         }
     }
 }
+
+#[test]
+fn cli_eval_level_writes_the_reduced_output_and_a_region_of_it() {
+    let d = tempfile::tempdir().unwrap();
+    let graph = graph_path("filter_gaussian.ron");
+    let lg = LoadedGraph::load(&graph).unwrap();
+    let whole = eval_all(&Evaluator::default(), &lg, d.path());
+    let Value::Rgbn(full) = &whole.outputs["image"] else {
+        panic!("image output")
+    };
+    let (w, h) = (full.width(), full.height());
+    let level_file = d.path().join("level.exr");
+    let o = rgbn(&[
+        "eval",
+        graph.to_str().unwrap(),
+        "--level",
+        "2",
+        "-o",
+        &format!("image={}", level_file.display()),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(stdout(&o).contains("level 2"), "{}", stdout(&o));
+    let got = rgbn::raster::io::load_exr(&level_file, &Default::default()).unwrap();
+    assert_eq!((got.width(), got.height()), (w.div_ceil(4), h.div_ceil(4)));
+    // The same level through a region: its rectangle of the level.
+    let part = d.path().join("part.exr");
+    let o = rgbn(&[
+        "eval",
+        graph.to_str().unwrap(),
+        "--level",
+        "2",
+        "--region",
+        "3,4,10,7",
+        "-o",
+        &format!("image={}", part.display()),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let part = rgbn::raster::io::load_exr(&part, &Default::default()).unwrap();
+    let want = crop(&Value::Rgbn(got), Rect::new(3, 4, 10, 7));
+    let diff = max_diff(&want, &Value::Rgbn(part));
+    assert!(diff <= 2e-6, "{diff}");
+    // Beyond the coarsest level: a usage error naming the option.
+    let o = rgbn(&["eval", graph.to_str().unwrap(), "--level", "21"]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(stderr(&o).contains("--level"), "{}", stderr(&o));
+}
