@@ -6,6 +6,8 @@
 //!   Timed: setting the parameter, planning, and the region evaluation (what the editor does
 //!   per pointer move). Every append is new (no result is ever cached already); after 20 the
 //!   path is reset, untimed.
+//! - `whole/pen_segment_4k`: the baseline, the same appends through the whole-image evaluator
+//!   (the viewport cut from the whole relit picture), as the editor evaluates today.
 //! - `edit/pen_segment_16k`: the same on a 16384² image (its procedural source is computed
 //!   tile by tile like everything else, so only the viewport's tiles exist): the cost should
 //!   not depend on the image's size.
@@ -25,7 +27,7 @@
 //! the other benches).
 
 use criterion::{criterion_group, criterion_main, Criterion};
-use rgbn::eval::region::{Rect, RegionOptions, DEFAULT_TILE, INTERACTIVE_TILE};
+use rgbn::eval::region::{crop, Rect, RegionOptions, DEFAULT_TILE, INTERACTIVE_TILE};
 use rgbn::eval::{EvalOptions, Evaluator, Plan};
 use rgbn::graph::LoadedGraph;
 use std::collections::BTreeMap;
@@ -86,12 +88,21 @@ fn base_path(start: [f64; 2]) -> Vec<[f64; 2]> {
 }
 
 fn pen_segment(c: &mut Criterion) {
-    pen_segment_on(c, "edit/pen_segment_4k", (W, H), [1600.0, 1000.0]);
-    pen_segment_on(c, "edit/pen_segment_16k", (BIG, BIG), [8000.0, 8000.0]);
+    pen_segment_on(c, "edit/pen_segment_4k", (W, H), [1600.0, 1000.0], false);
+    pen_segment_on(
+        c,
+        "edit/pen_segment_16k",
+        (BIG, BIG),
+        [8000.0, 8000.0],
+        false,
+    );
+    // The baseline: the whole-image evaluator, the viewport cut from its result.
+    pen_segment_on(c, "whole/pen_segment_4k", (W, H), [1600.0, 1000.0], true);
 }
 
-/// `edit/pen_segment_…` on a `size` image, the path starting at `start`.
-fn pen_segment_on(c: &mut Criterion, id: &str, size: (usize, usize), start: [f64; 2]) {
+/// `edit/pen_segment_…` on a `size` image, the path starting at `start`; `whole`: by the
+/// whole-image evaluator instead of regions.
+fn pen_segment_on(c: &mut Criterion, id: &str, size: (usize, usize), start: [f64; 2], whole: bool) {
     let mut lg = graph_of(
         size,
         r#"(id: 3, op: "pen", name: Some("pen"), pos: (0.0, 0.0), params: { "width_px": Float(20.0), "taper_px": Float(16.0), "height_px": Float(2.0) }, inputs: { "image": Node(1, "image") })"#,
@@ -104,10 +115,15 @@ fn pen_segment_on(c: &mut Criterion, id: &str, size: (usize, usize), start: [f64
     let inputs = BTreeMap::new();
     let eval = |lg: &LoadedGraph| {
         let plan = Plan::new(lg, &inputs, Path::new(".")).expect("plan");
-        let r = ev
-            .eval_region(&plan, "relit", view, &ropts, &opts)
-            .expect("eval");
-        black_box(r.value);
+        if whole {
+            let r = ev.eval(&plan, &["relit"], &opts).expect("eval");
+            black_box(crop(&r.outputs["relit"], view));
+        } else {
+            let r = ev
+                .eval_region(&plan, "relit", view, &ropts, &opts)
+                .expect("eval");
+            black_box(r.value);
+        }
     };
     let mut serial = 0u64;
     c.bench_function(id, |b| {
