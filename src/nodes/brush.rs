@@ -3,7 +3,9 @@
 //! Several strokes: chain brush nodes, or paint them into a mask.
 
 use super::kit::{curl_port, kernel_footprint, shift_points};
-use super::{Footprint, Inputs, OpSpec, Operator, PortSpec, PortType, RunContext, Value};
+use super::{
+    scale_point, Footprint, Inputs, OpSpec, Operator, PortSpec, PortType, RunContext, Value,
+};
 use crate::error::RgbnError;
 use crate::ops::brush::{brush_image, SimpleBrushParams};
 use crate::ops::filter::Kernel;
@@ -55,6 +57,21 @@ impl Operator for BrushNode {
             (_, Ok(_)) => Footprint::POINT,
             (_, Err(_)) => Footprint::Global,
         }
+    }
+    fn scaled(p: &SimpleBrushParams, s: f64) -> Option<SimpleBrushParams> {
+        use crate::ops::brush::BrushKernel;
+        // Box radii are whole pixels; a LoG's response depends on the grid (as `filter.*`).
+        if matches!(p.kernel, BrushKernel::Box | BrushKernel::LoG) {
+            return None;
+        }
+        Some(SimpleBrushParams {
+            sigma_px: (p.sigma_px / s).max(0.05),
+            sigma_coarse_px: (p.sigma_coarse_px / s).max(0.05),
+            points: p.points.iter().map(|&q| scale_point(q, s)).collect(),
+            radius_px: p.radius_px / s,
+            feather_px: p.feather_px / s,
+            ..p.clone()
+        })
     }
     fn shifted(p: &SimpleBrushParams, dx: f64, dy: f64) -> SimpleBrushParams {
         SimpleBrushParams {

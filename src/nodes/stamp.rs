@@ -2,7 +2,9 @@
 //! ([`stamp_image`]).
 
 use super::kit::{curl_port, shift_points};
-use super::{Footprint, Inputs, OpSpec, Operator, PortSpec, PortType, RunContext, Value};
+use super::{
+    scale_point, Footprint, Inputs, OpSpec, Operator, PortSpec, PortType, RunContext, Value,
+};
 use crate::error::RgbnError;
 use crate::ops::stamp::{extract, placement_bounds, stamp_image, ExtractParams, StampParams};
 
@@ -45,6 +47,14 @@ impl Operator for StampNode {
         } else {
             Footprint::Local { halo: 1 }
         }
+    }
+    fn scaled(p: &StampParams, s: f64) -> Option<StampParams> {
+        // The stamp image is reduced with the target: the affine map stays, placements move.
+        Some(StampParams {
+            positions: p.positions.iter().map(|&q| scale_point(q, s)).collect(),
+            falloff_px: p.falloff_px / s,
+            ..p.clone()
+        })
     }
     fn shifted(p: &StampParams, dx: f64, dy: f64) -> StampParams {
         StampParams {
