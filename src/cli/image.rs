@@ -244,15 +244,7 @@ impl InputArgs {
     }
 
     fn load_options(&self) -> LoadOptions {
-        LoadOptions {
-            convention: if self.dx {
-                NormalConvention::DirectX
-            } else {
-                NormalConvention::OpenGl
-            },
-            exr_rgb_is_normal: self.exr_rgb_is_normal,
-            strict: self.strict,
-        }
+        LoadOptions::of_flags(self.dx, self.exr_rgb_is_normal, self.strict)
     }
 
     /// Loads the input (or builds the demo) and reports repairs on stderr.

@@ -1,7 +1,7 @@
 //! Parameters of the source nodes ([`crate::nodes::load`]): files, the demo, analytic surfaces
 //! and masks; the images come from [`crate::raster::io`] and [`crate::raster::sample`].
 
-use crate::raster::io::{Format, InputSpec, LoadOptions, NormalConvention};
+use crate::raster::io::{Format, InputSpec, LoadOptions};
 use crate::raster::sample::Surface;
 use std::path::PathBuf;
 
@@ -110,15 +110,7 @@ impl LoadParams {
     /// How to decode them.
     #[must_use]
     pub fn load_options(&self) -> LoadOptions {
-        LoadOptions {
-            convention: if self.dx {
-                NormalConvention::DirectX
-            } else {
-                NormalConvention::OpenGl
-            },
-            exr_rgb_is_normal: self.exr_rgb_is_normal,
-            strict: self.strict,
-        }
+        LoadOptions::of_flags(self.dx, self.exr_rgb_is_normal, self.strict)
     }
 }
 

@@ -101,6 +101,23 @@ pub struct LoadOptions {
     pub strict: bool,
 }
 
+impl LoadOptions {
+    /// The options of the loader's flags: `dx` (normal maps in the DirectX convention,
+    /// green = −y), `exr_rgb_is_normal`, `strict`.
+    #[must_use]
+    pub fn of_flags(dx: bool, exr_rgb_is_normal: bool, strict: bool) -> Self {
+        Self {
+            convention: if dx {
+                NormalConvention::DirectX
+            } else {
+                NormalConvention::OpenGl
+            },
+            exr_rgb_is_normal,
+            strict,
+        }
+    }
+}
+
 /// Where the parts of one RGBN image come from.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct InputSpec {
