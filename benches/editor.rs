@@ -10,7 +10,7 @@
 //! `RAYON_NUM_THREADS=2 cargo bench --bench editor`
 
 use criterion::{criterion_group, criterion_main, Criterion};
-use rgbn::app::preview::{color_image, decimate, Mode, PreviewSettings};
+use rgbn::app::preview::{color_image, preview_level, Mode, PreviewSettings};
 use rgbn::ops::Value;
 use std::hint::black_box;
 
@@ -30,12 +30,13 @@ fn bench(c: &mut Criterion) {
         })
     });
     // Zoomed out to fit the default preview panel (≈ 600 px for 2048 px: zoom ≈ 0.3), the
-    // preview renders every 2nd or 3rd pixel (decimated once per value, relit per light move).
+    // preview renders pyramid level 1 (stride 2; level 2 below zoom 0.25), reduced once per
+    // value and relit per light move.
     let Value::Rgbn(full) = &img else {
         unreachable!()
     };
-    for stride in [2usize, 3] {
-        let small = Value::Rgbn(decimate(full, stride));
+    for stride in [2usize, 4] {
+        let small = Value::Rgbn(preview_level(full, stride));
         g.bench_function(format!("relight_to_texture_stride{stride}"), |b| {
             b.iter(|| {
                 k = k.wrapping_add(1);

@@ -512,6 +512,13 @@ impl EditorApp {
             }
             .on_hover_text("Integrability of the viewed node's normals. F: the non-integrable fraction ‖e − ∇z*‖/‖e‖ of its edge slopes (z* the least-squares height): 0 for a surface, ≈ 0.8 for noise. curl: RMS(curl)/RMS(|gradient|).");
             ui.separator();
+            let level = self.preview.shown_level();
+            if level > 0 {
+                ui.label(format!("level {level} (1:{})", 1u32 << level)).on_hover_text(
+                    "Zoomed out: the preview shows a level of detail, each screen pixel the mean of a block of image pixels (as rgbn eval --level). Zoom to 100 % for every pixel.",
+                );
+                ui.separator();
+            }
             ui.label(RichText::new(format!("ui {:.1} ms", self.runtime.frame_ms)).weak());
             ui.separator();
             let color = if self.status.error {

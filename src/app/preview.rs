@@ -143,9 +143,10 @@ pub struct PreviewRequest {
     pub settings: Option<PreviewSettings>,
     /// Content key of the "before" value shown left of the split line, if any.
     pub before: Option<u128>,
-    /// RGBN images are rendered from every `stride`-th pixel (1 = all). Zoomed out, the screen
-    /// shows less than one pixel in `1/zoom` anyway (nearest-neighbour sampling), so the preview
-    /// renders at about the displayed resolution: [`Preview::stride_for_zoom`].
+    /// RGBN images are rendered from the pyramid level whose pixels are `stride × stride` blocks
+    /// (1 = full resolution; [`preview_level`]). Zoomed out, the screen shows less than one pixel
+    /// in `1/zoom` anyway, so the preview renders at about the displayed resolution:
+    /// [`Preview::stride_for_zoom`].
     pub stride: usize,
 }
 
@@ -239,22 +240,15 @@ fn value_size(v: &Value) -> [usize; 2] {
     }
 }
 
-/// Every `stride`-th pixel of an RGBN image (top-left aligned), or the image itself.
+/// The preview's image at `stride` = 2^level: level `level` of the block-mean pyramid
+/// ([`crate::raster::pyramid`], as `rgbn eval --level` computes it), or the image itself.
+/// Detail finer than a screen pixel averages out rather than aliasing.
 #[must_use]
-pub fn decimate(img: &crate::RgbnImage, stride: usize) -> crate::RgbnImage {
-    if stride <= 1 {
-        return img.clone();
-    }
-    let (w, h) = (img.width(), img.height());
-    let (tw, th) = (w.div_ceil(stride), h.div_ceil(stride));
-    let idx: Vec<usize> = (0..h)
-        .step_by(stride)
-        .flat_map(|r| (0..w).step_by(stride).map(move |x| r * w + x))
-        .collect();
-    super::worker::gather(img, tw, th, &idx)
+pub fn preview_level(img: &crate::RgbnImage, stride: usize) -> crate::RgbnImage {
+    crate::raster::pyramid::reduce_rgbn(img, stride)
 }
 
-/// The decimated copies of the last two values rendered (main and before), by key and stride:
+/// The reduced copies of the last two values rendered (main and before), by key and stride:
 /// while the light moves only the small image is relit.
 #[derive(Default)]
 struct SmallCache([Option<(u128, usize, Value)>; 2]);
@@ -272,7 +266,7 @@ impl SmallCache {
                 return small.clone();
             }
         }
-        let small = Value::Rgbn(decimate(img, stride));
+        let small = Value::Rgbn(preview_level(img, stride));
         self.0[slot] = Some((key, stride, small.clone()));
         small
     }
@@ -429,13 +423,15 @@ impl Preview {
         }
     }
 
-    /// The render stride for a zoom: `⌊1/zoom⌋` (at most 8) when zoomed out, else 1.
+    /// The render stride for a zoom: the largest power of two ≤ `1/zoom` (a pyramid level;
+    /// at most 8) when zoomed out, else 1.
     #[must_use]
     pub fn stride_for_zoom(zoom: f32) -> usize {
         if zoom >= 1.0 || !zoom.is_finite() || zoom <= 0.0 {
             1
         } else {
-            ((1.0 / zoom).floor() as usize).clamp(1, 8)
+            let s = ((1.0 / zoom).floor() as usize).clamp(1, 8);
+            1 << s.ilog2()
         }
     }
 
@@ -457,6 +453,15 @@ impl Preview {
     #[must_use]
     pub fn shown_settings(&self) -> Option<&PreviewSettings> {
         self.shown.as_ref()?.settings.as_ref()
+    }
+
+    /// The pyramid level the shown RGBN picture was rendered from (0: full resolution).
+    #[must_use]
+    pub fn shown_level(&self) -> u32 {
+        self.shown
+            .as_ref()
+            .filter(|r| r.settings.is_some())
+            .map_or(0, |r| r.stride.max(1).ilog2())
     }
 
     /// True while a render for the newest request is under way.
@@ -880,29 +885,43 @@ mod tests {
     }
 
     #[test]
-    fn zoomed_out_previews_render_every_stride_th_pixel() {
+    fn zoomed_out_previews_render_a_block_mean_level_without_aliasing() {
         assert_eq!(Preview::stride_for_zoom(1.0), 1);
         assert_eq!(Preview::stride_for_zoom(4.0), 1);
         assert_eq!(Preview::stride_for_zoom(0.5), 2);
         assert_eq!(Preview::stride_for_zoom(0.34), 2);
-        assert_eq!(Preview::stride_for_zoom(0.3), 3);
+        assert_eq!(Preview::stride_for_zoom(0.3), 2);
+        assert_eq!(Preview::stride_for_zoom(0.25), 4);
         assert_eq!(Preview::stride_for_zoom(0.01), 8);
-        let img = crate::raster::sample::demo_medallion(37);
-        let small = decimate(&img, 3);
-        assert_eq!((small.width(), small.height()), (13, 13));
-        for (r, x) in [(0, 0), (5, 7), (12, 12)] {
-            assert_eq!(small.normal_at(x, r), img.normal_at(3 * x, 3 * r));
-            assert_eq!(small.color_at(x, r), img.color_at(3 * x, 3 * r));
+        // Ridges one pixel wide, tilted left and right in turn (a relief finer than the
+        // screen): every 2nd pixel would show one tilt everywhere; the block mean of each pair
+        // is flat, as the surface seen from afar is.
+        let (w, h) = (16usize, 6usize);
+        let t = 0.6f32;
+        let nx: Vec<f32> = (0..w * h)
+            .map(|i| if i % 2 == 0 { t } else { -t })
+            .collect();
+        let img = crate::RgbnImage::new(
+            w,
+            h,
+            [vec![0.5; w * h], vec![0.5; w * h], vec![0.5; w * h]],
+            [nx, vec![0.0; w * h], vec![(1.0 - t * t).sqrt(); w * h]],
+            None,
+        )
+        .unwrap();
+        let small = preview_level(&img, 2);
+        assert_eq!((small.width(), small.height()), (8, 3));
+        for r in 0..3 {
+            for x in 0..8 {
+                let n = small.normal_at(x, r);
+                assert!(n[0].abs() < 1e-6 && (n[2] - 1.0).abs() < 1e-6, "{n:?}");
+            }
         }
-        // Relighting the decimated image gives exactly the full render's pixels at those spots.
+        // Relit, the level is one even tone: no stripes, no bias to either tilt.
         let s = PreviewSettings::default();
-        let full = render_value(&Value::Rgbn(img.clone()), &s).unwrap();
         let part = render_value(&Value::Rgbn(small), &s).unwrap();
-        for (r, x) in [(0, 0), (5, 7), (12, 12)] {
-            let i = (r * 13 + x) * 4;
-            let j = (3 * r * 37 + 3 * x) * 4;
-            assert_eq!(part.rgba[i..i + 4], full.rgba[j..j + 4]);
-        }
+        let first = &part.rgba[0..4];
+        assert!(part.rgba.chunks(4).all(|p| p == first));
     }
 
     #[test]
