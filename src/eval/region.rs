@@ -722,7 +722,13 @@ impl Evaluator {
                         return Err(GraphError::Cancelled);
                     }
                     let tr = tile_rect(t, tile, sz);
-                    if regional(plan, i) {
+                    let node_err = |source| GraphError::Node {
+                        op: spec.id.to_string(),
+                        source,
+                        at: inst.at.clone(),
+                    };
+                    let values = if regional(plan, i) {
+                        // The operator computes the window itself; its inputs come whole.
                         let inputs: Vec<Option<Value>> = inst
                             .inputs
                             .iter()
@@ -738,60 +744,48 @@ impl Evaluator {
                             h: tr.h,
                             scale: s,
                         };
-                        let values =
-                            inst.op
-                                .run_region(params, &inputs, win, &ctx)
-                                .map_err(|source| GraphError::Node {
-                                    op: spec.id.to_string(),
-                                    source,
-                                    at: inst.at.clone(),
-                                })?;
-                        let e = Arc::new(CacheEntry {
-                            values,
-                            curl: None,
-                            fraction: None,
-                        });
-                        self.mem_insert(tile_key(key, tile, level, t.0, t.1), e.clone());
-                        return Ok((t, e));
-                    }
-                    let crop_rect = tr.grow(halo, sz);
-                    let inputs: Vec<Option<Value>> = inst
-                        .inputs
-                        .iter()
-                        .enumerate()
-                        .map(|(k, c)| {
-                            let Conn::Slot(j, port) = c else { return None };
-                            let local =
-                                matches!(footprint(plan, &lp, i, k), Footprint::Local { .. });
-                            match (mode[*j], local) {
-                                (Mode::Tiled, _) => Some(assemble(
-                                    &have[*j],
-                                    *port,
-                                    tile,
-                                    lsize[*j].unwrap_or_default(),
-                                    crop_rect,
-                                )),
-                                (_, true) => wv[j].values.get(*port).map(|v| crop(v, crop_rect)),
-                                (_, false) => wv[j].values.get(*port).cloned(),
-                            }
-                        })
-                        .collect();
-                    let values = inst
-                        .op
-                        .run_at(params, &inputs, &ctx, (crop_rect.x, crop_rect.y))
-                        .map_err(|source| GraphError::Node {
-                            op: spec.id.to_string(),
-                            source,
-                            at: inst.at.clone(),
-                        })?;
-                    let inner = Rect::new(tr.x - crop_rect.x, tr.y - crop_rect.y, tr.w, tr.h);
-                    let values = values
-                        .iter()
-                        .map(|v| match v {
-                            Value::Number(_) => Value::Number(f64::NAN),
-                            v => crop(v, inner),
-                        })
-                        .collect();
+                        inst.op
+                            .run_region(params, &inputs, win, &ctx)
+                            .map_err(node_err)?
+                    } else {
+                        // The operator runs on its inputs cropped to the tile and its halo.
+                        let crop_rect = tr.grow(halo, sz);
+                        let inputs: Vec<Option<Value>> = inst
+                            .inputs
+                            .iter()
+                            .enumerate()
+                            .map(|(k, c)| {
+                                let Conn::Slot(j, port) = c else { return None };
+                                let local =
+                                    matches!(footprint(plan, &lp, i, k), Footprint::Local { .. });
+                                match (mode[*j], local) {
+                                    (Mode::Tiled, _) => Some(assemble(
+                                        &have[*j],
+                                        *port,
+                                        tile,
+                                        lsize[*j].unwrap_or_default(),
+                                        crop_rect,
+                                    )),
+                                    (_, true) => {
+                                        wv[j].values.get(*port).map(|v| crop(v, crop_rect))
+                                    }
+                                    (_, false) => wv[j].values.get(*port).cloned(),
+                                }
+                            })
+                            .collect();
+                        let values = inst
+                            .op
+                            .run_at(params, &inputs, &ctx, (crop_rect.x, crop_rect.y))
+                            .map_err(node_err)?;
+                        let inner = Rect::new(tr.x - crop_rect.x, tr.y - crop_rect.y, tr.w, tr.h);
+                        values
+                            .iter()
+                            .map(|v| match v {
+                                Value::Number(_) => Value::Number(f64::NAN),
+                                v => crop(v, inner),
+                            })
+                            .collect()
+                    };
                     let e = Arc::new(CacheEntry {
                         values,
                         curl: None,
