@@ -512,6 +512,20 @@ impl EditorApp {
             }
             .on_hover_text("Integrability of the viewed node's normals. F: the non-integrable fraction ‖e − ∇z*‖/‖e‖ of its edge slopes (z* the least-squares height): 0 for a surface, ≈ 0.8 for noise. curl: RMS(curl)/RMS(|gradient|).");
             ui.separator();
+            if let Some((_, Some((_, level)))) =
+                self.preview.overlay_request().map(|r| (r, r.region))
+            {
+                let coming = if self.runtime.outcome.viewport_only && self.runtime.in_flight.is_none() {
+                    "whole output too large for the editor (rgbn eval computes it)"
+                } else {
+                    "whole output coming"
+                };
+                ui.label(format!("viewport · level {level} (1:{}) · {coming}", 1u32 << level))
+                    .on_hover_text(
+                        "The part of the viewed output on screen was evaluated first, tile by tile at the level shown; the whole output follows once edits pause.",
+                    );
+                ui.separator();
+            }
             let level = self.preview.shown_level();
             if level > 0 {
                 ui.label(format!("level {level} (1:{})", 1u32 << level)).on_hover_text(
@@ -631,9 +645,20 @@ impl EditorApp {
                     }
                 }
             }
-            // A node a tool just made: keep the last picture until it is evaluated.
-            None if self.runtime.in_flight.is_some() => {}
+            // A node a tool just made: keep the last picture until it is evaluated; an output
+            // too large to evaluate whole is shown by its viewport only.
+            None if self.runtime.in_flight.is_some() || self.runtime.outcome.viewport_only => {}
             None => self.preview.clear(),
+        }
+        if self.preview.update_region(&ctx, &self.prefs.settings) {
+            if let Some((first, last)) = self.tools.preview_rendered() {
+                if self.prefs.timing {
+                    eprintln!(
+                        "rgbn editor: tool edit → relit viewport after {last:.0} ms (newest edit shown), {first:.0} ms (oldest; render {:.1} ms)",
+                        self.preview.render_ms
+                    );
+                }
+            }
         }
         let stamp_size = self.session.selected.and_then(|s| {
             let n = self

@@ -24,6 +24,67 @@ use egui::{
 use std::sync::mpsc::{channel, Receiver, Sender};
 use std::sync::Arc;
 
+/// Where the preview panel shows an image: the panel's size, the zoom (`None`: fit) and the
+/// pan, all in screen points. The preview draws with it and the worker evaluates the part it
+/// makes visible ([`super::worker::ViewRequest`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ViewSpec {
+    /// Panel size.
+    pub panel: [f32; 2],
+    /// Screen points per image pixel; `None` fits the image to the panel.
+    pub zoom: Option<f32>,
+    /// Offset of the image centre from the panel centre.
+    pub pan: [f32; 2],
+}
+
+/// The zoom that fits an image of `size` pixels into a panel of `panel` points.
+#[must_use]
+pub fn fit_zoom(panel: [f32; 2], size: [f32; 2]) -> f32 {
+    (panel[0] / size[0].max(1.0))
+        .min(panel[1] / size[1].max(1.0))
+        .max(1e-3)
+}
+
+impl ViewSpec {
+    /// The zoom for an image of `size` pixels.
+    #[must_use]
+    pub fn zoom_for(&self, size: (usize, usize)) -> f32 {
+        self.zoom
+            .unwrap_or_else(|| fit_zoom(self.panel, [size.0 as f32, size.1 as f32]))
+    }
+
+    /// The pyramid level shown for an image of `size` ([`Preview::stride_for_zoom`]) and the
+    /// rectangle of that level's pixels on screen, grown to whole `tile`s (so that small pans
+    /// ask for the same tiles) and clamped to the level; `None` when none of it is visible.
+    #[must_use]
+    pub fn visible(&self, size: (usize, usize), tile: usize) -> Option<(crate::eval::region::Rect, u32)> {
+        let zoom = self.zoom_for(size);
+        let stride = Preview::stride_for_zoom(zoom);
+        let level = stride.ilog2();
+        let (lw, lh) = crate::raster::pyramid::reduced_size(size, stride);
+        // The image's top-left corner relative to the panel's.
+        let min = [
+            0.5 * self.panel[0] + self.pan[0] - 0.5 * size.0 as f32 * zoom,
+            0.5 * self.panel[1] + self.pan[1] - 0.5 * size.1 as f32 * zoom,
+        ];
+        let tile = tile.max(1) as f64;
+        let span = |m: f32, panel: f32, n: usize| -> Option<(usize, usize)> {
+            let px = f64::from(zoom) * stride as f64; // screen points per level pixel
+            let a = (f64::from(-m) / px).floor().max(0.0);
+            let b = (f64::from(panel - m) / px).ceil().min(n as f64);
+            if b <= a {
+                return None;
+            }
+            let a = ((a / tile).floor() * tile) as usize;
+            let b = (((b / tile).ceil() * tile) as usize).min(n);
+            Some((a, b))
+        };
+        let (x0, x1) = span(min[0], self.panel[0], lw)?;
+        let (y0, y1) = span(min[1], self.panel[1], lh)?;
+        Some((crate::eval::region::Rect::new(x0, y0, x1 - x0, y1 - y0), level))
+    }
+}
+
 /// What the preview shows of an RGBN image: any [`View`] (relit, albedo, normals, curl and the
 /// inspection views), or the integrated height.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -148,6 +209,9 @@ pub struct PreviewRequest {
     /// in `1/zoom` anyway, so the preview renders at about the displayed resolution:
     /// [`Preview::stride_for_zoom`].
     pub stride: usize,
+    /// For a viewport evaluated ahead of the whole output: its rectangle (level pixels) and
+    /// level. The value rendered is then that part, at that level.
+    pub region: Option<(crate::eval::region::Rect, u32)>,
 }
 
 /// A render job for the preview thread.
@@ -369,6 +433,42 @@ pub struct Preview {
     pub render_ms: f64,
     /// The screen ↔ image mapping of the last drawn frame (tools, tests).
     pub transform: Option<ViewTransform>,
+    /// The panel's size in the last frame drawn.
+    panel: Option<Vec2>,
+    /// Renders the viewports evaluated ahead of whole outputs.
+    region_renderer: Renderer,
+    /// The newest viewport of the viewed output, as the worker evaluated it.
+    region: Option<RegionShown>,
+    /// The newest request sent to the region renderer.
+    region_last: Option<PreviewRequest>,
+    /// The viewport's picture, drawn over the texture until the whole output's picture (of the
+    /// same content) is shown.
+    overlay: Option<Overlay>,
+    /// How many viewport pictures were shown (tests, statistics).
+    pub overlays: u64,
+}
+
+/// A viewport of an output evaluated ahead of the whole output
+/// ([`super::worker::RegionOutcome`]).
+#[derive(Clone, Debug)]
+pub struct RegionShown {
+    /// Content key of the whole output.
+    pub key: u128,
+    /// The rectangle, in pixels of the level.
+    pub rect: crate::eval::region::Rect,
+    /// Level of detail.
+    pub level: u32,
+    /// The output's size at full resolution.
+    pub full_size: (usize, usize),
+    /// The output over `rect` at the level.
+    pub value: Value,
+}
+
+/// A viewport's picture on screen.
+struct Overlay {
+    texture: TextureHandle,
+    req: PreviewRequest,
+    full_size: (usize, usize),
 }
 
 impl Default for Preview {
@@ -389,6 +489,12 @@ impl Default for Preview {
             renders: 0,
             render_ms: 0.0,
             transform: None,
+            panel: None,
+            region_renderer: Renderer::default(),
+            region: None,
+            region_last: None,
+            overlay: None,
+            overlays: 0,
         }
     }
 }
@@ -420,17 +526,18 @@ impl Preview {
             settings: matches!(value, Value::Rgbn(_)).then(|| settings.clone()),
             before: None,
             stride: 1,
+            region: None,
         }
     }
 
     /// The render stride for a zoom: the largest power of two ≤ `1/zoom` (a pyramid level;
-    /// at most 8) when zoomed out, else 1.
+    /// at most 1024) when zoomed out, else 1.
     #[must_use]
     pub fn stride_for_zoom(zoom: f32) -> usize {
         if zoom >= 1.0 || !zoom.is_finite() || zoom <= 0.0 {
             1
         } else {
-            let s = ((1.0 / zoom).floor() as usize).clamp(1, 8);
+            let s = ((1.0 / zoom).floor() as usize).clamp(1, 1 << 10);
             1 << s.ilog2()
         }
     }
@@ -441,6 +548,115 @@ impl Preview {
         self.before_texture = None;
         self.last = None;
         self.shown = None;
+        self.clear_region();
+    }
+
+    /// Forgets the viewport and its picture.
+    pub fn clear_region(&mut self) {
+        self.region = None;
+        self.region_last = None;
+        self.overlay = None;
+    }
+
+    /// Where the panel shows the image (`None` before the first frame).
+    #[must_use]
+    pub fn view_spec(&self) -> Option<ViewSpec> {
+        let p = self.panel?;
+        Some(ViewSpec {
+            panel: [p.x, p.y],
+            zoom: self.zoom,
+            pan: [self.pan.x, self.pan.y],
+        })
+    }
+
+    /// Takes a viewport evaluated ahead of the whole output: it is rendered
+    /// ([`Preview::update_region`]) and drawn over the texture until the whole output's picture
+    /// of the same content is on screen.
+    pub fn set_region(&mut self, r: RegionShown) {
+        self.region = Some(r);
+    }
+
+    /// The viewport taken last, if it is still to be shown.
+    #[must_use]
+    pub fn region(&self) -> Option<&RegionShown> {
+        self.region.as_ref()
+    }
+
+    /// The viewport picture on screen: its request (rectangle and level in
+    /// [`PreviewRequest::region`]).
+    #[must_use]
+    pub fn overlay_request(&self) -> Option<&PreviewRequest> {
+        self.overlay.as_ref().map(|o| &o.req)
+    }
+
+    /// Renders the viewport when it or the settings changed, and takes finished renders.
+    /// Returns true when a new viewport picture went on screen.
+    pub fn update_region(&mut self, ctx: &egui::Context, settings: &PreviewSettings) -> bool {
+        // The whole output's picture of the same content is on screen: the viewport is done.
+        if let (Some(r), Some(shown)) = (&self.region, &self.shown) {
+            if shown.key == r.key {
+                self.clear_region();
+            }
+        }
+        let mut newest = None;
+        while let Ok(r) = self.region_renderer.rx.try_recv() {
+            newest = Some(r);
+        }
+        let mut shown = false;
+        if let (Some(r), Some(region)) = (newest, &self.region) {
+            if r.req.key == region.key {
+                if let Some(img) = r.main {
+                    let full_size = region.full_size;
+                    match &mut self.overlay {
+                        Some(o) if o.texture.size() == img.size => {
+                            o.texture.set(img, TextureOptions::NEAREST);
+                            o.req = r.req;
+                            o.full_size = full_size;
+                        }
+                        _ => {
+                            self.overlay = Some(Overlay {
+                                texture: ctx.load_texture("preview-viewport", img, TextureOptions::NEAREST),
+                                req: r.req,
+                                full_size,
+                            });
+                        }
+                    }
+                    self.overlays += 1;
+                    self.render_ms = r.ms;
+                    shown = true;
+                }
+            }
+        }
+        let Some(region) = &self.region else {
+            return shown;
+        };
+        let rgbn = matches!(region.value, Value::Rgbn(_));
+        if rgbn && settings.view == Mode::Height {
+            // Heights integrate the whole image: the viewport alone would be wrong.
+            self.overlay = None;
+            return shown;
+        }
+        let req = PreviewRequest {
+            key: region.key,
+            settings: rgbn.then(|| settings.clone()),
+            before: None,
+            stride: 1,
+            region: Some((region.rect, region.level)),
+        };
+        if self.region_last.as_ref() != Some(&req) {
+            if let Some(tx) = &self.region_renderer.tx {
+                let job = Job {
+                    req: req.clone(),
+                    value: region.value.clone(),
+                    before: None,
+                    ctx: ctx.clone(),
+                };
+                if tx.send(job).is_ok() {
+                    self.region_last = Some(req);
+                }
+            }
+        }
+        shown
     }
 
     /// True when the split view's "before" picture is on screen.
@@ -582,7 +798,16 @@ impl Preview {
         let (rect, resp) = ui.allocate_exact_size(ui.available_size(), Sense::click_and_drag());
         let painter = ui.painter_at(rect);
         painter.rect_filled(rect, 0.0, Color32::from_gray(24));
-        let Some(tex) = &self.texture else {
+        self.panel = Some(rect.size());
+        let overlay_size = self
+            .overlay
+            .as_ref()
+            .map(|o| Vec2::new(o.full_size.0 as f32, o.full_size.1 as f32));
+        let base_size = self
+            .texture
+            .as_ref()
+            .map(|t| self.shown_size.unwrap_or_else(|| t.size_vec2()));
+        let Some(size) = overlay_size.or(base_size) else {
             if let Some((Value::Number(x), _)) = value {
                 painter.text(
                     rect.center(),
@@ -594,10 +819,7 @@ impl Preview {
             }
             return None;
         };
-        let size = self.shown_size.unwrap_or_else(|| tex.size_vec2());
-        let fit = (rect.width() / size.x)
-            .min(rect.height() / size.y)
-            .max(1e-3);
+        let fit = fit_zoom([rect.width(), rect.height()], [size.x, size.y]);
         let mut zoom = self.zoom.unwrap_or(fit);
         if resp.hovered() {
             let (scroll, pinch) = ui.input(|i| (i.smooth_scroll_delta.y, i.zoom_delta()));
@@ -650,12 +872,24 @@ impl Preview {
         }
         self.last_zoom = Some(zoom);
         let img_rect = Rect::from_center_size(rect.center() + self.pan, size * zoom);
-        painter.image(
-            tex.id(),
-            img_rect,
-            Rect::from_min_max(Pos2::ZERO, Pos2::new(1.0, 1.0)),
-            Color32::WHITE,
-        );
+        let uv = Rect::from_min_max(Pos2::ZERO, Pos2::new(1.0, 1.0));
+        if let Some(tex) = &self.texture {
+            painter.image(tex.id(), img_rect, uv, Color32::WHITE);
+        }
+        if let Some((o, Some((r, level)))) = self.overlay.as_ref().map(|o| (o, o.req.region)) {
+            // Level pixel (x, y) covers full-resolution pixels [x·s, (x+1)·s) (the last
+            // block of a row or column may be cut by the image's edge).
+            let s = (1u64 << level) as f32;
+            let x0 = r.x as f32 * s;
+            let y0 = r.y as f32 * s;
+            let x1 = (r.right() as f32 * s).min(size.x);
+            let y1 = (r.bottom() as f32 * s).min(size.y);
+            let at = Rect::from_min_max(
+                img_rect.min + Vec2::new(x0, y0) * zoom,
+                img_rect.min + Vec2::new(x1, y1) * zoom,
+            );
+            painter.image(o.texture.id(), at, uv, Color32::WHITE);
+        }
         self.draw_split(&painter, img_rect);
         painter.rect_stroke(
             img_rect,
@@ -885,6 +1119,52 @@ mod tests {
     }
 
     #[test]
+    fn the_visible_rectangle_follows_zoom_and_pan_in_whole_tiles() {
+        use crate::eval::region::Rect;
+        // 1:1 on a 4096² image in a 1000×800 panel, centred: image pixels 1548..2548 ×
+        // 1648..2448 are on screen, grown to 64-pixel tiles.
+        let mut v = ViewSpec {
+            panel: [1000.0, 800.0],
+            zoom: Some(1.0),
+            pan: [0.0, 0.0],
+        };
+        assert_eq!(
+            v.visible((4096, 4096), 64),
+            Some((Rect::new(1536, 1600, 2560 - 1536, 2496 - 1600), 0))
+        );
+        // Panned right by 300 points: the image moves right, the view sees 300 pixels less far.
+        v.pan = [300.0, 0.0];
+        let (r, _) = v.visible((4096, 4096), 1).unwrap();
+        assert_eq!((r.x, r.right()), (1248, 2248));
+        // Panned off the image: nothing to evaluate.
+        v.pan = [5000.0, 0.0];
+        assert_eq!(v.visible((4096, 4096), 64), None);
+        // A 16384² image fitted into 1600×1000: zoom 1000/16384, level 4 (1:16), all of its
+        // 1024² pixels.
+        let fit = ViewSpec {
+            panel: [1600.0, 1000.0],
+            zoom: None,
+            pan: [0.0, 0.0],
+        };
+        assert_eq!(
+            fit.visible((16384, 16384), 64),
+            Some((Rect::new(0, 0, 1024, 1024), 4))
+        );
+        // Zoomed to 1:2 with the top-left corner of a 5000×3000 image at the panel's: level 1
+        // (2500×1500), one level pixel per point, so the panel's 1000×800 points show level
+        // pixels 0..1000 × 0..800.
+        let corner = ViewSpec {
+            panel: [1000.0, 800.0],
+            zoom: Some(0.5),
+            pan: [1250.0 - 500.0, 750.0 - 400.0],
+        };
+        assert_eq!(
+            corner.visible((5000, 3000), 1),
+            Some((Rect::new(0, 0, 1000, 800), 1))
+        );
+    }
+
+    #[test]
     fn zoomed_out_previews_render_a_block_mean_level_without_aliasing() {
         assert_eq!(Preview::stride_for_zoom(1.0), 1);
         assert_eq!(Preview::stride_for_zoom(4.0), 1);
@@ -892,7 +1172,8 @@ mod tests {
         assert_eq!(Preview::stride_for_zoom(0.34), 2);
         assert_eq!(Preview::stride_for_zoom(0.3), 2);
         assert_eq!(Preview::stride_for_zoom(0.25), 4);
-        assert_eq!(Preview::stride_for_zoom(0.01), 8);
+        assert_eq!(Preview::stride_for_zoom(0.061), 16);
+        assert_eq!(Preview::stride_for_zoom(0.01), 64);
         // Ridges one pixel wide, tilted left and right in turn (a relief finer than the
         // screen): every 2nd pixel would show one tilt everywhere; the block mean of each pair
         // is flat, as the surface seen from afar is.

@@ -2,7 +2,8 @@
 //! outcome, thumbnails, port lists) and frame timing. [`EditorApp::poll`] runs once per frame,
 //! from `eframe::App::logic`.
 
-use super::worker::{EvalOutcome, EvalRequest, Generations, Worker, WorkerMsg};
+use super::preview::RegionShown;
+use super::worker::{EvalOutcome, EvalRequest, Generations, ViewRequest, Worker, WorkerMsg};
 use super::{EditorApp, Status};
 use crate::graph::{Graph, NodeId, NodePorts};
 use egui::{TextureHandle, TextureOptions};
@@ -26,6 +27,10 @@ pub struct Runtime {
     pub(super) in_flight: Option<InFlight>,
     /// The evaluation-relevant graph of the last request (positions zeroed).
     pub(super) last_sent: Option<Graph>,
+    /// The view of the last request.
+    pub(super) last_view: Option<ViewRequest>,
+    /// Viewports shown ahead of whole evaluations (tests).
+    pub viewports: u64,
     /// Progress of the running evaluation (done, total).
     pub progress: Option<(usize, usize)>,
     /// The latest accepted evaluation.
@@ -61,6 +66,8 @@ impl Runtime {
             gens: Generations::default(),
             in_flight: None,
             last_sent: None,
+            last_view: None,
+            viewports: 0,
             progress: None,
             outcome: EvalOutcome::default(),
             thumbs: BTreeMap::new(),
@@ -99,6 +106,33 @@ impl EditorApp {
                         self.runtime.progress = Some((done, total));
                     }
                 }
+                WorkerMsg::Region(r) => {
+                    let viewed = self.session.viewed.as_ref();
+                    if r.generation == self.runtime.gens.latest()
+                        && viewed == Some(&(r.node, r.port.clone()))
+                    {
+                        if self.prefs.timing {
+                            eprintln!(
+                                "rgbn editor: viewport {}×{} at level {} of {}×{} evaluated in {:.1} ms ({} tiles computed)",
+                                r.rect.w,
+                                r.rect.h,
+                                r.level,
+                                r.full_size.0,
+                                r.full_size.1,
+                                r.elapsed.as_secs_f64() * 1e3,
+                                r.tiles_computed
+                            );
+                        }
+                        self.runtime.viewports += 1;
+                        self.preview.set_region(RegionShown {
+                            key: r.key,
+                            rect: r.rect,
+                            level: r.level,
+                            full_size: r.full_size,
+                            value: r.value,
+                        });
+                    }
+                }
                 WorkerMsg::Done(out) => {
                     if self.runtime.gens.accept(out.generation) {
                         self.runtime.in_flight = None;
@@ -125,13 +159,24 @@ impl EditorApp {
             }
         }
         let want = eval_graph(&self.session.doc.graph);
-        if self.runtime.in_flight.is_none() && self.runtime.last_sent.as_ref() != Some(&want) {
+        let view = self.view_request();
+        let graph_changed = self.runtime.last_sent.as_ref() != Some(&want);
+        // Panning or zooming asks for a new viewport only while the viewed output has no
+        // whole value to show (it is being evaluated, or too large to evaluate whole).
+        let view_changed = view.is_some()
+            && self.runtime.last_view != view
+            && (self.runtime.in_flight.is_some() || self.viewed_value().is_none());
+        if graph_changed || view_changed {
+            // A newer request supersedes the running one: while edits keep coming, the worker
+            // evaluates only the viewport of each.
+            self.cancel();
             let cancel = Arc::new(AtomicBool::new(false));
             self.runtime.worker.send(EvalRequest {
                 generation: self.runtime.gens.new_request(),
                 graph: self.session.doc.graph.clone(),
                 base_dir: self.session.doc.base_dir(),
                 cancel: cancel.clone(),
+                view: view.clone(),
             });
             self.runtime.requests += 1;
             self.tools.request_sent();
@@ -140,7 +185,19 @@ impl EditorApp {
                 started: Instant::now(),
             });
             self.runtime.last_sent = Some(want);
+            self.runtime.last_view = view;
         }
+    }
+
+    /// What the preview shows: the viewed output, and where (`None` before the preview's first
+    /// frame or with nothing viewed).
+    fn view_request(&self) -> Option<ViewRequest> {
+        let (node, port) = self.session.viewed.clone()?;
+        Some(ViewRequest {
+            node,
+            port,
+            spec: self.preview.view_spec()?,
+        })
     }
 
     pub(super) fn accept_outcome(&mut self, ctx: &egui::Context, out: EvalOutcome) {

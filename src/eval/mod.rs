@@ -40,6 +40,13 @@ use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant, SystemTime};
 
+/// The content key of output `port` of an instance whose key is `key` (port 0 and the rest
+/// apart, the same value everywhere it is named).
+#[must_use]
+pub fn port_key(key: CacheKey, port: usize) -> CacheKey {
+    key ^ (port as u128).wrapping_mul(0x9E37_79B9_7F4A_7C15)
+}
+
 /// Where an instance's input comes from.
 #[derive(Clone, Debug, PartialEq)]
 pub enum Conn {

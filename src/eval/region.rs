@@ -182,12 +182,17 @@ pub struct RegionResult {
     pub value: Value,
     /// The rectangle, clamped to the output's size.
     pub rect: Rect,
-    /// The output's whole size.
+    /// The output's whole size (at the level).
     pub size: (usize, usize),
+    /// The output's whole size at full resolution.
+    pub full_size: (usize, usize),
     /// The instances evaluated whole (sources, global operators).
     pub whole: Vec<NodeStats>,
     /// Per tiled instance, in evaluation order.
     pub tiles: Vec<TileStats>,
+    /// Content key of the whole output at full resolution ([`super::port_key`]): the key
+    /// [`Evaluator::eval`] gives the same output, so a region can be matched with it.
+    pub key: CacheKey,
 }
 
 impl RegionResult {
@@ -608,8 +613,10 @@ impl Evaluator {
                 value: crop(&v, rect),
                 rect,
                 size: out_size,
+                full_size: size[root].unwrap_or(out_size),
                 whole: whole.stats,
                 tiles: Vec::new(),
+                key: super::port_key(keys[&root], root_port),
             });
         }
         // The previous result of the same request, if it can be patched where the edits
@@ -840,8 +847,10 @@ impl Evaluator {
             value,
             rect,
             size: out_size,
+            full_size: size[root].unwrap_or(out_size),
             whole: whole.stats,
             tiles,
+            key: super::port_key(keys[&root], root_port),
         })
     }
 
