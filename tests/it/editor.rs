@@ -470,3 +470,104 @@ fn the_preview_offers_every_view_and_shows_the_selected_views_parameters() {
         Some(2)
     );
 }
+
+#[test]
+fn after_pan_and_zoom_an_edit_shows_the_viewport_first_then_the_whole_output() {
+    use rgbn::eval::region::{RegionOptions, INTERACTIVE_TILE};
+    use rgbn::eval::{EvalOptions, Evaluator, Plan};
+    use rgbn::graph::{LoadedGraph, PortRef};
+    use rgbn::ops::Value;
+    let mut d = small_demo();
+    d.set_param(1, "size", ParamValue::Int(300));
+    let mut h = harness(d);
+    settle(&mut h);
+    h.state_mut().view_node(3);
+    settle(&mut h);
+    for (step, (zoom, pan)) in [(2.0f32, [120.0f32, -80.0f32]), (0.5, [30.0, 10.0])]
+        .into_iter()
+        .enumerate()
+    {
+        {
+            let p = &mut h.state_mut().preview;
+            p.zoom = Some(zoom);
+            p.pan = egui::Vec2::new(pan[0], pan[1]);
+        }
+        h.step();
+        // An edit upstream of the viewed node.
+        let amount = 1.25 + 0.25 * step as f64;
+        h.state_mut()
+            .session
+            .doc
+            .set_param(2, "amount", ParamValue::Float(amount));
+        let overlays = h.state().preview.overlays;
+        let deadline = Instant::now() + Duration::from_secs(60);
+        while h.state().preview.overlays == overlays {
+            assert!(Instant::now() < deadline, "no viewport picture");
+            h.step();
+            std::thread::sleep(Duration::from_millis(2));
+        }
+        let app = h.state();
+        let spec = app.preview.view_spec().expect("the panel was drawn");
+        let (rect, level) = spec
+            .visible((300, 300), INTERACTIVE_TILE)
+            .expect("part of the image is on screen");
+        assert_eq!(level, u32::from(zoom < 1.0), "zoom {zoom}: level");
+        let region = app.preview.region().cloned().expect("a viewport");
+        assert_eq!((region.rect, region.level), (rect, level));
+        assert_eq!(
+            app.preview.overlay_request().and_then(|r| r.region),
+            Some((rect, level)),
+            "the picture on screen is that viewport"
+        );
+        if level == 0 {
+            assert!(rect.w < 300 || rect.h < 300, "zoomed in: only part of the image");
+        }
+        // The same pixels as `rgbn eval --region … --level …` on the graph as it now is.
+        let mut g = app.session.doc.graph.clone();
+        g.outputs.clear();
+        g.exposed.clear();
+        g.outputs.insert(
+            "shown".into(),
+            PortRef {
+                node: 3,
+                port: "image".into(),
+            },
+        );
+        let dir = std::env::temp_dir();
+        let lg = LoadedGraph::from_graph(g, None, dir.clone()).unwrap();
+        let plan = Plan::new(&lg, &Default::default(), &dir).unwrap();
+        let cli = Evaluator::default()
+            .eval_region(
+                &plan,
+                "shown",
+                rect,
+                &RegionOptions { tile: 256, level },
+                &EvalOptions::default(),
+            )
+            .unwrap();
+        assert_eq!(cli.key, region.key);
+        let (Value::Rgbn(a), Value::Rgbn(b)) = (&region.value, &cli.value) else {
+            panic!("RGBN viewports");
+        };
+        assert_eq!((a.width(), a.height()), (rect.w, rect.h));
+        let mut worst = 0f32;
+        for y in 0..rect.h {
+            for x in 0..rect.w {
+                let (n, m) = (a.normal_at(x, y), b.normal_at(x, y));
+                for k in 0..3 {
+                    worst = worst.max((n[k] - m[k]).abs());
+                }
+            }
+        }
+        // Tiles of 64 and 256 cut the recursive Gaussians' tails differently
+        // (tests/it/region.rs: 2e-3).
+        assert!(worst <= 2e-3, "zoom {zoom}: {worst}");
+        // Once edits pause the whole output is evaluated, and its picture replaces the
+        // viewport.
+        settle(&mut h);
+        let app = h.state();
+        assert_eq!(app.runtime.outcome.values[&(3, "image".into())].key, region.key);
+        assert!(app.preview.overlay_request().is_none(), "zoom {zoom}");
+        assert!(app.preview.region().is_none());
+    }
+}
