@@ -463,7 +463,7 @@ impl Evaluator {
         let whole = self.eval_instances(plan, &whole_roots, opts)?;
         let mut keys = whole.keys;
         // The whole results at the level: reduced (and cached so) at a coarse one.
-        let wv: HashMap<usize, Arc<CacheEntry>> = whole
+        let mut wv: HashMap<usize, Arc<CacheEntry>> = whole
             .results
             .iter()
             .map(|(j, e)| {
@@ -539,6 +539,20 @@ impl Evaluator {
                 size[i] = inst.op.out_size(&inst.params, &sizes);
             }
             self.key(plan, i, &mut keys)?;
+        }
+        // At full resolution, an instance whose whole value is in the memory cache (an editor
+        // evaluated it whole) is cropped rather than computed again tile by tile; the
+        // instances above it are then not needed for it.
+        if level == 0 {
+            for i in 0..=root {
+                if mode[i] != Mode::Tiled {
+                    continue;
+                }
+                if let Some(e) = self.mem_get(keys[&i]) {
+                    mode[i] = Mode::Whole;
+                    wv.insert(i, e);
+                }
+            }
         }
         // Damage: what each tiled instance's edit (its parameters, its inputs' damage grown by
         // its halo) can have changed since it was last evaluated.

@@ -689,3 +689,43 @@ fn pen_stamp_and_brush_at_a_coarse_level_reproduce_the_reduced_edit() {
         assert!(diff <= 2e-6, "level {level}: tilings differ by {diff}");
     }
 }
+
+#[test]
+fn a_region_reads_upstream_values_already_evaluated_whole_instead_of_tiling_them() {
+    let d = tempfile::tempdir().unwrap();
+    let text = r#"(
+    version: 1,
+    next_id: 4,
+    outputs: { "sharp": (node: 2, port: "image"), "pen": (node: 3, port: "image") },
+    nodes: [
+        (id: 1, op: "surface", pos: (0.0, 0.0), params: { "width": Int(300), "height": Int(200), "shape": Choice("gaussians") }),
+        (id: 2, op: "filter.sharpen", pos: (0.0, 0.0), params: { "sigma_px": Float(2.0) }, inputs: { "image": Node(1, "image") }),
+        (id: 3, op: "pen", name: Some("pen"), pos: (0.0, 0.0), params: { "points": Points([(40.0, 40.0), (160.0, 90.0)]), "width_px": Float(10.0) }, inputs: { "image": Node(2, "image") }),
+    ],
+)"#;
+    let lg = LoadedGraph::from_text(text, "up.ron", d.path().to_path_buf()).unwrap();
+    let plan = Plan::new(&lg, &BTreeMap::new(), d.path()).unwrap();
+    let opts = EvalOptions::default();
+    let rect = Rect::new(20, 30, 180, 100);
+    let ropts = RegionOptions::tiles(32);
+    // Cold: every instance is tiled.
+    let cold = Evaluator::default()
+        .eval_region(&plan, "pen", rect, &ropts, &opts)
+        .unwrap();
+    assert_eq!(cold.tiles.len(), 3, "{:?}", cold.tiles);
+    // The editor's case: the pen's input was evaluated whole (and is cached); the region then
+    // tiles only the pen, on crops of it.
+    let ev = Evaluator::default();
+    let whole = ev.eval(&plan, &["sharp"], &opts).unwrap();
+    let r = ev.eval_region(&plan, "pen", rect, &ropts, &opts).unwrap();
+    let ops: Vec<&str> = r.tiles.iter().map(|t| t.op).collect();
+    assert_eq!(ops, ["pen"], "only the pen is tiled");
+    // Same pixels as the cold tiling (the sharpen's Gaussian is a FIR at σ 2: exact up to the
+    // order of float operations), and the whole input is that input.
+    assert!(max_diff(&cold.value, &r.value) <= 2e-6);
+    let sharp = ev
+        .eval_region(&plan, "sharp", rect, &ropts, &opts)
+        .unwrap();
+    assert!(sharp.tiles.is_empty(), "a cached whole output is cropped");
+    assert_eq!(max_diff(&crop(&whole.outputs["sharp"], rect), &sharp.value), 0.0);
+}
