@@ -33,6 +33,12 @@ impl EditorApp {
         if hit(sc(Modifiers::COMMAND, Key::N)) {
             self.guarded(Then::New);
         }
+        if hit(sc(Modifiers::COMMAND, Key::Num1)) {
+            self.preview.set_zoom(1.0 / ctx.pixels_per_point());
+        }
+        if hit(sc(Modifiers::COMMAND, Key::Num0)) {
+            self.preview.fit();
+        }
         if !typing && self.files.is_none() {
             let (copy, paste) = ctx.input(|i| {
                 (
@@ -198,13 +204,20 @@ impl EditorApp {
                     self.view.frame_pending = 2;
                     ui.close();
                 }
-                if ui.button("Frame image (preview)").clicked() {
-                    self.preview.zoom = None;
-                    self.preview.pan = egui::Vec2::ZERO;
+                let uictx = ui.ctx().clone();
+                let ctrl = |k| uictx.format_shortcut(&KeyboardShortcut::new(Modifiers::COMMAND, k));
+                if ui
+                    .add(egui::Button::new("Frame image (preview)").shortcut_text(ctrl(Key::Num0)))
+                    .clicked()
+                {
+                    self.preview.fit();
                     ui.close();
                 }
-                if ui.button("Actual pixels (1:1)").clicked() {
-                    self.preview.zoom = Some(1.0);
+                if ui
+                    .add(egui::Button::new("Actual pixels (1:1)").shortcut_text(ctrl(Key::Num1)))
+                    .clicked()
+                {
+                    self.preview.set_zoom(1.0 / ui.ctx().pixels_per_point());
                     ui.close();
                 }
             });

@@ -551,6 +551,21 @@ impl Preview {
         self.clear_region();
     }
 
+    /// Zooms to `zoom` screen points per image pixel, keeping the image pixel at the panel's
+    /// centre where it is.
+    pub fn set_zoom(&mut self, zoom: f32) {
+        if let Some(old) = self.last_zoom.filter(|z| *z > 0.0) {
+            self.pan *= zoom / old;
+        }
+        self.zoom = Some(zoom);
+    }
+
+    /// Fits the image to the panel.
+    pub fn fit(&mut self) {
+        self.zoom = None;
+        self.pan = Vec2::ZERO;
+    }
+
     /// Forgets the viewport and its picture.
     pub fn clear_region(&mut self) {
         self.region = None;

@@ -198,7 +198,7 @@ impl Worker {
         let thread = std::thread::Builder::new()
             .name("rgbn-eval".into())
             .spawn(move || {
-                let ev = Evaluator::default();
+                let ev = Evaluator::new(cache_budget());
                 let mut sizes = Sizes::new();
                 let mut next: Option<EvalRequest> = None;
                 loop {
@@ -296,6 +296,16 @@ impl Drop for Worker {
             let _ = t.join();
         }
     }
+}
+
+/// The editor's memory cache: a quarter of the physical memory (at least
+/// [`crate::eval::DEFAULT_BUDGET`]), so that a 4K graph's node values and the tiles of its
+/// viewports stay cached together.
+fn cache_budget() -> usize {
+    let quarter = crate::eval::memory::physical_memory().map_or(0, |m| m / 4);
+    usize::try_from(quarter)
+        .unwrap_or(usize::MAX)
+        .max(crate::eval::DEFAULT_BUDGET)
 }
 
 /// Full-resolution sizes of outputs seen, by (node, port).

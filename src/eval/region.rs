@@ -241,11 +241,15 @@ fn damage_since(trail: &Trail, from: CacheKey) -> Option<Vec<Rect>> {
     None
 }
 
-/// The evaluator's memory of tiled instances, by (instance index, operator, file, node id):
-/// a plan rebuilt after an edit keeps its indices while the graph's shape stays the same.
+/// An instance as the history knows it: (instance index, operator, file, node id). A plan
+/// rebuilt after an edit keeps its indices while the graph's shape stays the same.
+type Ident = (usize, &'static str, String, Option<u64>);
+
+/// The evaluator's memory of tiled instances, by [`Ident`] and level of detail (each level's
+/// damage is in its own pixels, from the instance's parameters at that level).
 #[derive(Default, Debug)]
 pub(super) struct History {
-    seen: HashMap<(usize, &'static str, String, Option<u64>), Seen>,
+    seen: HashMap<(Ident, u32), Seen>,
     /// The last result, to patch where an edit changed it rather than assemble it again.
     last: Option<LastResult>,
 }
@@ -253,7 +257,7 @@ pub(super) struct History {
 /// A region result as returned, with what it was made from.
 #[derive(Debug)]
 struct LastResult {
-    ident: (usize, &'static str, String, Option<u64>),
+    ident: Ident,
     port: usize,
     rect: Rect,
     tile: usize,
@@ -554,8 +558,13 @@ impl Evaluator {
                 }
             }
         }
+        let lsize: Vec<Option<(usize, usize)>> = size
+            .iter()
+            .map(|z| z.map(|z| crate::raster::pyramid::reduced_size(z, s)))
+            .collect();
         // Damage: what each tiled instance's edit (its parameters, its inputs' damage grown by
-        // its halo) can have changed since it was last evaluated.
+        // its halo) can have changed since it was last evaluated at this level, in the level's
+        // pixels.
         let mut trails: Vec<Trail> = vec![Vec::new(); n];
         {
             let mut hist = super::lock(&self.seen);
@@ -565,7 +574,7 @@ impl Evaluator {
                 }
                 let inst = &plan.instances[i];
                 let spec = inst.op.spec();
-                let ident = (i, spec.id, inst.at.file.clone(), inst.at.node);
+                let ident = ((i, spec.id, inst.at.file.clone(), inst.at.node), level);
                 let input_keys: Vec<Option<CacheKey>> = inst
                     .inputs
                     .iter()
@@ -575,10 +584,11 @@ impl Evaluator {
                     })
                     .collect();
                 let key = keys[&i];
+                let params = lp[i].as_ref().unwrap_or(&inst.params);
                 let trail = match hist.seen.get(&ident) {
                     Some(old) if old.key == key => old.trail.clone(),
                     Some(old) if old.inputs.len() == input_keys.len() => {
-                        let d = self.damage_of(plan, i, old, &input_keys, &trails, &size);
+                        let d = self.damage_of(plan, &lp, i, old, &input_keys, &trails, &lsize);
                         let mut t = old.trail.clone();
                         t.push((old.key, d));
                         let cut = t.len().saturating_sub(TRAIL);
@@ -592,17 +602,13 @@ impl Evaluator {
                     ident,
                     Seen {
                         key,
-                        params: inst.params.clone(),
+                        params: params.clone(),
                         inputs: input_keys,
                         trail,
                     },
                 );
             }
         }
-        let lsize: Vec<Option<(usize, usize)>> = size
-            .iter()
-            .map(|z| z.map(|z| crate::raster::pyramid::reduced_size(z, s)))
-            .collect();
         let Some(out_size) = lsize[root] else {
             return Err(GraphError::Param {
                 param: "region".into(),
@@ -643,10 +649,8 @@ impl Evaluator {
             root_inst.at.node,
         );
         let last = super::lock(&self.seen).last.take().and_then(|l| {
-            // Damage is in full-resolution pixels: a coarse level takes tiles from the cache by
-            // key only, and is not patched.
-            let same = (&l.ident, l.port, l.rect, l.tile, l.level, level)
-                == (&ident, root_port, rect, tile, 0, 0);
+            let same = (&l.ident, l.port, l.rect, l.tile, l.level)
+                == (&ident, root_port, rect, tile, level);
             let damage = if l.key == keys[&root] {
                 Some(Vec::new())
             } else {
@@ -683,11 +687,9 @@ impl Evaluator {
                     have[i].insert(t, e);
                     continue;
                 }
-                // The same tile of an earlier key, if no edit since can have changed it (at full
-                // resolution, where damage is known).
+                // The same tile of an earlier key, if no edit since can have changed it.
                 let tr = tile_rect(t, tile, sz);
-                let trail: &[_] = if level == 0 { &trails[i] } else { &[] };
-                let earlier = trail
+                let earlier = trails[i]
                     .iter()
                     .rev()
                     .map_while(|(k, d)| {
@@ -873,6 +875,7 @@ impl Evaluator {
     fn damage_of(
         &self,
         plan: &Plan,
+        lp: &LevelParams,
         i: usize,
         old: &Seen,
         input_keys: &[Option<CacheKey>],
@@ -880,6 +883,7 @@ impl Evaluator {
         size: &[Option<(usize, usize)>],
     ) -> Option<Vec<Rect>> {
         let inst = &plan.instances[i];
+        let params = lp[i].as_ref()?;
         let sz = size[i]?;
         let mut out = Vec::new();
         for (k, c) in inst.inputs.iter().enumerate() {
@@ -889,14 +893,14 @@ impl Evaluator {
             // A changed input: only a tiled one whose change is known from exactly the key
             // seen last time, through a local footprint.
             let Conn::Slot(j, port) = c else { return None };
-            let Footprint::Local { halo } = inst.op.footprint(&inst.params, k) else {
+            let Footprint::Local { halo } = inst.op.footprint(params, k) else {
                 return None;
             };
             let from = old.inputs[k]? ^ (*port as u128);
             let rects = damage_since(&trails[*j], from)?;
             out.extend(rects.iter().map(|r| r.grow(halo, sz)));
         }
-        if inst.params != old.params {
+        if *params != old.params {
             let sizes: Vec<Option<(usize, usize)>> = inst
                 .inputs
                 .iter()
@@ -905,7 +909,7 @@ impl Evaluator {
                     _ => None,
                 })
                 .collect();
-            let boxes = inst.op.damage(&old.params, &inst.params, &sizes)?;
+            let boxes = inst.op.damage(&old.params, params, &sizes)?;
             out.extend(boxes_to_rects(&boxes, sz));
         }
         Some(out)

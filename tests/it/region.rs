@@ -729,3 +729,89 @@ fn a_region_reads_upstream_values_already_evaluated_whole_instead_of_tiling_them
     assert!(sharp.tiles.is_empty(), "a cached whole output is cropped");
     assert_eq!(max_diff(&crop(&whole.outputs["sharp"], rect), &sharp.value), 0.0);
 }
+
+#[test]
+fn edits_at_a_coarse_level_patch_only_their_damage_and_equal_a_cold_evaluation() {
+    let d = tempfile::tempdir().unwrap();
+    let (w, h) = (640usize, 480usize);
+    let text = format!(
+        r#"(
+    version: 1,
+    next_id: 6,
+    outputs: {{ "image": (node: 5, port: "image") }},
+    nodes: [
+        (id: 1, op: "surface", pos: (0.0, 0.0), params: {{ "width": Int({w}), "height": Int({h}), "shape": Choice("gaussians") }}),
+        (id: 2, op: "surface", pos: (0.0, 0.0), params: {{ "width": Int(40), "height": Int(32), "shape": Choice("gaussians") }}),
+        (id: 3, op: "pen", name: Some("pen"), pos: (0.0, 0.0), params: {{ "points": Points([(80.0, 80.0), (120.0, 100.0)]), "width_px": Float(20.0), "taper_px": Float(16.0) }}, inputs: {{ "image": Node(1, "image") }}),
+        (id: 4, op: "stamp", name: Some("stamp"), pos: (0.0, 0.0), params: {{ "positions": Points([(400.0, 120.0), (200.0, 360.0)]), "angle_rad": Float(0.3) }}, inputs: {{ "image": Node(3, "image"), "stamp": Node(2, "image") }}),
+        (id: 5, op: "filter.gaussian", pos: (0.0, 0.0), params: {{ "sigma_px": Float(2.0) }}, inputs: {{ "image": Node(4, "image") }}),
+    ],
+)"#
+    );
+    let mut lg = LoadedGraph::from_text(&text, "coarse.ron", d.path().to_path_buf()).unwrap();
+    let opts = EvalOptions::default();
+    let ev = Evaluator::default();
+    let mut rng = Rng(0x9e37_79b9_7f4a_7c15);
+    let mut pen = vec![[80.0, 80.0], [120.0, 100.0]];
+    let mut stamps = vec![[400.0, 120.0], [200.0, 360.0]];
+    for level in [1u32, 2] {
+        let s = 1usize << level;
+        let ropts = RegionOptions { tile: 32, level };
+        let lsize = (w.div_ceil(s), h.div_ceil(s));
+        let rect = Rect::full(lsize);
+        let plan = Plan::new(&lg, &BTreeMap::new(), d.path()).unwrap();
+        ev.eval_region(&plan, "image", rect, &ropts, &opts).unwrap();
+        for step in 0..10 {
+            let moved_pen = step % 3 != 2;
+            if moved_pen {
+                let last = *pen.last().unwrap();
+                let a = rng.below(628) as f64 / 100.0;
+                pen.push([
+                    (last[0] + 20.0 * a.cos()).clamp(10.0, w as f64 - 10.0),
+                    (last[1] + 20.0 * a.sin()).clamp(10.0, h as f64 - 10.0),
+                ]);
+                lg.set_param("pen", "points", &points_text(&pen)).unwrap();
+            } else {
+                let k = rng.below(2);
+                stamps[k] = [
+                    40.0 + rng.below(w - 80) as f64,
+                    40.0 + rng.below(h - 80) as f64,
+                ];
+                lg.set_param("stamp", "positions", &points_text(&stamps))
+                    .unwrap();
+            }
+            let plan = Plan::new(&lg, &BTreeMap::new(), d.path()).unwrap();
+            let r = ev.eval_region(&plan, "image", rect, &ropts, &opts).unwrap();
+            let cold = Evaluator::default()
+                .eval_region(&plan, "image", rect, &ropts, &opts)
+                .unwrap();
+            let diff = max_diff(&cold.value, &r.value);
+            assert!(diff <= 2e-6, "level {level} step {step}: {diff}");
+            // A pen append at this level touches the tiles around its last segments, not
+            // the level's whole grid (an independent bound: the last two segments' box grown
+            // by the width, taper and blur, in level pixels).
+            if moved_pen {
+                let back = &pen[pen.len() - 3..];
+                let (mut b0, mut b1) = ([f64::MAX; 2], [f64::MIN; 2]);
+                for q in back {
+                    b0 = [b0[0].min(q[0]), b0[1].min(q[1])];
+                    b1 = [b1[0].max(q[0]), b1[1].max(q[1])];
+                }
+                let g = 40.0;
+                let sf = s as f64;
+                let bound = tiles_touching(
+                    [(b0[0] - g) / sf, (b0[1] - g) / sf, (b1[0] + g) / sf, (b1[1] + g) / sf],
+                    32,
+                    lsize,
+                );
+                let at_pen = r.tiles.iter().find(|t| t.op == "pen").unwrap();
+                let grid = lsize.0.div_ceil(32) * lsize.1.div_ceil(32);
+                assert!(
+                    at_pen.computed >= 1 && at_pen.computed <= bound && bound < grid,
+                    "level {level} step {step}: pen recomputed {} tiles, bound {bound}, grid {grid}",
+                    at_pen.computed
+                );
+            }
+        }
+    }
+}
