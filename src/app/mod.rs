@@ -465,6 +465,8 @@ impl EditorApp {
         for a in actions {
             self.apply(a);
         }
+        // An edit made in this frame is evaluated now, not when the next frame starts.
+        self.send_if_changed();
         self.autosave();
         let ms = t0.elapsed().as_secs_f64() * 1e3;
         self.runtime.frame_ms = 0.9 * self.runtime.frame_ms + 0.1 * ms;
@@ -634,30 +636,31 @@ impl EditorApp {
                         }
                     }
                 }
-                if self.runtime.first_preview.is_none() && self.preview.renders > 0 {
-                    let t = self.runtime.started.elapsed();
-                    self.runtime.first_preview = Some(t);
-                    if self.prefs.timing {
-                        eprintln!(
-                            "rgbn editor: first preview after {:.0} ms",
-                            t.as_secs_f64() * 1e3
-                        );
-                    }
-                }
             }
             // A node a tool just made: keep the last picture until it is evaluated; an output
             // too large to evaluate whole is shown by its viewport only.
             None if self.runtime.in_flight.is_some() || self.runtime.outcome.viewport_only => {}
             None => self.preview.clear(),
         }
-        if self.preview.update_region(&ctx, &self.prefs.settings) {
+        if self.preview.update_region(&ctx, &self.prefs.settings) && self.prefs.timing {
             if let Some((first, last)) = self.tools.preview_rendered() {
-                if self.prefs.timing {
-                    eprintln!(
-                        "rgbn editor: tool edit → relit viewport after {last:.0} ms (newest edit shown), {first:.0} ms (oldest; render {:.1} ms)",
-                        self.preview.render_ms
-                    );
-                }
+                eprintln!(
+                    "rgbn editor: tool edit → relit viewport after {last:.0} ms (newest edit shown), {first:.0} ms (oldest)"
+                );
+            } else if let Some(ms) = self.preview.overlay_render_ms {
+                eprintln!("rgbn editor: viewport re-rendered in {ms:.1} ms");
+            }
+        }
+        if self.runtime.first_preview.is_none()
+            && (self.preview.renders > 0 || self.preview.overlays > 0)
+        {
+            let t = self.runtime.started.elapsed();
+            self.runtime.first_preview = Some(t);
+            if self.prefs.timing {
+                eprintln!(
+                    "rgbn editor: first preview after {:.0} ms",
+                    t.as_secs_f64() * 1e3
+                );
             }
         }
         let stamp_size = self.session.selected.and_then(|s| {

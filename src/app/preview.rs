@@ -57,7 +57,11 @@ impl ViewSpec {
     /// rectangle of that level's pixels on screen, grown to whole `tile`s (so that small pans
     /// ask for the same tiles) and clamped to the level; `None` when none of it is visible.
     #[must_use]
-    pub fn visible(&self, size: (usize, usize), tile: usize) -> Option<(crate::eval::region::Rect, u32)> {
+    pub fn visible(
+        &self,
+        size: (usize, usize),
+        tile: usize,
+    ) -> Option<(crate::eval::region::Rect, u32)> {
         let zoom = self.zoom_for(size);
         let stride = Preview::stride_for_zoom(zoom);
         let level = stride.ilog2();
@@ -81,7 +85,10 @@ impl ViewSpec {
         };
         let (x0, x1) = span(min[0], self.panel[0], lw)?;
         let (y0, y1) = span(min[1], self.panel[1], lh)?;
-        Some((crate::eval::region::Rect::new(x0, y0, x1 - x0, y1 - y0), level))
+        Some((
+            crate::eval::region::Rect::new(x0, y0, x1 - x0, y1 - y0),
+            level,
+        ))
     }
 }
 
@@ -217,6 +224,8 @@ pub struct PreviewRequest {
 /// A render job for the preview thread.
 struct Job {
     req: PreviewRequest,
+    /// Renders of an older epoch are dropped ([`Preview::clear_region`]).
+    epoch: u64,
     value: Value,
     before: Option<Value>,
     ctx: egui::Context,
@@ -225,6 +234,7 @@ struct Job {
 /// A finished render.
 struct Rendered {
     req: PreviewRequest,
+    epoch: u64,
     /// Size of the value in pixels (the texture is smaller when `req.stride > 1`).
     logical: [usize; 2],
     main: Option<egui::ColorImage>,
@@ -265,6 +275,7 @@ impl Default for Renderer {
                     });
                     let out = Rendered {
                         logical,
+                        epoch: job.epoch,
                         req: job.req,
                         main,
                         before,
@@ -446,6 +457,13 @@ pub struct Preview {
     overlay: Option<Overlay>,
     /// How many viewport pictures were shown (tests, statistics).
     pub overlays: u64,
+    /// Increases when the viewport is forgotten: renders sent before are dropped.
+    region_epoch: u64,
+    /// A viewport picture went on screen since [`Preview::update_region`] last ran.
+    overlay_fresh: bool,
+    /// How long the render thread took for the viewport picture on screen (`None`: the worker
+    /// rendered it with the evaluation).
+    pub overlay_render_ms: Option<f64>,
 }
 
 /// A viewport of an output evaluated ahead of the whole output
@@ -495,6 +513,9 @@ impl Default for Preview {
             region_last: None,
             overlay: None,
             overlays: 0,
+            region_epoch: 0,
+            overlay_fresh: false,
+            overlay_render_ms: None,
         }
     }
 }
@@ -571,6 +592,7 @@ impl Preview {
         self.region = None;
         self.region_last = None;
         self.overlay = None;
+        self.region_epoch += 1;
     }
 
     /// Where the panel shows the image (`None` before the first frame).
@@ -587,8 +609,53 @@ impl Preview {
     /// Takes a viewport evaluated ahead of the whole output: it is rendered
     /// ([`Preview::update_region`]) and drawn over the texture until the whole output's picture
     /// of the same content is on screen.
-    pub fn set_region(&mut self, r: RegionShown) {
+    ///
+    /// `picture` is the viewport already rendered under `settings` (the worker renders it
+    /// with the evaluation, which saves a frame): it goes on screen at once.
+    pub fn set_region(
+        &mut self,
+        ctx: &egui::Context,
+        r: RegionShown,
+        picture: Option<(egui::ColorImage, PreviewSettings)>,
+    ) {
+        if let Some((img, settings)) = picture {
+            let req = PreviewRequest {
+                key: r.key,
+                settings: Some(settings),
+                before: None,
+                stride: 1,
+                region: Some((r.rect, r.level)),
+            };
+            self.show_overlay(ctx, img, req.clone(), r.full_size);
+            self.overlay_render_ms = None;
+            self.region_last = Some(req);
+        }
         self.region = Some(r);
+    }
+
+    fn show_overlay(
+        &mut self,
+        ctx: &egui::Context,
+        img: egui::ColorImage,
+        req: PreviewRequest,
+        full_size: (usize, usize),
+    ) {
+        match &mut self.overlay {
+            Some(o) if o.texture.size() == img.size => {
+                o.texture.set(img, TextureOptions::NEAREST);
+                o.req = req;
+                o.full_size = full_size;
+            }
+            _ => {
+                self.overlay = Some(Overlay {
+                    texture: ctx.load_texture("preview-viewport", img, TextureOptions::NEAREST),
+                    req,
+                    full_size,
+                });
+            }
+        }
+        self.overlays += 1;
+        self.overlay_fresh = true;
     }
 
     /// The viewport taken last, if it is still to be shown.
@@ -617,31 +684,17 @@ impl Preview {
         while let Ok(r) = self.region_renderer.rx.try_recv() {
             newest = Some(r);
         }
-        let mut shown = false;
+        // Any render of this epoch is newer than the picture on screen.
         if let (Some(r), Some(region)) = (newest, &self.region) {
-            if r.req.key == region.key {
+            if r.epoch == self.region_epoch {
                 if let Some(img) = r.main {
                     let full_size = region.full_size;
-                    match &mut self.overlay {
-                        Some(o) if o.texture.size() == img.size => {
-                            o.texture.set(img, TextureOptions::NEAREST);
-                            o.req = r.req;
-                            o.full_size = full_size;
-                        }
-                        _ => {
-                            self.overlay = Some(Overlay {
-                                texture: ctx.load_texture("preview-viewport", img, TextureOptions::NEAREST),
-                                req: r.req,
-                                full_size,
-                            });
-                        }
-                    }
-                    self.overlays += 1;
-                    self.render_ms = r.ms;
-                    shown = true;
+                    self.overlay_render_ms = Some(r.ms);
+                    self.show_overlay(ctx, img, r.req, full_size);
                 }
             }
         }
+        let shown = std::mem::take(&mut self.overlay_fresh);
         let Some(region) = &self.region else {
             return shown;
         };
@@ -662,6 +715,7 @@ impl Preview {
             if let Some(tx) = &self.region_renderer.tx {
                 let job = Job {
                     req: req.clone(),
+                    epoch: self.region_epoch,
                     value: region.value.clone(),
                     before: None,
                     ctx: ctx.clone(),
@@ -721,6 +775,7 @@ impl Preview {
         if let Some(tx) = &self.renderer.tx {
             let job = Job {
                 req: req.clone(),
+                epoch: 0,
                 value: value.clone(),
                 before: before.cloned(),
                 ctx: ctx.clone(),

@@ -124,13 +124,18 @@ impl EditorApp {
                             );
                         }
                         self.runtime.viewports += 1;
-                        self.preview.set_region(RegionShown {
-                            key: r.key,
-                            rect: r.rect,
-                            level: r.level,
-                            full_size: r.full_size,
-                            value: r.value,
-                        });
+                        let r = *r;
+                        self.preview.set_region(
+                            ctx,
+                            RegionShown {
+                                key: r.key,
+                                rect: r.rect,
+                                level: r.level,
+                                full_size: r.full_size,
+                                value: r.value,
+                            },
+                            r.picture,
+                        );
                     }
                 }
                 WorkerMsg::Done(out) => {
@@ -158,6 +163,13 @@ impl EditorApp {
                 }
             }
         }
+        self.send_if_changed();
+    }
+
+    /// Sends a request when the graph (or, while the viewed output has no whole value, the
+    /// view) changed since the last one. Runs when the frame starts ([`EditorApp::poll`]) and
+    /// again when it ends, so that an edit made in a frame is evaluated at once.
+    pub fn send_if_changed(&mut self) {
         let want = eval_graph(&self.session.doc.graph);
         let view = self.view_request();
         let graph_changed = self.runtime.last_sent.as_ref() != Some(&want);
@@ -177,6 +189,7 @@ impl EditorApp {
                 base_dir: self.session.doc.base_dir(),
                 cancel: cancel.clone(),
                 view: view.clone(),
+                settings: Some(self.prefs.settings.clone()),
             });
             self.runtime.requests += 1;
             self.tools.request_sent();

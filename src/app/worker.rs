@@ -10,7 +10,7 @@
 // Graph errors carry their location by value; they are cold paths.
 #![allow(clippy::result_large_err)]
 
-use super::preview::ViewSpec;
+use super::preview::{PreviewSettings, ViewSpec};
 use super::state::error_node;
 use crate::eval::region::{Rect, RegionOptions, INTERACTIVE_TILE};
 use crate::eval::{CacheKey, EvalOptions, Evaluator, Plan, Progress};
@@ -54,6 +54,9 @@ pub struct EvalRequest {
     /// detail shown ([`Evaluator::eval_region`]), and sent as [`WorkerMsg::Region`] before the
     /// whole graph is evaluated.
     pub view: Option<ViewRequest>,
+    /// The preview's display settings: the worker renders the viewport with them, so that it
+    /// goes on screen in the frame it arrives.
+    pub settings: Option<PreviewSettings>,
 }
 
 /// The output the preview shows, and how.
@@ -86,6 +89,9 @@ pub struct RegionOutcome {
     pub value: Value,
     /// The content key of the whole output (as [`PortValue::key`]).
     pub key: CacheKey,
+    /// The viewport rendered under [`EvalRequest::settings`] (not in the height view, which
+    /// needs the whole image).
+    pub picture: Option<(egui::ColorImage, PreviewSettings)>,
     /// Tiles computed (not taken from the cache or the previous result).
     pub tiles_computed: usize,
     /// Wall time of the region evaluation.
@@ -385,7 +391,13 @@ pub fn evaluate_view(
         }
     };
     sizes.insert(id, r.full_size);
+    let picture = req
+        .settings
+        .as_ref()
+        .filter(|s| !(matches!(r.value, Value::Rgbn(_)) && s.view == super::preview::Mode::Height))
+        .and_then(|s| Some((super::preview::color_image(&r.value, s)?, s.clone())));
     Some(RegionOutcome {
+        picture,
         generation: req.generation,
         node: v.node,
         port: v.port.clone(),
@@ -581,9 +593,9 @@ fn collect(out: &mut EvalOutcome, r: &crate::eval::EvalResult, plan: &Plan) {
             continue;
         };
         let key = match plan.outputs.get(name) {
-            Some(crate::eval::Conn::Slot(i, p)) => key_of
-                .get(i)
-                .map_or(0, |k| crate::eval::port_key(*k, *p)),
+            Some(crate::eval::Conn::Slot(i, p)) => {
+                key_of.get(i).map_or(0, |k| crate::eval::port_key(*k, *p))
+            }
             _ => 0,
         };
         out.values.insert(
@@ -724,6 +736,7 @@ mod tests {
             base_dir: PathBuf::from("."),
             cancel: Arc::new(AtomicBool::new(false)),
             view: None,
+            settings: None,
         }
     }
 
@@ -861,9 +874,15 @@ mod tests {
         assert_eq!((r.node, r.level, r.full_size), (3, 0, (200, 200)));
         // Columns 110..200 and rows 100..180, grown to 64-pixel tiles: 64..200 × 64..192.
         assert_eq!(r.rect, Rect::new(64, 64, 136, 128));
-        assert_eq!(Some((r.rect, 0)), spec.visible((200, 200), INTERACTIVE_TILE));
+        assert_eq!(
+            Some((r.rect, 0)),
+            spec.visible((200, 200), INTERACTIVE_TILE)
+        );
         let whole = &done.values[&(3, "image".to_string())];
-        assert_eq!(r.key, whole.key, "the viewport is of the value evaluated whole");
+        assert_eq!(
+            r.key, whole.key,
+            "the viewport is of the value evaluated whole"
+        );
         let (Value::Rgbn(part), Value::Rgbn(all)) = (&r.value, &whole.value) else {
             panic!("RGBN values");
         };
@@ -881,6 +900,9 @@ mod tests {
         // The demo's edge filter is a recursive Gaussian (σ 6) cut at 4σ in tiles: its tail's
         // mass (< 3.5e-4 per pass, `raster::convolve::gaussian_support`) bounds the difference
         // (tests/it/region.rs, 2e-3); everything else is the same arithmetic.
-        assert!(worst <= 2e-3, "viewport differs from the whole output by {worst}");
+        assert!(
+            worst <= 2e-3,
+            "viewport differs from the whole output by {worst}"
+        );
     }
 }

@@ -520,7 +520,10 @@ fn after_pan_and_zoom_an_edit_shows_the_viewport_first_then_the_whole_output() {
             "the picture on screen is that viewport"
         );
         if level == 0 {
-            assert!(rect.w < 300 || rect.h < 300, "zoomed in: only part of the image");
+            assert!(
+                rect.w < 300 || rect.h < 300,
+                "zoomed in: only part of the image"
+            );
         }
         // The same pixels as `rgbn eval --region … --level …` on the graph as it now is.
         let mut g = app.session.doc.graph.clone();
@@ -566,7 +569,10 @@ fn after_pan_and_zoom_an_edit_shows_the_viewport_first_then_the_whole_output() {
         // viewport.
         settle(&mut h);
         let app = h.state();
-        assert_eq!(app.runtime.outcome.values[&(3, "image".into())].key, region.key);
+        assert_eq!(
+            app.runtime.outcome.values[&(3, "image".into())].key,
+            region.key
+        );
         assert!(app.preview.overlay_request().is_none(), "zoom {zoom}");
         assert!(app.preview.region().is_none());
     }

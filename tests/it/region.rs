@@ -723,11 +723,12 @@ fn a_region_reads_upstream_values_already_evaluated_whole_instead_of_tiling_them
     // Same pixels as the cold tiling (the sharpen's Gaussian is a FIR at σ 2: exact up to the
     // order of float operations), and the whole input is that input.
     assert!(max_diff(&cold.value, &r.value) <= 2e-6);
-    let sharp = ev
-        .eval_region(&plan, "sharp", rect, &ropts, &opts)
-        .unwrap();
+    let sharp = ev.eval_region(&plan, "sharp", rect, &ropts, &opts).unwrap();
     assert!(sharp.tiles.is_empty(), "a cached whole output is cropped");
-    assert_eq!(max_diff(&crop(&whole.outputs["sharp"], rect), &sharp.value), 0.0);
+    assert_eq!(
+        max_diff(&crop(&whole.outputs["sharp"], rect), &sharp.value),
+        0.0
+    );
 }
 
 #[test]
@@ -800,7 +801,12 @@ fn edits_at_a_coarse_level_patch_only_their_damage_and_equal_a_cold_evaluation()
                 let g = 40.0;
                 let sf = s as f64;
                 let bound = tiles_touching(
-                    [(b0[0] - g) / sf, (b0[1] - g) / sf, (b1[0] + g) / sf, (b1[1] + g) / sf],
+                    [
+                        (b0[0] - g) / sf,
+                        (b0[1] - g) / sf,
+                        (b1[0] + g) / sf,
+                        (b1[1] + g) / sf,
+                    ],
                     32,
                     lsize,
                 );
