@@ -20,8 +20,8 @@
 //! - `tile/…`: whole-image work through tiles by tile side, against the whole-image evaluator
 //!   (the measurement behind `DEFAULT_TILE` and `INTERACTIVE_TILE`).
 //!
-//! The edits use tiles of `INTERACTIVE_TILE` (64) pixels, the side meant for interactive work
-//! (the editor itself does not evaluate by regions yet).
+//! The edits use tiles of `INTERACTIVE_TILE` (64) pixels, the side the editor's viewports use
+//! (`benches/editor.rs`, `viewport/…`, measures the editor's own path).
 //!
 //! Run: `cargo bench --no-default-features --bench edit` (set `RAYON_NUM_THREADS=2` to match
 //! the other benches).

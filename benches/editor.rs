@@ -7,12 +7,32 @@
 //! Zoomed out (fit to the panel), the preview renders every `⌊1/zoom⌋`-th pixel; the
 //! `_stride2/3` cases measure that path.
 //!
+//! The viewport path (what the editor's worker does per edit, and its preview per light move
+//! on an image too large to evaluate whole):
+//!
+//! - `viewport/pen_segment_4k`: the demo graph at 4096² with a pen after `detail`, viewed at
+//!   1:1 in a 1920×1080 panel centred on the path's end, the pen's input evaluated whole (as
+//!   the editor does once edits pause). Each iteration appends a 10 px segment and runs
+//!   `worker::evaluate_view`: planning the graph, the viewport's tiles, and its relit picture
+//!   (the egui image uploaded as the overlay texture).
+//! - `viewport/relight_fit_16k`: the demo graph at 16384² fitted into a 1600×1000 panel: the
+//!   viewport is level 4 (1024²); each iteration relights it for a new light direction, as the
+//!   preview's viewport renderer does while the light is dragged.
+//!
 //! `RAYON_NUM_THREADS=2 cargo bench --bench editor`
 
 use criterion::{criterion_group, criterion_main, Criterion};
-use rgbn::app::preview::{color_image, preview_level, Mode, PreviewSettings};
+use rgbn::app::preview::{color_image, preview_level, Mode, PreviewSettings, ViewSpec};
+use rgbn::app::state::Document;
+use rgbn::app::worker::{evaluate, evaluate_view, EvalRequest, Sizes, ViewRequest};
+use rgbn::eval::Evaluator;
+use rgbn::ops::params::ParamValue;
 use rgbn::ops::Value;
 use std::hint::black_box;
+use std::path::PathBuf;
+use std::sync::atomic::AtomicBool;
+use std::sync::Arc;
+use std::time::{Duration, Instant};
 
 fn bench(c: &mut Criterion) {
     let img = Value::Rgbn(rgbn::raster::sample::demo_medallion(2048));
@@ -53,5 +73,109 @@ fn bench(c: &mut Criterion) {
     g.finish();
 }
 
-criterion_group!(benches, bench);
+/// A 500 px path of 10 px segments from `start`, a gentle arc.
+fn base_path(start: [f64; 2]) -> Vec<[f64; 2]> {
+    let mut p = vec![start];
+    for k in 0..50 {
+        let a = 0.02 * k as f64;
+        let last = p[p.len() - 1];
+        p.push([last[0] + 10.0 * a.cos(), last[1] + 10.0 * a.sin()]);
+    }
+    p
+}
+
+fn demo_of(size: i64) -> Document {
+    let mut d = Document::demo();
+    d.set_param(1, "size", ParamValue::Int(size));
+    d
+}
+
+fn request(d: &Document, generation: u64, view: ViewRequest) -> EvalRequest {
+    EvalRequest {
+        generation,
+        graph: d.graph.clone(),
+        base_dir: PathBuf::from("."),
+        cancel: Arc::new(AtomicBool::new(false)),
+        view: Some(view),
+        settings: Some(PreviewSettings::default()),
+    }
+}
+
+fn viewport(c: &mut Criterion) {
+    let n = 4096.0;
+    let mut d = demo_of(4096);
+    let pen = d.add_node("pen", [0.0, 0.0]);
+    d.connect(3, "image", pen, "image").expect("connect");
+    for (k, v) in [("width_px", 20.0), ("taper_px", 16.0), ("height_px", 2.0)] {
+        d.set_param(pen, k, ParamValue::Float(v));
+    }
+    let base = base_path([1500.0, 1700.0]);
+    let end = base[base.len() - 1];
+    let view = ViewRequest {
+        node: pen,
+        port: "image".into(),
+        spec: ViewSpec {
+            panel: [1920.0, 1080.0],
+            zoom: Some(1.0),
+            pan: [(0.5 * n - end[0]) as f32, (0.5 * n - end[1]) as f32],
+        },
+    };
+    let ev = Evaluator::new(8 << 30);
+    let mut sizes = Sizes::new();
+    d.set_param(pen, "points", ParamValue::Points(base.clone()));
+    // The editor's whole evaluation, once edits paused.
+    let _ = evaluate(&ev, &request(&d, 0, view.clone()), None);
+    let mut generation = 1;
+    c.bench_function("viewport/pen_segment_4k", |b| {
+        b.iter_custom(|iters| {
+            let mut total = Duration::ZERO;
+            let mut path = base.clone();
+            for i in 0..iters {
+                if i % 20 == 19 {
+                    path = base.clone();
+                    d.set_param(pen, "points", ParamValue::Points(path.clone()));
+                    let _ = evaluate_view(&ev, &request(&d, generation, view.clone()), &mut sizes);
+                    generation += 1;
+                }
+                let last = path[path.len() - 1];
+                let a = 0.3 * (i % 7) as f64;
+                path.push([last[0] + 10.0 * a.cos(), last[1] + 10.0 * a.sin()]);
+                let t0 = Instant::now();
+                d.set_param(pen, "points", ParamValue::Points(path.clone()));
+                let r = evaluate_view(&ev, &request(&d, generation, view.clone()), &mut sizes)
+                    .expect("viewport");
+                total += t0.elapsed();
+                assert!(r.picture.is_some() && r.level == 0);
+                black_box(r);
+                generation += 1;
+            }
+            total
+        })
+    });
+
+    let big = demo_of(16384);
+    let fit = ViewRequest {
+        node: 3,
+        port: "image".into(),
+        spec: ViewSpec {
+            panel: [1600.0, 1000.0],
+            zoom: None,
+            pan: [0.0, 0.0],
+        },
+    };
+    let r = evaluate_view(&ev, &request(&big, 0, fit), &mut sizes).expect("viewport");
+    assert_eq!((r.level, r.rect.w, r.rect.h), (4, 1024, 1024));
+    let mut s = PreviewSettings::default();
+    let mut k = 0u32;
+    c.bench_function("viewport/relight_fit_16k", |b| {
+        b.iter(|| {
+            k = k.wrapping_add(1);
+            let a = f32::from((k % 64) as u16) / 64.0 * std::f32::consts::TAU;
+            s.light = [0.5 * a.cos(), 0.5 * a.sin(), 0.75f32.sqrt()];
+            black_box(color_image(&r.value, &s).expect("relit"))
+        })
+    });
+}
+
+criterion_group!(benches, bench, viewport);
 criterion_main!(benches);

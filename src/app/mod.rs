@@ -474,8 +474,13 @@ impl EditorApp {
             let (n, sum, max) = self.runtime.eval_frames;
             self.runtime.eval_frames = (n + 1, sum + ms, max.max(ms));
         }
+        // Only when it changes: a viewport command asks for another frame, so sending it every
+        // frame kept the editor repainting (and two cores busy) while idle.
         let title = format!("rgbn — {}", self.session.doc.title());
-        ctx.send_viewport_cmd(egui::ViewportCommand::Title(title));
+        if self.runtime.title.as_ref() != Some(&title) {
+            ctx.send_viewport_cmd(egui::ViewportCommand::Title(title.clone()));
+            self.runtime.title = Some(title);
+        }
     }
 
     fn status_ui(&mut self, ui: &mut egui::Ui) {

@@ -48,6 +48,8 @@ pub struct Runtime {
     pub(super) eval_frames: (u32, f64, f64),
     /// Quit confirmed: the next close request is not intercepted.
     pub(super) allow_close: bool,
+    /// The window title last sent.
+    pub(super) title: Option<String>,
 }
 
 impl Runtime {
@@ -79,6 +81,7 @@ impl Runtime {
             frame_ms: 0.0,
             eval_frames: (0, 0.0, 0.0),
             allow_close: false,
+            title: None,
         }
     }
 }
@@ -112,8 +115,15 @@ impl EditorApp {
                         && viewed == Some(&(r.node, r.port.clone()))
                     {
                         if self.prefs.timing {
+                            let after_edit =
+                                self.tools.newest_sent_edit().map_or_else(String::new, |t| {
+                                    format!(
+                                        "; ready {:.1} ms after the newest edit",
+                                        r.ready.saturating_duration_since(t).as_secs_f64() * 1e3
+                                    )
+                                });
                             eprintln!(
-                                "rgbn editor: viewport {}×{} at level {} of {}×{} evaluated in {:.1} ms ({} tiles computed)",
+                                "rgbn editor: viewport {}×{} at level {} of {}×{} evaluated and relit in {:.1} ms ({} tiles computed){after_edit}",
                                 r.rect.w,
                                 r.rect.h,
                                 r.level,

@@ -292,7 +292,15 @@ impl Tools {
 
     /// Called when an evaluation request is sent: it carries the tool edits made so far.
     pub fn request_sent(&mut self) {
-        self.sent = self.unsent.take();
+        if let Some(u) = self.unsent.take() {
+            self.sent = Some(u);
+        }
+    }
+
+    /// When the newest tool edit of the last request was made (timing).
+    #[must_use]
+    pub fn newest_sent_edit(&self) -> Option<Instant> {
+        self.sent.map(|s| s.1)
     }
 
     /// Called after the preview texture was re-rendered from a new evaluation. Returns (and

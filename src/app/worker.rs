@@ -94,8 +94,10 @@ pub struct RegionOutcome {
     pub picture: Option<(egui::ColorImage, PreviewSettings)>,
     /// Tiles computed (not taken from the cache or the previous result).
     pub tiles_computed: usize,
-    /// Wall time of the region evaluation.
+    /// Wall time of the region evaluation (and rendering).
     pub elapsed: Duration,
+    /// When it was done.
+    pub ready: Instant,
 }
 
 /// One node's output.
@@ -315,7 +317,7 @@ fn cache_budget() -> usize {
 }
 
 /// Full-resolution sizes of outputs seen, by (node, port).
-type Sizes = BTreeMap<(NodeId, String), (usize, usize)>;
+pub type Sizes = BTreeMap<(NodeId, String), (usize, usize)>;
 
 /// The graph without its side-effect nodes, with one output: "ID:PORT" of the view.
 fn view_plan(req: &EvalRequest, v: &ViewRequest) -> Result<(Plan, String), GraphError> {
@@ -408,6 +410,7 @@ pub fn evaluate_view(
         key: r.key,
         value: r.value,
         elapsed: t0.elapsed(),
+        ready: Instant::now(),
     })
 }
 

@@ -577,3 +577,15 @@ fn after_pan_and_zoom_an_edit_shows_the_viewport_first_then_the_whole_output() {
         assert!(app.preview.region().is_none());
     }
 }
+
+#[test]
+fn an_idle_editor_asks_for_no_more_frames() {
+    let mut h = harness(small_demo());
+    settle(&mut h);
+    h.run_steps(10);
+    h.step();
+    assert!(
+        !h.ctx.requested_repaint_last_pass(),
+        "with nothing evaluating and no input, a frame asked for another one"
+    );
+}
