@@ -497,6 +497,8 @@ impl EditorApp {
                     self.cancel();
                 }
                 ui.ctx().request_repaint_after(Duration::from_millis(100));
+            } else if self.runtime.outcome.viewport_only {
+                ui.label("viewport evaluated");
             } else {
                 ui.label(format!(
                     "evaluated in {:.0} ms ({} computed)",
@@ -719,6 +721,10 @@ impl EditorApp {
             (None, Some((id, _))) => match self.runtime.outcome.node_errors.get(id) {
                 Some(e) => format!("error: {e}"),
                 None if self.runtime.in_flight.is_some() => "evaluating…".into(),
+                None if self.runtime.outcome.viewport_only => format!(
+                    "viewport only: the output is larger than the editor evaluates whole ({} Mpx); pan and zoom evaluate what is shown, rgbn eval computes all of it",
+                    worker::WHOLE_PIXELS >> 20
+                ),
                 None => "no value (a save node, or an output that cannot be shown)".into(),
             },
             (Some(_), _) => readout
