@@ -363,8 +363,20 @@ pub fn evaluate_view(
     };
     // A size remembered from an earlier evaluation may be stale (a parameter changed it): then
     // the result says the size, and the view is evaluated again.
-    let mut full = match sizes.get(&id) {
-        Some(z) => *z,
+    // Unknown (a node just added): most operators keep their input's size, so an input's
+    // size seen before is the first guess; the result corrects it. Only without one is the
+    // output evaluated at the coarsest level to learn it (operators without a coarse form are
+    // then computed whole, which can take long).
+    let guess = || {
+        req.graph.nodes.get(&v.node).and_then(|n| {
+            n.inputs.values().find_map(|s| match s {
+                Source::Node(src, port) => sizes.get(&(*src, port.clone())).copied(),
+                _ => None,
+            })
+        })
+    };
+    let mut full = match sizes.get(&id).copied().or_else(guess) {
+        Some(z) => z,
         None => {
             ev.eval_region(&plan, &name, Rect::new(0, 0, 1, 1), &probe, &opts)
                 .ok()?
