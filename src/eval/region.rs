@@ -588,7 +588,7 @@ impl Evaluator {
                 let trail = match hist.seen.get(&ident) {
                     Some(old) if old.key == key => old.trail.clone(),
                     Some(old) if old.inputs.len() == input_keys.len() => {
-                        let d = self.damage_of(plan, &lp, i, old, &input_keys, &trails, &lsize);
+                        let d = damage_of(plan, &lp, i, old, &input_keys, &trails, &lsize);
                         let mut t = old.trail.clone();
                         t.push((old.key, d));
                         let cut = t.len().saturating_sub(TRAIL);
@@ -870,51 +870,6 @@ impl Evaluator {
         })
     }
 
-    /// The pixels instance `i` may have changed since `old`, given its inputs' keys now and the
-    /// changes found for the instances before it (`None`: anywhere).
-    fn damage_of(
-        &self,
-        plan: &Plan,
-        lp: &LevelParams,
-        i: usize,
-        old: &Seen,
-        input_keys: &[Option<CacheKey>],
-        trails: &[Trail],
-        size: &[Option<(usize, usize)>],
-    ) -> Option<Vec<Rect>> {
-        let inst = &plan.instances[i];
-        let params = lp[i].as_ref()?;
-        let sz = size[i]?;
-        let mut out = Vec::new();
-        for (k, c) in inst.inputs.iter().enumerate() {
-            if input_keys[k] == old.inputs[k] {
-                continue;
-            }
-            // A changed input: only a tiled one whose change is known from exactly the key
-            // seen last time, through a local footprint.
-            let Conn::Slot(j, port) = c else { return None };
-            let Footprint::Local { halo } = inst.op.footprint(params, k) else {
-                return None;
-            };
-            let from = old.inputs[k]? ^ (*port as u128);
-            let rects = damage_since(&trails[*j], from)?;
-            out.extend(rects.iter().map(|r| r.grow(halo, sz)));
-        }
-        if *params != old.params {
-            let sizes: Vec<Option<(usize, usize)>> = inst
-                .inputs
-                .iter()
-                .map(|c| match c {
-                    Conn::Slot(j, _) => size[*j],
-                    _ => None,
-                })
-                .collect();
-            let boxes = inst.op.damage(&old.params, params, &sizes)?;
-            out.extend(boxes_to_rects(&boxes, sz));
-        }
-        Some(out)
-    }
-
     fn mem_get(&self, key: CacheKey) -> Option<Arc<CacheEntry>> {
         super::lock(&self.mem).get(key)
     }
@@ -922,6 +877,50 @@ impl Evaluator {
     fn mem_insert(&self, key: CacheKey, e: Arc<CacheEntry>) {
         super::lock(&self.mem).insert(key, e);
     }
+}
+
+/// The pixels instance `i` may have changed since `old`, given its inputs' keys now and the
+/// changes found for the instances before it (`None`: anywhere).
+fn damage_of(
+    plan: &Plan,
+    lp: &LevelParams,
+    i: usize,
+    old: &Seen,
+    input_keys: &[Option<CacheKey>],
+    trails: &[Trail],
+    size: &[Option<(usize, usize)>],
+) -> Option<Vec<Rect>> {
+    let inst = &plan.instances[i];
+    let params = lp[i].as_ref()?;
+    let sz = size[i]?;
+    let mut out = Vec::new();
+    for (k, c) in inst.inputs.iter().enumerate() {
+        if input_keys[k] == old.inputs[k] {
+            continue;
+        }
+        // A changed input: only a tiled one whose change is known from exactly the key
+        // seen last time, through a local footprint.
+        let Conn::Slot(j, port) = c else { return None };
+        let Footprint::Local { halo } = inst.op.footprint(params, k) else {
+            return None;
+        };
+        let from = old.inputs[k]? ^ (*port as u128);
+        let rects = damage_since(&trails[*j], from)?;
+        out.extend(rects.iter().map(|r| r.grow(halo, sz)));
+    }
+    if *params != old.params {
+        let sizes: Vec<Option<(usize, usize)>> = inst
+            .inputs
+            .iter()
+            .map(|c| match c {
+                Conn::Slot(j, _) => size[*j],
+                _ => None,
+            })
+            .collect();
+        let boxes = inst.op.damage(&old.params, params, &sizes)?;
+        out.extend(boxes_to_rects(&boxes, sz));
+    }
+    Some(out)
 }
 
 /// Fills `dst`, the rectangle `r` with `c` values per pixel, from `parts` (each covering a
