@@ -182,6 +182,11 @@ impl EditorApp {
     pub fn send_if_changed(&mut self) {
         let want = eval_graph(&self.session.doc.graph);
         let view = self.view_request();
+        // The first request waits for the preview's first frame, which says what is on screen:
+        // then the viewport comes first instead of a whole evaluation that cannot be cut short.
+        if self.runtime.last_sent.is_none() && self.session.viewed.is_some() && view.is_none() {
+            return;
+        }
         let graph_changed = self.runtime.last_sent.as_ref() != Some(&want);
         // Panning or zooming asks for a new viewport only while the viewed output has no
         // whole value to show (it is being evaluated, or too large to evaluate whole).
