@@ -26,6 +26,9 @@
 //! Run: `cargo bench --no-default-features --bench edit` (set `RAYON_NUM_THREADS=2` to match
 //! the other benches).
 
+#[path = "support/mod.rs"]
+mod support;
+
 use criterion::{criterion_group, criterion_main, Criterion};
 use rgbn::eval::region::{crop, Rect, RegionOptions, DEFAULT_TILE, INTERACTIVE_TILE};
 use rgbn::eval::{EvalOptions, Evaluator, Plan};
@@ -34,6 +37,7 @@ use std::collections::BTreeMap;
 use std::hint::black_box;
 use std::path::Path;
 use std::time::{Duration, Instant};
+use support::base_path;
 
 const W: usize = 3840;
 const H: usize = 2160;
@@ -74,17 +78,6 @@ fn viewport(c: [f64; 2], (w, h): (usize, usize)) -> Rect {
     let x = (c[0] as usize).saturating_sub(VIEW.0 / 2).min(w - VIEW.0);
     let y = (c[1] as usize).saturating_sub(VIEW.1 / 2).min(h - VIEW.1);
     Rect::new(x, y, VIEW.0, VIEW.1)
-}
-
-/// A 500 px path of 10 px segments from `start`, a gentle arc.
-fn base_path(start: [f64; 2]) -> Vec<[f64; 2]> {
-    let mut p = vec![start];
-    for k in 0..50 {
-        let a = 0.02 * k as f64;
-        let last = p[p.len() - 1];
-        p.push([last[0] + 10.0 * a.cos(), last[1] + 10.0 * a.sin()]);
-    }
-    p
 }
 
 fn pen_segment(c: &mut Criterion) {

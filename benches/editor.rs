@@ -21,6 +21,9 @@
 //!
 //! `RAYON_NUM_THREADS=2 cargo bench --bench editor`
 
+#[path = "support/mod.rs"]
+mod support;
+
 use criterion::{criterion_group, criterion_main, Criterion};
 use rgbn::app::preview::{color_image, preview_level, Mode, PreviewSettings, ViewSpec};
 use rgbn::app::state::Document;
@@ -33,6 +36,7 @@ use std::path::PathBuf;
 use std::sync::atomic::AtomicBool;
 use std::sync::Arc;
 use std::time::{Duration, Instant};
+use support::base_path;
 
 fn bench(c: &mut Criterion) {
     let img = Value::Rgbn(rgbn::raster::sample::demo_medallion(2048));
@@ -71,17 +75,6 @@ fn bench(c: &mut Criterion) {
         b.iter(|| black_box(color_image(&img, &s).expect("albedo")))
     });
     g.finish();
-}
-
-/// A 500 px path of 10 px segments from `start`, a gentle arc.
-fn base_path(start: [f64; 2]) -> Vec<[f64; 2]> {
-    let mut p = vec![start];
-    for k in 0..50 {
-        let a = 0.02 * k as f64;
-        let last = p[p.len() - 1];
-        p.push([last[0] + 10.0 * a.cos(), last[1] + 10.0 * a.sin()]);
-    }
-    p
 }
 
 fn demo_of(size: i64) -> Document {
