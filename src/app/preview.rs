@@ -482,6 +482,16 @@ pub struct RegionShown {
     pub value: Value,
 }
 
+impl RegionShown {
+    /// The viewport pixel covering full-resolution pixel `(x, y)`, if it is in the viewport.
+    #[must_use]
+    pub fn pixel_of(&self, x: usize, y: usize) -> Option<(usize, usize)> {
+        let (lx, ly) = (x >> self.level, y >> self.level);
+        let r = self.rect;
+        (lx >= r.x && lx < r.right() && ly >= r.y && ly < r.bottom()).then(|| (lx - r.x, ly - r.y))
+    }
+}
+
 /// A viewport's picture on screen.
 struct Overlay {
     texture: TextureHandle,
@@ -996,7 +1006,26 @@ impl Preview {
                 egui::StrokeKind::Inside,
             );
         }
-        let (v, key) = value?;
+        let Some((v, key)) = value else {
+            // Shown by its viewport only: read the viewport's pixel.
+            let r = self.region.as_ref()?;
+            let Value::Rgbn(img) = &r.value else {
+                return None;
+            };
+            let (px, py) = r.pixel_of(x, row)?;
+            let (c, n) = (img.color_at(px, py), img.normal_at(px, py));
+            return Some(format!(
+                "({x}, {row}) at level {} (1:{})  colour {:.3} {:.3} {:.3}  normal {:+.3} {:+.3} {:+.3}",
+                r.level,
+                1u64 << r.level,
+                c[0],
+                c[1],
+                c[2],
+                n[0],
+                n[1],
+                n[2]
+            ));
+        };
         Some(match v {
             Value::Rgbn(img) => {
                 let c = img.color_at(x, row);
@@ -1186,6 +1215,26 @@ mod tests {
                 assert!(fast.pixels == want.pixels, "{view:?}");
             }
         }
+    }
+
+    #[test]
+    fn a_viewport_pixel_covers_its_block_of_full_resolution_pixels() {
+        use crate::eval::region::Rect;
+        let r = RegionShown {
+            key: 1,
+            rect: Rect::new(10, 20, 5, 4),
+            level: 2,
+            full_size: (100, 120),
+            value: Value::Number(0.0),
+        };
+        // Level 2: level pixel (10, 20) covers full pixels 40..44 × 80..84.
+        assert_eq!(r.pixel_of(40, 80), Some((0, 0)));
+        assert_eq!(r.pixel_of(43, 83), Some((0, 0)));
+        assert_eq!(r.pixel_of(44, 84), Some((1, 1)));
+        assert_eq!(r.pixel_of(59, 95), Some((4, 3)));
+        assert_eq!(r.pixel_of(60, 95), None, "right of the viewport");
+        assert_eq!(r.pixel_of(39, 90), None, "left of it");
+        assert_eq!(r.pixel_of(50, 96), None, "below it");
     }
 
     #[test]
