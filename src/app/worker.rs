@@ -6,6 +6,13 @@
 //! whose validation or evaluation fails gets the error message, and it and its descendants are
 //! left out, while the rest of the graph still evaluates. Nodes with side effects (`save`) and
 //! their descendants are never evaluated automatically.
+//!
+//! Viewport first: a request carries what the preview shows ([`ViewRequest`]). The worker
+//! evaluates that rectangle of the viewed output, tile by tile at the level of detail shown
+//! ([`evaluate_view`]), renders it and sends it ([`WorkerMsg::Region`]); the whole graph is
+//! evaluated only once no newer request has come for [`SETTLE`], so a stroke or a slider drag
+//! costs the tiles it touches. A newer request also cancels the running one. An output larger
+//! than [`WHOLE_PIXELS`] is never evaluated whole here.
 
 // Graph errors carry their location by value; they are cold paths.
 #![allow(clippy::result_large_err)]
