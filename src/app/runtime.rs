@@ -29,8 +29,6 @@ pub struct Runtime {
     pub(super) last_sent: Option<Graph>,
     /// The view of the last request.
     pub(super) last_view: Option<ViewRequest>,
-    /// Viewports shown ahead of whole evaluations (tests).
-    pub viewports: u64,
     /// Progress of the running evaluation (done, total).
     pub progress: Option<(usize, usize)>,
     /// The latest accepted evaluation.
@@ -69,7 +67,6 @@ impl Runtime {
             in_flight: None,
             last_sent: None,
             last_view: None,
-            viewports: 0,
             progress: None,
             outcome: EvalOutcome::default(),
             thumbs: BTreeMap::new(),
@@ -133,7 +130,6 @@ impl EditorApp {
                                 r.tiles_computed
                             );
                         }
-                        self.runtime.viewports += 1;
                         let r = *r;
                         self.preview.set_region(
                             ctx,
