@@ -329,9 +329,15 @@ impl Deriche {
 impl LineFilter for Deriche {
     fn run(&self, line: &mut [Lane], scratch: &mut Vec<Lane>, border: BorderMode) {
         #[cfg(target_arch = "x86_64")]
-        if std::arch::is_x86_feature_detected!("avx2") {
-            // SAFETY: `run_avx2` only requires AVX2, whose presence was just checked.
-            return unsafe { self.run_avx2(line, scratch, border) };
+        {
+            if std::arch::is_x86_feature_detected!("avx512f") {
+                // SAFETY: `run_avx512` only requires AVX-512F, whose presence was just checked.
+                return unsafe { self.run_avx512(line, scratch, border) };
+            }
+            if std::arch::is_x86_feature_detected!("avx2") {
+                // SAFETY: `run_avx2` only requires AVX2, whose presence was just checked.
+                return unsafe { self.run_avx2(line, scratch, border) };
+            }
         }
         self.run_portable(line, scratch, border);
     }
@@ -341,10 +347,18 @@ impl Deriche {
     /// [`Self::run_portable`] compiled with 256-bit AVX2 vectors: the recursion is
     /// compute-bound and the baseline x86-64 target only has 128-bit SSE2. FMA is *not*
     /// enabled (and Rust never contracts `a*b+c` by itself), so results are bit-identical to
-    /// the portable path (`tests::avx2_path_is_bit_identical`).
+    /// the portable path (`tests::avx2_and_avx512_paths_are_bit_identical`).
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2")]
     fn run_avx2(&self, line: &mut [Lane], scratch: &mut Vec<Lane>, border: BorderMode) {
+        self.run_portable(line, scratch, border);
+    }
+
+    /// [`Self::run_portable`] with 512-bit vectors: a [`Lane`] is one register, half the
+    /// instructions of the AVX2 twin. No FMA either, so bit-identical.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx512f")]
+    fn run_avx512(&self, line: &mut [Lane], scratch: &mut Vec<Lane>, border: BorderMode) {
         self.run_portable(line, scratch, border);
     }
 
@@ -934,7 +948,7 @@ mod tests {
 
     #[cfg(target_arch = "x86_64")]
     #[test]
-    fn avx2_path_is_bit_identical() {
+    fn avx2_and_avx512_paths_are_bit_identical() {
         if !std::arch::is_x86_feature_detected!("avx2") {
             return;
         }
@@ -949,11 +963,19 @@ mod tests {
                 // SAFETY: AVX2 presence checked above.
                 unsafe { d.run_avx2(&mut a, &mut Vec::new(), border) };
                 d.run_portable(&mut b, &mut Vec::new(), border);
-                assert!(a
-                    .iter()
-                    .flatten()
-                    .zip(b.iter().flatten())
-                    .all(|(p, q)| p.to_bits() == q.to_bits()));
+                let same = |a: &[Lane], b: &[Lane]| {
+                    a.iter()
+                        .flatten()
+                        .zip(b.iter().flatten())
+                        .all(|(p, q)| p.to_bits() == q.to_bits())
+                };
+                assert!(same(&a, &b));
+                if std::arch::is_x86_feature_detected!("avx512f") {
+                    let mut c: Vec<Lane> = x.iter().map(|&v| lane_splat(v)).collect();
+                    // SAFETY: AVX-512F presence just checked.
+                    unsafe { d.run_avx512(&mut c, &mut Vec::new(), border) };
+                    assert!(same(&c, &b));
+                }
             }
         }
     }

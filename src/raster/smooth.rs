@@ -8,10 +8,11 @@
 //! 1. **Row sweep** (bands of [`LANES`] rows): each row's `(p, q)` is computed from the normals
 //!    (same [`gradient_of_normal`] and `n_z` clamp), its curl sums (averaged model) are taken
 //!    with the previous row's `p`, `q` (one extra row per band is recomputed), then the band
-//!    is filtered along x. The filtered `p`, `q` are parked in the output `n_x`, `n_y` planes (no gradient planes
-//!    are allocated).
-//! 2. **Column sweep** (groups of [`LANES`] columns): `p`, `q` are filtered along y, the curl
-//!    sums of the filtered field are taken from the lane buffers, and [`normal_of_gradient`] is
+//!    is filtered along x. The filtered `p`, `q` are parked in the output `n_x`, `n_y` planes
+//!    (no gradient planes are allocated).
+//! 2. **Column sweep** (groups of [`LANES`] columns, [`TASK_GROUPS`] neighbouring groups a
+//!    task, so each row is read and written a few cache lines at a time): `p`, `q` are filtered
+//!    along y, the curl sums of the filtered field are taken from the lane buffers, and [`normal_of_gradient`] is
 //!    written straight into the three output planes. The plaquettes at a group's last column
 //!    need the next group's first column: each group hands over its first and last columns'
 //!    filtered `p`, `q`, and those `height` plaquettes per group are summed afterwards.
@@ -44,6 +45,10 @@ pub struct SmoothedNormals {
     /// Curl sums of the filtered gradient field.
     pub curl_after: CurlSums,
 }
+
+/// Column groups of [`LANES`] one column-sweep task takes: 4 × 16 floats = 256 contiguous
+/// bytes per row and plane.
+const TASK_GROUPS: usize = 4;
 
 /// Rows of one column summed in `f32` before going to `f64`.
 const F32_RUN: usize = 64;
@@ -102,8 +107,8 @@ struct RowScratch {
 /// Per-thread buffers of the column sweep.
 #[derive(Default)]
 struct ColumnScratch {
-    p: Vec<Lane>,
-    q: Vec<Lane>,
+    p: Vec<Vec<Lane>>,
+    q: Vec<Vec<Lane>>,
     filter: Vec<Lane>,
 }
 
@@ -153,9 +158,15 @@ impl<F: LineFilter> Sweep<'_, F> {
         qb: &mut [f32],
     ) -> (usize, CurlSums) {
         #[cfg(target_arch = "x86_64")]
-        if std::arch::is_x86_feature_detected!("avx2") {
-            // SAFETY: `band_avx2` only requires AVX2, whose presence was just checked.
-            return unsafe { self.band_avx2(s, r0, pb, qb) };
+        {
+            if std::arch::is_x86_feature_detected!("avx512f") {
+                // SAFETY: `band_avx512` only requires AVX-512F, whose presence was just checked.
+                return unsafe { self.band_avx512(s, r0, pb, qb) };
+            }
+            if std::arch::is_x86_feature_detected!("avx2") {
+                // SAFETY: `band_avx2` only requires AVX2, whose presence was just checked.
+                return unsafe { self.band_avx2(s, r0, pb, qb) };
+            }
         }
         self.band_portable(s, r0, pb, qb)
     }
@@ -165,6 +176,19 @@ impl<F: LineFilter> Sweep<'_, F> {
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2")]
     fn band_avx2(
+        &self,
+        s: &mut RowScratch,
+        r0: usize,
+        pb: &mut [f32],
+        qb: &mut [f32],
+    ) -> (usize, CurlSums) {
+        self.band_portable(s, r0, pb, qb)
+    }
+
+    /// [`Self::band_portable`] compiled for AVX-512F (one [`Lane`] per register, no FMA).
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx512f")]
+    fn band_avx512(
         &self,
         s: &mut RowScratch,
         r0: usize,
@@ -222,94 +246,137 @@ impl<F: LineFilter> Sweep<'_, F> {
         (clamped, sums)
     }
 
-    /// One column group `g` of the column sweep: reads the row-filtered `p`, `q` parked in the
-    /// output `n_x`, `n_y` planes at `out`, writes the normals there; returns the group's curl
-    /// sums and its [`Seam`]. Dispatches to the AVX2 twin.
+    /// One task of the column sweep: column groups `t·TASK_GROUPS ..` (at most
+    /// [`TASK_GROUPS`], each [`LANES`] columns). Reads the row-filtered `p`, `q` parked in the
+    /// output `n_x`, `n_y` planes at `out`, writes the normals there; returns each group's curl
+    /// sums and [`Seam`]. Dispatches to the widest vector twin.
     ///
     /// # Safety
     /// `out` must point to the three output planes (`w × h` each); no other task may touch
-    /// columns `g·LANES ..` `(g+1)·LANES` of them.
-    unsafe fn group(
+    /// the task's columns of them.
+    unsafe fn task(
         &self,
         s: &mut ColumnScratch,
-        g: usize,
+        t: usize,
         out: [SharedMut<f32>; 3],
-    ) -> (CurlSums, Vec<Seam>) {
+    ) -> Vec<(CurlSums, Vec<Seam>)> {
         #[cfg(target_arch = "x86_64")]
-        if std::arch::is_x86_feature_detected!("avx2") {
-            // SAFETY: AVX2 presence was just checked; the rest is the caller's contract.
-            return unsafe { self.group_avx2(s, g, out) };
+        {
+            if std::arch::is_x86_feature_detected!("avx512f") {
+                // SAFETY: AVX-512F presence was just checked; the rest is the caller's contract.
+                return unsafe { self.task_avx512(s, t, out) };
+            }
+            if std::arch::is_x86_feature_detected!("avx2") {
+                // SAFETY: AVX2 presence was just checked; the rest is the caller's contract.
+                return unsafe { self.task_avx2(s, t, out) };
+            }
         }
         // SAFETY: the caller's contract.
-        unsafe { self.group_portable(s, g, out) }
+        unsafe { self.task_portable(s, t, out) }
     }
 
-    /// [`Self::group_portable`] compiled for AVX2 (no FMA: bit-identical results).
+    /// [`Self::task_portable`] compiled for AVX2 (no FMA: bit-identical results).
     ///
     /// # Safety
-    /// As [`Self::group`], and AVX2 must be available.
+    /// As [`Self::task`], and AVX2 must be available.
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2")]
-    unsafe fn group_avx2(
+    unsafe fn task_avx2(
         &self,
         s: &mut ColumnScratch,
-        g: usize,
+        t: usize,
         out: [SharedMut<f32>; 3],
-    ) -> (CurlSums, Vec<Seam>) {
+    ) -> Vec<(CurlSums, Vec<Seam>)> {
         // SAFETY: the caller's contract.
-        unsafe { self.group_portable(s, g, out) }
+        unsafe { self.task_portable(s, t, out) }
+    }
+
+    /// [`Self::task_portable`] compiled for AVX-512F: a [`Lane`] is one register (no FMA:
+    /// bit-identical results).
+    ///
+    /// # Safety
+    /// As [`Self::task`], and AVX-512F must be available.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx512f")]
+    unsafe fn task_avx512(
+        &self,
+        s: &mut ColumnScratch,
+        t: usize,
+        out: [SharedMut<f32>; 3],
+    ) -> Vec<(CurlSums, Vec<Seam>)> {
+        // SAFETY: the caller's contract.
+        unsafe { self.task_portable(s, t, out) }
     }
 
     /// # Safety
-    /// As [`Self::group`].
+    /// As [`Self::task`].
     #[inline(always)]
-    unsafe fn group_portable(
+    unsafe fn task_portable(
         &self,
         s: &mut ColumnScratch,
-        g: usize,
+        t: usize,
         out: [SharedMut<f32>; 3],
-    ) -> (CurlSums, Vec<Seam>) {
+    ) -> Vec<(CurlSums, Vec<Seam>)> {
         let (w, h) = (self.w, self.h);
-        let c0 = g * LANES;
-        let cols = LANES.min(w - c0);
+        let g0 = t * TASK_GROUPS;
+        let k = TASK_GROUPS.min(w.div_ceil(LANES) - g0);
+        let c0 = g0 * LANES;
+        let span = (k * LANES).min(w - c0);
+        // The task's columns row by row: `span` contiguous floats per row and plane, so each
+        // row is read and written as a few neighbouring cache lines instead of one.
         for (buf, src) in [(&mut s.p, out[0]), (&mut s.q, out[1])] {
-            buf.clear();
-            buf.resize(h, lane_splat(0.0));
-            for (r, lane) in buf.iter_mut().enumerate() {
-                // SAFETY: columns c0..c0+cols of row r lie inside the plane and belong to this
-                // task alone (the caller's contract).
-                *lane = unsafe { load_lane(src.get().add(r * w + c0), cols) };
+            buf.resize_with(k, Vec::new);
+            for b in buf.iter_mut() {
+                b.clear();
+                b.resize(h, lane_splat(0.0));
+            }
+            for r in 0..h {
+                for (j, b) in buf.iter_mut().enumerate() {
+                    let cols = LANES.min(span - j * LANES);
+                    // SAFETY: columns of row r inside the plane that belong to this task alone
+                    // (the caller's contract).
+                    b[r] = unsafe { load_lane(src.get().add(r * w + c0 + j * LANES), cols) };
+                }
             }
         }
-        self.f.run(&mut s.p, &mut s.filter, self.border);
-        self.f.run(&mut s.q, &mut s.filter, self.border);
-        let (bp, bq) = (&s.p, &s.q);
-        let sums = group_curl(bp, bq, self.mask, w, c0, cols);
-        let last = cols - 1;
-        let seam: Vec<Seam> = (0..h)
-            .map(|r| Seam {
-                p_last: bp[r][last],
-                q_last: bq[r][last],
-                keep: r >= 1
-                    && self
-                        .mask
-                        .is_none_or(|m| c0 + last + 1 < w && plaquette_covered(m, w, r, c0 + last)),
-                p_first: bp[r][0],
-                q_first: bq[r][0],
-            })
-            .collect();
+        let mut result = Vec::with_capacity(k);
+        for j in 0..k {
+            let (bp, bq) = (&mut s.p[j], &mut s.q[j]);
+            self.f.run(bp, &mut s.filter, self.border);
+            self.f.run(bq, &mut s.filter, self.border);
+            let cg = c0 + j * LANES;
+            let cols = LANES.min(w - cg);
+            let sums = group_curl(bp, bq, self.mask, w, cg, cols);
+            let last = cols - 1;
+            let seam: Vec<Seam> = (0..h)
+                .map(|r| Seam {
+                    p_last: bp[r][last],
+                    q_last: bq[r][last],
+                    keep: r >= 1
+                        && self.mask.is_none_or(|m| {
+                            cg + last + 1 < w && plaquette_covered(m, w, r, cg + last)
+                        }),
+                    p_first: bp[r][0],
+                    q_first: bq[r][0],
+                })
+                .collect();
+            result.push((sums, seam));
+        }
         for r in 0..h {
-            let (p, q) = (&bp[r], &bq[r]);
-            let mut nrm = [lane_splat(0.0); 3];
-            for l in 0..LANES {
-                [nrm[0][l], nrm[1][l], nrm[2][l]] = normal_of_gradient(p[l], q[l]);
-            }
-            for (dst, lane) in out.iter().zip(&nrm) {
-                // SAFETY: as above; this task has already read these columns.
-                unsafe { store_lane(dst.get().add(r * w + c0), lane, cols) };
+            for j in 0..k {
+                let (p, q) = (&s.p[j][r], &s.q[j][r]);
+                let mut nrm = [lane_splat(0.0); 3];
+                for l in 0..LANES {
+                    [nrm[0][l], nrm[1][l], nrm[2][l]] = normal_of_gradient(p[l], q[l]);
+                }
+                let cols = LANES.min(span - j * LANES);
+                for (dst, lane) in out.iter().zip(&nrm) {
+                    // SAFETY: as above; this task has already read these columns.
+                    unsafe { store_lane(dst.get().add(r * w + c0 + j * LANES), lane, cols) };
+                }
             }
         }
-        (sums, seam)
+        result
     }
 }
 
@@ -331,15 +398,14 @@ fn row_sweep<F: LineFilter>(sw: &Sweep<'_, F>, out: &mut [Vec<f32>; 3]) -> (usiz
 
 /// Step 2 of the module docs; returns the curl sums after filtering.
 fn column_sweep<F: LineFilter>(sw: &Sweep<'_, F>, out: &mut [Vec<f32>; 3]) -> CurlSums {
-    let groups = sw.w.div_ceil(LANES);
+    let tasks = sw.w.div_ceil(LANES * TASK_GROUPS);
     let ptr = out.each_mut().map(|v| SharedMut(v.as_mut_ptr()));
-    let per_group: Vec<(CurlSums, Vec<Seam>)> = (0..groups)
+    let per_group: Vec<(CurlSums, Vec<Seam>)> = (0..tasks)
         .into_par_iter()
         // SAFETY: `ptr` are the three w×h output planes, borrowed mutably for this call;
-        // each group index is visited once, so each task owns its columns.
-        .map_init(ColumnScratch::default, |s, g| unsafe {
-            sw.group(s, g, ptr)
-        })
+        // each task index is visited once, so each task owns its columns.
+        .map_init(ColumnScratch::default, |s, t| unsafe { sw.task(s, t, ptr) })
+        .flatten_iter()
         .collect();
     // The plaquettes at each group's last column, with the next group's first column
     // (averaged edge values formed as `GradientField::edge_values` does).
