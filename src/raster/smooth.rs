@@ -12,8 +12,8 @@
 //!    (no gradient planes are allocated).
 //! 2. **Column sweep** (groups of [`LANES`] columns, [`TASK_GROUPS`] neighbouring groups a
 //!    task, so each row is read and written a few cache lines at a time): `p`, `q` are filtered
-//!    along y, the curl sums of the filtered field are taken from the lane buffers, and [`normal_of_gradient`] is
-//!    written straight into the three output planes. The plaquettes at a group's last column
+//!    along y, the curl sums of the filtered field are taken from the lane buffers, and
+//!    [`normal_of_gradient`] is written straight into the three output planes. The plaquettes at a group's last column
 //!    need the next group's first column: each group hands over its first and last columns'
 //!    filtered `p`, `q`, and those `height` plaquettes per group are summed afterwards.
 //!
