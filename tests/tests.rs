@@ -70,6 +70,9 @@ mod stamp_regions;
 #[path = "it/extract.rs"]
 mod extract;
 
+#[path = "it/pen_patterns.rs"]
+mod pen_patterns;
+
 #[path = "it/region.rs"]
 mod region;
 

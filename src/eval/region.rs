@@ -341,7 +341,7 @@ fn local_halo(plan: &Plan, lp: &LevelParams, i: usize) -> Option<usize> {
         .filter(|(_, c)| matches!(c, Conn::Slot(..)))
         .filter_map(|(k, _)| match footprint(plan, lp, i, k) {
             Footprint::Local { halo } => Some(halo),
-            Footprint::Global => None,
+            Footprint::Global | Footprint::Pattern => None,
         })
         .max()
 }
@@ -779,8 +779,14 @@ impl Evaluator {
                             .enumerate()
                             .map(|(k, c)| {
                                 let Conn::Slot(j, port) = c else { return None };
-                                let local =
-                                    matches!(footprint(plan, &lp, i, k), Footprint::Local { .. });
+                                let fp = footprint(plan, &lp, i, k);
+                                if fp == Footprint::Pattern {
+                                    // At its own resolution: the whole value, never reduced.
+                                    if let Some(e) = whole.results.get(j) {
+                                        return e.values.get(*port).cloned();
+                                    }
+                                }
+                                let local = matches!(fp, Footprint::Local { .. });
                                 match (mode[*j], local) {
                                     (Mode::Tiled, _) => Some(assemble(
                                         &have[*j],

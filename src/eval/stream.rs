@@ -108,7 +108,7 @@ impl<'p> StreamPlan<'p> {
                         }
                         match inst.op.footprint(&inst.params, k) {
                             Footprint::Local { halo: h } => halo = halo.max(h),
-                            Footprint::Global => {
+                            Footprint::Global | Footprint::Pattern => {
                                 return no(node(&format!(
                                     "needs its whole input {:?}",
                                     spec.inputs[k].name

@@ -355,6 +355,10 @@ pub enum Footprint {
     /// The input is needed whole: transforms and solvers, statistics, resampling, a periodic
     /// border, or a small image used everywhere (a stamp).
     Global,
+    /// The input is needed whole and at its own resolution at every level of detail: a small
+    /// pattern sampled in coordinates relative to its own size (the pen's texture), which the
+    /// evaluator must not reduce with the image.
+    Pattern,
 }
 
 impl Footprint {

@@ -1,5 +1,5 @@
 //! The pen of [`crate::ops::pen`] as a node: sculpt a relief along an open or closed path with a
-//! profile ([`apply_pen`]).
+//! profile and an optional pattern along it ([`crate::ops::pen::apply_pen_with`]).
 
 use super::kit::{curl_port, shift_points};
 use super::{
@@ -7,7 +7,7 @@ use super::{
 };
 use crate::error::RgbnError;
 use crate::ops::geom::{changed_path_bounds, paths_bounds};
-use crate::ops::pen::{apply_pen, PenMode, PenParams};
+use crate::ops::pen::{apply_pen_with, PenMode, PenParams};
 use std::sync::Arc;
 
 /// Pen.
@@ -23,6 +23,14 @@ impl Operator for PenNode {
             "Sculpts a relief along a path (Pereira & Velho §V–VI): a profile across an open or closed polyline, added to the image's gradients. Open paths must end at the level they start (bump, ridge, crease, scratch); a step raises the inside of a closed path.",
         )
         .input(PortSpec::new("image", PortType::Rgbn, "Image to draw on."))
+        .input(
+            PortSpec::new(
+                "texture",
+                PortType::Scalar,
+                "Optional height image for pattern: texture (at most 1024 px a side): columns across the stroke, rows along one period (along_period_px); its edge columns are pinned to the surface.",
+            )
+            .optional(),
+        )
         .output(PortSpec::new(
             "image",
             PortType::Rgbn,
@@ -38,7 +46,12 @@ impl Operator for PenNode {
     fn check(p: &PenParams) -> Result<(), RgbnError> {
         p.validate()
     }
-    fn footprint(p: &PenParams, _input: usize) -> Footprint {
+    fn footprint(p: &PenParams, input: usize) -> Footprint {
+        if input == 1 {
+            // The texture is one period of the pattern, used whole all along the path and
+            // sampled in coordinates relative to its size: never reduced at coarse levels.
+            return Footprint::Pattern;
+        }
         match p.mode {
             // Heights differentiated forward, gradients at staggered points: one pixel.
             PenMode::Integrable | PenMode::Analytic => Footprint::Local { halo: 1 },
@@ -56,6 +69,7 @@ impl Operator for PenNode {
             samples_px: p.samples_px.iter().map(|v| v / s).collect(),
             taper_px: p.taper_px / s,
             along_period_px: p.along_period_px / s,
+            pattern_height_px: p.pattern_height_px / s,
             ..p.clone()
         })
     }
@@ -90,7 +104,7 @@ impl Operator for PenNode {
         paths_bounds(&[&old.points, &new.points], reach(old).max(reach(new))).map(|b| vec![b])
     }
     fn run(p: &PenParams, i: &Inputs<'_>, _: &RunContext) -> Result<Vec<Value>, RgbnError> {
-        let (out, rep) = apply_pen(i.rgbn("image")?, p)?;
+        let (out, rep) = apply_pen_with(i.rgbn("image")?, p, i.scalar("texture")?)?;
         let curl = rep.curl_after.relative;
         Ok(vec![
             Value::Rgbn(out),

@@ -52,6 +52,27 @@
 //! height like the rest, so the integrable mode stays a surface. The distance-transform mode
 //! has no `v` and ignores it.
 //!
+//! **Patterns along the path** (§VI: a rope, a stitched seam, a braid). `pattern` adds a
+//! relief `T(u, v)` that varies across *and* along the stroke to the profile: `f(u)` becomes
+//! `f(u) + T(u, v)`, so `h = f₀ + t(v)·m(v)·(f(u) + T(u, v) − f₀)` and the gradient gains
+//! `t·m·∂T/∂v ∇v`. `T` repeats every `along_period_px` (adjusted on closed paths as `m` is) and
+//! is zero at the stroke's edges `u = ±1`, so the outside is untouched. Like the profile it is
+//! a height, so the integrable mode stays exactly a surface.
+//! - **rope**: `S` strands (`pattern_strands`) winding around the stroke, one twist per
+//!   period. Seen from above, a helix on a cylinder crosses the stroke along `θ − asin(u)/2π =
+//!   const` (`θ = v/period`), so with the phase `ψ = S(θ − asin(u)/2π)` the grooves between
+//!   strands lie at integer `ψ` and `T = D·(1 − u²)²·(sin(π·frac ψ) − 1)`, `D =
+//!   pattern_height_px` the grooves' depth (`T = −D` in a groove on the centre line, 0 on a
+//!   strand's crest).
+//! - **texture**: the `texture` input, a height image of at most 1024² pixels: column `c` of
+//!   `w` lies at `u = −1 + 2c/(w − 1)`, row `r` of `h` at `v = r·period/h` (repeating), values
+//!   bilinearly interpolated and multiplied by `pattern_height_px`. Each row is pinned to the
+//!   surface: the line between its first and last values is subtracted, so any height image
+//!   meets the stroke's edges at zero. Its coordinates are relative to its size, so at a
+//!   coarse level of detail it is sampled as it is (the evaluator does not reduce it).
+//!
+//! The distance-transform mode has no `v` and refuses a pattern.
+//!
 //! **End caps.** Beyond an end of an open path (the closest point is the end) the stroke
 //! finishes in a cap of radius `W/2`. There `u = s/(W/2)` with `s` the signed distance to the
 //! line of the last segment (continuous across its extension, so an asymmetric profile has no
@@ -226,6 +247,21 @@ crate::choice_enum! {
 }
 
 crate::choice_enum! {
+    /// A relief that varies along the path as well as across it, added to the profile (module
+    /// docs, "Patterns along the path").
+    pub enum PenPattern {
+        /// None: the profile alone.
+        None = "none",
+        /// Twisted strands: `pattern_strands` strands winding around the stroke, one full twist
+        /// per `along_period_px`, with grooves `pattern_height_px` deep between them.
+        Rope = "rope",
+        /// The `texture` input: a small height image, its columns across the stroke (u = −1 …
+        /// 1), its rows along one period of the path, repeated.
+        Texture = "texture",
+    }
+}
+
+crate::choice_enum! {
     /// The kind of a [`Profile`] (its parameter form, with `height_px` and `samples_px`).
     pub enum ProfileKind {
         /// Smooth bump `A·(1 + cos πu)/2`.
@@ -267,6 +303,12 @@ crate::params! {
         pub along: Vec<f64> = vec![1.0] => profile,
         /// Length of one period of along in pixels (on a closed path adjusted so that a whole number of periods fits).
         pub along_period_px: f64 = 16.0 => float.unit("px").range(0.5, 10_000.0),
+        /// A relief varying across and along the path, added to the profile (§VI normal textures): none, rope (twisted strands, one twist per along_period_px), texture (the texture input: columns across the stroke, rows over one period). Not in distance_transform mode.
+        pub pattern: PenPattern = PenPattern::None => choice,
+        /// Rope: depth of the grooves between strands (negative raises them). Texture: the height of a texture value of 1.
+        pub pattern_height_px: f64 = 0.5 => float.unit("px").range(-10_000.0, 10_000.0),
+        /// Rope: number of strands.
+        pub pattern_strands: i64 = 3 => int.range(1.0, 64.0),
     }
 }
 
@@ -363,6 +405,28 @@ impl PenParams {
                 format!("{} must be a finite length > 0", self.along_period_px),
             ));
         }
+        if !(self.pattern_height_px.is_finite() && self.pattern_height_px.abs() <= 10_000.0) {
+            return Err(RgbnError::param(
+                "pattern_height_px",
+                format!(
+                    "{} must be finite, in [-10000, 10000] pixels",
+                    self.pattern_height_px
+                ),
+            ));
+        }
+        if !(1..=64).contains(&self.pattern_strands) {
+            return Err(RgbnError::param(
+                "pattern_strands",
+                format!("{} must be between 1 and 64", self.pattern_strands),
+            ));
+        }
+        if self.pattern != PenPattern::None && self.mode == PenMode::DistanceTransform {
+            return Err(RgbnError::param(
+                "pattern",
+                "the distance_transform mode has no coordinate along the path: use the \
+                 integrable or analytic mode for a pattern, or set pattern: none",
+            ));
+        }
         let profile = self.shape();
         profile.validate()?;
         if !self.closed {
@@ -399,6 +463,136 @@ struct Stroke<'a> {
     f0: f64,
     closed: bool,
     along: Along,
+    detail: Option<Detail>,
+}
+
+/// Largest side of a pen texture (it holds one period of a pattern, not an image).
+pub const MAX_TEXTURE_SIDE: usize = 1024;
+
+/// A pattern `T(u, v)` added to the profile (module docs, "Patterns along the path"), zero at
+/// the stroke's edges `u = ±1`.
+#[derive(Clone, Debug)]
+enum Detail {
+    /// Twisted strands: `depth` (px), `strands`, over `period` px of path.
+    Rope { depth: f64, strands: f64 },
+    /// A height image in px, `w` columns across (u = −1 … 1) and `h` rows along one period,
+    /// row-major, already pinned to zero at its first and last columns.
+    Texture { t: Vec<f64>, w: usize, h: usize },
+}
+
+impl Detail {
+    /// The pattern of `params` (`texture`: the `texture` input), `None` for no pattern.
+    fn new(params: &PenParams, texture: Option<&Plane>) -> Result<Option<Self>, RgbnError> {
+        match (params.pattern, texture) {
+            (PenPattern::None | PenPattern::Rope, Some(_)) => Err(RgbnError::param(
+                "texture",
+                "the texture input is connected but pattern is not texture: set pattern: \
+                 texture to use it, or disconnect it",
+            )),
+            (PenPattern::None, None) => Ok(None),
+            (PenPattern::Rope, None) => Ok(Some(Detail::Rope {
+                depth: params.pattern_height_px,
+                strands: params.pattern_strands as f64,
+            })),
+            (PenPattern::Texture, None) => Err(RgbnError::param(
+                "texture",
+                "pattern is texture but nothing is connected to the texture input: connect a \
+                 small height image (a scalar field) to it",
+            )),
+            (PenPattern::Texture, Some(tex)) => {
+                let (w, h) = (tex.width(), tex.height());
+                if w > MAX_TEXTURE_SIDE || h > MAX_TEXTURE_SIDE || w == 0 || h == 0 {
+                    return Err(RgbnError::param(
+                        "texture",
+                        format!(
+                            "is {w}×{h}: a pen texture holds one period of a pattern, between \
+                             1×1 and {MAX_TEXTURE_SIDE}×{MAX_TEXTURE_SIDE} pixels"
+                        ),
+                    ));
+                }
+                let data = tex.data();
+                if let Some(i) = data.iter().position(|v| !v.is_finite()) {
+                    return Err(RgbnError::param(
+                        "texture",
+                        format!("pixel ({}, {}) is not a finite height", i % w, i / w),
+                    ));
+                }
+                // Pinned: the line between each row's first and last values is subtracted,
+                // so the relief meets the surface at the stroke's edges.
+                let a = params.pattern_height_px;
+                let mut t = vec![0.0; w * h];
+                for r in 0..h {
+                    let row = &data[r * w..(r + 1) * w];
+                    let (first, last) = (f64::from(row[0]), f64::from(row[w - 1]));
+                    for (c, v) in row.iter().enumerate() {
+                        let s = if w > 1 {
+                            c as f64 / (w - 1) as f64
+                        } else {
+                            0.0
+                        };
+                        t[r * w + c] = a * (f64::from(*v) - (first + (last - first) * s));
+                    }
+                }
+                Ok(Some(Detail::Texture { t, w, h }))
+            }
+        }
+    }
+
+    /// `(T, ∂T/∂u, ∂T/∂v)` at `u ∈ [−1, 1]` and arclength `v`, the pattern repeating every
+    /// `period` px.
+    fn eval(&self, u: f64, v: f64, period: f64) -> (f64, f64, f64) {
+        let u = u.clamp(-1.0, 1.0);
+        let theta = (v / period).rem_euclid(1.0);
+        match self {
+            Detail::Rope { depth, strands } => {
+                // A strand is a helix around the stroke: seen from above, the groove between
+                // two strands at phase ψ = S(θ − asin(u)/2π) ∈ ℤ. Its depth profile across a
+                // strand is sin(π·frac ψ) − 1, windowed by (1 − u²)² to vanish at the edges.
+                let s1 = (1.0 - u * u).max(0.0);
+                let psi = strands * (theta - u.asin() / std::f64::consts::TAU);
+                let x = psi.rem_euclid(1.0);
+                let (sn, cs) = (PI * x).sin_cos();
+                let g = sn - 1.0;
+                let dg = PI * cs;
+                let win = s1 * s1;
+                let dwin = -4.0 * u * s1;
+                // w·∂ψ/∂u = −S/2π · (1 − u²)^{3/2} (finite at u = ±1).
+                let w_dpsi_du = -strands / std::f64::consts::TAU * s1 * s1.sqrt();
+                let t = depth * win * g;
+                let dt_du = depth * (dwin * g + dg * w_dpsi_du);
+                let dt_dv = depth * win * dg * strands / period;
+                (t, dt_du, dt_dv)
+            }
+            Detail::Texture { t, w, h } => {
+                let (w, h) = (*w, *h);
+                if w < 2 {
+                    // One column is both edges: pinned to zero.
+                    return (0.0, 0.0, 0.0);
+                }
+                // Columns at u_c = −1 + 2c/(w−1); rows at θ_r = r/h, wrapping.
+                let cx = (u + 1.0) / 2.0 * (w - 1) as f64;
+                let c0 = (cx.floor() as usize).min(w - 2);
+                let fx = cx - c0 as f64;
+                let ry = theta * h as f64;
+                let r0 = (ry.floor() as usize).min(h - 1);
+                let r1 = (r0 + 1) % h;
+                let fy = ry - r0 as f64;
+                let at = |r: usize, c: usize| t[r * w + c];
+                let (a, b) = (at(r0, c0), at(r0, c0 + 1));
+                let (c, d) = (at(r1, c0), at(r1, c0 + 1));
+                let top = a + (b - a) * fx;
+                let bottom = c + (d - c) * fx;
+                let value = top + (bottom - top) * fy;
+                let d_dcx = (b - a) + ((d - c) - (b - a)) * fy;
+                let d_dry = bottom - top;
+                (
+                    value,
+                    d_dcx * (w - 1) as f64 / 2.0,
+                    d_dry * h as f64 / period,
+                )
+            }
+        }
+    }
 }
 
 /// The periodic factor `m(v)` along the path (module docs, "Along the path").
@@ -437,6 +631,19 @@ impl Along {
 }
 
 impl Stroke<'_> {
+    /// The relief across and along the stroke, `(f, ∂f/∂u, ∂f/∂v)`: the profile plus the
+    /// pattern.
+    fn shape(&self, u: f64, v: f64) -> (f64, f64, f64) {
+        let (f, df) = self.profile.eval(u);
+        match &self.detail {
+            None => (f, df, 0.0),
+            Some(d) => {
+                let (t, dtu, dtv) = d.eval(u, v, self.along.period);
+                (f + t, df + dtu, dtv)
+            }
+        }
+    }
+
     /// Sign σ and (height, gradient in y-up) at pixel coordinates `(x, row)`.
     fn eval(&self, x: f64, row: f64, segs: &[u32]) -> (f64, [f64; 2]) {
         let Some(pr) = self
@@ -472,7 +679,7 @@ impl Stroke<'_> {
         if let Some(cap) = self.end_cap(&pr) {
             return cap;
         }
-        let (f, df) = self.profile.eval(u);
+        let (f, df, dfv) = self.shape(u, pr.arclength_px);
         let (t, dt) = if self.closed || self.taper <= 0.0 {
             (1.0, 0.0)
         } else {
@@ -505,7 +712,7 @@ impl Stroke<'_> {
         } else {
             [0.0, 0.0]
         };
-        let k = dt * (f - self.f0);
+        let k = dt * (f - self.f0) + t * dfv;
         (
             h,
             [
@@ -543,7 +750,8 @@ impl Stroke<'_> {
         let sd = dd.sqrt();
         let k = (1.0 - a / sd).max(0.0);
         let u = (perp / r).clamp(-1.0, 1.0);
-        let (f, df) = self.profile.eval(u);
+        // The pattern at the end's arclength (constant over the cap, as the along factor).
+        let (f, df, _) = self.shape(u, pr.arclength_px);
         // The taper at this end (0 when tapered, so the cap is flat there).
         let t = if self.taper <= 0.0 {
             1.0
@@ -578,8 +786,19 @@ impl Stroke<'_> {
 
 /// The pen's gradient field and height on a `width × height` image (module docs).
 pub fn pen_field(width: usize, height: usize, params: &PenParams) -> Result<PenOutput, RgbnError> {
+    pen_field_with(width, height, params, None)
+}
+
+/// [`pen_field`] with the `texture` input of the texture pattern.
+pub fn pen_field_with(
+    width: usize,
+    height: usize,
+    params: &PenParams,
+    texture: Option<&Plane>,
+) -> Result<PenOutput, RgbnError> {
     params.validate()?;
     crate::raster::check_size(width, height, "pen")?;
+    let detail = Detail::new(params, texture)?;
     let profile = params.shape();
     // Lengths as f32, as the node always passed them (same results as before).
     let pl = Polyline::new(&params.points_f32(), params.closed);
@@ -592,6 +811,7 @@ pub fn pen_field(width: usize, height: usize, params: &PenParams) -> Result<PenO
         f0: profile.eval(-1.0).0,
         closed: params.closed,
         along,
+        detail,
     };
     match params.mode {
         PenMode::Analytic | PenMode::Integrable => {
@@ -695,7 +915,16 @@ pub struct PenReport {
 /// Adds the pen's relief to an image's gradients (colour and mask kept); the report holds the
 /// pen's height.
 pub fn apply_pen(img: &RgbnImage, params: &PenParams) -> Result<(RgbnImage, PenReport), RgbnError> {
-    let pen = pen_field(img.width(), img.height(), params)?;
+    apply_pen_with(img, params, None)
+}
+
+/// [`apply_pen`] with the `texture` input of the texture pattern.
+pub fn apply_pen_with(
+    img: &RgbnImage,
+    params: &PenParams,
+    texture: Option<&Plane>,
+) -> Result<(RgbnImage, PenReport), RgbnError> {
+    let pen = pen_field_with(img.width(), img.height(), params, texture)?;
     let mut g = GradientField::from_normals(img);
     g.p.par_iter_mut()
         .zip(pen.gradients.p.par_iter())
@@ -861,6 +1090,7 @@ mod tests {
                 factors: vec![1.0],
                 period: 16.0,
             },
+            detail: None,
         };
         let mut checked = 0;
         for &(x, r) in &[
@@ -879,6 +1109,177 @@ mod tests {
             );
         }
         assert_eq!(checked, 6, "every point is in a cap");
+    }
+
+    /// A straight stroke travelling down the screen at x = 30.3 from row −100 (u = (x − c)/8,
+    /// v = row + 100), flat profile, so the height is the pattern alone.
+    fn down_stroke(pattern: PenPattern, mode: PenMode) -> PenParams {
+        PenParams {
+            points: vec![[30.3, -100.0], [30.3, 200.0]],
+            width_px: 16.0,
+            taper_px: 0.0,
+            mode,
+            pattern,
+            ..PenParams::default()
+        }
+        .with_profile(&Profile::Custom {
+            samples_px: vec![0.0, 0.0],
+        })
+    }
+
+    #[test]
+    fn rope_pattern_is_the_stated_helix_relief() {
+        let (w, h, c) = (64, 80, 30.3f64);
+        let (depth, strands, period) = (0.7, 3.0, 24.0);
+        let p = PenParams {
+            pattern_height_px: depth,
+            pattern_strands: 3,
+            along_period_px: period,
+            ..down_stroke(PenPattern::Rope, PenMode::Analytic)
+        };
+        // The module docs' formula, written out again: T = D(1 − u²)²(sin(π frac ψ) − 1),
+        // ψ = S(v/period − asin(u)/2π).
+        let rope = |x: f64, row: f64| {
+            let (u, v) = ((x - c) / 8.0, row + 100.0);
+            if u.abs() >= 1.0 {
+                return (0.0, 1.0);
+            }
+            let psi = strands * (v / period - u.asin() / (2.0 * PI));
+            let fr = psi.rem_euclid(1.0);
+            let t = depth * (1.0 - u * u).powi(2) * ((PI * fr).sin() - 1.0);
+            (t, fr)
+        };
+        let out = pen_field(w, h, &p).unwrap();
+        let mut checked = 0;
+        for r in 0..h {
+            for x in 0..w {
+                let (xf, rf) = (x as f64, r as f64);
+                let (want, fr) = rope(xf, rf);
+                let got = f64::from(out.height.at(x, r));
+                assert!((got - want).abs() < 1e-5, "({x}, {r}): {got} vs {want}");
+                // The gradient (y-up) is the height's derivative: central differences of the
+                // formula, away from the grooves' kinks and the stroke's edges.
+                if (0.02..0.98).contains(&fr) && ((xf - c) / 8.0).abs() < 0.98 {
+                    let e = 1e-4;
+                    let dx = (rope(xf + e, rf).0 - rope(xf - e, rf).0) / (2.0 * e);
+                    let dy_up = -(rope(xf, rf + e).0 - rope(xf, rf - e).0) / (2.0 * e);
+                    let (gp, gq) = (out.gradients.p[r * w + x], out.gradients.q[r * w + x]);
+                    assert!(
+                        (f64::from(gp) - dx).abs() < 1e-4,
+                        "p ({x}, {r}): {gp} vs {dx}"
+                    );
+                    assert!(
+                        (f64::from(gq) - dy_up).abs() < 1e-4,
+                        "q ({x}, {r}): {gq} vs {dy_up}"
+                    );
+                    checked += 1;
+                }
+            }
+        }
+        assert!(checked > 500, "{checked}");
+        // Periodic along the path, and a surface in the integrable mode on a curved path.
+        for x in 20..42 {
+            assert!((out.height.at(x, 10) - out.height.at(x, 34)).abs() < 1e-5);
+        }
+        let arc = PenParams {
+            points: circle(48.0, 48.0, 30.0, 60)[..40].to_vec(),
+            ..p.clone()
+        };
+        let integ = pen_field(
+            96,
+            96,
+            &PenParams {
+                mode: PenMode::Integrable,
+                ..arc
+            },
+        )
+        .unwrap();
+        let rel = integ.gradients.relative_rms_curl(None);
+        assert!(rel < 1e-5, "relative curl {rel:e}");
+        assert!(
+            integ.height.data().iter().any(|&v| v < -0.3),
+            "grooves are there"
+        );
+    }
+
+    #[test]
+    fn texture_pattern_is_the_pinned_bilinear_image() {
+        // 5 columns across the stroke, 4 rows over an 8 px period (a row every 2 px), with
+        // edge columns that are not zero: each row is pinned by subtracting the line between
+        // its ends, then scaled by pattern_height_px = 2.
+        let (tw, th) = (5usize, 4usize);
+        let tex: Vec<f32> = vec![
+            1.0, 2.0, 0.5, 3.0, 1.0, //
+            0.0, -1.0, 1.0, 0.0, 2.0, //
+            0.5, 0.5, 0.5, 0.5, 0.5, //
+            -1.0, 0.0, 2.0, 1.0, 0.0, //
+        ];
+        let plane = Plane::from_vec(tw, th, tex.clone()).unwrap();
+        let pinned = |r: usize, col: usize| {
+            let (a, b) = (f64::from(tex[r * tw]), f64::from(tex[r * tw + tw - 1]));
+            2.0 * (f64::from(tex[r * tw + col]) - (a + (b - a) * col as f64 / (tw - 1) as f64))
+        };
+        let want = |x: f64, row: f64| {
+            let (u, v) = ((x - 30.3) / 8.0, row + 100.0);
+            if u.abs() >= 1.0 {
+                return 0.0;
+            }
+            let cx = (u + 1.0) / 2.0 * (tw - 1) as f64;
+            let ry = (v / 8.0).rem_euclid(1.0) * th as f64;
+            let (c0, r0) = ((cx.floor() as usize).min(tw - 2), ry.floor() as usize % th);
+            let (fx, fy) = (cx - c0 as f64, ry - ry.floor());
+            let r1 = (r0 + 1) % th;
+            let top = pinned(r0, c0) * (1.0 - fx) + pinned(r0, c0 + 1) * fx;
+            let bottom = pinned(r1, c0) * (1.0 - fx) + pinned(r1, c0 + 1) * fx;
+            top * (1.0 - fy) + bottom * fy
+        };
+        let p = PenParams {
+            pattern_height_px: 2.0,
+            along_period_px: 8.0,
+            ..down_stroke(PenPattern::Texture, PenMode::Analytic)
+        };
+        let (w, h) = (64, 40);
+        let out = pen_field_with(w, h, &p, Some(&plane)).unwrap();
+        for r in 0..h {
+            for x in 0..w {
+                let (got, e) = (f64::from(out.height.at(x, r)), want(x as f64, r as f64));
+                assert!((got - e).abs() < 1e-5, "({x}, {r}): {got} vs {e}");
+            }
+        }
+        assert!(out.height.data().iter().any(|v| v.abs() > 1.0));
+        // Integrable mode: a surface.
+        let integ = pen_field_with(
+            w,
+            h,
+            &PenParams {
+                mode: PenMode::Integrable,
+                ..p.clone()
+            },
+            Some(&plane),
+        )
+        .unwrap();
+        let rel = integ.gradients.relative_rms_curl(None);
+        assert!(rel < 1e-5, "relative curl {rel:e}");
+    }
+
+    #[test]
+    fn pattern_inputs_that_do_not_fit_are_refused_naming_the_port() {
+        let small = Plane::from_vec(3, 2, vec![0.0; 6]).unwrap();
+        let name = |r: Result<PenOutput, RgbnError>| match r {
+            Err(RgbnError::InvalidParam { name, .. }) => name,
+            other => panic!("{other:?}"),
+        };
+        let tex = down_stroke(PenPattern::Texture, PenMode::Integrable);
+        assert_eq!(name(pen_field_with(32, 32, &tex, None)), "texture");
+        let none = down_stroke(PenPattern::None, PenMode::Integrable);
+        assert_eq!(name(pen_field_with(32, 32, &none, Some(&small))), "texture");
+        let big =
+            Plane::from_vec(MAX_TEXTURE_SIDE + 1, 1, vec![0.0; MAX_TEXTURE_SIDE + 1]).unwrap();
+        assert_eq!(name(pen_field_with(32, 32, &tex, Some(&big))), "texture");
+        let nan = Plane::from_vec(3, 2, vec![0.0, f32::NAN, 0.0, 0.0, 0.0, 0.0]).unwrap();
+        assert_eq!(name(pen_field_with(32, 32, &tex, Some(&nan))), "texture");
+        let dt = down_stroke(PenPattern::Rope, PenMode::DistanceTransform);
+        assert_eq!(name(pen_field(32, 32, &dt)), "pattern");
     }
 
     #[test]
@@ -948,6 +1349,7 @@ mod tests {
             f0: 0.0,
             closed: false,
             along: Along::new(&p, 80.0),
+            detail: None,
         };
         for &(x, r) in &[(21.3, 38.2), (33.1, 43.0), (47.7, 40.9), (62.4, 36.5)] {
             let g = gradient_is_the_derivative(&stroke, x, r);
