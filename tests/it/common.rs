@@ -106,3 +106,18 @@ pub fn stderr(o: &Output) -> String {
 pub fn stdout(o: &Output) -> String {
     String::from_utf8_lossy(&o.stdout).into_owned()
 }
+
+/// RMS difference of the normals of two RGBN values (all three planes, every pixel).
+pub fn rms_normals(a: &rgbn::ops::Value, b: &rgbn::ops::Value) -> f64 {
+    let (rgbn::ops::Value::Rgbn(a), rgbn::ops::Value::Rgbn(b)) = (a, b) else {
+        panic!("images")
+    };
+    let (mut sum, mut n) = (0.0f64, 0usize);
+    for (p, q) in a.normal().iter().zip(b.normal()) {
+        for (x, y) in p.iter().zip(q) {
+            sum += f64::from(x - y).powi(2);
+            n += 1;
+        }
+    }
+    (sum / n as f64).sqrt()
+}

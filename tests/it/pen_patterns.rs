@@ -30,26 +30,21 @@ fn graph(name: &str) -> String {
 fn a_texture_that_does_not_fit_is_named_with_its_node_and_port() {
     let d = tempfile::tempdir().unwrap();
     let src = std::fs::read_to_string(graph("pen_texture.ron")).unwrap();
-    // An RGBN image (three normal and three colour channels) where a height image belongs.
-    let rgbn = d.path().join("rgbn_texture.ron");
-    std::fs::write(
-        &rgbn,
-        src.replace(
+    // An RGBN image (three normal and three colour channels) where a height image belongs,
+    // and a texture connected to a pen whose pattern is not texture.
+    let [rgbn, unused] = [
+        (
+            "rgbn_texture.ron",
             r#""texture": Node(2, "height")"#,
             r#""texture": Node(2, "image")"#,
         ),
-    )
-    .unwrap();
-    // A texture connected to a pen whose pattern is not texture.
-    let unused = d.path().join("unused_texture.ron");
-    std::fs::write(
-        &unused,
-        src.replace(
+        (
+            "unused_texture.ron",
             r#""pattern": Choice("texture")"#,
             r#""pattern": Choice("rope")"#,
         ),
-    )
-    .unwrap();
+    ]
+    .map(|(name, from, to)| crate::common::write(d.path(), name, &src.replace(from, to)));
     let big = ["eval", &graph("pen_texture.ron"), "--set", "2.width=2000"];
     for (args, says) in [
         (vec!["eval", rgbn.to_str().unwrap()], "expects scalar"),
@@ -120,7 +115,10 @@ fn rope_and_texture_at_coarse_levels_reproduce_the_reduced_relief() {
             assert!(r.tiles.iter().any(|t| t.op == "pen"), "{name}: pen tiled");
             let want = reduce(&whole.outputs["image"], s);
             let unedited = reduce(&whole.outputs["source"], s);
-            let (err, edit) = (rms(&r.value, &want), rms(&unedited, &want));
+            let (err, edit) = (
+                crate::common::rms_normals(&r.value, &want),
+                crate::common::rms_normals(&unedited, &want),
+            );
             eprintln!("{name} level {level}: RMS normal error {err:.4}, the edit {edit:.4}");
             assert!(err < 0.35 * edit, "{name} level {level}: {err} vs {edit}");
             let Value::Rgbn(img) = &r.value else {
@@ -130,18 +128,4 @@ fn rope_and_texture_at_coarse_levels_reproduce_the_reduced_relief() {
             assert!(c < 1e-3, "{name} level {level}: relative curl {c:e}");
         }
     }
-}
-
-fn rms(a: &Value, b: &Value) -> f64 {
-    let (Value::Rgbn(a), Value::Rgbn(b)) = (a, b) else {
-        panic!("images")
-    };
-    let (mut sum, mut n) = (0.0f64, 0usize);
-    for (p, q) in a.normal().iter().zip(b.normal()) {
-        for (x, y) in p.iter().zip(q) {
-            sum += f64::from(x - y).powi(2);
-            n += 1;
-        }
-    }
-    (sum / n as f64).sqrt()
 }

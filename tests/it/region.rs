@@ -631,19 +631,7 @@ fn pen_stamp_and_brush_at_a_coarse_level_reproduce_the_reduced_edit() {
     let plan = Plan::new(&lg, &BTreeMap::new(), d.path()).unwrap();
     let opts = EvalOptions::default();
     let whole = Evaluator::default().eval(&plan, &[], &opts).unwrap();
-    let rms = |a: &Value, b: &Value| {
-        let (Value::Rgbn(a), Value::Rgbn(b)) = (a, b) else {
-            panic!("images")
-        };
-        let (mut sum, mut n) = (0.0f64, 0usize);
-        for (p, q) in a.normal().iter().zip(b.normal()) {
-            for (x, y) in p.iter().zip(q) {
-                sum += f64::from(x - y).powi(2);
-                n += 1;
-            }
-        }
-        (sum / n as f64).sqrt()
-    };
+    let rms = rms_normals;
     for level in [1u32, 2] {
         let s = 1usize << level;
         let ev = Evaluator::default();
