@@ -23,8 +23,8 @@
 //! (`tests::fused_equals_the_unfused_reference`).
 
 use super::convolve::{
-    lane_splat, lanes_to_rows, load_lane, rows_to_lanes, store_lane, BorderMode, Lane, LineFilter,
-    LANES,
+    lane_splat, lanes_to_rows, load_lane, prefetch_span, rows_to_lanes, store_lane, BorderMode,
+    Lane, LineFilter, LANES, PREFETCH_ROWS,
 };
 use super::gradient::{
     gradient_of_normal, normal_of_gradient, plaquette_covered, CurlSums, NZ_EPSILON,
@@ -331,6 +331,7 @@ impl<F: LineFilter> Sweep<'_, F> {
                 b.resize(h, lane_splat(0.0));
             }
             for r in 0..h {
+                prefetch_span(src.get().wrapping_add((r + PREFETCH_ROWS) * w + c0), span);
                 for (j, b) in buf.iter_mut().enumerate() {
                     let cols = LANES.min(span - j * LANES);
                     // SAFETY: columns of row r inside the plane that belong to this task alone
@@ -363,6 +364,10 @@ impl<F: LineFilter> Sweep<'_, F> {
             result.push((sums, seam));
         }
         for r in 0..h {
+            // The stores go down the strip a row apart: ask for the lines a few rows ahead.
+            for dst in &out {
+                prefetch_span(dst.get().wrapping_add((r + PREFETCH_ROWS) * w + c0), span);
+            }
             for j in 0..k {
                 let (p, q) = (&s.p[j][r], &s.q[j][r]);
                 let mut nrm = [lane_splat(0.0); 3];
