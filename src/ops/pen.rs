@@ -463,7 +463,7 @@ struct Stroke<'a> {
     f0: f64,
     closed: bool,
     along: Along,
-    detail: Option<Detail>,
+    detail: Option<Detail<'a>>,
 }
 
 /// Largest side of a pen texture (it holds one period of a pattern, not an image).
@@ -472,17 +472,23 @@ pub const MAX_TEXTURE_SIDE: usize = 1024;
 /// A pattern `T(u, v)` added to the profile (module docs, "Patterns along the path"), zero at
 /// the stroke's edges `u = ±1`.
 #[derive(Clone, Debug)]
-enum Detail {
+enum Detail<'a> {
     /// Twisted strands: `depth` (px), `strands`, over `period` px of path.
     Rope { depth: f64, strands: f64 },
-    /// A height image in px, `w` columns across (u = −1 … 1) and `h` rows along one period,
-    /// row-major, already pinned to zero at its first and last columns.
-    Texture { t: Vec<f64>, w: usize, h: usize },
+    /// A height image, `w` columns across (u = −1 … 1) and `h` rows along one period,
+    /// row-major, scaled by `scale` px and pinned to zero at its first and last columns as it
+    /// is sampled (the region evaluator runs the pen tile by tile: nothing is copied per tile).
+    Texture {
+        t: &'a [f32],
+        w: usize,
+        h: usize,
+        scale: f64,
+    },
 }
 
-impl Detail {
+impl<'a> Detail<'a> {
     /// The pattern of `params` (`texture`: the `texture` input), `None` for no pattern.
-    fn new(params: &PenParams, texture: Option<&Plane>) -> Result<Option<Self>, RgbnError> {
+    fn new(params: &PenParams, texture: Option<&'a Plane>) -> Result<Option<Self>, RgbnError> {
         match (params.pattern, texture) {
             (PenPattern::None | PenPattern::Rope, Some(_)) => Err(RgbnError::param(
                 "texture",
@@ -517,23 +523,12 @@ impl Detail {
                         format!("pixel ({}, {}) is not a finite height", i % w, i / w),
                     ));
                 }
-                // Pinned: the line between each row's first and last values is subtracted,
-                // so the relief meets the surface at the stroke's edges.
-                let a = params.pattern_height_px;
-                let mut t = vec![0.0; w * h];
-                for r in 0..h {
-                    let row = &data[r * w..(r + 1) * w];
-                    let (first, last) = (f64::from(row[0]), f64::from(row[w - 1]));
-                    for (c, v) in row.iter().enumerate() {
-                        let s = if w > 1 {
-                            c as f64 / (w - 1) as f64
-                        } else {
-                            0.0
-                        };
-                        t[r * w + c] = a * (f64::from(*v) - (first + (last - first) * s));
-                    }
-                }
-                Ok(Some(Detail::Texture { t, w, h }))
+                Ok(Some(Detail::Texture {
+                    t: data,
+                    w,
+                    h,
+                    scale: params.pattern_height_px,
+                }))
             }
         }
     }
@@ -563,7 +558,7 @@ impl Detail {
                 let dt_dv = depth * win * dg * strands / period;
                 (t, dt_du, dt_dv)
             }
-            Detail::Texture { t, w, h } => {
+            Detail::Texture { t, w, h, scale } => {
                 let (w, h) = (*w, *h);
                 if w < 2 {
                     // One column is both edges: pinned to zero.
@@ -577,7 +572,14 @@ impl Detail {
                 let r0 = (ry.floor() as usize).min(h - 1);
                 let r1 = (r0 + 1) % h;
                 let fy = ry - r0 as f64;
-                let at = |r: usize, c: usize| t[r * w + c];
+                // Pinned: the line between the row's first and last values is subtracted, so
+                // the relief meets the surface at the stroke's edges.
+                let at = |r: usize, c: usize| {
+                    let row = &t[r * w..(r + 1) * w];
+                    let (first, last) = (f64::from(row[0]), f64::from(row[w - 1]));
+                    let edge = first + (last - first) * c as f64 / (w - 1) as f64;
+                    scale * (f64::from(row[c]) - edge)
+                };
                 let (a, b) = (at(r0, c0), at(r0, c0 + 1));
                 let (c, d) = (at(r1, c0), at(r1, c0 + 1));
                 let top = a + (b - a) * fx;
