@@ -15,6 +15,10 @@
 //!   the editor does once edits pause). Each iteration appends a 10 px segment and runs
 //!   `worker::evaluate_view`: planning the graph, the viewport's tiles, and its relit picture
 //!   (the egui image uploaded as the overlay texture).
+//! - `viewport/pen_under_project_4k`: the same stroke viewed through an integrability
+//!   projection (a global operator) while edits come: evaluated at level 2, the projection on
+//!   1024² pixels; `viewport/pen_under_project_4k_full` evaluates it at the level shown (the
+//!   projection at 4096²), as every edit did before.
 //! - `viewport/relight_fit_16k`: the demo graph at 16384² fitted into a 1600×1000 panel: the
 //!   viewport is level 4 (1024²); each iteration relights it for a new light direction, as the
 //!   preview's viewport renderer does while the light is dragged.
@@ -127,7 +131,12 @@ fn viewport(c: &mut Criterion) {
                 if i % 20 == 19 {
                     path = base.clone();
                     d.set_param(pen, "points", ParamValue::Points(path.clone()));
-                    let _ = evaluate_view(&ev, &request(&d, generation, view.clone()), &mut sizes);
+                    let _ = evaluate_view(
+                        &ev,
+                        &request(&d, generation, view.clone()),
+                        &mut sizes,
+                        true,
+                    );
                     generation += 1;
                 }
                 let last = path[path.len() - 1];
@@ -135,8 +144,13 @@ fn viewport(c: &mut Criterion) {
                 path.push([last[0] + 10.0 * a.cos(), last[1] + 10.0 * a.sin()]);
                 let t0 = Instant::now();
                 d.set_param(pen, "points", ParamValue::Points(path.clone()));
-                let r = evaluate_view(&ev, &request(&d, generation, view.clone()), &mut sizes)
-                    .expect("viewport");
+                let r = evaluate_view(
+                    &ev,
+                    &request(&d, generation, view.clone()),
+                    &mut sizes,
+                    true,
+                )
+                .expect("viewport");
                 total += t0.elapsed();
                 assert!(r.picture.is_some() && r.level == 0);
                 black_box(r);
@@ -145,6 +159,46 @@ fn viewport(c: &mut Criterion) {
             total
         })
     });
+
+    // The same stroke viewed through an integrability projection (a global operator): while
+    // edits come the viewport is evaluated at level 2 (1024², ≤ 1 Mpx), where the projection
+    // runs on a sixteenth of the pixels; `_full` evaluates the level shown (0), the projection
+    // at full resolution, as every edit did before.
+    let proj = d.add_node("project", [0.0, 0.0]);
+    d.connect(pen, "image", proj, "image").expect("connect");
+    let pview = ViewRequest {
+        node: proj,
+        ..view.clone()
+    };
+    for (id, interacting) in [
+        ("viewport/pen_under_project_4k", true),
+        ("viewport/pen_under_project_4k_full", false),
+    ] {
+        let mut g = c.benchmark_group("viewport");
+        g.sample_size(10);
+        let name = id.trim_start_matches("viewport/");
+        g.bench_function(name, |b| {
+            b.iter_custom(|iters| {
+                let mut total = Duration::ZERO;
+                let mut path = base.clone();
+                for i in 0..iters {
+                    let last = path[path.len() - 1];
+                    let a = 0.3 * (i % 7) as f64;
+                    path.push([last[0] + 10.0 * a.cos(), last[1] + 10.0 * a.sin()]);
+                    let t0 = Instant::now();
+                    d.set_param(pen, "points", ParamValue::Points(path.clone()));
+                    let req = request(&d, generation, pview.clone());
+                    let r = evaluate_view(&ev, &req, &mut sizes, interacting).expect("viewport");
+                    total += t0.elapsed();
+                    assert!(r.picture.is_some() && r.level == if interacting { 2 } else { 0 });
+                    black_box(r);
+                    generation += 1;
+                }
+                total
+            })
+        });
+        g.finish();
+    }
 
     let big = demo_of(16384);
     let fit = ViewRequest {
@@ -156,7 +210,7 @@ fn viewport(c: &mut Criterion) {
             pan: [0.0, 0.0],
         },
     };
-    let r = evaluate_view(&ev, &request(&big, 0, fit), &mut sizes).expect("viewport");
+    let r = evaluate_view(&ev, &request(&big, 0, fit), &mut sizes, true).expect("viewport");
     assert_eq!((r.level, r.rect.w, r.rect.h), (4, 1024, 1024));
     let mut s = PreviewSettings::default();
     let mut k = 0u32;

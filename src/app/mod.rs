@@ -529,10 +529,20 @@ impl EditorApp {
                 } else {
                     "whole output coming"
                 };
-                ui.label(format!("viewport · level {level} (1:{}) · {coming}", 1u32 << level))
+                if self.preview.region().is_some_and(|r| r.coarse) {
+                    ui.label(format!(
+                        "viewport · level {level} (1:{}) while editing · level shown coming",
+                        1u32 << level
+                    ))
                     .on_hover_text(
-                        "The part of the viewed output on screen was evaluated first, tile by tile at the level shown; the whole output follows once edits pause.",
+                        "The viewed output depends on a global operator (an integration or projection): while edits keep coming it is computed at a coarse level, on that level's pixels. The level shown, then the whole output, follow once edits pause.",
                     );
+                } else {
+                    ui.label(format!("viewport · level {level} (1:{}) · {coming}", 1u32 << level))
+                        .on_hover_text(
+                            "The part of the viewed output on screen was evaluated first, tile by tile at the level shown; the whole output follows once edits pause.",
+                        );
+                }
                 ui.separator();
             }
             let level = self.preview.shown_level();

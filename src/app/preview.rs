@@ -62,9 +62,22 @@ impl ViewSpec {
         size: (usize, usize),
         tile: usize,
     ) -> Option<(crate::eval::region::Rect, u32)> {
+        self.visible_from(size, tile, 0)
+    }
+
+    /// [`ViewSpec::visible`] at level `min_level` or any coarser one shown.
+    #[must_use]
+    pub fn visible_from(
+        &self,
+        size: (usize, usize),
+        tile: usize,
+        min_level: u32,
+    ) -> Option<(crate::eval::region::Rect, u32)> {
         let zoom = self.zoom_for(size);
-        let stride = Preview::stride_for_zoom(zoom);
-        let level = stride.ilog2();
+        let level = Preview::stride_for_zoom(zoom)
+            .ilog2()
+            .max(min_level.min(crate::eval::region::MAX_LEVEL));
+        let stride = 1usize << level;
         let (lw, lh) = crate::raster::pyramid::reduced_size(size, stride);
         // The image's top-left corner relative to the panel's.
         let min = [
@@ -476,6 +489,9 @@ pub struct RegionShown {
     pub rect: crate::eval::region::Rect,
     /// Level of detail.
     pub level: u32,
+    /// A level coarser than the one shown, while edits keep coming (a global operator is
+    /// evaluated at a coarse level: [`super::worker::INTERACTIVE_GLOBAL_PIXELS`]).
+    pub coarse: bool,
     /// The output's size at full resolution.
     pub full_size: (usize, usize),
     /// The output over `rect` at the level.
@@ -1224,6 +1240,7 @@ mod tests {
             key: 1,
             rect: Rect::new(10, 20, 5, 4),
             level: 2,
+            coarse: false,
             full_size: (100, 120),
             value: Value::Number(0.0),
         };

@@ -137,6 +137,7 @@ impl EditorApp {
                                 key: r.key,
                                 rect: r.rect,
                                 level: r.level,
+                                coarse: r.coarse,
                                 full_size: r.full_size,
                                 value: r.value,
                             },

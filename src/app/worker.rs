@@ -43,6 +43,13 @@ pub const SETTLE: Duration = Duration::from_millis(120);
 /// its viewport only (`rgbn eval` computes it whole).
 pub const WHOLE_PIXELS: usize = 64 << 20;
 
+/// While edits keep coming, a viewed output that depends on a global operator with a coarse
+/// form (an integration, a projection) is evaluated at the first level where it has at most
+/// this many pixels, if that is coarser than the level shown: the global operator then runs
+/// on that level's pixels ([`crate::eval::region`]). The level shown follows once edits pause,
+/// then the whole graph.
+pub const INTERACTIVE_GLOBAL_PIXELS: usize = 1 << 20;
+
 /// Label of the top-level graph in errors (see [`error_node`]).
 pub const TOP_LABEL: &str = "<memory>";
 
@@ -90,6 +97,9 @@ pub struct RegionOutcome {
     pub rect: Rect,
     /// The level of detail (pixels are `2^level` blocks of full-resolution ones).
     pub level: u32,
+    /// Evaluated at a level coarser than the one shown, because a global operator is computed
+    /// at a coarse level while edits keep coming ([`INTERACTIVE_GLOBAL_PIXELS`]).
+    pub coarse: bool,
     /// The output's size at full resolution.
     pub full_size: (usize, usize),
     /// The output over `rect` at the level.
@@ -232,8 +242,9 @@ impl Worker {
                         continue;
                     }
                     let mut whole_too = true;
-                    if let Some(r) = evaluate_view(&ev, &req, &mut sizes) {
+                    if let Some(r) = evaluate_view(&ev, &req, &mut sizes, true) {
                         whole_too = r.full_size.0 * r.full_size.1 <= WHOLE_PIXELS;
+                        let coarse = r.coarse;
                         if msg_tx.send(WorkerMsg::Region(Box::new(r))).is_err() {
                             break;
                         }
@@ -246,6 +257,19 @@ impl Worker {
                             }
                             Err(RecvTimeoutError::Timeout) => {}
                             Err(RecvTimeoutError::Disconnected) => break,
+                        }
+                        // Edits paused: the level shown, then the whole graph.
+                        if coarse {
+                            if let Some(r) = evaluate_view(&ev, &req, &mut sizes, false) {
+                                if msg_tx.send(WorkerMsg::Region(Box::new(r))).is_err() {
+                                    break;
+                                }
+                                wake();
+                            }
+                            if let Ok(newer) = req_rx.try_recv() {
+                                next = Some(newer);
+                                continue;
+                            }
                         }
                     }
                     let out = if whole_too {
@@ -347,13 +371,16 @@ fn view_plan(req: &EvalRequest, v: &ViewRequest) -> Result<(Plan, String), Graph
 }
 
 /// Evaluates the request's view, if it has one and it evaluates: the rectangle of the viewed
-/// output on screen, at the level of detail shown. An output of unknown size is first
-/// evaluated at the coarsest level (a pixel or so) to learn it. Errors are left to the whole
-/// evaluation, which attributes them to nodes.
+/// output on screen, at the level of detail shown — or, when `interacting` and the output
+/// depends on a global operator with a coarse form, at least at the level where the output
+/// has [`INTERACTIVE_GLOBAL_PIXELS`] (then [`RegionOutcome::coarse`]). An output of unknown
+/// size is first evaluated at the coarsest level (a pixel or so) to learn it. Errors are left
+/// to the whole evaluation, which attributes them to nodes.
 pub fn evaluate_view(
     ev: &Evaluator,
     req: &EvalRequest,
     sizes: &mut Sizes,
+    interacting: bool,
 ) -> Option<RegionOutcome> {
     let t0 = Instant::now();
     let v = req.view.as_ref()?;
@@ -390,9 +417,11 @@ pub fn evaluate_view(
                 .full_size
         }
     };
+    let global = interacting && crate::eval::region::depends_on_coarse_global(&plan, &name);
     let mut attempt = 0;
     let (r, level) = loop {
-        let (rect, level) = v.spec.visible(full, INTERACTIVE_TILE)?;
+        let min_level = if global { interactive_level(full) } else { 0 };
+        let (rect, level) = v.spec.visible_from(full, INTERACTIVE_TILE, min_level)?;
         let ropts = RegionOptions {
             tile: INTERACTIVE_TILE,
             level,
@@ -424,6 +453,10 @@ pub fn evaluate_view(
         port: v.port.clone(),
         rect: r.rect,
         level,
+        coarse: v
+            .spec
+            .visible(r.full_size, INTERACTIVE_TILE)
+            .is_some_and(|(_, shown)| shown < level),
         full_size: r.full_size,
         tiles_computed: r.tiles_computed(),
         key: r.key,
@@ -431,6 +464,17 @@ pub fn evaluate_view(
         elapsed: t0.elapsed(),
         ready: Instant::now(),
     })
+}
+
+/// The first level at which an output of `size` has at most [`INTERACTIVE_GLOBAL_PIXELS`].
+fn interactive_level(size: (usize, usize)) -> u32 {
+    let mut level = 0;
+    while level < crate::eval::region::MAX_LEVEL
+        && (size.0 >> level).max(1) * (size.1 >> level).max(1) > INTERACTIVE_GLOBAL_PIXELS
+    {
+        level += 1;
+    }
+    level
 }
 
 /// Nodes that run a side effect or depend on one.
@@ -750,6 +794,7 @@ mod tests {
     use super::*;
     use crate::app::state::Document;
     use crate::ops::params::ParamValue;
+    use std::path::Path;
 
     fn request(g: &Graph, generation: u64) -> EvalRequest {
         EvalRequest {
@@ -925,6 +970,84 @@ mod tests {
         assert!(
             worst <= 2e-3,
             "viewport differs from the whole output by {worst}"
+        );
+    }
+
+    #[test]
+    fn below_a_global_operator_edits_are_shown_at_a_coarse_level_then_at_the_level_shown() {
+        // A 2048 × 1024 surface of three bumps (2 Mpx) projected, viewed at 1:1: while edits
+        // come, the viewport is evaluated at level 1 (0.5 Mpx ≤ 1 Mpx), where the projection
+        // runs on a quarter of the pixels; once they pause, level 0, then the whole graph.
+        let mut g = Graph::default();
+        let src = g.add_node("surface", [0.0, 0.0]);
+        let proj = g.add_node("project", [200.0, 0.0]);
+        let params = &mut g.nodes.get_mut(&src).unwrap().params;
+        for (k, v) in [("width", 2048), ("height", 1024)] {
+            params.insert(k.into(), ParamValue::Int(v));
+        }
+        params.insert("shape".into(), ParamValue::Choice("gaussians".into()));
+        g.connect(src, "image", proj, "image", Path::new("."))
+            .unwrap();
+        assert_eq!(interactive_level((2048, 1024)), 1);
+        assert_eq!(interactive_level((1024, 1024)), 0);
+        let w = Worker::spawn(Arc::new(|| {}));
+        let mut req = request(&g, 1);
+        let spec = ViewSpec {
+            panel: [300.0, 200.0],
+            zoom: Some(1.0),
+            pan: [0.0, 0.0],
+        };
+        req.view = Some(ViewRequest {
+            node: proj,
+            port: "image".into(),
+            spec,
+        });
+        w.send(req);
+        let mut regions = Vec::new();
+        let deadline = Instant::now() + Duration::from_secs(120);
+        let done = loop {
+            assert!(Instant::now() < deadline, "no result");
+            match w.wait(Duration::from_millis(100)) {
+                Some(WorkerMsg::Region(r)) => regions.push(r),
+                Some(WorkerMsg::Done(o)) => break o,
+                _ => {}
+            }
+        };
+        let shown: Vec<(u32, bool)> = regions.iter().map(|r| (r.level, r.coarse)).collect();
+        assert_eq!(shown, [(1, true), (0, false)]);
+        // Each is the part of the value at its level: level 0 is the whole value's crop.
+        let whole = &done.values[&(proj, "image".to_string())];
+        let (Value::Rgbn(part), Value::Rgbn(all)) = (&regions[1].value, &whole.value) else {
+            panic!("RGBN values");
+        };
+        let r = regions[1].rect;
+        let mut worst = 0f32;
+        for y in 0..r.h {
+            for x in 0..r.w {
+                let (a, b) = (part.normal_at(x, y), all.normal_at(r.x + x, r.y + y));
+                for k in 0..3 {
+                    worst = worst.max((a[k] - b[k]).abs());
+                }
+            }
+        }
+        assert!(
+            worst <= 1e-6,
+            "level 0 viewport differs from the whole by {worst}"
+        );
+        // The coarse one approximates the same pixels reduced (normals within 0.02).
+        let coarse = &regions[0];
+        let reduced = crate::eval::region::reduce(&whole.value, 2);
+        let want = crate::eval::region::crop(&reduced, coarse.rect);
+        let (Value::Rgbn(a), Value::Rgbn(b)) = (&coarse.value, &want) else {
+            panic!("RGBN values");
+        };
+        let worst = (0..3)
+            .flat_map(|k| a.normal()[k].iter().zip(&b.normal()[k]))
+            .map(|(p, q)| (p - q).abs())
+            .fold(0f32, f32::max);
+        assert!(
+            worst <= 0.02,
+            "coarse viewport differs from the reduced whole by {worst}"
         );
     }
 }

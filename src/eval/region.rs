@@ -6,7 +6,10 @@
 //!    connected input with a [`Footprint::Local`] footprint, is reached only through such
 //!    inputs, and is not read through a `Number` port; everything else (sources, solvers,
 //!    whatever a global operator reads) is evaluated *whole* with the ordinary evaluator and
-//!    cached as before.
+//!    cached as before. At a coarse level, a global operator that has a coarse form (an
+//!    integration, a projection) is evaluated *at the level* instead: whole, on its inputs at
+//!    that level (tiled ones assembled from all their tiles), its outputs mapped back to
+//!    full-resolution units (`Operator::level_outputs`), cached under (key, level).
 //! 2. **Tiles.** A tiled instance's output plane is cut into `tile × tile` squares on a grid
 //!    anchored at (0, 0). The requested rectangle asks its instance for the tiles covering it;
 //!    each tile that is not in the memory cache asks every local input for the tiles covering
@@ -289,10 +292,17 @@ fn boxes_to_rects(boxes: &[[f64; 4]], size: (usize, usize)) -> Vec<Rect> {
         .collect()
 }
 
-#[derive(Clone, Copy, PartialEq, Eq, Debug)]
+/// How an instance is evaluated for a region, in increasing order of what it needs: a value
+/// wanted in two modes takes the later one.
+#[derive(Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Debug)]
 enum Mode {
     Unneeded,
+    /// Tile by tile, at the level.
     Tiled,
+    /// Whole, at a coarse level: a global operator with a coarse form run on its inputs at the
+    /// level ([`at_level`]).
+    Level,
+    /// Whole at full resolution with the ordinary evaluator (reduced at a coarse level).
     Whole,
 }
 
@@ -344,6 +354,69 @@ fn local_halo(plan: &Plan, lp: &LevelParams, i: usize) -> Option<usize> {
             Footprint::Global | Footprint::Pattern => None,
         })
         .max()
+}
+
+/// Whether instance `i` can be evaluated whole at coarse level `level` on its inputs at that
+/// level: a global operator (no local input) with a coarse form ([`crate::nodes::Operator::scaled`]),
+/// e.g. an integration. Its result approximates the full-resolution one reduced, at the
+/// cost of the level's pixels rather than the image's.
+/// `known`: the instances' full-resolution sizes as far as known before running; the level
+/// must leave the output at least [`LEVEL_MIN_SIDE`] pixels a side.
+fn at_level(
+    plan: &Plan,
+    lp: &LevelParams,
+    level: u32,
+    i: usize,
+    known: &[Option<(usize, usize)>],
+) -> bool {
+    let inst = &plan.instances[i];
+    let big = known[i].is_some_and(|(w, h)| (w.min(h) >> level) >= LEVEL_MIN_SIDE);
+    level > 0
+        && big
+        && lp[i].is_some()
+        && !inst.op.spec().side_effect
+        && !regional(plan, i)
+        && local_halo(plan, lp, i).is_none()
+        && inst.inputs.iter().any(|c| matches!(c, Conn::Slot(..)))
+}
+
+/// Whether graph output `output` depends on a global operator that has a coarse form (an
+/// integration, a projection): at a coarse level it costs that level's pixels instead of the
+/// whole image's, so an editor can show such an output at a coarse level while edits keep
+/// coming.
+#[must_use]
+pub fn depends_on_coarse_global(plan: &Plan, output: &str) -> bool {
+    let Some(Conn::Slot(root, _)) = plan.outputs.get(output) else {
+        return false;
+    };
+    let lp = level_params(plan, 1, 2);
+    let known = super::memory::sizes(plan, &HashMap::new());
+    let mut up = vec![false; plan.instances.len()];
+    up[*root] = true;
+    for i in (0..=*root).rev() {
+        if !up[i] {
+            continue;
+        }
+        if at_level(plan, &lp, 1, i, &known) {
+            return true;
+        }
+        for c in &plan.instances[i].inputs {
+            if let Conn::Slot(j, _) = c {
+                up[*j] = true;
+            }
+        }
+    }
+    false
+}
+
+/// The smallest side, in pixels of the level, on which a global operator runs at a coarse
+/// level; coarser (a size probe, a tiny image), it is computed whole and reduced.
+pub const LEVEL_MIN_SIDE: usize = 16;
+
+/// The cache key of an instance's whole value computed at a level ([`Mode::Level`]); tile
+/// side 1 is never a tile's.
+fn level_key(key: CacheKey, level: u32) -> CacheKey {
+    tile_key(key, 1, level, 0, 0)
 }
 
 /// Whether instance `i` computes any window on its own (its inputs, if any, passed whole).
@@ -425,9 +498,12 @@ impl Evaluator {
         }
         // 1. Modes, from the output up (instances are in topological order).
         let n = plan.instances.len();
+        let known = super::memory::sizes(plan, &HashMap::new());
         let mut mode = vec![Mode::Unneeded; n];
         mode[root] = if local_halo(plan, &lp, root).is_some() {
             Mode::Tiled
+        } else if at_level(plan, &lp, level, root, &known) {
+            Mode::Level
         } else {
             Mode::Whole
         };
@@ -438,25 +514,36 @@ impl Evaluator {
             let inst = &plan.instances[i];
             for (k, c) in inst.inputs.iter().enumerate() {
                 let Conn::Slot(j, port) = c else { continue };
-                let number = plan.is_number(*j, *port);
-                let local = mode[i] == Mode::Tiled
-                    && !number
+                let fp = footprint(plan, &lp, i, k);
+                // What instance i needs of input j: tiles (a local input of a tiled instance,
+                // or any input of one evaluated at the level, which takes all of its tiles), the
+                // value at the level, or the whole full-resolution value.
+                let by_level = matches!(mode[i], Mode::Tiled | Mode::Level)
+                    && !plan.is_number(*j, *port)
                     && !regional(plan, i)
-                    && matches!(footprint(plan, &lp, i, k), Footprint::Local { .. })
-                    && local_halo(plan, &lp, *j).is_some();
-                mode[*j] = match (mode[*j], local) {
-                    (Mode::Whole, _) | (_, false) => Mode::Whole,
-                    _ => Mode::Tiled,
+                    && fp != Footprint::Pattern;
+                let tiles = local_halo(plan, &lp, *j).is_some()
+                    && match mode[i] {
+                        Mode::Tiled => matches!(fp, Footprint::Local { .. }),
+                        _ => mode[i] == Mode::Level,
+                    };
+                let need = if by_level && tiles {
+                    Mode::Tiled
+                } else if by_level && at_level(plan, &lp, level, *j, &known) {
+                    Mode::Level
+                } else {
+                    Mode::Whole
                 };
+                mode[*j] = mode[*j].max(need);
             }
         }
-        // 2. Whole instances that tiled ones (or the request) read directly.
+        // 2. Whole instances that tiled ones, ones at the level (or the request) read directly.
         let whole_roots: Vec<usize> = (0..n)
             .filter(|&j| mode[j] == Mode::Whole)
             .filter(|&j| {
                 j == root
                     || plan.instances.iter().enumerate().any(|(i, inst)| {
-                        mode[i] == Mode::Tiled
+                        matches!(mode[i], Mode::Tiled | Mode::Level)
                             && inst
                                 .inputs
                                 .iter()
@@ -493,10 +580,26 @@ impl Evaluator {
             size[*j] = e.values.iter().find_map(super::memory::value_size);
         }
         for i in 0..=root {
+            let inst = &plan.instances[i];
+            if mode[i] == Mode::Level {
+                let sizes: Vec<Option<(usize, usize)>> = inst
+                    .inputs
+                    .iter()
+                    .map(|c| match c {
+                        Conn::Slot(j, port) => match whole.results.get(j) {
+                            Some(e) => e.values.get(*port).and_then(super::memory::value_size),
+                            None => size[*j],
+                        },
+                        _ => None,
+                    })
+                    .collect();
+                size[i] = inst.op.out_size(&inst.params, &sizes);
+                self.key(plan, i, &mut keys)?;
+                continue;
+            }
             if mode[i] != Mode::Tiled {
                 continue;
             }
-            let inst = &plan.instances[i];
             // Every local input must have the same size: they are cropped alike.
             let mut first: Option<(&str, (usize, usize))> = None;
             for (k, c) in inst.inputs.iter().enumerate() {
@@ -674,11 +777,34 @@ impl Evaluator {
         let mut have: Vec<TileMap> = vec![HashMap::new(); n];
         let mut todo: Vec<Vec<(usize, usize)>> = vec![Vec::new(); n];
         let mut reused = vec![0usize; n];
+        // Instances at the level whose value is needed, and those of them to compute.
+        let mut level_want = vec![false; n];
+        level_want[root] = mode[root] == Mode::Level;
+        let mut level_todo = vec![false; n];
         for i in (0..=root).rev() {
+            let inst = &plan.instances[i];
+            if mode[i] == Mode::Level && level_want[i] {
+                if let Some(e) = self.mem_get(level_key(keys[&i], level)) {
+                    wv.insert(i, e);
+                    continue;
+                }
+                level_todo[i] = true;
+                for c in &inst.inputs {
+                    let Conn::Slot(j, _) = c else { continue };
+                    match mode[*j] {
+                        Mode::Tiled => {
+                            let all = Rect::full(lsize[*j].unwrap_or_default());
+                            want[*j].extend(covering(&all, tile));
+                        }
+                        Mode::Level => level_want[*j] = true,
+                        _ => {}
+                    }
+                }
+                continue;
+            }
             if mode[i] != Mode::Tiled || want[i].is_empty() {
                 continue;
             }
-            let inst = &plan.instances[i];
             let (key, sz) = (keys[&i], lsize[i].unwrap_or_default());
             let halo = local_halo(plan, &lp, i).unwrap_or(0);
             let wanted = std::mem::take(&mut want[i]);
@@ -720,6 +846,9 @@ impl Evaluator {
                     {
                         want[*j].extend(covering(&need, tile));
                     }
+                    if mode[*j] == Mode::Level {
+                        level_want[*j] = true;
+                    }
                 }
             }
         }
@@ -729,6 +858,23 @@ impl Evaluator {
         };
         let mut tiles = Vec::new();
         for i in 0..=root {
+            if level_todo[i] {
+                let e =
+                    self.run_at_level(plan, &lp, i, (&mode, &have, &wv), &lsize, tile, s, &ctx)?;
+                self.mem_insert(level_key(keys[&i], level), e.clone());
+                let sz = lsize[i].unwrap_or_default();
+                let inst = &plan.instances[i];
+                tiles.push(TileStats {
+                    at: inst.at.clone(),
+                    op: inst.op.spec().id,
+                    computed: 1,
+                    cached: 0,
+                    reused: 0,
+                    pixels: sz.0 * sz.1,
+                });
+                wv.insert(i, e);
+                continue;
+            }
             if mode[i] != Mode::Tiled || (todo[i].is_empty() && have[i].is_empty()) {
                 continue;
             }
@@ -802,10 +948,13 @@ impl Evaluator {
                                 }
                             })
                             .collect();
-                        let values = inst
+                        let mut values = inst
                             .op
                             .run_at(params, &inputs, &ctx, (crop_rect.x, crop_rect.y))
                             .map_err(node_err)?;
+                        if s > 1 {
+                            values = inst.op.level_outputs(params, s as f64, values);
+                        }
                         let inner = Rect::new(tr.x - crop_rect.x, tr.y - crop_rect.y, tr.w, tr.h);
                         values
                             .iter()
@@ -841,6 +990,17 @@ impl Evaluator {
             }
             tiles.push(st);
         }
+        if mode[root] == Mode::Level {
+            return Ok(RegionResult {
+                value: crop(&wv[&root].values[root_port], rect),
+                rect,
+                size: out_size,
+                full_size: size[root].unwrap_or(out_size),
+                whole: whole.stats,
+                tiles,
+                key: super::port_key(keys[&root], root_port),
+            });
+        }
         // Patched in place (when the caller no longer holds it), or assembled anew.
         let value = match last {
             Some((mut value, d)) => {
@@ -874,6 +1034,51 @@ impl Evaluator {
             tiles,
             key: super::port_key(keys[&root], root_port),
         })
+    }
+
+    /// Instance `i` ([`Mode::Level`]) computed whole at the level (reduction `s`): its
+    /// operator's coarse form on its inputs at the level, tiled ones assembled whole, the
+    /// outputs mapped back by [`crate::nodes::Operator::level_outputs`].
+    #[allow(clippy::too_many_arguments)]
+    fn run_at_level(
+        &self,
+        plan: &Plan,
+        lp: &LevelParams,
+        i: usize,
+        (mode, have, wv): (&[Mode], &[TileMap], &HashMap<usize, Arc<CacheEntry>>),
+        lsize: &[Option<(usize, usize)>],
+        tile: usize,
+        s: usize,
+        ctx: &RunContext,
+    ) -> Result<Arc<CacheEntry>, GraphError> {
+        let inst = &plan.instances[i];
+        let params = lp[i].as_ref().unwrap_or(&inst.params);
+        let inputs: Vec<Option<Value>> = inst
+            .inputs
+            .iter()
+            .map(|c| {
+                let Conn::Slot(j, port) = c else { return None };
+                if mode[*j] == Mode::Tiled {
+                    let full = lsize[*j]?;
+                    return Some(assemble(&have[*j], *port, tile, full, Rect::full(full)));
+                }
+                wv.get(j)?.values.get(*port).cloned()
+            })
+            .collect();
+        let values = inst
+            .op
+            .run(params, &inputs, ctx)
+            .map(|v| inst.op.level_outputs(params, s as f64, v))
+            .map_err(|source| GraphError::Node {
+                op: inst.op.spec().id.to_string(),
+                source,
+                at: inst.at.clone(),
+            })?;
+        Ok(Arc::new(CacheEntry {
+            values,
+            curl: None,
+            fraction: None,
+        }))
     }
 
     fn mem_get(&self, key: CacheKey) -> Option<Arc<CacheEntry>> {

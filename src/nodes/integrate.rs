@@ -7,12 +7,48 @@
 use super::save::write_value;
 use super::{Inputs, OpSpec, Operator, PortSpec, PortType, RunContext, Value};
 use crate::error::RgbnError;
-use crate::ops::integrate::{IntegrateSettings, SaveHeightParams, SaveMeshSettings};
-use crate::raster::integrate::{integrate_normals, project_integrable, ProjectParams};
+use crate::ops::integrate::{CameraModel, IntegrateSettings, SaveHeightParams, SaveMeshSettings};
+use crate::raster::integrate::{
+    integrate_normals, project_integrable, IntegrationMethod, ProjectParams,
+};
 use crate::raster::io::{self, SaveOptions};
 use crate::raster::mesh::save_mesh;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
+
+/// The integration's form at a level of detail (the normals reduced by `s`): lengths in pixels
+/// divided by `s` (a pinhole's focal lengths and principal point), and the bilateral sharpness
+/// times `s²`, so that a depth jump of `J` pixels, `J/s` on the coarse grid, is weighed as at
+/// full resolution. A K file has no such form (it states full-resolution pixels).
+fn integrate_at_level(p: &IntegrateSettings, s: f64) -> Option<IntegrateSettings> {
+    if p.camera == CameraModel::KFile {
+        return None;
+    }
+    let [principal_x, principal_y] = super::scale_point([p.principal_x, p.principal_y], s);
+    Some(IntegrateSettings {
+        focal_px: p.focal_px / s,
+        focal_y_px: p.focal_y_px / s,
+        principal_x,
+        principal_y,
+        sharpness: if p.method == IntegrationMethod::Bilateral {
+            p.sharpness * s * s
+        } else {
+            p.sharpness
+        },
+        ..p.clone()
+    })
+}
+
+/// Output `k` (a height in coarse pixels) multiplied by `s`: full-resolution pixels.
+fn height_times(mut outputs: Vec<Value>, k: usize, s: f64) -> Vec<Value> {
+    if let Some(Value::Scalar(z)) = outputs.get_mut(k) {
+        let mut z2 = (**z).clone();
+        let s = s as f32;
+        z2.data_mut().iter_mut().for_each(|v| *v *= s);
+        *z = Arc::new(z2);
+    }
+    outputs
+}
 
 /// Normals → height.
 pub struct IntegrateNode;
@@ -42,6 +78,12 @@ impl Operator for IntegrateNode {
     }
     fn check(p: &IntegrateSettings) -> Result<(), RgbnError> {
         p.params().map(|_| ())
+    }
+    fn scaled(p: &IntegrateSettings, s: f64) -> Option<IntegrateSettings> {
+        integrate_at_level(p, s)
+    }
+    fn level_outputs(_: &IntegrateSettings, s: f64, outputs: Vec<Value>) -> Vec<Value> {
+        height_times(outputs, 0, s)
     }
     fn run(p: &IntegrateSettings, i: &Inputs<'_>, _: &RunContext) -> Result<Vec<Value>, RgbnError> {
         let img = i.rgbn("image")?;
@@ -87,6 +129,12 @@ impl Operator for ProjectNode {
     }
     fn check(p: &IntegrateSettings) -> Result<(), RgbnError> {
         p.params().map(|_| ())
+    }
+    fn scaled(p: &IntegrateSettings, s: f64) -> Option<IntegrateSettings> {
+        integrate_at_level(p, s)
+    }
+    fn level_outputs(_: &IntegrateSettings, s: f64, outputs: Vec<Value>) -> Vec<Value> {
+        height_times(outputs, 1, s)
     }
     fn run(p: &IntegrateSettings, i: &Inputs<'_>, _: &RunContext) -> Result<Vec<Value>, RgbnError> {
         let img = i.rgbn("image")?;

@@ -420,6 +420,12 @@ pub trait Operator: Send + Sync + 'static {
     fn scaled(_params: &Self::Params, _s: f64) -> Option<Self::Params> {
         None
     }
+    /// The outputs of a run at a level of detail (inputs reduced by `s`, `params` from
+    /// [`Operator::scaled`]) mapped to approximate the full-resolution outputs reduced by `s`:
+    /// a height in pixels is multiplied by `s`. Default: unchanged (normals, colours, slopes).
+    fn level_outputs(_params: &Self::Params, _s: f64, outputs: Vec<Value>) -> Vec<Value> {
+        outputs
+    }
     /// Whether the outputs can be computed over any window, at any level of detail, without
     /// the rest of the image ([`Operator::run_region`]): procedural sources. The region
     /// evaluator then computes them tile by tile rather than whole. Default: no.
@@ -505,6 +511,13 @@ pub trait DynOp: Send + Sync {
         values: &BTreeMap<String, ParamValue>,
         s: f64,
     ) -> Option<BTreeMap<String, ParamValue>>;
+    /// [`Operator::level_outputs`] on canonical params (unchanged when they do not parse).
+    fn level_outputs(
+        &self,
+        values: &BTreeMap<String, ParamValue>,
+        s: f64,
+        outputs: Vec<Value>,
+    ) -> Vec<Value>;
     /// [`Operator::regional`] on canonical params (`false` when they do not parse).
     fn regional(&self, values: &BTreeMap<String, ParamValue>) -> bool;
     /// [`Operator::run_region`] on canonical params.
@@ -606,6 +619,17 @@ impl<T: Operator> DynOp for Entry<T> {
     ) -> Option<BTreeMap<String, ParamValue>> {
         let p: T::Params = params::from_values(values).ok()?;
         T::scaled(&p, s).map(|p| params::to_values(&p))
+    }
+    fn level_outputs(
+        &self,
+        values: &BTreeMap<String, ParamValue>,
+        s: f64,
+        outputs: Vec<Value>,
+    ) -> Vec<Value> {
+        match params::from_values::<T::Params>(values) {
+            Ok(p) => T::level_outputs(&p, s, outputs),
+            Err(_) => outputs,
+        }
     }
     fn regional(&self, values: &BTreeMap<String, ParamValue>) -> bool {
         params::from_values::<T::Params>(values).is_ok_and(|p| T::regional(&p))

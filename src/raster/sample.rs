@@ -341,7 +341,8 @@ impl Surface {
                 .map(|i| {
                     let (x, row) = (i % width, i / width);
                     let (a, b) = (row * cw + x, (row + 1) * cw + x);
-                    let all = [a, a + 1, b, b + 1].iter().all(|&c| defined[c] > 0.5);
+                    // 1 where defined, divided by the scale as heights are.
+                    let all = [a, a + 1, b, b + 1].iter().all(|&c| defined[c] > 0.0);
                     f32::from(u8::from(all))
                 })
                 .collect();

@@ -431,9 +431,6 @@ fn procedural_sources_compute_any_window_exactly_and_coarse_levels_match_block_m
         // are the surface at that scale; they differ by the curvature over a block (second
         // order), which for these smooth surfaces (features ≥ 10 px) stays below 0.05 in the
         // unit normal. Heights are in the coarse grid's pixels: a quarter of the fine ones.
-        if sphere || *id == "demo" {
-            continue; // the rim's slopes and the demo's fine textures are not smooth at 4 px
-        }
         let s = 4;
         let (cw, ch) = (size.0.div_ceil(s), size.1.div_ceil(s));
         let win = Window {
@@ -447,6 +444,25 @@ fn procedural_sources_compute_any_window_exactly_and_coarse_levels_match_block_m
         let (Value::Rgbn(a), Value::Rgbn(b)) = (&coarse[0], &reduce(&whole[0], s)) else {
             panic!()
         };
+        if let (Some(ma), Some(mb)) = (a.mask(), b.mask()) {
+            // The sphere's mask on the coarse grid (pixels whose corners all lie on it)
+            // against the block means' coverage ≥ ½: they differ only along the rim, a ring
+            // of about 2πr/4 coarse pixels.
+            let inside = |m: &[f32]| m.iter().filter(|&&v| v >= 0.5).count();
+            let differ = ma
+                .iter()
+                .zip(mb)
+                .filter(|(x, y)| (**x >= 0.5) != (**y >= 0.5));
+            let (ia, ib, differ) = (inside(ma), inside(mb), differ.count());
+            let rim = 2.0 * std::f64::consts::PI * (ib as f64 / std::f64::consts::PI).sqrt();
+            assert!(
+                ib > 0 && (differ as f64) <= rim,
+                "{id} {params:?}: coarse mask has {ia} inside, block means {ib}, {differ} differ"
+            );
+        }
+        if sphere || *id == "demo" {
+            continue; // the rim's slopes and the demo's fine textures are not smooth at 4 px
+        }
         // Full blocks only: the last column and row of blocks are clipped by the image edge
         // in the block means but not on the directly sampled grid.
         let (fw, fh) = (size.0 / s, size.1 / s);
@@ -805,6 +821,156 @@ fn edits_at_a_coarse_level_patch_only_their_damage_and_equal_a_cold_evaluation()
                     "level {level} step {step}: pen recomputed {} tiles, bound {bound}, grid {grid}",
                     at_pen.computed
                 );
+            }
+        }
+    }
+}
+
+/// Global operators at a coarse level: an integration (and the integrability projection) runs
+/// on the coarse grid, on its inputs at that level (the pen before it tiled at the level), at
+/// the cost of the level's pixels; its height, scaled back to full-resolution pixels,
+/// approximates the full-resolution height reduced by block means. A K file (full-resolution
+/// pixels) has no coarse form: that integration is computed whole and reduced, exactly.
+#[test]
+fn global_operators_run_at_a_coarse_level_and_approximate_the_reduced_full_result() {
+    use rgbn::eval::region::reduce;
+    let d = tempfile::tempdir().unwrap();
+    std::fs::write(
+        d.path().join("k.txt"),
+        "1000 0 159.5\n0 1000 119.5\n0 0 1\n",
+    )
+    .unwrap();
+    let graph = |shape: &str, method: &str, camera: &str| {
+        format!(
+            r#"(
+    version: 1,
+    next_id: 6,
+    outputs: {{ "height": (node: 3, port: "height"), "projected": (node: 4, port: "image"), "relit": (node: 5, port: "picture") }},
+    nodes: [
+        (id: 1, op: "surface", pos: (0.0, 0.0), params: {{ "width": Int(320), "height": Int(240), "shape": Choice("{shape}") }}),
+        (id: 2, op: "pen", pos: (0.0, 0.0), params: {{ "points": Points([(40.0, 60.0), (160.0, 120.0), (280.0, 80.0)]), "width_px": Float(24.0), "taper_px": Float(12.0), "height_px": Float(6.0) }}, inputs: {{ "image": Node(1, "image") }}),
+        (id: 3, op: "integrate", pos: (0.0, 0.0), params: {{ "method": Choice("{method}"), "camera": Choice("{camera}"), "k_file": Path("k.txt") }}, inputs: {{ "image": Node(2, "image") }}),
+        (id: 4, op: "project", pos: (0.0, 0.0), params: {{ "method": Choice("{method}") }}, inputs: {{ "image": Node(2, "image") }}),
+        (id: 5, op: "relight", pos: (0.0, 0.0), inputs: {{ "image": Node(4, "image") }}),
+    ],
+)"#
+        )
+    };
+    // RMS over the blocks wholly inside the mask (`inside`: the reduced mask), after removing
+    // the mean difference; and the spread of `b` there.
+    let rms_height = |a: &Value, b: &Value, inside: Option<&[f32]>| -> (f64, f64) {
+        let (Value::Scalar(a), Value::Scalar(b)) = (a, b) else {
+            panic!("heights expected")
+        };
+        let pairs: Vec<(f64, f64)> = a
+            .data()
+            .iter()
+            .zip(b.data())
+            .enumerate()
+            .filter(|(i, _)| inside.is_none_or(|m| m[*i] >= 1.0))
+            .map(|(_, (x, y))| (f64::from(*x), f64::from(*y)))
+            .collect();
+        let n = pairs.len() as f64;
+        let mean_d = pairs.iter().map(|(x, y)| x - y).sum::<f64>() / n;
+        let mean_b = pairs.iter().map(|(_, y)| y).sum::<f64>() / n;
+        let err = (pairs
+            .iter()
+            .map(|(x, y)| (x - y - mean_d).powi(2))
+            .sum::<f64>()
+            / n)
+            .sqrt();
+        let spread = (pairs.iter().map(|(_, y)| (y - mean_b).powi(2)).sum::<f64>() / n).sqrt();
+        (err, spread)
+    };
+    let opts = EvalOptions::default();
+    for (shape, method, camera) in [
+        ("gaussians", "poisson_dct", "orthographic"),
+        ("sphere", "masked_poisson", "orthographic"),
+        ("gaussians", "poisson_dct", "pinhole"),
+        ("gaussians", "poisson_dct", "k_file"),
+    ] {
+        let lg = LoadedGraph::from_text(
+            &graph(shape, method, camera),
+            "global.ron",
+            d.path().to_path_buf(),
+        )
+        .unwrap();
+        let plan = Plan::new(&lg, &BTreeMap::new(), d.path()).unwrap();
+        let whole = Evaluator::default().eval(&plan, &[], &opts).unwrap();
+        let coarse = camera != "k_file";
+        for level in [1u32, 2] {
+            let s = 1usize << level;
+            let (lw, lh) = (320 / s, 240 / s);
+            let ev = Evaluator::default();
+            let ropts = RegionOptions { tile: 32, level };
+            let r = ev
+                .eval_region(&plan, "height", Rect::full((lw, lh)), &ropts, &opts)
+                .unwrap();
+            let what = format!("{shape} {method} {camera} level {level}");
+            let at_level: Vec<(&str, usize)> = r
+                .tiles
+                .iter()
+                .filter(|t| t.op == "integrate")
+                .map(|t| (t.op, t.pixels))
+                .collect();
+            let whole_ops: Vec<&str> = r.whole.iter().map(|n| n.op).collect();
+            if coarse {
+                // Computed once, on the level's pixels, not at full resolution; the pen
+                // before it is tiled at the level.
+                assert_eq!(at_level, [("integrate", lw * lh)], "{what}");
+                assert!(!whole_ops.contains(&"integrate"), "{what}: {whole_ops:?}");
+                assert!(r.tiles.iter().any(|t| t.op == "pen"), "{what}");
+            } else {
+                assert!(at_level.is_empty(), "{what}: {at_level:?}");
+                assert!(whole_ops.contains(&"integrate"), "{what}: {whole_ops:?}");
+            }
+            let want = reduce(&whole.outputs["height"], s);
+            let Value::Rgbn(reduced) = reduce(&whole.outputs["projected"], s) else {
+                panic!("an image")
+            };
+            let (err, spread) = rms_height(&r.value, &want, reduced.mask());
+            eprintln!("{what}: height RMS error {err:.4} px against a spread of {spread:.3} px");
+            if coarse {
+                // Measured ≤ 1.8 % of the spread (the sphere at level 2): the normals averaged
+                // over 2^L × 2^L blocks and integrated on the coarse grid.
+                assert!(err <= 0.03 * spread, "{what}: {err} against {spread}");
+            } else {
+                assert!(err <= 1e-5 * spread.max(1.0), "{what}: {err}");
+            }
+            // A part of the level is cut from the cached level value: nothing is computed.
+            let part = Rect::new(5, 3, lw / 2, lh / 2);
+            let p = ev
+                .eval_region(&plan, "height", part, &ropts, &opts)
+                .unwrap();
+            assert!(max_diff(&crop(&r.value, part), &p.value) <= 0.0, "{what}");
+            assert_eq!(p.tiles_computed(), 0, "{what}: {:?}", p.tiles);
+            // The projection's normals at the level, against the reduced full projection.
+            if coarse {
+                let r = ev
+                    .eval_region(&plan, "projected", Rect::full((lw, lh)), &ropts, &opts)
+                    .unwrap();
+                let (Value::Rgbn(got), Value::Rgbn(want)) =
+                    (&r.value, reduce(&whole.outputs["projected"], s))
+                else {
+                    panic!("images")
+                };
+                // Over the blocks wholly inside the mask (the rim's grazing normals are not
+                // resolved at any level).
+                let inside: Vec<usize> = (0..lw * lh)
+                    .filter(|&i| want.mask().is_none_or(|m| m[i] >= 1.0))
+                    .collect();
+                let sq: f64 = inside
+                    .iter()
+                    .map(|&i| {
+                        (0..3)
+                            .map(|k| f64::from(got.normal()[k][i] - want.normal()[k][i]).powi(2))
+                            .sum::<f64>()
+                    })
+                    .sum();
+                let err = (sq / inside.len() as f64).sqrt();
+                eprintln!("{what}: projected normals RMS error {err:.4}");
+                assert!(err <= 0.02, "{what}: projected {err}");
+                assert!(r.tiles.iter().any(|t| t.op == "project" && t.computed == 1));
             }
         }
     }
