@@ -123,6 +123,13 @@ fn viewport(c: &mut Criterion) {
     // The editor's whole evaluation, once edits paused.
     let _ = evaluate(&ev, &request(&d, 0, view.clone()), None);
     let mut generation = 1;
+    // A new direction for every append, across criterion's calls too: no result of an
+    // earlier append is ever in the cache.
+    let mut serial = 0u64;
+    let mut direction = move || {
+        serial += 1;
+        1.0 + 0.7 * ((serial as f64) * 0.618_034).fract()
+    };
     c.bench_function("viewport/pen_segment_4k", |b| {
         b.iter_custom(|iters| {
             let mut total = Duration::ZERO;
@@ -140,7 +147,7 @@ fn viewport(c: &mut Criterion) {
                     generation += 1;
                 }
                 let last = path[path.len() - 1];
-                let a = 0.3 * (i % 7) as f64;
+                let a = direction();
                 path.push([last[0] + 10.0 * a.cos(), last[1] + 10.0 * a.sin()]);
                 let t0 = Instant::now();
                 d.set_param(pen, "points", ParamValue::Points(path.clone()));
@@ -181,9 +188,9 @@ fn viewport(c: &mut Criterion) {
             b.iter_custom(|iters| {
                 let mut total = Duration::ZERO;
                 let mut path = base.clone();
-                for i in 0..iters {
+                for _ in 0..iters {
                     let last = path[path.len() - 1];
-                    let a = 0.3 * (i % 7) as f64;
+                    let a = direction();
                     path.push([last[0] + 10.0 * a.cos(), last[1] + 10.0 * a.sin()]);
                     let t0 = Instant::now();
                     d.set_param(pen, "points", ParamValue::Points(path.clone()));
