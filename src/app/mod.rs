@@ -397,9 +397,19 @@ impl EditorApp {
         self.shortcuts(&ctx);
         self.dropped_files_ui(&ctx);
 
-        egui::Panel::top("menu").show(ui, |ui| self.menu_ui(ui, &mut actions));
-        egui::Panel::bottom("status").show(ui, |ui| self.status_ui(ui));
+        // Panels are not filled: the frame is cleared to their colour (`clear_color`), and
+        // with software GL (llvmpipe) every filled pixel costs — the fills were a third of
+        // each frame's fragments.
+        let side = egui::Frame::side_top_panel(ui.style()).fill(Color32::TRANSPARENT);
+        let central = egui::Frame::central_panel(ui.style()).fill(Color32::TRANSPARENT);
+        egui::Panel::top("menu")
+            .frame(side)
+            .show(ui, |ui| self.menu_ui(ui, &mut actions));
+        egui::Panel::bottom("status")
+            .frame(side)
+            .show(ui, |ui| self.status_ui(ui));
         egui::Panel::right("inspector")
+            .frame(side)
             .resizable(true)
             .default_size(300.0)
             .size_range(220.0..=600.0)
@@ -409,6 +419,7 @@ impl EditorApp {
         self.refresh_ports();
         self.view.sync(&self.session.doc.graph, &self.runtime.ports);
         egui::Panel::left("graph")
+            .frame(side)
             .resizable(true)
             .default_size(640.0)
             .size_range(300.0..=1400.0)
@@ -431,7 +442,9 @@ impl EditorApp {
                 actions.extend(self.view.show_ui(ui, &data));
             });
         self.view.write_back_positions(&mut self.session.doc.graph);
-        egui::CentralPanel::default().show(ui, |ui| self.preview_ui(ui));
+        egui::CentralPanel::default()
+            .frame(central)
+            .show(ui, |ui| self.preview_ui(ui));
         self.dialogs_ui(&ctx);
         self.file_dialog_ui(&ctx);
         if self.show_ops {
@@ -753,5 +766,10 @@ impl eframe::App for EditorApp {
 
     fn ui(&mut self, ui: &mut egui::Ui, _frame: &mut eframe::Frame) {
         self.frame_ui(ui);
+    }
+
+    /// The panels' colour: they are drawn unfilled on it (see `frame_ui`).
+    fn clear_color(&self, visuals: &egui::Visuals) -> [f32; 4] {
+        visuals.panel_fill.to_normalized_gamma_f32()
     }
 }

@@ -893,7 +893,7 @@ impl Preview {
     ) -> Option<String> {
         let (rect, resp) = ui.allocate_exact_size(ui.available_size(), Sense::click_and_drag());
         let painter = ui.painter_at(rect);
-        painter.rect_filled(rect, 0.0, Color32::from_gray(24));
+        let background = || painter.rect_filled(rect, 0.0, Color32::from_gray(24));
         self.panel = Some(rect.size());
         let overlay_size = self
             .overlay
@@ -904,6 +904,7 @@ impl Preview {
             .as_ref()
             .map(|t| self.shown_size.unwrap_or_else(|| t.size_vec2()));
         let Some(size) = overlay_size.or(base_size) else {
+            background();
             if let Some((Value::Number(x), _)) = value {
                 painter.text(
                     rect.center(),
@@ -969,10 +970,8 @@ impl Preview {
         self.last_zoom = Some(zoom);
         let img_rect = Rect::from_center_size(rect.center() + self.pan, size * zoom);
         let uv = Rect::from_min_max(Pos2::ZERO, Pos2::new(1.0, 1.0));
-        if let Some(tex) = &self.texture {
-            painter.image(tex.id(), img_rect, uv, Color32::WHITE);
-        }
-        if let Some((o, Some((r, level)))) = self.overlay.as_ref().map(|o| (o, o.req.region)) {
+        let overlay = self.overlay.as_ref().and_then(|o| {
+            let (r, level) = o.req.region?;
             // Level pixel (x, y) covers full-resolution pixels [x·s, (x+1)·s) (the last
             // block of a row or column may be cut by the image's edge).
             let s = (1u64 << level) as f32;
@@ -984,7 +983,21 @@ impl Preview {
                 img_rect.min + Vec2::new(x0, y0) * zoom,
                 img_rect.min + Vec2::new(x1, y1) * zoom,
             );
-            painter.image(o.texture.id(), at, uv, Color32::WHITE);
+            Some((o.texture.id(), at))
+        });
+        // The picture under a viewport that covers all of it on screen is not drawn: with
+        // software GL each covered pixel would be shaded twice.
+        let visible = img_rect.intersect(rect);
+        // Likewise the background, when the picture fills the panel (zoomed in).
+        if !img_rect.contains_rect(rect) {
+            background();
+        }
+        let covered = overlay.is_some_and(|(_, at)| at.contains_rect(visible));
+        if let Some(tex) = self.texture.as_ref().filter(|_| !covered) {
+            painter.image(tex.id(), img_rect, uv, Color32::WHITE);
+        }
+        if let Some((id, at)) = overlay {
+            painter.image(id, at, uv, Color32::WHITE);
         }
         self.draw_split(&painter, img_rect);
         painter.rect_stroke(
