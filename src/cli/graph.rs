@@ -14,7 +14,7 @@ use crate::ops::{registry, PortType, Value};
 use crate::raster::io::stream::{PngTarget, RowEncoding};
 use crate::raster::io::{self, SaveOptions};
 use crate::raster::io::{Format, NormalConvention};
-use clap::Args;
+use clap::{Args, ValueEnum};
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use std::sync::{Arc, Mutex};
@@ -105,6 +105,30 @@ pub struct BatchArgs {
     /// Keep node results in this folder and reuse them across runs.
     #[arg(long, value_name = "DIR")]
     pub cache_dir: Option<PathBuf>,
+    /// File format of image (RGBN) outputs: exr (float normals, colour and mask) or png
+    /// (16-bit normal maps, which can be written row by row: see --stream).
+    #[arg(long, value_enum, default_value_t = ImageFiles::Exr)]
+    pub images: ImageFiles,
+    /// Per file, as `rgbn eval --stream`: evaluate strip by strip, reading and writing rows,
+    /// with memory bounded by the strip. `auto` does for images over 16 Mpx (or the pixel
+    /// limit) when the graph allows (its input a PNG read by one `load`, local operators
+    /// only, every output an image or picture written as PNG: `--images png`), `always`
+    /// insists (a file that cannot is a failure saying why), `never` evaluates whole images.
+    #[arg(long, value_enum, default_value_t = StreamMode::Auto)]
+    pub stream: StreamMode,
+    /// Rows per strip when streaming (default: 4 Mpx worth, at least 64 rows and four halos).
+    #[arg(long, value_name = "ROWS", value_parser = clap::value_parser!(u64).range(1..))]
+    pub strip_rows: Option<u64>,
+}
+
+/// `rgbn batch --images`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+pub enum ImageFiles {
+    /// OpenEXR: float normals, colour and mask.
+    Exr,
+    /// 16-bit PNG normal maps (colour and mask are not kept); written row by row when
+    /// streaming.
+    Png,
 }
 
 /// `rgbn check`.
@@ -328,23 +352,13 @@ pub fn eval_cmd(a: &EvalArgs, out: &mut Out<'_>) -> Result<(), CliError> {
         Some("--stats reports per-node numbers of a whole-image run".to_string())
     } else if requested.is_empty() {
         Some("no output is written (-o NAME=PATH)".to_string())
-    } else if let Some((_, p)) = requested
-        .iter()
-        .find(|(_, p)| Format::of(p).ok() != Some(Format::Png))
-    {
-        Some(format!(
-            "{} is not a PNG (only PNG is written row by row)",
-            p.display()
-        ))
     } else {
-        match StreamPlan::check(&plan, &names)? {
-            Streamable::No(why) => Some(why),
-            Streamable::Yes(sp) => {
-                if a.stream.streams(sp.size()) {
-                    return eval_stream(&plan, *sp, &requested, a.strip_rows, out);
-                }
-                None
+        match stream_plan(&plan, &requested)? {
+            Err(why) => Some(why),
+            Ok(sp) if a.stream.streams(sp.size()) => {
+                return eval_stream(&plan, sp, &requested, a.strip_rows, out);
             }
+            Ok(_) => None,
         }
     };
     a.stream.allows(why_whole.as_deref())?;
@@ -390,6 +404,27 @@ pub fn eval_cmd(a: &EvalArgs, out: &mut Out<'_>) -> Result<(), CliError> {
         print_stats(out, &r, &plan.at.file)?;
     }
     Ok(())
+}
+
+/// The plan that writes the requested outputs strip by strip, or why they cannot be.
+fn stream_plan<'p>(
+    plan: &'p Plan,
+    requested: &[(String, PathBuf)],
+) -> Result<Result<StreamPlan<'p>, String>, CliError> {
+    if let Some((_, p)) = requested
+        .iter()
+        .find(|(_, p)| Format::of(p).ok() != Some(Format::Png))
+    {
+        return Ok(Err(format!(
+            "{} is not a PNG (only PNG is written row by row)",
+            p.display()
+        )));
+    }
+    let names: Vec<&str> = requested.iter().map(|(n, _)| n.as_str()).collect();
+    Ok(match StreamPlan::check(plan, &names)? {
+        Streamable::No(why) => Err(why),
+        Streamable::Yes(sp) => Ok(*sp),
+    })
 }
 
 /// `rgbn eval` streamed ([`crate::eval::stream`]): images as 16-bit normal maps and pictures as
@@ -527,8 +562,9 @@ fn eval_region(
     Ok(())
 }
 
-fn extension(ty: PortType) -> &'static str {
+fn extension(ty: PortType, images: ImageFiles) -> &'static str {
     match ty {
+        PortType::Rgbn if images == ImageFiles::Png => "png",
         PortType::Rgbn | PortType::Scalar => "exr",
         PortType::Picture | PortType::Mask => "png",
         PortType::Number => "txt",
@@ -582,26 +618,52 @@ pub fn batch_cmd(a: &BatchArgs, out: &mut Out<'_>) -> Result<(), CliError> {
     let pb = progress_bar(files.len() as u64);
     let failures: Mutex<Vec<PathBuf>> = Mutex::new(Vec::new());
     let written = std::sync::atomic::AtomicUsize::new(0);
+    let streamed = std::sync::atomic::AtomicUsize::new(0);
     let run_one = |file: &PathBuf| -> Result<(), CliError> {
         let mut inputs = fixed.clone();
         inputs.insert(name.to_string(), file.clone());
         super::interrupt::check()?;
         let plan = Plan::new(&lg, &inputs, Path::new("."))?;
+        let stem = file
+            .file_stem()
+            .map_or_else(|| "out".into(), |s| s.to_string_lossy().into_owned());
+        let protected: Vec<&Path> = plan.protected.iter().map(PathBuf::as_path).collect();
+        let mut requested = Vec::new();
+        for (oname, ty) in &plan.output_types {
+            let ext = extension(*ty, a.images);
+            let path = a.out_dir.join(format!("{stem}.{oname}.{ext}"));
+            io::check_output(&path, &protected)?;
+            requested.push((oname.clone(), path));
+        }
+        // Strip by strip when it can be and should be (as `rgbn eval`).
+        if a.stream != StreamMode::Never {
+            let why = match stream_plan(&plan, &requested)? {
+                Ok(sp) if a.stream.streams(sp.size()) => {
+                    let mut sink = std::io::sink();
+                    eval_stream(
+                        &plan,
+                        sp,
+                        &requested,
+                        a.strip_rows,
+                        &mut Out::new(&mut sink),
+                    )?;
+                    written.fetch_add(requested.len(), std::sync::atomic::Ordering::Relaxed);
+                    streamed.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+                    return Ok(());
+                }
+                Ok(_) => None,
+                Err(why) => Some(why),
+            };
+            a.stream.allows(why.as_deref())?;
+        }
         let opts = EvalOptions {
             cancel: super::interrupt::flag(),
             ..EvalOptions::default()
         };
         let r = ev.eval(&plan, &[], &opts)?;
-        let stem = file
-            .file_stem()
-            .map_or_else(|| "out".into(), |s| s.to_string_lossy().into_owned());
-        for (oname, v) in &r.outputs {
-            let ty = plan.output_types[oname];
-            let path = a.out_dir.join(format!("{stem}.{oname}.{}", extension(ty)));
-            let protected: Vec<&Path> = plan.protected.iter().map(PathBuf::as_path).collect();
-            io::check_output(&path, &protected)?;
+        for (oname, path) in &requested {
             super::interrupt::check()?;
-            write_value(v, &path, &SaveOptions::default())?;
+            write_value(&r.outputs[oname], path, &SaveOptions::default())?;
             written.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
         }
         Ok(())
@@ -637,9 +699,15 @@ pub fn batch_cmd(a: &BatchArgs, out: &mut Out<'_>) -> Result<(), CliError> {
         .into_inner()
         .unwrap_or_else(std::sync::PoisonError::into_inner);
     failures.sort();
+    let streamed = streamed.load(std::sync::atomic::Ordering::Relaxed);
     out.line(format_args!(
-        "processed {} files, wrote {} outputs to {}, {} failed",
+        "processed {} files{}, wrote {} outputs to {}, {} failed",
         files.len(),
+        if streamed > 0 {
+            format!(" ({streamed} streamed strip by strip)")
+        } else {
+            String::new()
+        },
         written.load(std::sync::atomic::Ordering::Relaxed),
         a.out_dir.display(),
         failures.len()
