@@ -10,8 +10,8 @@
 //! [`crate::raster::convolve::gaussian_support`]). Consecutive windows overlap by `2·halo` rows,
 //! which are kept, not read again: each file is read once, top to bottom.
 
-use super::io::stream::{PngRows, RowMap};
-use super::io::{Format, InputSpec, LoadOptions, DEFAULT_ALBEDO};
+use super::io::stream::{RowMap, Rows};
+use super::io::{InputSpec, LoadOptions, DEFAULT_ALBEDO};
 use super::{RgbnImage, Validation, MIN_NORMAL_LENGTH};
 use crate::error::RgbnError;
 use rayon::prelude::*;
@@ -43,9 +43,9 @@ pub fn strip_rows_of(width: usize, halo: usize, pixels: usize) -> usize {
 /// The files of an RGBN image opened for reading top to bottom: a normal map and optional
 /// colour and mask, all PNG.
 pub struct StreamInput {
-    normal: PngRows,
-    color: Option<PngRows>,
-    mask: Option<PngRows>,
+    normal: Rows,
+    color: Option<Rows>,
+    mask: Option<Rows>,
     opts: LoadOptions,
 }
 
@@ -65,17 +65,8 @@ impl StreamInput {
         let Some(normal) = spec.rgbn.as_ref().or(spec.normal.as_ref()) else {
             return Ok(Opened::Whole("no normal map is named".into()));
         };
-        let open = |what: &str, p: &Path| -> Result<Result<PngRows, String>, RgbnError> {
-            let fmt = Format::of(p)?;
-            if fmt != Format::Png {
-                return Ok(Err(format!(
-                    "the {what} is {} (only PNG is read row by row)",
-                    format!("{fmt:?}").to_uppercase()
-                )));
-            }
-            Ok(PngRows::open(p)?.ok_or_else(|| {
-                format!("the {what} is an interlaced PNG (its rows are not stored in order)")
-            }))
+        let open = |what: &str, p: &Path| -> Result<Result<Rows, String>, RgbnError> {
+            Ok(Rows::open(p)?.map_err(|why| format!("the {what} is {why}")))
         };
         let normal = match open("normal map", normal)? {
             Ok(r) => r,

@@ -644,3 +644,84 @@ fn batch_streams_each_file_and_equals_the_whole_image_run() {
         "{err}"
     );
 }
+
+/// A TIFF stored in strips streams like a PNG: normal map (16-bit), colour (8-bit) and mask
+/// read strip by strip give the filter the same samples as reading them whole; a TIFF cut
+/// short is a one-line error (exit 2) naming the file, and leaves no output.
+#[test]
+fn tiff_in_strips_streams_and_equals_reading_whole() {
+    let d = tempfile::tempdir().unwrap();
+    let img = relief(72, 40, 5);
+    // Written as PNGs, then as TIFFs of a few rows per strip (an encoder's default strips hold
+    // about 1 MB, so a small image would be one strip).
+    use tiff::encoder::{colortype, TiffEncoder};
+    let (w, h) = (72u32, 40u32);
+    let png = d.path().join("n.png");
+    io::save_normal_map(&img, &png, 16, NormalConvention::OpenGl).unwrap();
+    let n = d.path().join("n.tif");
+    let samples = image::open(&png).unwrap().into_rgb16().into_raw();
+    let mut enc = TiffEncoder::new(std::fs::File::create(&n).unwrap()).unwrap();
+    let mut im = enc.new_image::<colortype::RGB16>(w, h).unwrap();
+    im.rows_per_strip(3).unwrap();
+    im.write_data(&samples).unwrap();
+    let cpng = d.path().join("c.png");
+    io::save_color(&img, &cpng, 8).unwrap();
+    let c = d.path().join("c.tif");
+    let samples = image::open(&cpng).unwrap().into_rgb8().into_raw();
+    let mut enc = TiffEncoder::new(std::fs::File::create(&c).unwrap()).unwrap();
+    let mut im = enc.new_image::<colortype::RGB8>(w, h).unwrap();
+    im.rows_per_strip(5).unwrap();
+    im.write_data(&samples).unwrap();
+    for p in [&n, &c] {
+        let mut dec = tiff::decoder::Decoder::new(std::fs::File::open(p).unwrap()).unwrap();
+        let strips = dec.strip_count().unwrap();
+        assert!(strips >= 8, "{} has {strips} strips", p.display());
+    }
+    let run = |mode: &str, normal: &Path| {
+        let (o, co) = (
+            d.path().join(format!("o_{mode}.png")),
+            d.path().join(format!("c_{mode}.png")),
+        );
+        let out = rgbn(&[
+            "filter",
+            "--normal",
+            normal.to_str().unwrap(),
+            "--color",
+            c.to_str().unwrap(),
+            "-k",
+            "box:2",
+            "--bits",
+            "16",
+            "--stream",
+            mode,
+            "--strip-rows",
+            "7",
+            "-o",
+            o.to_str().unwrap(),
+            "--color-out",
+            co.to_str().unwrap(),
+        ]);
+        (out, o, co)
+    };
+    let (so, sn, sc) = run("always", &n);
+    // `--stream always` refuses, saying why, whatever it cannot read row by row.
+    assert!(so.status.success(), "{}", stderr(&so));
+    let (wo, wn, wc) = run("never", &n);
+    assert!(wo.status.success(), "{}", stderr(&wo));
+    let rgb16 = |p: &Path| image::open(p).unwrap().into_rgb16().into_raw();
+    // The box filter is finite: the same numbers, so the same samples.
+    assert_eq!(rgb16(&sn), rgb16(&wn), "normals differ");
+    assert_eq!(rgb16(&sc), rgb16(&wc), "colour differs");
+    // Cut short: the end of the file (strips or the directory) is missing.
+    let bytes = std::fs::read(&n).unwrap();
+    let cut = d.path().join("cut.tif");
+    std::fs::write(&cut, &bytes[..bytes.len() / 2]).unwrap();
+    let target = d.path().join("o_always.png");
+    std::fs::remove_file(&target).unwrap();
+    let (co, _, _) = run("always", &cut);
+    assert_eq!(co.status.code(), Some(2), "{}", stderr(&co));
+    let err = stderr(&co);
+    assert_eq!(err.trim().lines().count(), 1, "{err}");
+    assert!(err.contains("cut.tif"), "{err}");
+    assert!(!target.exists(), "a partial output was left");
+}

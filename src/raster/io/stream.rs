@@ -1,4 +1,4 @@
-//! Row-streamed PNG files: read and written a band of rows at a time, so an image larger than
+//! Row-streamed PNG (and TIFF) files: read and written a band of rows at a time, so an image larger than
 //! memory passes through with a peak set by the band, not the image (issue 12, item 5; the
 //! strip driver is [`crate::raster::strips`]).
 //!
@@ -7,6 +7,9 @@
 //!   [`super::load_color`], [`super::load_mask`]), so a streamed image equals a loaded one.
 //!   Interlaced (Adam7) files store the image in seven passes and cannot be read top to bottom:
 //!   [`PngRows::open`] returns `None` for them and callers read them whole.
+//! - [`TiffRows`] does the same for a TIFF stored in strips of 8- or 16-bit interleaved
+//!   samples, one strip decoded at a time (a tiled or planar TIFF is read whole); [`Rows`] is
+//!   either, by the file's extension.
 //! - [`PngTarget`] / [`PngRowWriter`] encode rows of normals or colour with the encoding and
 //!   compression of [`super::save_normal_map`] / [`super::save_color`] into an [`AtomicFile`]:
 //!   the target appears, complete, only when [`PngTarget::commit`] succeeds.
@@ -100,6 +103,236 @@ pub enum RowMap {
     Unit,
 }
 
+/// Sample `v` of channel `k` of an 8- or 16-bit file as `map` says, with the arithmetic of the
+/// whole-image loaders.
+fn sample_map(map: RowMap, sixteen: bool) -> impl Fn(u16, usize) -> f32 {
+    let max = if sixteen { 65535.0 } else { 255.0 };
+    let (lut8, lut16) = (srgb8_lut(), srgb16_lut());
+    move |v: u16, k: usize| -> f32 {
+        match map {
+            RowMap::Normal(conv) => {
+                let n = f32::from(v) * (2.0 / max) - 1.0;
+                if k == 1 && conv == NormalConvention::DirectX {
+                    -n
+                } else {
+                    n
+                }
+            }
+            RowMap::Srgb if sixteen => lut16[usize::from(v)],
+            RowMap::Srgb => lut8[usize::from(v)],
+            RowMap::Unit => f32::from(v) / max,
+        }
+    }
+}
+
+/// A file read top to bottom, a band of rows at a time: a PNG ([`PngRows`]) or a TIFF stored
+/// in strips ([`TiffRows`]).
+pub enum Rows {
+    /// A PNG.
+    Png(Box<PngRows>),
+    /// A TIFF.
+    Tiff(Box<TiffRows>),
+}
+
+impl Rows {
+    /// Opens `path` (PNG or TIFF) for reading top to bottom, or says why it must be read whole
+    /// (another format, an interlaced PNG, a tiled or planar TIFF, samples other than 8 or 16
+    /// bits).
+    pub fn open(path: &Path) -> Result<Result<Self, String>, RgbnError> {
+        Ok(match super::Format::of(path)? {
+            super::Format::Png => match PngRows::open(path)? {
+                Some(r) => Ok(Rows::Png(Box::new(r))),
+                None => Err("an interlaced PNG (its rows are not stored in order)".into()),
+            },
+            super::Format::Tiff => TiffRows::open(path)?.map(|r| Rows::Tiff(Box::new(r))),
+            fmt => Err(format!(
+                "{} (only PNG and TIFF are read row by row)",
+                format!("{fmt:?}").to_uppercase()
+            )),
+        })
+    }
+
+    /// Width and height in pixels.
+    #[must_use]
+    pub fn size(&self) -> (usize, usize) {
+        match self {
+            Rows::Png(r) => r.size(),
+            Rows::Tiff(r) => (r.width, r.height),
+        }
+    }
+
+    /// Samples per pixel (1 grey, 2 grey + alpha, 3 RGB, 4 RGBA).
+    #[must_use]
+    pub fn channels(&self) -> usize {
+        match self {
+            Rows::Png(r) => r.channels(),
+            Rows::Tiff(r) => r.channels,
+        }
+    }
+
+    /// The file.
+    #[must_use]
+    pub fn path(&self) -> &Path {
+        match self {
+            Rows::Png(r) => r.path(),
+            Rows::Tiff(r) => &r.path,
+        }
+    }
+
+    /// Decodes the next `planes[0].len() / width` rows into `planes` ([`PngRows::read`]).
+    pub fn read(&mut self, planes: &mut [&mut [f32]], map: RowMap) -> Result<(), RgbnError> {
+        match self {
+            Rows::Png(r) => r.read(planes, map),
+            Rows::Tiff(r) => r.read(planes, map),
+        }
+    }
+}
+
+/// Strips taller than this many pixels are not streamed (a TIFF written as one strip would be
+/// decoded whole anyway).
+const MAX_TIFF_STRIP_PIXELS: usize = 1 << 24;
+
+/// A TIFF stored in strips, read top to bottom one strip at a time: 8- or 16-bit unsigned
+/// samples, grey, grey + alpha, RGB or RGBA, interleaved.
+pub struct TiffRows {
+    path: PathBuf,
+    dec: tiff::decoder::Decoder<BufReader<File>>,
+    width: usize,
+    height: usize,
+    channels: usize,
+    sixteen: bool,
+    /// Rows per strip (the last may have fewer).
+    strip_rows: usize,
+    /// The decoded strip holding the next rows, its first row, and rows read so far.
+    strip: Vec<u16>,
+    strip_y0: usize,
+    row: usize,
+}
+
+impl TiffRows {
+    /// Opens `path` and reads its header; `Err(why)` for a TIFF that cannot be read in strips
+    /// of rows.
+    pub fn open(path: &Path) -> Result<Result<Self, String>, RgbnError> {
+        open_check(path)?;
+        let file = File::open(path).map_err(|e| RgbnError::Read {
+            path: path.into(),
+            source: e,
+        })?;
+        let err = |e: tiff::TiffError| RgbnError::Decode {
+            detail: e.to_string(),
+            path: path.into(),
+        };
+        let mut dec =
+            tiff::decoder::Decoder::new(BufReader::with_capacity(1 << 20, file)).map_err(err)?;
+        let (w, h) = dec.dimensions().map_err(err)?;
+        let (width, height) = (w as usize, h as usize);
+        if width == 0 || height == 0 {
+            return Err(RgbnError::Decode {
+                detail: format!("image has no pixels ({width}×{height})"),
+                path: path.into(),
+            });
+        }
+        use tiff::ColorType as C;
+        let (channels, bits) = match dec.colortype().map_err(err)? {
+            C::Gray(b) => (1, b),
+            C::GrayA(b) => (2, b),
+            C::RGB(b) => (3, b),
+            C::RGBA(b) => (4, b),
+            other => return Ok(Err(format!("a TIFF of {other:?} samples (read whole)"))),
+        };
+        if bits != 8 && bits != 16 {
+            return Ok(Err(format!("a TIFF of {bits}-bit samples (read whole)")));
+        }
+        if dec.get_chunk_type() != tiff::decoder::ChunkType::Strip {
+            return Ok(Err("a tiled TIFF (read whole)".into()));
+        }
+        let planar = dec
+            .find_tag_unsigned::<u16>(tiff::tags::Tag::PlanarConfiguration)
+            .map_err(err)?;
+        if planar.is_some_and(|p| p != 1) {
+            return Ok(Err("a TIFF with separate colour planes (read whole)".into()));
+        }
+        let strip_rows = dec.chunk_dimensions().1 as usize;
+        if strip_rows.saturating_mul(width) > MAX_TIFF_STRIP_PIXELS {
+            return Ok(Err(format!(
+                "a TIFF in strips of {strip_rows} rows (each decoded whole)"
+            )));
+        }
+        Ok(Ok(Self {
+            path: path.into(),
+            dec,
+            width,
+            height,
+            channels,
+            sixteen: bits == 16,
+            strip_rows: strip_rows.max(1),
+            strip: Vec::new(),
+            strip_y0: 0,
+            row: 0,
+        }))
+    }
+
+    /// Decodes the strip holding row `self.row`.
+    fn next_strip(&mut self) -> Result<(), RgbnError> {
+        let index = self.row / self.strip_rows;
+        let at = |detail: String| RgbnError::Decode {
+            detail: format!(
+                "{detail} (strip {index}, at row {} of {})",
+                self.row, self.height
+            ),
+            path: self.path.clone(),
+        };
+        let data = self
+            .dec
+            .read_chunk(index as u32)
+            .map_err(|e| at(e.to_string()))?;
+        self.strip = match data {
+            tiff::decoder::DecodingResult::U8(v) => v.into_iter().map(u16::from).collect(),
+            tiff::decoder::DecodingResult::U16(v) => v,
+            _ => return Err(at("unexpected sample type".into())),
+        };
+        let rows = (self.height - index * self.strip_rows).min(self.strip_rows);
+        if self.strip.len() < rows * self.width * self.channels {
+            return Err(at(format!(
+                "the strip holds {} samples, {} expected",
+                self.strip.len(),
+                rows * self.width * self.channels
+            )));
+        }
+        self.strip_y0 = index * self.strip_rows;
+        Ok(())
+    }
+
+    /// Decodes the next `planes[0].len() / width` rows into `planes` ([`PngRows::read`]).
+    pub fn read(&mut self, planes: &mut [&mut [f32]], map: RowMap) -> Result<(), RgbnError> {
+        let (w, c) = (self.width, self.channels);
+        let rows = planes.first().map_or(0, |p| p.len() / w);
+        let f = sample_map(map, self.sixteen);
+        for r in 0..rows {
+            if self.row >= self.height {
+                return Err(RgbnError::Decode {
+                    detail: format!("the image has only {} rows", self.height),
+                    path: self.path.clone(),
+                });
+            }
+            if self.strip.is_empty() || self.row >= self.strip_y0 + self.strip_rows {
+                self.next_strip()?;
+            }
+            let off = (self.row - self.strip_y0) * w * c;
+            let data = &self.strip[off..off + w * c];
+            for (k, plane) in planes.iter_mut().enumerate() {
+                let ch = k.min(c - 1);
+                let out = &mut plane[r * w..(r + 1) * w];
+                for (x, o) in out.iter_mut().enumerate() {
+                    *o = f(data[x * c + ch], k);
+                }
+            }
+            self.row += 1;
+        }
+        Ok(())
+    }
+}
+
 /// A PNG read top to bottom, a band of rows at a time.
 pub struct PngRows {
     path: PathBuf,
@@ -175,24 +408,7 @@ impl PngRows {
         let w = self.width;
         let rows = planes.first().map_or(0, |p| p.len() / w);
         let c = self.channels;
-        let max = if self.sixteen { 65535.0 } else { 255.0 };
-        let lut8 = srgb8_lut();
-        let lut16 = srgb16_lut();
-        let f = |v: u16, k: usize| -> f32 {
-            match map {
-                RowMap::Normal(conv) => {
-                    let n = f32::from(v) * (2.0 / max) - 1.0;
-                    if k == 1 && conv == NormalConvention::DirectX {
-                        -n
-                    } else {
-                        n
-                    }
-                }
-                RowMap::Srgb if self.sixteen => lut16[usize::from(v)],
-                RowMap::Srgb => lut8[usize::from(v)],
-                RowMap::Unit => f32::from(v) / max,
-            }
-        };
+        let f = sample_map(map, self.sixteen);
         for r in 0..rows {
             let row = match self.reader.next_row() {
                 Ok(Some(row)) => row,
