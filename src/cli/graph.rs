@@ -64,7 +64,7 @@ pub struct EvalArgs {
     pub tile: u64,
     /// Evaluate strip by strip, reading and writing rows, with memory bounded by the strip:
     /// `auto` does for images over 16 Mpx (or the pixel limit) when the graph allows (one
-    /// `load` of PNG or TIFF files, local operators only, image and picture outputs written as PNG),
+    /// `load` of PNG, TIFF or EXR files, local operators only, image and picture outputs written as PNG),
     /// `always` insists (and says why not), `never` evaluates whole images.
     #[arg(long, value_enum, default_value_t = StreamMode::Auto)]
     pub stream: StreamMode,
@@ -111,7 +111,7 @@ pub struct BatchArgs {
     pub images: ImageFiles,
     /// Per file, as `rgbn eval --stream`: evaluate strip by strip, reading and writing rows,
     /// with memory bounded by the strip. `auto` does for images over 16 Mpx (or the pixel
-    /// limit) when the graph allows (its input a PNG or TIFF read by one `load`, local operators
+    /// limit) when the graph allows (its input a PNG, TIFF or EXR read by one `load`, local operators
     /// only, every output an image or picture written as PNG: `--images png`), `always`
     /// insists (a file that cannot is a failure saying why), `never` evaluates whole images.
     #[arg(long, value_enum, default_value_t = StreamMode::Auto)]

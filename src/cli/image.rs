@@ -116,7 +116,7 @@ pub struct RenderArgs {
     #[arg(short, long)]
     pub output: PathBuf,
     /// Read and write row by row, with memory bounded by the strip (the relit, albedo and
-    /// normals views of PNG or TIFF input): `auto` over 16 Mpx or the pixel limit, `always` insists
+    /// normals views of PNG, TIFF or EXR input): `auto` over 16 Mpx or the pixel limit, `always` insists
     /// (and says why not), `never` reads the image whole.
     #[arg(long, value_enum, default_value_t = StreamMode::Auto)]
     pub stream: StreamMode,
@@ -158,7 +158,7 @@ pub struct FilterArgs {
     #[arg(long)]
     pub half: bool,
     /// Read and write row by row, in strips, with memory bounded by the strip instead of the
-    /// image: `auto` does for images over 16 Mpx (or the pixel limit) when it can (PNG or TIFF in, PNG out, any border but
+    /// image: `auto` does for images over 16 Mpx (or the pixel limit) when it can (PNG, TIFF in strips or scan-line EXR in, PNG out, any border but
     /// wrap), `always` insists (and says why not), `never` reads the image whole.
     #[arg(long, value_enum, default_value_t = StreamMode::Auto)]
     pub stream: StreamMode,
@@ -442,7 +442,7 @@ pub(super) fn render_cmd(a: &RenderArgs, out: &mut Out<'_>) -> Result<(), CliErr
     Ok(())
 }
 
-/// `rgbn render` of a per-pixel view, streamed: PNG or TIFF rows in, RGBA rows out ([`strips`]).
+/// `rgbn render` of a per-pixel view, streamed: PNG, TIFF or EXR rows in, RGBA rows out ([`strips`]).
 fn render_stream(
     a: &RenderArgs,
     mut input: StreamInput,
@@ -561,7 +561,7 @@ pub(super) fn filter_cmd(a: &FilterArgs, out: &mut Out<'_>) -> Result<(), CliErr
     filter_summary(a, &kernels, &report, out)
 }
 
-/// `rgbn filter` streamed: PNG or TIFF rows in, strips filtered, PNG rows out ([`strips`]).
+/// `rgbn filter` streamed: PNG, TIFF or EXR rows in, strips filtered, PNG rows out ([`strips`]).
 fn filter_stream(
     a: &FilterArgs,
     mut input: StreamInput,

@@ -1,5 +1,5 @@
 //! Streamed evaluation: a plan whose requested outputs depend, through local operators only, on
-//! one `load` of PNG or TIFF files is run strip by strip ([`crate::raster::strips`]), so `rgbn eval`
+//! one `load` of PNG, TIFF or EXR files is run strip by strip ([`crate::raster::strips`]), so `rgbn eval`
 //! processes images larger than memory with a peak set by the strip.
 //!
 //! Per strip, the `load` instance yields the strip's window (the strip grown by the plan's
@@ -46,7 +46,7 @@ pub enum Streamable<'p> {
 
 impl<'p> StreamPlan<'p> {
     /// Checks that `outputs` (graph output names) can be streamed from `plan`: each an image or
-    /// a picture, all depending on one `load` of PNG or TIFF files through operators whose inputs are
+    /// a picture, all depending on one `load` of PNG, TIFF or EXR files through operators whose inputs are
     /// all local ([`Footprint::Local`]), none read through a number port. Opens the files.
     pub fn check(plan: &'p Plan, outputs: &[&str]) -> Result<Streamable<'p>, GraphError> {
         let no = |s: String| Ok(Streamable::No(s));

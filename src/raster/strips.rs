@@ -10,8 +10,8 @@
 //! [`crate::raster::convolve::gaussian_support`]). Consecutive windows overlap by `2·halo` rows,
 //! which are kept, not read again: each file is read once, top to bottom.
 
-use super::io::stream::{RowMap, Rows};
-use super::io::{InputSpec, LoadOptions, DEFAULT_ALBEDO};
+use super::io::stream::{ExrRows, RowMap, Rows};
+use super::io::{Format, InputSpec, LoadOptions, DEFAULT_ALBEDO};
 use super::{RgbnImage, Validation, MIN_NORMAL_LENGTH};
 use crate::error::RgbnError;
 use rayon::prelude::*;
@@ -58,19 +58,62 @@ pub enum Opened {
 }
 
 impl StreamInput {
-    /// Opens the files of `spec` for streaming, or says why they must be read whole (an EXR
-    /// or PTM, a TIFF or JPEG, an interlaced PNG). Errors are those of reading the headers
-    /// (missing file, not a PNG, sizes that differ).
+    /// Opens the files of `spec` for streaming, or says why they must be read whole (a PTM or
+    /// JPEG, an interlaced PNG, a tiled TIFF or EXR, a colour or mask file in EXR). Errors are
+    /// those of reading the headers (missing file, not an image, sizes that differ).
+    ///
+    /// An EXR is read as [`super::io::load_exr`] reads it: normals `N.X,N.Y,N.Z` (or `R,G,B`
+    /// with [`LoadOptions::exr_rgb_is_normal`]), colour `R,G,B` and mask `A` when present,
+    /// unless a colour or mask file is named.
     pub fn open(spec: &InputSpec, opts: &LoadOptions) -> Result<Opened, RgbnError> {
-        let Some(normal) = spec.rgbn.as_ref().or(spec.normal.as_ref()) else {
+        let Some(normal_path) = spec.rgbn.as_ref().or(spec.normal.as_ref()) else {
             return Ok(Opened::Whole("no normal map is named".into()));
         };
         let open = |what: &str, p: &Path| -> Result<Result<Rows, String>, RgbnError> {
+            if what != "normal map" && Format::of(p)? == Format::Exr {
+                return Ok(Err(format!("the {what} is an EXR (read whole)")));
+            }
             Ok(Rows::open(p)?.map_err(|why| format!("the {what} is {why}")))
         };
-        let normal = match open("normal map", normal)? {
-            Ok(r) => r,
-            Err(why) => return Ok(Opened::Whole(why)),
+        let (mut exr_color, mut exr_mask) = (None, None);
+        let normal = if Format::of(normal_path)? == Format::Exr {
+            let p = normal_path.as_path();
+            let names = if opts.exr_rgb_is_normal {
+                ["R", "G", "B"]
+            } else {
+                ["N.X", "N.Y", "N.Z"]
+            };
+            if !ExrRows::has_channels(p, &names)? {
+                // Read whole, the loader says what is missing.
+                return Ok(Opened::Whole(format!(
+                    "the normal map is an EXR without channels {}",
+                    names.join(",")
+                )));
+            }
+            let exr = |names: &[&str]| -> Result<Result<Rows, String>, RgbnError> {
+                Ok(ExrRows::open(p, names)?
+                    .map(|r| Rows::Exr(Box::new(r)))
+                    .map_err(|why| format!("the normal map is {why}")))
+            };
+            let normal = match exr(&names)? {
+                Ok(r) => r,
+                Err(why) => return Ok(Opened::Whole(why)),
+            };
+            if !opts.exr_rgb_is_normal
+                && spec.color.is_none()
+                && ExrRows::has_channels(p, &["R", "G", "B"])?
+            {
+                exr_color = exr(&["R", "G", "B"])?.ok();
+            }
+            if spec.mask.is_none() && ExrRows::has_channels(p, &["A"])? {
+                exr_mask = exr(&["A"])?.ok();
+            }
+            normal
+        } else {
+            match open("normal map", normal_path)? {
+                Ok(r) => r,
+                Err(why) => return Ok(Opened::Whole(why)),
+            }
         };
         if normal.channels() < 3 {
             return Err(RgbnError::Decode {
@@ -102,11 +145,11 @@ impl StreamInput {
             }
         };
         let color = match part("colour image", &spec.color)? {
-            Ok(c) => c,
+            Ok(c) => c.or(exr_color),
             Err(why) => return Ok(Opened::Whole(why)),
         };
         let mask = match part("mask", &spec.mask)? {
-            Ok(m) => m,
+            Ok(m) => m.or(exr_mask),
             Err(why) => return Ok(Opened::Whole(why)),
         };
         Ok(Opened::Stream(Box::new(StreamInput {

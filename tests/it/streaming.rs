@@ -725,3 +725,89 @@ fn tiff_in_strips_streams_and_equals_reading_whole() {
     assert!(err.contains("cut.tif"), "{err}");
     assert!(!target.exists(), "a partial output was left");
 }
+
+/// A scan-line EXR streams as well: an RGBN EXR (normals, colour and mask; 32- and 16-bit
+/// floats; uncompressed one row a block and ZIP 16 rows a block) filtered strip by strip gives
+/// the same samples as read whole; a tiled one is read whole and `--stream always` says so; a
+/// file cut short is a one-line error (exit 2) naming it, leaving no output.
+#[test]
+fn scan_line_exr_streams_and_equals_reading_whole() {
+    use rgbn::raster::io::{save_exr_with, ExrCompression, ExrPrecision};
+    let d = tempfile::tempdir().unwrap();
+    let img = relief(60, 45, 6);
+    let run = |mode: &str, input: &Path, tag: &str| {
+        let (o, co) = (
+            d.path().join(format!("o_{tag}_{mode}.png")),
+            d.path().join(format!("c_{tag}_{mode}.png")),
+        );
+        let out = rgbn(&[
+            "filter",
+            input.to_str().unwrap(),
+            "--mask-aware",
+            "-k",
+            "box:2",
+            "--bits",
+            "16",
+            "--stream",
+            mode,
+            "--strip-rows",
+            "7",
+            "-o",
+            o.to_str().unwrap(),
+            "--color-out",
+            co.to_str().unwrap(),
+        ]);
+        (out, o, co)
+    };
+    let rgb16 = |p: &Path| image::open(p).unwrap().into_rgb16().into_raw();
+    for (precision, compression, tag) in [
+        (ExrPrecision::Full, ExrCompression::None, "f32"),
+        (ExrPrecision::Half, ExrCompression::Zip16, "f16zip"),
+    ] {
+        let p = d.path().join(format!("{tag}.exr"));
+        save_exr_with(&img, &p, precision, compression).unwrap();
+        let (so, sn, sc) = run("always", &p, tag);
+        assert!(so.status.success(), "{tag}: {}", stderr(&so));
+        let (wo, wn, wc) = run("never", &p, tag);
+        assert!(wo.status.success(), "{tag}: {}", stderr(&wo));
+        // The samples read are the loader's, and the box filter is finite; half floats are
+        // not unit length, and a streamed band is renormalised as read (as a streamed PNG):
+        // within one 16-bit step.
+        let (a, b) = (rgb16(&sn), rgb16(&wn));
+        let worst = a.iter().zip(&b).map(|(x, y)| x.abs_diff(*y)).max().unwrap();
+        let limit = u16::from(precision == ExrPrecision::Half);
+        assert!(worst <= limit, "{tag}: normals differ by {worst}");
+        assert_eq!(rgb16(&sc), rgb16(&wc), "{tag}: colour differs");
+    }
+    // Tiled (the exr crate's default encoding: 64² RLE tiles): read whole, and said so.
+    let tiled = d.path().join("tiled.exr");
+    exr::prelude::write_rgba_file(&tiled, 60, 45, |_, _| (0.0f32, 0.0f32, 1.0f32, 1.0f32)).unwrap();
+    let out = rgbn(&[
+        "filter",
+        tiled.to_str().unwrap(),
+        "--exr-rgb-is-normal",
+        "-k",
+        "box:1",
+        "--stream",
+        "always",
+        "-o",
+        d.path().join("t.png").to_str().unwrap(),
+    ]);
+    assert!(!out.status.success());
+    let err = stderr(&out);
+    assert!(
+        err.contains("cannot stream") && err.contains("tiled EXR"),
+        "{err}"
+    );
+    // Cut short mid-file.
+    let full = d.path().join("f32.exr");
+    let bytes = std::fs::read(&full).unwrap();
+    let cut = d.path().join("cut.exr");
+    std::fs::write(&cut, &bytes[..bytes.len() * 2 / 3]).unwrap();
+    let (co, o, _) = run("always", &cut, "cut");
+    assert_eq!(co.status.code(), Some(2), "{}", stderr(&co));
+    let err = stderr(&co);
+    assert_eq!(err.trim().lines().count(), 1, "{err}");
+    assert!(err.contains("cut.exr"), "{err}");
+    assert!(!o.exists(), "a partial output was left");
+}

@@ -1,4 +1,4 @@
-//! Row-streamed PNG (and TIFF) files: read and written a band of rows at a time, so an image larger than
+//! Row-streamed files: PNG read and written, TIFF and EXR read, a band of rows at a time, so an image larger than
 //! memory passes through with a peak set by the band, not the image (issue 12, item 5; the
 //! strip driver is [`crate::raster::strips`]).
 //!
@@ -8,8 +8,9 @@
 //!   Interlaced (Adam7) files store the image in seven passes and cannot be read top to bottom:
 //!   [`PngRows::open`] returns `None` for them and callers read them whole.
 //! - [`TiffRows`] does the same for a TIFF stored in strips of 8- or 16-bit interleaved
-//!   samples, one strip decoded at a time (a tiled or planar TIFF is read whole); [`Rows`] is
-//!   either, by the file's extension.
+//!   samples, one strip decoded at a time (a tiled or planar TIFF is read whole), and
+//!   [`ExrRows`] for channels of an EXR stored in scan-line blocks top to bottom (a tiled one
+//!   is read whole); [`Rows`] is any of them, by the file's extension.
 //! - [`PngTarget`] / [`PngRowWriter`] encode rows of normals or colour with the encoding and
 //!   compression of [`super::save_normal_map`] / [`super::save_color`] into an [`AtomicFile`]:
 //!   the target appears, complete, only when [`PngTarget::commit`] succeeds.
@@ -125,13 +126,15 @@ fn sample_map(map: RowMap, sixteen: bool) -> impl Fn(u16, usize) -> f32 {
     }
 }
 
-/// A file read top to bottom, a band of rows at a time: a PNG ([`PngRows`]) or a TIFF stored
-/// in strips ([`TiffRows`]).
+/// A file read top to bottom, a band of rows at a time: a PNG ([`PngRows`]), a TIFF stored
+/// in strips ([`TiffRows`]) or channels of a scan-line EXR ([`ExrRows`]).
 pub enum Rows {
     /// A PNG.
     Png(Box<PngRows>),
     /// A TIFF.
     Tiff(Box<TiffRows>),
+    /// Channels of an EXR.
+    Exr(Box<ExrRows>),
 }
 
 impl Rows {
@@ -145,8 +148,11 @@ impl Rows {
                 None => Err("an interlaced PNG (its rows are not stored in order)".into()),
             },
             super::Format::Tiff => TiffRows::open(path)?.map(|r| Rows::Tiff(Box::new(r))),
+            super::Format::Exr => {
+                ExrRows::open(path, &["R", "G", "B"])?.map(|r| Rows::Exr(Box::new(r)))
+            }
             fmt => Err(format!(
-                "{} (only PNG and TIFF are read row by row)",
+                "{} (only PNG, TIFF and scan-line EXR are read row by row)",
                 format!("{fmt:?}").to_uppercase()
             )),
         })
@@ -158,15 +164,18 @@ impl Rows {
         match self {
             Rows::Png(r) => r.size(),
             Rows::Tiff(r) => (r.width, r.height),
+            Rows::Exr(r) => (r.width, r.height),
         }
     }
 
-    /// Samples per pixel (1 grey, 2 grey + alpha, 3 RGB, 4 RGBA).
+    /// Samples per pixel (1 grey, 2 grey + alpha, 3 RGB, 4 RGBA; an EXR's: the channels
+    /// chosen).
     #[must_use]
     pub fn channels(&self) -> usize {
         match self {
             Rows::Png(r) => r.channels(),
             Rows::Tiff(r) => r.channels,
+            Rows::Exr(r) => r.want.len(),
         }
     }
 
@@ -176,15 +185,221 @@ impl Rows {
         match self {
             Rows::Png(r) => r.path(),
             Rows::Tiff(r) => &r.path,
+            Rows::Exr(r) => &r.path,
         }
     }
 
-    /// Decodes the next `planes[0].len() / width` rows into `planes` ([`PngRows::read`]).
+    /// Decodes the next `planes[0].len() / width` rows into `planes` ([`PngRows::read`]; an
+    /// EXR's float samples are taken as they are, as [`super::load_exr`] does, whatever `map`).
     pub fn read(&mut self, planes: &mut [&mut [f32]], map: RowMap) -> Result<(), RgbnError> {
         match self {
             Rows::Png(r) => r.read(planes, map),
             Rows::Tiff(r) => r.read(planes, map),
+            Rows::Exr(r) => r.read(planes),
         }
+    }
+}
+
+type ExrBlocks = exr::block::reader::SequentialBlockDecompressor<
+    exr::block::reader::AllChunksReader<BufReader<File>>,
+>;
+
+/// Channels of an EXR of one layer stored in scan-line blocks top to bottom (line order
+/// increasing), read one block at a time: each sample as `f32`, as [`super::load_exr`] reads
+/// it. A file opened once per group of channels (normals, colour, mask) decodes its blocks
+/// once per group.
+pub struct ExrRows {
+    path: PathBuf,
+    width: usize,
+    height: usize,
+    blocks: ExrBlocks,
+    channels: exr::meta::attribute::ChannelList,
+    /// The file's channel index of each plane read.
+    want: Vec<usize>,
+    /// Rows decoded and not yet read, one vector per plane, from row `buf_y0`.
+    buf: Vec<Vec<f32>>,
+    buf_y0: usize,
+    buf_rows: usize,
+    row: usize,
+}
+
+impl ExrRows {
+    /// Whether `path`'s first layer has a channel of each name (for choosing what to read).
+    pub fn has_channels(path: &Path, names: &[&str]) -> Result<bool, RgbnError> {
+        let meta =
+            exr::meta::MetaData::read_from_file(path, false).map_err(|e| RgbnError::Decode {
+                detail: e.to_string(),
+                path: path.into(),
+            })?;
+        Ok(meta.headers.first().is_some_and(|h| {
+            names
+                .iter()
+                .all(|n| h.channels.list.iter().any(|c| c.name.to_string() == *n))
+        }))
+    }
+
+    /// Opens `path` to read channels `names` top to bottom; `Err(why)` for an EXR that cannot
+    /// be (tiled, several layers, another line order, subsampled channels, deep data).
+    pub fn open(path: &Path, names: &[&str]) -> Result<Result<Self, String>, RgbnError> {
+        open_check(path)?;
+        let err = |e: exr::error::Error| RgbnError::Decode {
+            detail: e.to_string(),
+            path: path.into(),
+        };
+        let file = File::open(path).map_err(|e| RgbnError::Read {
+            path: path.into(),
+            source: e,
+        })?;
+        let reader =
+            exr::block::read(BufReader::with_capacity(1 << 20, file), false).map_err(err)?;
+        let headers = reader.headers();
+        if headers.len() != 1 {
+            return Ok(Err(format!(
+                "an EXR of {} layers (read whole)",
+                headers.len()
+            )));
+        }
+        let h = &headers[0];
+        if h.deep {
+            return Ok(Err("a deep EXR (read whole)".into()));
+        }
+        if !matches!(h.blocks, exr::meta::BlockDescription::ScanLines) {
+            return Ok(Err("a tiled EXR (read whole)".into()));
+        }
+        if h.line_order != exr::meta::attribute::LineOrder::Increasing {
+            return Ok(Err(format!(
+                "an EXR in line order {:?} (only increasing is read top to bottom)",
+                h.line_order
+            )));
+        }
+        if h.channels
+            .list
+            .iter()
+            .any(|c| c.sampling != exr::math::Vec2(1, 1))
+        {
+            return Ok(Err("an EXR with subsampled channels (read whole)".into()));
+        }
+        let mut want = Vec::new();
+        for n in names {
+            match h
+                .channels
+                .list
+                .iter()
+                .position(|c| c.name.to_string() == *n)
+            {
+                Some(i) => want.push(i),
+                None => {
+                    let have: Vec<String> =
+                        h.channels.list.iter().map(|c| c.name.to_string()).collect();
+                    return Err(RgbnError::Decode {
+                        detail: format!(
+                            "missing channel {n} (channels present: {})",
+                            have.join(",")
+                        ),
+                        path: path.into(),
+                    });
+                }
+            }
+        }
+        let (width, height) = (h.layer_size.0, h.layer_size.1);
+        if width == 0 || height == 0 {
+            return Err(RgbnError::Decode {
+                detail: format!("image has no pixels ({width}×{height})"),
+                path: path.into(),
+            });
+        }
+        let channels = h.channels.clone();
+        use exr::block::reader::ChunksReader;
+        let blocks = reader
+            .all_chunks(false)
+            .map_err(err)?
+            .sequential_decompressor(false);
+        Ok(Ok(Self {
+            path: path.into(),
+            width,
+            height,
+            blocks,
+            channels,
+            want,
+            buf: Vec::new(),
+            buf_y0: 0,
+            buf_rows: 0,
+            row: 0,
+        }))
+    }
+
+    /// Decodes the block after the buffered rows.
+    fn next_block(&mut self) -> Result<(), RgbnError> {
+        let at = |detail: String, row: usize, height: usize| RgbnError::Decode {
+            detail: format!("{detail} (at row {row} of {height})"),
+            path: self.path.clone(),
+        };
+        let next = self.buf_y0 + self.buf_rows;
+        let block = match self.blocks.decompress_next_block() {
+            Some(Ok(b)) => b,
+            Some(Err(e)) => return Err(at(e.to_string(), next, self.height)),
+            None => {
+                return Err(at("the image data ends".into(), next, self.height));
+            }
+        };
+        let (y0, rows) = (block.index.pixel_position.y(), block.index.pixel_size.y());
+        if y0 != next {
+            return Err(at(
+                format!("a block of rows {y0}.. came where rows {next}.. were due"),
+                next,
+                self.height,
+            ));
+        }
+        let w = self.width;
+        self.buf = vec![vec![0.0; rows * w]; self.want.len()];
+        use exr::meta::attribute::SampleType as T;
+        for line in block.lines(&self.channels) {
+            let Some(k) = self.want.iter().position(|&c| c == line.location.channel) else {
+                continue;
+            };
+            let y = line.location.position.y() - y0;
+            let out = &mut self.buf[k][y * w..(y + 1) * w];
+            let bad = |e: exr::error::Error| at(e.to_string(), y0 + y, self.height);
+            match self.channels.list[line.location.channel].sample_type {
+                T::F32 => line.read_samples_into_slice(out).map_err(bad)?,
+                T::F16 => {
+                    let mut h = vec![half::f16::ZERO; w];
+                    line.read_samples_into_slice(&mut h).map_err(bad)?;
+                    out.iter_mut().zip(&h).for_each(|(o, v)| *o = v.to_f32());
+                }
+                T::U32 => {
+                    let mut u = vec![0u32; w];
+                    line.read_samples_into_slice(&mut u).map_err(bad)?;
+                    out.iter_mut().zip(&u).for_each(|(o, v)| *o = *v as f32);
+                }
+            }
+        }
+        (self.buf_y0, self.buf_rows) = (y0, rows);
+        Ok(())
+    }
+
+    /// Reads the next `planes[0].len() / width` rows of the chosen channels into `planes`.
+    pub fn read(&mut self, planes: &mut [&mut [f32]]) -> Result<(), RgbnError> {
+        let w = self.width;
+        let rows = planes.first().map_or(0, |p| p.len() / w);
+        for r in 0..rows {
+            if self.row >= self.height {
+                return Err(RgbnError::Decode {
+                    detail: format!("the image has only {} rows", self.height),
+                    path: self.path.clone(),
+                });
+            }
+            while self.row >= self.buf_y0 + self.buf_rows {
+                self.next_block()?;
+            }
+            let y = self.row - self.buf_y0;
+            for (k, plane) in planes.iter_mut().enumerate() {
+                let src = &self.buf[k.min(self.want.len() - 1)][y * w..(y + 1) * w];
+                plane[r * w..(r + 1) * w].copy_from_slice(src);
+            }
+            self.row += 1;
+        }
+        Ok(())
     }
 }
 
