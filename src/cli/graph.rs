@@ -11,7 +11,7 @@ use crate::graph::{GraphError, LoadedGraph};
 use crate::ops::params::{ParamKind, ParamValue};
 use crate::ops::save::write_value;
 use crate::ops::{registry, PortType, Value};
-use crate::raster::io::stream::{PngTarget, RowEncoding};
+use crate::raster::io::stream::{ExrTarget, PngTarget, RowEncoding};
 use crate::raster::io::{self, SaveOptions};
 use crate::raster::io::{Format, NormalConvention};
 use clap::{Args, ValueEnum};
@@ -64,7 +64,7 @@ pub struct EvalArgs {
     pub tile: u64,
     /// Evaluate strip by strip, reading and writing rows, with memory bounded by the strip:
     /// `auto` does for images over 16 Mpx (or the pixel limit) when the graph allows (one
-    /// `load` of PNG, TIFF or EXR files, local operators only, image and picture outputs written as PNG),
+    /// `load` of PNG, TIFF or EXR files, local operators only, images written as PNG or EXR and pictures as PNG),
     /// `always` insists (and says why not), `never` evaluates whole images.
     #[arg(long, value_enum, default_value_t = StreamMode::Auto)]
     pub stream: StreamMode,
@@ -106,13 +106,13 @@ pub struct BatchArgs {
     #[arg(long, value_name = "DIR")]
     pub cache_dir: Option<PathBuf>,
     /// File format of image (RGBN) outputs: exr (float normals, colour and mask) or png
-    /// (16-bit normal maps, which can be written row by row: see --stream).
+    /// (16-bit normal maps). Both are written row by row when streaming (see --stream).
     #[arg(long, value_enum, default_value_t = ImageFiles::Exr)]
     pub images: ImageFiles,
     /// Per file, as `rgbn eval --stream`: evaluate strip by strip, reading and writing rows,
     /// with memory bounded by the strip. `auto` does for images over 16 Mpx (or the pixel
     /// limit) when the graph allows (its input a PNG, TIFF or EXR read by one `load`, local operators
-    /// only, every output an image or picture written as PNG: `--images png`), `always`
+    /// only, images and pictures as outputs, no fields or numbers), `always`
     /// insists (a file that cannot is a failure saying why), `never` evaluates whole images.
     #[arg(long, value_enum, default_value_t = StreamMode::Auto)]
     pub stream: StreamMode,
@@ -411,12 +411,15 @@ fn stream_plan<'p>(
     plan: &'p Plan,
     requested: &[(String, PathBuf)],
 ) -> Result<Result<StreamPlan<'p>, String>, CliError> {
-    if let Some((_, p)) = requested
-        .iter()
-        .find(|(_, p)| Format::of(p).ok() != Some(Format::Png))
-    {
+    // Images are written row by row as PNG normal maps or RGBN EXRs, pictures as PNG.
+    let rows_ok = |(name, p): &&(String, PathBuf)| match Format::of(p).ok() {
+        Some(Format::Png) => true,
+        Some(Format::Exr) => plan.output_types.get(name) == Some(&PortType::Rgbn),
+        _ => false,
+    };
+    if let Some((_, p)) = requested.iter().find(|r| !rows_ok(r)) {
         return Ok(Err(format!(
-            "{} is not a PNG (only PNG is written row by row)",
+            "{} is not written row by row (images: PNG or EXR; pictures: PNG)",
             p.display()
         )));
     }
@@ -437,17 +440,29 @@ fn eval_stream(
     out: &mut Out<'_>,
 ) -> Result<(), CliError> {
     let (w, h) = sp.size();
+    // Per output, a PNG or an EXR target (`None` in the other list).
     let mut targets = Vec::new();
+    let mut exrs = Vec::new();
     for (name, path) in requested {
+        let exr = Format::of(path)? == Format::Exr;
+        exrs.push(if exr {
+            Some(ExrTarget::create(path, w, h)?)
+        } else {
+            None
+        });
         targets.push(match plan.output_types.get(name) {
-            Some(PortType::Picture) => PngTarget::create_rgba8(path, w, h)?,
-            _ => PngTarget::create(path, w, h, SaveOptions::default().bits)?,
+            _ if exr => None,
+            Some(PortType::Picture) => Some(PngTarget::create_rgba8(path, w, h)?),
+            _ => Some(PngTarget::create(path, w, h, SaveOptions::default().bits)?),
         });
     }
     {
         let mut rows = Vec::new();
         for t in &mut targets {
-            rows.push(t.rows(RowEncoding::Normal(NormalConvention::OpenGl))?);
+            rows.push(match t {
+                Some(t) => Some(t.rows(RowEncoding::Normal(NormalConvention::OpenGl))?),
+                None => None,
+            });
         }
         let cancel = super::interrupt::flag();
         let cancelled = || {
@@ -461,14 +476,15 @@ fn eval_stream(
             |_, values, core| {
                 super::interrupt::check()?;
                 let (a, b) = (core.start * w, core.end * w);
-                for (r, v) in rows.iter_mut().zip(values) {
-                    match v {
-                        Value::Rgbn(img) => {
+                for ((r, e), v) in rows.iter_mut().zip(exrs.iter_mut()).zip(values) {
+                    match (v, r, e) {
+                        (Value::Rgbn(img), _, Some(e)) => e.write(img, core.clone())?,
+                        (Value::Rgbn(img), Some(r), _) => {
                             let [x, y, z] = img.normal();
                             r.write([&x[a..b], &y[a..b], &z[a..b]])?;
                         }
-                        Value::Picture(p) => r.write_rgba8(&p.rgba[4 * a..4 * b])?,
-                        other => {
+                        (Value::Picture(p), Some(r), _) => r.write_rgba8(&p.rgba[4 * a..4 * b])?,
+                        (other, ..) => {
                             unreachable!("streamed outputs are images and pictures: {other:?}")
                         }
                     }
@@ -476,12 +492,15 @@ fn eval_stream(
                 Ok::<(), CliError>(())
             },
         )?;
-        for r in rows {
+        for r in rows.into_iter().flatten() {
             r.finish()?;
         }
     }
-    for t in targets {
+    for t in targets.into_iter().flatten() {
         t.commit()?;
+    }
+    for e in exrs.into_iter().flatten() {
+        e.commit()?;
     }
     for (name, path) in requested {
         out.line(format_args!(

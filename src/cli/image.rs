@@ -482,7 +482,7 @@ fn load_or_say_why(input: &InputArgs, why: Option<String>) -> Result<RgbnImage, 
         Ok((img, _)) => Ok(img),
         Err(CliError::Rgbn(e @ RgbnError::TooLarge { .. })) => Err(match why {
             Some(why) => usage(format!(
-                "{e}; working on it without reading it whole needs PNG in and out, but {why}"
+                "{e}; working on it without reading it whole needs PNG, TIFF or scan-line EXR in and PNG out, but {why}"
             )),
             None => e.into(),
         }),

@@ -306,15 +306,21 @@ fn what_cannot_stream_says_why() {
     let img = relief(32, 24, 6);
     let spec = write_files(d.path(), &img, 16);
     let n = spec.normal.as_ref().unwrap().to_str().unwrap().to_string();
+    // A tiled EXR (the exr crate's default encoding) of normals in R,G,B.
     let exr = d.path().join("in.exr");
-    io::save(&img, &exr, &io::SaveOptions::default()).unwrap();
+    exr::prelude::write_rgba_file(&exr, 32, 24, |x, y| {
+        let i = y * 32 + x;
+        let [a, b, c] = [0, 1, 2].map(|k| img.normal()[k][i]);
+        (a, b, c, 1.0f32)
+    })
+    .unwrap();
     let cases: [(&[&str], &str); 3] = [
         (&["--border", "wrap"], "wrap border"),
         (&["-o", "x.exr"], "output is not a PNG"),
-        (&[], "EXR"),
+        (&["--exr-rgb-is-normal"], "tiled EXR"),
     ];
     for (extra, why) in cases {
-        let input = if why == "EXR" {
+        let input = if why == "tiled EXR" {
             exr.to_str().unwrap()
         } else {
             &n
@@ -340,6 +346,7 @@ fn what_cannot_stream_says_why() {
         .args([
             "filter",
             exr.to_str().unwrap(),
+            "--exr-rgb-is-normal",
             "-k",
             "gauss:1",
             "-o",
@@ -350,7 +357,9 @@ fn what_cannot_stream_says_why() {
     let err = stderr(&o);
     assert_eq!(o.status.code(), Some(2), "{err}");
     assert!(
-        err.contains("too large") && err.contains("needs PNG in and out") && err.contains("EXR"),
+        err.contains("too large")
+            && err.contains("needs PNG, TIFF or scan-line EXR in")
+            && err.contains("tiled EXR"),
         "{err}"
     );
     // A PNG over the limit streams whatever --stream auto's own threshold.
@@ -476,9 +485,9 @@ fn eval_says_why_a_graph_cannot_stream() {
                 "-i".into(),
                 format!("image={n}"),
                 "-o".into(),
-                "image=i.exr".into(),
+                "relit=r.exr".into(),
             ],
-            "not a PNG",
+            "not written row by row",
         ),
         (
             "input_image.ron",
@@ -570,9 +579,9 @@ fn render_streams_its_per_pixel_views_and_equals_reading_whole() {
     );
 }
 
-/// `rgbn batch` streams each file as `rgbn eval` does: with `--images png` a graph of local
-/// nodes over PNG files runs strip by strip and writes the same samples as the whole-image
-/// run; with images written as EXR (the default), `--stream always` fails each file saying why.
+/// `rgbn batch` streams each file as `rgbn eval` does: a graph of local nodes over PNG files
+/// runs strip by strip and writes the same samples as the whole-image run, images as 16-bit
+/// PNG (`--images png`) or as EXR (the default, bit for bit the same floats).
 #[test]
 fn batch_streams_each_file_and_equals_the_whole_image_run() {
     let d = tempfile::tempdir().unwrap();
@@ -635,14 +644,26 @@ fn batch_streams_each_file_and_equals_the_whole_image_run() {
             "relit samples differ, file f{seed}"
         );
     }
-    // EXR images cannot be written row by row: each file fails, saying why.
-    let (exr, _) = run("exr", &["--stream", "always"]);
-    assert!(!exr.status.success());
-    let err = stderr(&exr);
-    assert!(
-        err.contains("cannot stream") && err.contains("is not a PNG"),
-        "{err}"
-    );
+    // Images as EXR (the default) stream too: the same 32-bit planes as the whole run.
+    let (exr_s, edir_s) = run("exr_strips", &["--stream", "always", "--strip-rows", "9"]);
+    assert!(exr_s.status.success(), "{}", stderr(&exr_s));
+    let text = String::from_utf8_lossy(&exr_s.stdout).into_owned();
+    assert!(text.contains("(2 streamed strip by strip)"), "{text}");
+    let (exr_w, edir_w) = run("exr_whole", &["--stream", "never"]);
+    assert!(exr_w.status.success(), "{}", stderr(&exr_w));
+    for seed in [7, 8] {
+        let load = |dir: &Path| {
+            io::load_exr(
+                &dir.join(format!("f{seed}.image.exr")),
+                &LoadOptions::default(),
+            )
+            .unwrap()
+        };
+        let (a, b) = (load(&edir_s), load(&edir_w));
+        assert_eq!(a.normal(), b.normal(), "EXR normals differ, file f{seed}");
+        assert_eq!(a.color(), b.color(), "EXR colour differs, file f{seed}");
+        assert_eq!(a.mask(), b.mask(), "EXR mask differs, file f{seed}");
+    }
 }
 
 /// A TIFF stored in strips streams like a PNG: normal map (16-bit), colour (8-bit) and mask
@@ -810,4 +831,43 @@ fn scan_line_exr_streams_and_equals_reading_whole() {
     assert_eq!(err.trim().lines().count(), 1, "{err}");
     assert!(err.contains("cut.exr"), "{err}");
     assert!(!o.exists(), "a partial output was left");
+}
+
+/// `rgbn eval` streaming into an EXR: an input cut short mid-stream is a one-line error (exit
+/// 2), the previous target is untouched and no temporary file is left (the EXR writer thread
+/// stops before its file is removed).
+#[test]
+fn a_streamed_exr_output_of_a_truncated_input_leaves_the_target_untouched() {
+    let d = tempfile::tempdir().unwrap();
+    let img = relief(48, 128, 9);
+    let spec = write_files(d.path(), &img, 16);
+    let full = std::fs::read(spec.normal.as_ref().unwrap()).unwrap();
+    let cut = d.path().join("cut.png");
+    std::fs::write(&cut, &full[..full.len() * 3 / 5]).unwrap();
+    let graph = d.path().join("pen.ron");
+    std::fs::write(&graph, PEN_GRAPH).unwrap();
+    let target = d.path().join("out.exr");
+    std::fs::write(&target, b"the previous output").unwrap();
+    let o = rgbn(&[
+        "eval",
+        graph.to_str().unwrap(),
+        "-i",
+        &format!("image={}", cut.display()),
+        "-o",
+        &format!("image={}", target.display()),
+        "--stream",
+        "always",
+        "--strip-rows",
+        "16",
+    ]);
+    let err = stderr(&o);
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    assert_eq!(err.trim().lines().count(), 1, "{err}");
+    assert!(err.contains("cut.png") && err.contains("row"), "{err}");
+    assert_eq!(std::fs::read(&target).unwrap(), b"the previous output");
+    let names: Vec<String> = std::fs::read_dir(d.path())
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    assert!(names.iter().all(|n| !n.ends_with(".tmp")), "{names:?}");
 }

@@ -665,6 +665,173 @@ impl PngRows {
     }
 }
 
+/// Rows of an RGBN image on their way to an [`ExrTarget`]'s writer thread: the planes in the
+/// file's (alphabetical) channel order.
+struct ExrBand {
+    rows: usize,
+    mask: bool,
+    planes: Vec<Vec<f32>>,
+}
+
+/// An RGBN image written to an EXR a band of rows at a time, as [`super::save_exr`] writes it
+/// with its defaults: 32-bit floats `R,G,B`, `N.X,N.Y,N.Z` and `A` when there is a mask,
+/// uncompressed, one scan line per block, line order increasing. The exr crate writes a file
+/// within one call, so a thread owns the writer and the bands are sent to it (one band in
+/// flight). The target appears, complete, only when [`ExrTarget::commit`] succeeds.
+pub struct ExrTarget {
+    tx: Option<std::sync::mpsc::SyncSender<ExrBand>>,
+    thread: Option<std::thread::JoinHandle<Result<(), String>>>,
+    file: Option<AtomicFile>,
+    width: usize,
+}
+
+impl ExrTarget {
+    /// Starts writing a `width × height` RGBN EXR at `path` (its folder must exist).
+    pub fn create(path: &Path, width: usize, height: usize) -> Result<Self, RgbnError> {
+        let file = AtomicFile::create(path)?;
+        let handle = file.handle()?;
+        let (tx, rx) = std::sync::mpsc::sync_channel::<ExrBand>(1);
+        let thread = std::thread::Builder::new()
+            .name("rgbn-exr-writer".into())
+            .spawn(move || -> Result<(), String> {
+                let Ok(first) = rx.recv() else {
+                    return Err("no rows were written".into());
+                };
+                let names: &[&str] = if first.mask {
+                    &["A", "B", "G", "N.X", "N.Y", "N.Z", "R"]
+                } else {
+                    &["B", "G", "N.X", "N.Y", "N.Z", "R"]
+                };
+                use exr::meta::attribute::{ChannelDescription, LineOrder, SampleType};
+                use exr::meta::header::Header;
+                let channels = names
+                    .iter()
+                    .map(|n| ChannelDescription::named(*n, SampleType::F32))
+                    .collect();
+                let header = Header::new("rgbn".into(), (width, height), channels).with_encoding(
+                    exr::compression::Compression::Uncompressed,
+                    exr::meta::BlockDescription::ScanLines,
+                    LineOrder::Increasing,
+                );
+                let mut out = BufWriter::with_capacity(1 << 20, handle);
+                let headers: exr::meta::Headers = std::iter::once(header).collect();
+                exr::block::write(&mut out, headers, true, |meta, writer| {
+                    use exr::block::writer::ChunksWriter;
+                    let mut y = 0;
+                    let mut band = Some(first);
+                    let mut data = Vec::with_capacity(names.len() * width * 4);
+                    while let Some(b) = band.take().or_else(|| rx.recv().ok()) {
+                        for r in 0..b.rows {
+                            data.clear();
+                            for plane in &b.planes {
+                                for v in &plane[r * width..(r + 1) * width] {
+                                    data.extend_from_slice(&v.to_ne_bytes());
+                                }
+                            }
+                            let block = exr::block::UncompressedBlock {
+                                index: exr::block::BlockIndex {
+                                    layer: 0,
+                                    pixel_position: exr::math::Vec2(0, y),
+                                    pixel_size: exr::math::Vec2(width, 1),
+                                    level: exr::math::Vec2(0, 0),
+                                },
+                                data: data.clone(),
+                            };
+                            writer.write_chunk(y, block.compress_to_chunk(&meta.headers)?)?;
+                            y += 1;
+                        }
+                    }
+                    if y == height {
+                        Ok(())
+                    } else {
+                        Err(exr::error::Error::Invalid(
+                            format!("only {y} of {height} rows were written").into(),
+                        ))
+                    }
+                })
+                .map_err(|e| e.to_string())?;
+                out.flush().map_err(|e| e.to_string())
+            })
+            .map_err(|e| RgbnError::Write {
+                detail: format!("cannot start the EXR writer: {e}"),
+                path: path.into(),
+            })?;
+        Ok(Self {
+            tx: Some(tx),
+            thread: Some(thread),
+            file: Some(file),
+            width,
+        })
+    }
+
+    /// Writes rows `rows` of `img` (whose width is the target's) as the next rows of the file.
+    pub fn write(
+        &mut self,
+        img: &crate::raster::RgbnImage,
+        rows: std::ops::Range<usize>,
+    ) -> Result<(), RgbnError> {
+        let w = self.width;
+        let (a, b) = (rows.start * w, rows.end * w);
+        let [r, g, bl] = img.color();
+        let [nx, ny, nz] = img.normal();
+        let mut planes: Vec<Vec<f32>> = Vec::with_capacity(7);
+        if let Some(m) = img.mask() {
+            planes.push(m[a..b].to_vec());
+        }
+        for p in [bl, g, nx, ny, nz, r] {
+            planes.push(p[a..b].to_vec());
+        }
+        let band = ExrBand {
+            rows: rows.len(),
+            mask: img.mask().is_some(),
+            planes,
+        };
+        let sent = self.tx.as_ref().is_some_and(|tx| tx.send(band).is_ok());
+        if sent {
+            Ok(())
+        } else {
+            // The writer stopped: its error.
+            Err(self
+                .finish()
+                .err()
+                .unwrap_or_else(|| self.error("the EXR writer stopped")))
+        }
+    }
+
+    fn error(&self, detail: impl ToString) -> RgbnError {
+        match &self.file {
+            Some(f) => f.error(detail),
+            None => RgbnError::Write {
+                detail: detail.to_string(),
+                path: PathBuf::new(),
+            },
+        }
+    }
+
+    /// Ends the rows and waits for the writer.
+    fn finish(&mut self) -> Result<(), RgbnError> {
+        self.tx.take();
+        match self.thread.take().map(std::thread::JoinHandle::join) {
+            Some(Ok(Ok(()))) | None => Ok(()),
+            Some(Ok(Err(e))) => Err(self.error(e)),
+            Some(Err(_)) => Err(self.error("the EXR writer panicked")),
+        }
+    }
+
+    /// Completes the file (every row must have been written) and renames it over the target.
+    pub fn commit(mut self) -> Result<(), RgbnError> {
+        self.finish()?;
+        self.file.take().expect("committed once").commit()
+    }
+}
+
+impl Drop for ExrTarget {
+    fn drop(&mut self) {
+        // The writer stops (missing rows are its error) before the temporary file goes.
+        let _ = self.finish();
+    }
+}
+
 /// What a [`PngRowWriter`] writes.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum RowEncoding {
