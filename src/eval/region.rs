@@ -990,19 +990,10 @@ impl Evaluator {
             }
             tiles.push(st);
         }
-        if mode[root] == Mode::Level {
-            return Ok(RegionResult {
-                value: crop(&wv[&root].values[root_port], rect),
-                rect,
-                size: out_size,
-                full_size: size[root].unwrap_or(out_size),
-                whole: whole.stats,
-                tiles,
-                key: super::port_key(keys[&root], root_port),
-            });
-        }
-        // Patched in place (when the caller no longer holds it), or assembled anew.
+        // Cut from the value at the level, patched in place (when the caller no longer holds
+        // it), or assembled anew.
         let value = match last {
+            _ if mode[root] == Mode::Level => crop(&wv[&root].values[root_port], rect),
             Some((mut value, d)) => {
                 let parts: Vec<(Rect, &Value)> = covering(&rect, tile)
                     .filter(|t| touched(t, &d))
@@ -1016,15 +1007,17 @@ impl Evaluator {
             }
             None => assemble(&have[root], root_port, tile, out_size, rect),
         };
-        super::lock(&self.seen).last = Some(LastResult {
-            ident,
-            port: root_port,
-            rect,
-            tile,
-            level,
-            key: keys[&root],
-            value: value.clone(),
-        });
+        if mode[root] == Mode::Tiled {
+            super::lock(&self.seen).last = Some(LastResult {
+                ident,
+                port: root_port,
+                rect,
+                tile,
+                level,
+                key: keys[&root],
+                value: value.clone(),
+            });
+        }
         Ok(RegionResult {
             value,
             rect,
