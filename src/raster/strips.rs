@@ -41,7 +41,7 @@ pub fn strip_rows_of(width: usize, halo: usize, pixels: usize) -> usize {
 }
 
 /// The files of an RGBN image opened for reading top to bottom: a normal map and optional
-/// colour and mask, all PNG.
+/// colour and mask (PNG or TIFF), or the channels of an RGBN EXR.
 pub struct StreamInput {
     normal: Rows,
     color: Option<Rows>,
@@ -83,7 +83,9 @@ impl StreamInput {
             } else {
                 ["N.X", "N.Y", "N.Z"]
             };
-            if !ExrRows::has_channels(p, &names)? {
+            let have = ExrRows::channel_names(p)?;
+            let has = |names: &[&str]| names.iter().all(|n| have.iter().any(|h| h == n));
+            if !has(&names) {
                 // Read whole, the loader says what is missing.
                 return Ok(Opened::Whole(format!(
                     "the normal map is an EXR without channels {}",
@@ -99,13 +101,10 @@ impl StreamInput {
                 Ok(r) => r,
                 Err(why) => return Ok(Opened::Whole(why)),
             };
-            if !opts.exr_rgb_is_normal
-                && spec.color.is_none()
-                && ExrRows::has_channels(p, &["R", "G", "B"])?
-            {
+            if !opts.exr_rgb_is_normal && spec.color.is_none() && has(&["R", "G", "B"]) {
                 exr_color = exr(&["R", "G", "B"])?.ok();
             }
-            if spec.mask.is_none() && ExrRows::has_channels(p, &["A"])? {
+            if spec.mask.is_none() && has(&["A"]) {
                 exr_mask = exr(&["A"])?.ok();
             }
             normal

@@ -140,7 +140,7 @@ pub enum Rows {
 impl Rows {
     /// Opens `path` (PNG or TIFF) for reading top to bottom, or says why it must be read whole
     /// (another format, an interlaced PNG, a tiled or planar TIFF, samples other than 8 or 16
-    /// bits).
+    /// bits). An EXR's channels are opened by name with [`ExrRows::open`].
     pub fn open(path: &Path) -> Result<Result<Self, String>, RgbnError> {
         Ok(match super::Format::of(path)? {
             super::Format::Png => match PngRows::open(path)? {
@@ -148,11 +148,8 @@ impl Rows {
                 None => Err("an interlaced PNG (its rows are not stored in order)".into()),
             },
             super::Format::Tiff => TiffRows::open(path)?.map(|r| Rows::Tiff(Box::new(r))),
-            super::Format::Exr => {
-                ExrRows::open(path, &["R", "G", "B"])?.map(|r| Rows::Exr(Box::new(r)))
-            }
             fmt => Err(format!(
-                "{} (only PNG, TIFF and scan-line EXR are read row by row)",
+                "{} (only PNG and TIFF are read row by row here; EXR channels by ExrRows)",
                 format!("{fmt:?}").to_uppercase()
             )),
         })
@@ -224,17 +221,16 @@ pub struct ExrRows {
 }
 
 impl ExrRows {
-    /// Whether `path`'s first layer has a channel of each name (for choosing what to read).
-    pub fn has_channels(path: &Path, names: &[&str]) -> Result<bool, RgbnError> {
+    /// The channel names of `path`'s first layer (for choosing what to read).
+    pub fn channel_names(path: &Path) -> Result<Vec<String>, RgbnError> {
+        open_check(path)?;
         let meta =
             exr::meta::MetaData::read_from_file(path, false).map_err(|e| RgbnError::Decode {
                 detail: e.to_string(),
                 path: path.into(),
             })?;
-        Ok(meta.headers.first().is_some_and(|h| {
-            names
-                .iter()
-                .all(|n| h.channels.list.iter().any(|c| c.name.to_string() == *n))
+        Ok(meta.headers.first().map_or_else(Vec::new, |h| {
+            h.channels.list.iter().map(|c| c.name.to_string()).collect()
         }))
     }
 
