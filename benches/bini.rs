@@ -6,6 +6,10 @@
 //!
 //! Run: `CARGO_TARGET_DIR=… cargo bench --no-default-features --bench bini`.
 
+/// The allocator the `rgbn` binary runs with (image-sized blocks recycled).
+#[global_allocator]
+static ALLOC: rgbn::recycle::Recycler = rgbn::recycle::Recycler;
+
 use criterion::{criterion_group, criterion_main, Criterion};
 use rgbn::raster::gradient::GradientField;
 use rgbn::raster::integrate::{integrate_normals, IntegrateParams, IntegrationMethod};

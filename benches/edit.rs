@@ -29,6 +29,10 @@
 #[path = "support/mod.rs"]
 mod support;
 
+/// The allocator the `rgbn` binary runs with (image-sized blocks recycled).
+#[global_allocator]
+static ALLOC: rgbn::recycle::Recycler = rgbn::recycle::Recycler;
+
 use criterion::{criterion_group, criterion_main, Criterion};
 use rgbn::eval::region::{crop, Rect, RegionOptions, DEFAULT_TILE, INTERACTIVE_TILE};
 use rgbn::eval::{EvalOptions, Evaluator, Plan};

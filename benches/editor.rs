@@ -28,6 +28,10 @@
 #[path = "support/mod.rs"]
 mod support;
 
+/// The allocator the `rgbn` binary runs with (image-sized blocks recycled).
+#[global_allocator]
+static ALLOC: rgbn::recycle::Recycler = rgbn::recycle::Recycler;
+
 use criterion::{criterion_group, criterion_main, Criterion};
 use rgbn::app::preview::{color_image, preview_level, Mode, PreviewSettings, ViewSpec};
 use rgbn::app::state::Document;

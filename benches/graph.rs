@@ -3,6 +3,10 @@
 //!
 //! `cargo bench --bench graph`
 
+/// The allocator the `rgbn` binary runs with (image-sized blocks recycled).
+#[global_allocator]
+static ALLOC: rgbn::recycle::Recycler = rgbn::recycle::Recycler;
+
 use criterion::{criterion_group, criterion_main, Criterion};
 use rgbn::eval::{EvalOptions, Evaluator, Plan};
 use rgbn::graph::LoadedGraph;

@@ -3,6 +3,10 @@
 //!
 //! Run: `cargo bench --bench kernels` (set `RAYON_NUM_THREADS=2` to match the peer runs).
 
+/// The allocator the `rgbn` binary runs with (image-sized blocks recycled).
+#[global_allocator]
+static ALLOC: rgbn::recycle::Recycler = rgbn::recycle::Recycler;
+
 use criterion::{criterion_group, criterion_main, Criterion};
 use rgbn::ops::bilateral::BilateralParams;
 use rgbn::ops::filter::{

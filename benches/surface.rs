@@ -5,6 +5,10 @@
 //!
 //! Run: `CARGO_TARGET_DIR=… cargo bench --no-default-features --bench surface`.
 
+/// The allocator the `rgbn` binary runs with (image-sized blocks recycled).
+#[global_allocator]
+static ALLOC: rgbn::recycle::Recycler = rgbn::recycle::Recycler;
+
 use criterion::{criterion_group, criterion_main, Criterion};
 use rgbn::capture::inputs::{Lights, PhotoStack};
 use rgbn::capture::photometric::{photometric_stereo, PhotometricParams, PsMethod};

@@ -17,6 +17,7 @@
 //! - [`eval`]: the lazy, content-keyed, cached evaluator.
 //! - [`render`]: relighting and the diagnostic views.
 //! - [`cli`]: the command line (used by the `rgbn` binary).
+//! - [`recycle`]: the global allocator the binary installs (reuses image-sized blocks).
 //! - `app` (feature `gui`): the egui editor, the only module that uses egui.
 //!
 //! The library never depends on the GUI: build with `--no-default-features` for the core.
@@ -31,6 +32,7 @@ pub mod graph;
 pub mod nodes;
 pub mod ops;
 pub mod raster;
+pub mod recycle;
 pub mod render;
 #[doc(hidden)]
 pub mod test_data;

@@ -10,6 +10,10 @@ use tracing_subscriber::fmt::format::{FormatEvent, FormatFields, Writer};
 use tracing_subscriber::fmt::FmtContext;
 use tracing_subscriber::registry::LookupSpan;
 
+/// Image-sized blocks are recycled between evaluations (see [`rgbn::recycle`]).
+#[global_allocator]
+static ALLOC: rgbn::recycle::Recycler = rgbn::recycle::Recycler;
+
 fn main() -> ExitCode {
     init_logging();
     rgbn::cli::run(std::env::args_os()).into()

@@ -81,3 +81,10 @@ mod region_props;
 
 #[path = "it/streaming.rs"]
 mod streaming;
+
+// The integration tests run with the allocator of the `rgbn` binary (as the benchmarks do).
+#[global_allocator]
+static ALLOC: rgbn::recycle::Recycler = rgbn::recycle::Recycler;
+
+#[path = "it/fused_filter.rs"]
+mod fused_filter;

@@ -21,6 +21,17 @@ pub fn zeroed_f32(n: usize) -> Vec<f32> {
     v
 }
 
+/// An empty `Vec<f32>` with room for `n` values, for a kernel that writes all of them through
+/// raw pointers and then sets the length: nothing is zero-filled first, so a block the
+/// allocator reuses (see [`crate::alloc::Recycler`]) is written once, and a fresh one is
+/// faulted in by the kernel's own writes.
+#[must_use]
+pub fn reserved_f32(n: usize) -> Vec<f32> {
+    let mut v = Vec::with_capacity(n);
+    advise_huge_pages(v.spare_capacity_mut());
+    v
+}
+
 /// A zero-filled `Vec<u8>` of `n` bytes (untouched until written).
 #[must_use]
 pub fn zeroed_u8(n: usize) -> Vec<u8> {

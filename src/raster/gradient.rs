@@ -492,6 +492,94 @@ pub fn plaquette_covered(m: &[f32], w: usize, r: usize, x: usize) -> bool {
     m[u] >= 0.5 && m[u + 1] >= 0.5 && m[c] >= 0.5 && m[c + 1] >= 0.5
 }
 
+/// Plaquettes of a row summed together in [`CurlSums::of_row`] (one AVX-512 register).
+const ACC_LANES: usize = 16;
+
+/// The values a row of plaquettes reads, [`ACC_LANES`] plaquettes at a time (a trait rather
+/// than a closure so that it is always inlined into the vectorised callers).
+trait PlaquetteValues {
+    /// `(p above, p, q right, q)` of the `m ≤ ACC_LANES` plaquettes from `x0`, lane by lane
+    /// (zeros past `m`).
+    fn block(&self, x0: usize, m: usize) -> [[f32; ACC_LANES]; 4];
+}
+
+/// Edge values given directly: `p` above, `p`, `q` right, `q`.
+struct Edges<'a>([&'a [f32]; 4]);
+
+impl PlaquetteValues for Edges<'_> {
+    #[inline(always)]
+    fn block(&self, x0: usize, m: usize) -> [[f32; ACC_LANES]; 4] {
+        let mut o = [[0.0f32; ACC_LANES]; 4];
+        for (o, s) in o.iter_mut().zip(self.0) {
+            o[..m].copy_from_slice(&s[x0..x0 + m]);
+        }
+        o
+    }
+}
+
+/// Samples of two rows, averaged into edge values as [`GradientField::edge_values`] does
+/// (`½(a + b)`); each pair is `[..len]` and `[1..]` of one row's plane.
+struct Samples<'a> {
+    pu: [&'a [f32]; 2],
+    pc: [&'a [f32]; 2],
+    qc: [&'a [f32]; 2],
+    qu: [&'a [f32]; 2],
+}
+
+impl PlaquetteValues for Samples<'_> {
+    #[inline(always)]
+    fn block(&self, x0: usize, m: usize) -> [[f32; ACC_LANES]; 4] {
+        let mut o = [[0.0f32; ACC_LANES]; 4];
+        let r = x0..x0 + m;
+        let (a, b) = (&self.pu[0][r.clone()], &self.pu[1][r.clone()]);
+        let (c, d) = (&self.pc[0][r.clone()], &self.pc[1][r.clone()]);
+        let (e, f) = (&self.qc[1][r.clone()], &self.qu[1][r.clone()]);
+        let (g, h) = (&self.qc[0][r.clone()], &self.qu[0][r]);
+        for l in 0..m {
+            o[0][l] = 0.5 * (a[l] + b[l]);
+            o[1][l] = 0.5 * (c[l] + d[l]);
+            o[2][l] = 0.5 * (e[l] + f[l]);
+            o[3][l] = 0.5 * (g[l] + h[l]);
+        }
+        o
+    }
+}
+
+/// [`CurlSums`] of one row, [`ACC_LANES`] partial sums in `f32`.
+#[derive(Default)]
+struct LaneSums {
+    c2: [f32; ACC_LANES],
+    g2: [f32; ACC_LANES],
+    max: [f32; ACC_LANES],
+    n: [u32; ACC_LANES],
+}
+
+impl LaneSums {
+    /// Adds the `m` plaquettes from `x0` whose values are `block` (see [`PlaquetteValues`]).
+    #[inline(always)]
+    fn add(
+        &mut self,
+        block: [[f32; ACC_LANES]; 4],
+        x0: usize,
+        m: usize,
+        keep: &impl Fn(usize) -> bool,
+    ) {
+        let [pu, pc, qn, qc] = block;
+        for l in 0..ACC_LANES {
+            let c = (pu[l] - pc[l]) - (qn[l] - qc[l]);
+            let g = pc[l] * pc[l] + qc[l] * qc[l];
+            // Lanes past `m` hold zeros and are not kept.
+            let k = l < m && keep(x0 + l);
+            let (c, g) = if k { (c, g) } else { (0.0, 0.0) };
+            self.c2[l] += c * c;
+            self.g2[l] += g;
+            let a = c.abs();
+            self.max[l] = if a > self.max[l] { a } else { self.max[l] };
+            self.n[l] += u32::from(k);
+        }
+    }
+}
+
 /// Running sums behind [`CurlStats`], so that a kernel can gather them piecewise (rows,
 /// column groups) and merge. Squares are summed in `f32` over at most a row or a short run of
 /// rows and then in `f64`.
@@ -559,53 +647,51 @@ impl CurlSums {
         if w < 2 {
             return Self::default();
         }
-        let avg = |a: &[f32]| -> Vec<f32> {
-            let mut e: Vec<f32> = a.windows(2).map(|t| 0.5 * (t[0] + t[1])).collect();
-            e.push(a[w - 1]);
-            e
+        // The edge values of `GradientField::edge_values`, formed on the fly (no row buffers).
+        let len = w - 1;
+        let vals = Samples {
+            pu: [&pu[..len], &pu[1..w]],
+            pc: [&pc[..len], &pc[1..w]],
+            qc: [&qc[..len], &qc[1..w]],
+            qu: [&qu[..len], &qu[1..w]],
         };
-        let (eu, ec) = (avg(pu), avg(pc));
-        let eq: Vec<f32> = qc.iter().zip(qu).map(|(&a, &b)| 0.5 * (a + b)).collect();
-        Self::of_forward_row(&eu, &ec, &eq, mask)
+        match mask {
+            None => Self::accumulate(len, &vals, |_| true),
+            Some((mu, mc)) => Self::accumulate(len, &vals, |x| {
+                mu[x] >= 0.5 && mu[x + 1] >= 0.5 && mc[x] >= 0.5 && mc[x + 1] >= 0.5
+            }),
+        }
     }
 
     #[inline(always)]
     fn of_row_where(pu: &[f32], pc: &[f32], qc: &[f32], keep: impl Fn(usize) -> bool) -> Self {
-        const K: usize = 8;
         let w = pc.len();
         if w < 2 {
             return Self::default();
         }
         let len = w - 1;
-        let (pu, pc, qn, qc) = (&pu[..len], &pc[..len], &qc[1..w], &qc[..len]);
-        let (mut c2, mut g2, mut mx, mut n) = ([0.0f32; K], [0.0f32; K], [0.0f32; K], 0usize);
-        let mut step = |x: usize, l: usize| {
-            let c = (pu[x] - pc[x]) - (qn[x] - qc[x]);
-            let k = keep(x);
-            let (c, g) = if k {
-                (c, pc[x] * pc[x] + qc[x] * qc[x])
-            } else {
-                (0.0, 0.0)
-            };
-            c2[l] += c * c;
-            g2[l] += g;
-            mx[l] = mx[l].max(c.abs());
-            n += usize::from(k);
-        };
-        let body = len - len % K;
-        for x0 in (0..body).step_by(K) {
-            for l in 0..K {
-                step(x0 + l, l);
-            }
+        let vals = Edges([&pu[..len], &pc[..len], &qc[1..w], &qc[..len]]);
+        Self::accumulate(len, &vals, keep)
+    }
+
+    /// The sums of `len` plaquettes, whose `(p above, p, q right, q)` `vals` gives
+    /// [`ACC_LANES`] at a time; they are summed lane by lane into `ACC_LANES` partial sums, so
+    /// both steps vectorise.
+    #[inline(always)]
+    fn accumulate(len: usize, vals: &impl PlaquetteValues, keep: impl Fn(usize) -> bool) -> Self {
+        let mut acc = LaneSums::default();
+        let body = len - len % ACC_LANES;
+        for x0 in (0..body).step_by(ACC_LANES) {
+            acc.add(vals.block(x0, ACC_LANES), x0, ACC_LANES, &keep);
         }
-        for x in body..len {
-            step(x, 0);
+        if body < len {
+            acc.add(vals.block(body, len - body), body, len - body, &keep);
         }
         Self {
-            c2: c2.iter().map(|&v| f64::from(v)).sum(),
-            g2: g2.iter().map(|&v| f64::from(v)).sum(),
-            n,
-            max: mx.iter().copied().fold(0.0, f32::max),
+            c2: acc.c2.iter().map(|&v| f64::from(v)).sum(),
+            g2: acc.g2.iter().map(|&v| f64::from(v)).sum(),
+            n: acc.n.iter().map(|&v| v as usize).sum(),
+            max: acc.max.iter().copied().fold(0.0, f32::max),
         }
     }
 

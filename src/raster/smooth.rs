@@ -8,14 +8,17 @@
 //! 1. **Row sweep** (bands of [`LANES`] rows): each row's `(p, q)` is computed from the normals
 //!    (same [`gradient_of_normal`] and `n_z` clamp), its curl sums (averaged model) are taken
 //!    with the previous row's `p`, `q` (one extra row per band is recomputed), then the band
-//!    is filtered along x. The filtered `p`, `q` are parked in the output `n_x`, `n_y` planes
-//!    (no gradient planes are allocated).
+//!    is transposed into lanes (lane `k` = row `k` of the band) and `p` and `q` are filtered
+//!    along x together, in place in two *parked* planes kept in that lane order: band `b`'s
+//!    lanes at `b·w ..`. The parked pair is kept between calls (see [`take_parked`]).
 //! 2. **Column sweep** (groups of [`LANES`] columns, [`TASK_GROUPS`] neighbouring groups a
-//!    task, so each row is read and written a few cache lines at a time): `p`, `q` are filtered
-//!    along y, the curl sums of the filtered field are taken from the lane buffers, and
-//!    [`normal_of_gradient`] is written straight into the three output planes. The plaquettes at a group's last column
-//!    need the next group's first column: each group hands over its first and last columns'
-//!    filtered `p`, `q`, and those `height` plaquettes per group are summed afterwards.
+//!    task): a task reads its columns band by band (4 KiB contiguous per band and plane),
+//!    transposing each 16 × 16 block into rows; `p`, `q` are filtered along y, the curl sums
+//!    of the filtered field are taken from the lane buffers, and [`normal_of_gradient`] is
+//!    written straight into the three output planes (allocated without a zero fill: the tasks
+//!    write every value). The plaquettes at a group's last column need the next group's first
+//!    column: each group hands over its first and last columns' filtered `p`, `q`, and those
+//!    `height` plaquettes per group are summed afterwards.
 //!
 //! Filtered values are bit-identical to the unfused path (same line filter, same arithmetic);
 //! the curl statistics are the same sums taken in a different order (`f32` partial sums over
@@ -23,8 +26,8 @@
 //! (`tests::fused_equals_the_unfused_reference`).
 
 use super::convolve::{
-    lane_splat, lanes_to_rows, load_lane, prefetch_span, rows_to_lanes, store_lane, BorderMode,
-    Lane, LineFilter, LANES, PREFETCH_ROWS,
+    lane_splat, prefetch_span, rows_into_lanes, store_lane, transpose_lanes, BorderMode, Lane,
+    LineFilter, LANES, PREFETCH_ROWS,
 };
 use super::gradient::{
     gradient_of_normal, normal_of_gradient, plaquette_covered, CurlSums, NZ_EPSILON,
@@ -32,6 +35,7 @@ use super::gradient::{
 use super::par::SharedMut;
 use crate::raster::buf;
 use rayon::prelude::*;
+use std::sync::Mutex;
 
 /// The result of [`smooth_normals`].
 #[derive(Clone, Debug)]
@@ -50,6 +54,9 @@ pub struct SmoothedNormals {
 /// bytes per row and plane.
 const TASK_GROUPS: usize = 4;
 
+/// Bands the column sweep's loads prefetch ahead.
+const PREFETCH_BANDS: usize = 2;
+
 /// Rows of one column summed in `f32` before going to `f64`.
 const F32_RUN: usize = 64;
 
@@ -66,7 +73,12 @@ pub fn smooth_normals<F: LineFilter>(
 ) -> SmoothedNormals {
     let n = w * h;
     assert!(normal.iter().all(|p| p.len() == n) && mask.is_none_or(|m| m.len() == n));
-    let mut out = [buf::zeroed_f32(n), buf::zeroed_f32(n), buf::zeroed_f32(n)];
+    // Empty planes with room for the result: the column sweep writes every value.
+    let mut out = [
+        buf::reserved_f32(n),
+        buf::reserved_f32(n),
+        buf::reserved_f32(n),
+    ];
     if n == 0 {
         return SmoothedNormals {
             normal: out,
@@ -83,8 +95,23 @@ pub fn smooth_normals<F: LineFilter>(
         f,
         border,
     };
-    let (clamped, curl_before) = row_sweep(&sw, &mut out);
-    let curl_after = column_sweep(&sw, &mut out);
+    let mut park = [
+        take_parked(h.div_ceil(LANES) * w),
+        take_parked(h.div_ceil(LANES) * w),
+    ];
+    let (clamped, curl_before) = row_sweep(&sw, &mut park);
+    let curl_after = column_sweep(
+        &sw,
+        &park,
+        out.each_mut().map(|v| SharedMut(v.as_mut_ptr())),
+    );
+    for v in &mut out {
+        // SAFETY: each plane has capacity n, and the column sweep's tasks together wrote all
+        // w·h values of each (every column group, every row).
+        unsafe { v.set_len(n) };
+    }
+    park.into_iter().for_each(give_parked);
+
     SmoothedNormals {
         normal: out,
         clamped,
@@ -93,10 +120,44 @@ pub fn smooth_normals<F: LineFilter>(
     }
 }
 
+/// Parked planes kept for the next call (two: `p` and `q` of one image).
+static PARKED: Mutex<Vec<Vec<Lane>>> = Mutex::new(Vec::new());
+
+/// Parked planes larger than this are freed rather than kept.
+const PARKED_KEEP_BYTES: usize = 256 << 20;
+
+/// A parked plane of `len` lanes: one kept from an earlier call if it is large enough (its
+/// contents are stale; the row sweep writes every lane), else a new one. A 4K pair is 66 MB;
+/// reusing it saves the first-touch page faults of a fresh allocation on every filter.
+fn take_parked(len: usize) -> Vec<Lane> {
+    let kept = PARKED.lock().ok().and_then(|mut k| k.pop());
+    match kept {
+        Some(mut v) if v.capacity() >= len => {
+            v.resize(len, lane_splat(0.0));
+            v
+        }
+        _ => {
+            let v = vec![lane_splat(0.0); len];
+            buf::advise_huge_pages(&v);
+            v
+        }
+    }
+}
+
+/// Keeps `v` for the next [`take_parked`] (at most two, none over [`PARKED_KEEP_BYTES`]).
+fn give_parked(v: Vec<Lane>) {
+    if v.capacity() * std::mem::size_of::<Lane>() <= PARKED_KEEP_BYTES {
+        if let Ok(mut k) = PARKED.lock() {
+            if k.len() < 2 {
+                k.push(v);
+            }
+        }
+    }
+}
+
 /// Per-thread buffers of the row sweep.
 #[derive(Default)]
 struct RowScratch {
-    lanes: Vec<Lane>,
     filter: Vec<Lane>,
     p_band: Vec<f32>,
     q_band: Vec<f32>,
@@ -154,21 +215,21 @@ impl<F: LineFilter> Sweep<'_, F> {
         &self,
         s: &mut RowScratch,
         r0: usize,
-        pb: &mut [f32],
-        qb: &mut [f32],
+        lp: &mut [Lane],
+        lq: &mut [Lane],
     ) -> (usize, CurlSums) {
         #[cfg(target_arch = "x86_64")]
         {
             if std::arch::is_x86_feature_detected!("avx512f") {
                 // SAFETY: `band_avx512` only requires AVX-512F, whose presence was just checked.
-                return unsafe { self.band_avx512(s, r0, pb, qb) };
+                return unsafe { self.band_avx512(s, r0, lp, lq) };
             }
             if std::arch::is_x86_feature_detected!("avx2") {
                 // SAFETY: `band_avx2` only requires AVX2, whose presence was just checked.
-                return unsafe { self.band_avx2(s, r0, pb, qb) };
+                return unsafe { self.band_avx2(s, r0, lp, lq) };
             }
         }
-        self.band_portable(s, r0, pb, qb)
+        self.band_portable(s, r0, lp, lq)
     }
 
     /// [`Self::band_portable`] compiled for AVX2 (no FMA: bit-identical results), as
@@ -179,10 +240,10 @@ impl<F: LineFilter> Sweep<'_, F> {
         &self,
         s: &mut RowScratch,
         r0: usize,
-        pb: &mut [f32],
-        qb: &mut [f32],
+        lp: &mut [Lane],
+        lq: &mut [Lane],
     ) -> (usize, CurlSums) {
-        self.band_portable(s, r0, pb, qb)
+        self.band_portable(s, r0, lp, lq)
     }
 
     /// [`Self::band_portable`] compiled for AVX-512F (one [`Lane`] per register, no FMA).
@@ -192,10 +253,10 @@ impl<F: LineFilter> Sweep<'_, F> {
         &self,
         s: &mut RowScratch,
         r0: usize,
-        pb: &mut [f32],
-        qb: &mut [f32],
+        lp: &mut [Lane],
+        lq: &mut [Lane],
     ) -> (usize, CurlSums) {
-        self.band_portable(s, r0, pb, qb)
+        self.band_portable(s, r0, lp, lq)
     }
 
     #[inline(always)]
@@ -203,11 +264,11 @@ impl<F: LineFilter> Sweep<'_, F> {
         &self,
         s: &mut RowScratch,
         r0: usize,
-        pb: &mut [f32],
-        qb: &mut [f32],
+        lp: &mut [Lane],
+        lq: &mut [Lane],
     ) -> (usize, CurlSums) {
         let (w, [nx, ny, nz]) = (self.w, self.normal);
-        let rows = pb.len() / w;
+        let rows = LANES.min(self.h - r0);
         // The band's gradient rows, contiguous (then transposed into lanes as a block).
         s.p_band.resize(rows * w, 0.0);
         s.q_band.resize(rows * w, 0.0);
@@ -237,42 +298,42 @@ impl<F: LineFilter> Sweep<'_, F> {
                 sums = sums.merge(CurlSums::of_row(p_prev, q_prev, p_row, q_row, m));
             }
         }
-        // p then q through one lane buffer (a smaller working set than both at once).
-        for (band, out) in [(&*p_band, pb), (&*q_band, qb)] {
-            rows_to_lanes(band, w, &mut s.lanes);
-            self.f.run(&mut s.lanes, &mut s.filter, self.border);
-            lanes_to_rows(&s.lanes, w, out);
-        }
+        // p and q filtered together (the recursion interleaves them), in place where they
+        // are parked (plain stores: the column sweep reads them back soon, often from cache).
+        rows_into_lanes(p_band, w, lp);
+        rows_into_lanes(q_band, w, lq);
+        self.f.run_pair(lp, lq, &mut s.filter, self.border);
         (clamped, sums)
     }
 
     /// One task of the column sweep: column groups `t·TASK_GROUPS ..` (at most
-    /// [`TASK_GROUPS`], each [`LANES`] columns). Reads the row-filtered `p`, `q` parked in the
-    /// output `n_x`, `n_y` planes at `out`, writes the normals there; returns each group's curl
-    /// sums and [`Seam`]. Dispatches to the widest vector twin.
+    /// [`TASK_GROUPS`], each [`LANES`] columns). Reads the row-filtered `p`, `q` from the
+    /// parked planes `park`, writes the normals at `out`; returns each group's curl sums and
+    /// [`Seam`]. Dispatches to the widest vector twin.
     ///
     /// # Safety
-    /// `out` must point to the three output planes (`w × h` each); no other task may touch
-    /// the task's columns of them.
+    /// `out` must point to three allocations of `w × h` floats; no other task may touch the
+    /// task's columns of them.
     unsafe fn task(
         &self,
         s: &mut ColumnScratch,
         t: usize,
+        park: [&[Lane]; 2],
         out: [SharedMut<f32>; 3],
     ) -> Vec<(CurlSums, Vec<Seam>)> {
         #[cfg(target_arch = "x86_64")]
         {
             if std::arch::is_x86_feature_detected!("avx512f") {
                 // SAFETY: AVX-512F presence was just checked; the rest is the caller's contract.
-                return unsafe { self.task_avx512(s, t, out) };
+                return unsafe { self.task_avx512(s, t, park, out) };
             }
             if std::arch::is_x86_feature_detected!("avx2") {
                 // SAFETY: AVX2 presence was just checked; the rest is the caller's contract.
-                return unsafe { self.task_avx2(s, t, out) };
+                return unsafe { self.task_avx2(s, t, park, out) };
             }
         }
         // SAFETY: the caller's contract.
-        unsafe { self.task_portable(s, t, out) }
+        unsafe { self.task_portable::<false>(s, t, park, out) }
     }
 
     /// [`Self::task_portable`] compiled for AVX2 (no FMA: bit-identical results).
@@ -285,14 +346,15 @@ impl<F: LineFilter> Sweep<'_, F> {
         &self,
         s: &mut ColumnScratch,
         t: usize,
+        park: [&[Lane]; 2],
         out: [SharedMut<f32>; 3],
     ) -> Vec<(CurlSums, Vec<Seam>)> {
         // SAFETY: the caller's contract.
-        unsafe { self.task_portable(s, t, out) }
+        unsafe { self.task_portable::<false>(s, t, park, out) }
     }
 
     /// [`Self::task_portable`] compiled for AVX-512F: a [`Lane`] is one register (no FMA:
-    /// bit-identical results).
+    /// bit-identical results), and the normals go out with non-temporal stores.
     ///
     /// # Safety
     /// As [`Self::task`], and AVX-512F must be available.
@@ -302,19 +364,21 @@ impl<F: LineFilter> Sweep<'_, F> {
         &self,
         s: &mut ColumnScratch,
         t: usize,
+        park: [&[Lane]; 2],
         out: [SharedMut<f32>; 3],
     ) -> Vec<(CurlSums, Vec<Seam>)> {
         // SAFETY: the caller's contract.
-        unsafe { self.task_portable(s, t, out) }
+        unsafe { self.task_portable::<true>(s, t, park, out) }
     }
 
     /// # Safety
     /// As [`Self::task`].
     #[inline(always)]
-    unsafe fn task_portable(
+    unsafe fn task_portable<const STREAM: bool>(
         &self,
         s: &mut ColumnScratch,
         t: usize,
+        park: [&[Lane]; 2],
         out: [SharedMut<f32>; 3],
     ) -> Vec<(CurlSums, Vec<Seam>)> {
         let (w, h) = (self.w, self.h);
@@ -322,29 +386,43 @@ impl<F: LineFilter> Sweep<'_, F> {
         let k = TASK_GROUPS.min(w.div_ceil(LANES) - g0);
         let c0 = g0 * LANES;
         let span = (k * LANES).min(w - c0);
-        // The task's columns row by row: `span` contiguous floats per row and plane, so each
-        // row is read and written as a few neighbouring cache lines instead of one.
-        for (buf, src) in [(&mut s.p, out[0]), (&mut s.q, out[1])] {
+        // The task's columns band by band from the parked planes (`span` lanes = 4 KiB
+        // contiguous per band and plane), each group's 16 × 16 blocks transposed into rows.
+        let nb = h.div_ceil(LANES);
+        for (buf, src) in [(&mut s.p, park[0]), (&mut s.q, park[1])] {
             buf.resize_with(k, Vec::new);
             for b in buf.iter_mut() {
-                b.clear();
-                b.resize(h, lane_splat(0.0));
+                // Every row is loaded below: only a new length needs filling.
+                if b.len() != nb * LANES {
+                    b.clear();
+                    b.resize(nb * LANES, lane_splat(0.0));
+                }
             }
-            for r in 0..h {
-                prefetch_span(src.get().wrapping_add((r + PREFETCH_ROWS) * w + c0), span);
+            for band in 0..nb {
+                let base = band * w + c0;
+                prefetch_span(
+                    src.as_ptr().wrapping_add(base + PREFETCH_BANDS * w).cast(),
+                    span * LANES,
+                );
                 for (j, b) in buf.iter_mut().enumerate() {
                     let cols = LANES.min(span - j * LANES);
-                    // SAFETY: columns of row r inside the plane that belong to this task alone
-                    // (the caller's contract).
-                    b[r] = unsafe { load_lane(src.get().add(r * w + c0 + j * LANES), cols) };
+                    let chunk = &src[base + j * LANES..base + j * LANES + cols];
+                    let dst = &mut b[band * LANES..(band + 1) * LANES];
+                    if cols == LANES {
+                        transpose_lanes(chunk, dst);
+                    } else {
+                        for (k, row) in dst.iter_mut().enumerate() {
+                            *row =
+                                std::array::from_fn(|c| if c < cols { chunk[c][k] } else { 0.0 });
+                        }
+                    }
                 }
             }
         }
         let mut result = Vec::with_capacity(k);
         for j in 0..k {
-            let (bp, bq) = (&mut s.p[j], &mut s.q[j]);
-            self.f.run(bp, &mut s.filter, self.border);
-            self.f.run(bq, &mut s.filter, self.border);
+            let (bp, bq) = (&mut s.p[j][..h], &mut s.q[j][..h]);
+            self.f.run_pair(bp, bq, &mut s.filter, self.border);
             let cg = c0 + j * LANES;
             let cols = LANES.min(w - cg);
             let sums = group_curl(bp, bq, self.mask, w, cg, cols);
@@ -363,10 +441,20 @@ impl<F: LineFilter> Sweep<'_, F> {
                 .collect();
             result.push((sums, seam));
         }
+        // Whole lanes go out with non-temporal stores when every one is cache-line aligned
+        // (planes from `recycle::Recycler` are; `w` a multiple of 16): the normals are not read
+        // again here, and a streaming store does not first read the line it overwrites.
+        let stream = STREAM
+            && w.is_multiple_of(LANES)
+            && out
+                .iter()
+                .all(|p| (p.get() as usize).is_multiple_of(std::mem::size_of::<Lane>()));
         for r in 0..h {
             // The stores go down the strip a row apart: ask for the lines a few rows ahead.
-            for dst in &out {
-                prefetch_span(dst.get().wrapping_add((r + PREFETCH_ROWS) * w + c0), span);
+            if !stream {
+                for dst in &out {
+                    prefetch_span(dst.get().wrapping_add((r + PREFETCH_ROWS) * w + c0), span);
+                }
             }
             for j in 0..k {
                 let (p, q) = (&s.p[j][r], &s.q[j][r]);
@@ -376,24 +464,35 @@ impl<F: LineFilter> Sweep<'_, F> {
                 }
                 let cols = LANES.min(span - j * LANES);
                 for (dst, lane) in out.iter().zip(&nrm) {
-                    // SAFETY: as above; this task has already read these columns.
-                    unsafe { store_lane(dst.get().add(r * w + c0 + j * LANES), lane, cols) };
+                    let at = dst.get().wrapping_add(r * w + c0 + j * LANES);
+                    // SAFETY: columns of row r inside the plane that belong to this task alone
+                    // (aligned to a whole lane when streaming).
+                    unsafe {
+                        if stream && cols == LANES {
+                            stream_lane(at, lane);
+                        } else {
+                            store_lane(at, lane, cols);
+                        }
+                    }
                 }
             }
+        }
+        if stream {
+            stream_fence();
         }
         result
     }
 }
 
 /// Step 1 of the module docs; returns (clamped, curl sums before).
-fn row_sweep<F: LineFilter>(sw: &Sweep<'_, F>, out: &mut [Vec<f32>; 3]) -> (usize, CurlSums) {
+fn row_sweep<F: LineFilter>(sw: &Sweep<'_, F>, park: &mut [Vec<Lane>; 2]) -> (usize, CurlSums) {
     let w = sw.w;
-    let [ox, oy, _] = out;
-    ox.par_chunks_mut(w * LANES)
-        .zip(oy.par_chunks_mut(w * LANES))
+    let [pp, pq] = park;
+    pp.par_chunks_mut(w)
+        .zip(pq.par_chunks_mut(w))
         .enumerate()
-        .map_init(RowScratch::default, |s, (band, (pb, qb))| {
-            sw.band(s, band * LANES, pb, qb)
+        .map_init(RowScratch::default, |s, (band, (lp, lq))| {
+            sw.band(s, band * LANES, lp, lq)
         })
         .reduce(
             || (0, CurlSums::default()),
@@ -402,14 +501,20 @@ fn row_sweep<F: LineFilter>(sw: &Sweep<'_, F>, out: &mut [Vec<f32>; 3]) -> (usiz
 }
 
 /// Step 2 of the module docs; returns the curl sums after filtering.
-fn column_sweep<F: LineFilter>(sw: &Sweep<'_, F>, out: &mut [Vec<f32>; 3]) -> CurlSums {
+fn column_sweep<F: LineFilter>(
+    sw: &Sweep<'_, F>,
+    park: &[Vec<Lane>; 2],
+    ptr: [SharedMut<f32>; 3],
+) -> CurlSums {
+    let park = [&park[0][..], &park[1][..]];
     let tasks = sw.w.div_ceil(LANES * TASK_GROUPS);
-    let ptr = out.each_mut().map(|v| SharedMut(v.as_mut_ptr()));
     let per_group: Vec<(CurlSums, Vec<Seam>)> = (0..tasks)
         .into_par_iter()
-        // SAFETY: `ptr` are the three w×h output planes, borrowed mutably for this call;
-        // each task index is visited once, so each task owns its columns.
-        .map_init(ColumnScratch::default, |s, t| unsafe { sw.task(s, t, ptr) })
+        // SAFETY: `ptr` point to the three w×h output allocations, which nothing else touches
+        // during this call; each task index is visited once, so each task owns its columns.
+        .map_init(ColumnScratch::default, |s, t| unsafe {
+            sw.task(s, t, park, ptr)
+        })
         .flatten_iter()
         .collect();
     // The plaquettes at each group's last column, with the next group's first column
@@ -439,6 +544,45 @@ fn column_sweep<F: LineFilter>(sw: &Sweep<'_, F>, out: &mut [Vec<f32>; 3]) -> Cu
     per_group
         .into_iter()
         .fold(seams, |acc, (s, _)| acc.merge(s))
+}
+
+/// Writes a whole lane to the 64-byte aligned `dst` with a non-temporal store (called from
+/// the AVX-512F twin only; elsewhere a plain store).
+///
+/// # Safety
+/// `dst` must be valid for `LANES` writes and 64-byte aligned; AVX-512F must be available.
+#[inline(always)]
+unsafe fn stream_lane(dst: *mut f32, lane: &Lane) {
+    #[cfg(target_arch = "x86_64")]
+    // SAFETY: the caller's contract.
+    unsafe {
+        use std::arch::x86_64::{_mm512_loadu_ps, _mm512_stream_ps};
+        _mm512_stream_ps(dst, _mm512_loadu_ps(lane.as_ptr()));
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    // SAFETY: the caller's contract.
+    unsafe {
+        store_lane(dst, lane, LANES)
+    };
+}
+
+/// Orders the non-temporal stores before whatever follows (the task's results are read by
+/// other threads once it returns).
+#[inline(always)]
+fn stream_fence() {
+    #[cfg(target_arch = "x86_64")]
+    // SAFETY: `sfence` has no preconditions (SSE, part of x86-64).
+    unsafe {
+        std::arch::x86_64::_mm_sfence()
+    };
+}
+
+/// `a` moved down one lane (`a[l + 1]` at `l`, 0 at the last lane).
+#[inline(always)]
+fn next_lane(a: &Lane) -> Lane {
+    let mut o = [0.0; LANES];
+    o[..LANES - 1].copy_from_slice(&a[1..]);
+    o
 }
 
 /// Curl sums (averaged model, module docs of `gradient`) of one filtered column group (`cols`
@@ -477,16 +621,18 @@ fn group_curl(
                 }
             }),
         };
-        let next = |a: &Lane, l: usize| if l + 1 < LANES { a[l + 1] } else { 0.0 };
+        // Each lane's right neighbour (the group's last lane is not counted here).
+        let (pun, pcn, qun, qcn) = (next_lane(pu), next_lane(pc), next_lane(qu), next_lane(qc));
         for l in 0..LANES {
-            let eu = 0.5 * (pu[l] + next(pu, l));
-            let ec = 0.5 * (pc[l] + next(pc, l));
+            let eu = 0.5 * (pu[l] + pun[l]);
+            let ec = 0.5 * (pc[l] + pcn[l]);
             let qcl = 0.5 * (qc[l] + qu[l]);
-            let qn = 0.5 * (next(qc, l) + next(qu, l));
+            let qn = 0.5 * (qcn[l] + qun[l]);
             let c = ((eu - ec) - (qn - qcl)) * keep[l];
             c2[l] += c * c;
             g2[l] += (ec * ec + qcl * qcl) * keep[l];
-            mx[l] = mx[l].max(c.abs());
+            let a = c.abs();
+            mx[l] = if a > mx[l] { a } else { mx[l] };
             n[l] += keep[l];
         }
         if r % F32_RUN == 0 || r + 1 == bp.len() {

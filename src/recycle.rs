@@ -1,0 +1,249 @@
+//! A global allocator that recycles image-sized blocks.
+//!
+//! Every evaluation allocates its output planes afresh (a 4K plane is 33 MB), and the planes
+//! of the previous evaluation are freed a moment before. The system allocator returns such
+//! blocks to the kernel (`munmap`) and maps new ones, so each new plane is faulted in and
+//! zero-filled by the kernel page by page on first touch: 100 MB of page clearing for a
+//! three-plane result, about 10 ms of a 4K Gaussian filter (measured with `perf`, BENCHMARKS.md).
+//! [`Recycler`] keeps a few freed blocks of at least [`BIG`] bytes and hands one back when a
+//! block of exactly that size is asked for again, without touching its pages.
+//!
+//! - Only plain allocations reuse a block. Zeroed ones (`vec![0.0; n]`) still get fresh
+//!   mappings, which the kernel zero-fills lazily: zeroing a reused block would cost as much.
+//!   Kernels that write every value ask for a plain block ([`crate::raster::buf::reserved_f32`]).
+//! - At most [`SLOTS`] blocks and [`KEEP_BYTES`] bytes are kept; a block that does not fit is
+//!   freed at once. A big request that finds no block of its size frees every kept block
+//!   first (the program has moved on to other sizes), so kept blocks never pile up beside new
+//!   ones: the peak memory stays what the program itself needed (`RGBN_MEMORY_LIMIT`'s
+//!   estimates hold).
+//! - Blocks of [`BIG`] bytes or more are aligned to 64 bytes (a cache line), whatever the
+//!   request; smaller requests go to the system allocator unchanged.
+//!
+//! The `rgbn` binary and the benchmarks install it with
+//! `#[global_allocator] static A: rgbn::recycle::Recycler = rgbn::recycle::Recycler;`. The
+//! library itself does not, so a program embedding it keeps its own allocator.
+
+use std::alloc::{GlobalAlloc, Layout, System};
+use std::sync::Mutex;
+
+/// Blocks of at least this many bytes are recycled (smaller ones are the system's business).
+pub const BIG: usize = 4 << 20;
+/// Freed blocks kept at most.
+pub const SLOTS: usize = 8;
+/// Bytes kept at most.
+pub const KEEP_BYTES: usize = 512 << 20;
+/// The alignment of big blocks.
+const BIG_ALIGN: usize = 64;
+
+/// The global allocator of the module docs.
+pub struct Recycler;
+
+/// Kept blocks: (address, size); address 0 = empty slot.
+struct Kept {
+    blocks: [(usize, usize); SLOTS],
+    bytes: usize,
+}
+
+static KEPT: Mutex<Kept> = Mutex::new(Kept {
+    blocks: [(0, 0); SLOTS],
+    bytes: 0,
+});
+
+/// The layout big blocks are really allocated with.
+fn big_layout(l: Layout) -> Layout {
+    // `align_to` only fails for alignments that are not powers of two or sizes that overflow
+    // when padded, neither of which a valid `Layout` of ≥ 4 MiB with a 64-byte target hits;
+    // keep the request unchanged should it ever happen.
+    l.align_to(BIG_ALIGN).unwrap_or(l)
+}
+
+impl Recycler {
+    /// A kept block of exactly `size` bytes, if there is one.
+    fn take(size: usize) -> Option<*mut u8> {
+        let mut k = KEPT.lock().ok()?;
+        let slot = k.blocks.iter().position(|&(a, s)| a != 0 && s == size)?;
+        let (addr, _) = std::mem::take(&mut k.blocks[slot]);
+        k.bytes -= size;
+        Some(addr as *mut u8)
+    }
+
+    /// Frees every kept block.
+    fn release_all() {
+        let blocks = match KEPT.lock() {
+            Ok(mut k) => {
+                k.bytes = 0;
+                std::mem::replace(&mut k.blocks, [(0, 0); SLOTS])
+            }
+            Err(_) => return,
+        };
+        for (addr, size) in blocks {
+            if addr != 0 {
+                // SAFETY: kept blocks are big blocks, allocated by System with
+                // `big_layout` of their size (align ≤ 64, padded to 64: the layout below).
+                unsafe {
+                    System.dealloc(
+                        addr as *mut u8,
+                        Layout::from_size_align_unchecked(size, BIG_ALIGN),
+                    );
+                }
+            }
+        }
+    }
+
+    /// Keeps the block if there is room; false if it must be freed.
+    fn keep(ptr: *mut u8, size: usize) -> bool {
+        let Ok(mut k) = KEPT.lock() else {
+            return false;
+        };
+        if k.bytes + size > KEEP_BYTES {
+            return false;
+        }
+        let Some(slot) = k.blocks.iter().position(|&(a, _)| a == 0) else {
+            return false;
+        };
+        k.blocks[slot] = (ptr as usize, size);
+        k.bytes += size;
+        true
+    }
+}
+
+// SAFETY: every block comes from `System` with the layout it is later returned with: big
+// requests (size ≥ BIG) always with `big_layout(l)` — both when allocated and when freed, as a
+// block keeps its size — and small ones with `l`. A kept block is owned by `KEPT` alone until
+// `take` hands it to exactly one caller, with the same size and an alignment (64) at least the
+// request's whenever that request's alignment is at most 64; other requests are never served
+// from `KEPT`.
+unsafe impl GlobalAlloc for Recycler {
+    unsafe fn alloc(&self, l: Layout) -> *mut u8 {
+        if l.size() < BIG {
+            // SAFETY: the caller's contract (non-zero size).
+            return unsafe { System.alloc(l) };
+        }
+        if l.align() <= BIG_ALIGN {
+            if let Some(p) = Self::take(l.size()) {
+                return p;
+            }
+        }
+        Self::release_all();
+        // SAFETY: a valid layout of non-zero size.
+        unsafe { System.alloc(big_layout(l)) }
+    }
+
+    unsafe fn alloc_zeroed(&self, l: Layout) -> *mut u8 {
+        if l.size() < BIG {
+            // SAFETY: the caller's contract.
+            return unsafe { System.alloc_zeroed(l) };
+        }
+        Self::release_all();
+        // SAFETY: a valid layout of non-zero size.
+        unsafe { System.alloc_zeroed(big_layout(l)) }
+    }
+
+    unsafe fn dealloc(&self, ptr: *mut u8, l: Layout) {
+        if l.size() < BIG {
+            // SAFETY: the caller's contract: `ptr` was allocated with `l` (small: by System).
+            return unsafe { System.dealloc(ptr, l) };
+        }
+        if l.align() <= BIG_ALIGN && Self::keep(ptr, l.size()) {
+            return;
+        }
+        // SAFETY: big blocks were allocated by System with `big_layout(l)`.
+        unsafe { System.dealloc(ptr, big_layout(l)) }
+    }
+
+    unsafe fn realloc(&self, ptr: *mut u8, l: Layout, new_size: usize) -> *mut u8 {
+        if l.size() < BIG && new_size < BIG {
+            // SAFETY: the caller's contract; both sizes are small, so System owns the block.
+            return unsafe { System.realloc(ptr, l, new_size) };
+        }
+        // Crossing or above the threshold: allocate, copy, free (each side with its own rule).
+        // SAFETY: the caller guarantees `new_size` with `l.align()` is a valid layout.
+        let new_l = unsafe { Layout::from_size_align_unchecked(new_size, l.align()) };
+        // SAFETY: `new_l` has non-zero size (the caller's contract).
+        let new = unsafe { self.alloc(new_l) };
+        if !new.is_null() {
+            // SAFETY: both blocks are at least `min(old, new)` bytes and do not overlap.
+            unsafe { std::ptr::copy_nonoverlapping(ptr, new, l.size().min(new_size)) };
+            // SAFETY: `ptr` was allocated by this allocator with `l`.
+            unsafe { self.dealloc(ptr, l) };
+        }
+        new
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The kept blocks are process-wide: these tests take turns.
+    static TURN: Mutex<()> = Mutex::new(());
+
+    /// The allocator's own rules, exercised directly (the test binary keeps the system
+    /// allocator as its global one).
+    #[test]
+    fn a_freed_big_block_is_handed_back_for_the_same_size_and_is_aligned() {
+        let _turn = TURN.lock().unwrap();
+        // A size no other test allocates, so the shared cache cannot interfere.
+        let size = BIG + 4096 * 7 + 12;
+        let l = Layout::from_size_align(size, 4).unwrap();
+        let r = Recycler;
+        unsafe {
+            let a = r.alloc(l);
+            assert!(!a.is_null());
+            assert_eq!(
+                a as usize % BIG_ALIGN,
+                0,
+                "big blocks are cache-line aligned"
+            );
+            a.write_bytes(0xAB, size);
+            r.dealloc(a, l);
+            let b = r.alloc(l);
+            assert_eq!(b, a, "the kept block comes back");
+            // Not zeroed, not touched: what was written is still there.
+            assert_eq!(*b.add(size - 1), 0xAB);
+            // A zeroed request never gets a kept block: it is all zeros.
+            r.dealloc(b, l);
+            let z = r.alloc_zeroed(l);
+            assert!((0..size).step_by(4093).all(|i| *z.add(i) == 0));
+            r.dealloc(z, l);
+            // Growing a big block keeps its contents.
+            let c = r.alloc(l);
+            c.write_bytes(7, size);
+            let d = r.realloc(c, l, size * 2);
+            assert!((0..size).step_by(4093).all(|i| *d.add(i) == 7));
+            r.dealloc(d, Layout::from_size_align(size * 2, 4).unwrap());
+            // Small blocks are the system's, as they were.
+            let s = Layout::from_size_align(100, 8).unwrap();
+            let p = r.alloc(s);
+            assert!(!p.is_null());
+            let p2 = r.realloc(p, s, 5 << 20);
+            assert_eq!(p2 as usize % BIG_ALIGN, 0);
+            r.dealloc(p2, Layout::from_size_align(5 << 20, 8).unwrap());
+        }
+    }
+
+    #[test]
+    fn the_kept_bytes_are_bounded_and_a_new_size_releases_them() {
+        let _turn = TURN.lock().unwrap();
+        let r = Recycler;
+        let size = KEEP_BYTES / 2 + 4096 * 3;
+        let l = Layout::from_size_align(size, 4).unwrap();
+        unsafe {
+            let blocks: Vec<*mut u8> = (0..3).map(|_| r.alloc(l)).collect();
+            for &b in &blocks {
+                r.dealloc(b, l);
+            }
+            // At most one block of just over half the bound can be kept.
+            {
+                let k = KEPT.lock().unwrap();
+                assert_eq!(k.bytes, size);
+                assert_eq!(k.blocks.iter().filter(|&&(a, _)| a != 0).count(), 1);
+            }
+            // A request of another size finds nothing to reuse and releases what was kept.
+            let other = Layout::from_size_align(BIG + 64, 4).unwrap();
+            let o = r.alloc(other);
+            assert_eq!(KEPT.lock().unwrap().bytes, 0);
+            r.dealloc(o, other);
+        }
+    }
+}
