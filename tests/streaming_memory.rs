@@ -59,9 +59,11 @@ static ALLOC: Counting = Counting;
 
 const W: usize = 20_000;
 const H: usize = 12_000;
-/// The budget: 400 MiB. Reading the image whole would take 240 Mpx × 24 bytes = 5.8 GB for the
-/// normals and colour alone.
-const BUDGET: usize = 400 << 20;
+/// The budget: 480 MiB. Reading the image whole would take 240 Mpx × 24 bytes = 5.8 GB for the
+/// normals and colour alone. (It was 400 MiB until the fused filter began parking its
+/// row-filtered `p`, `q` in two lane-order planes of its own, 8 bytes per pixel of a strip:
+/// 447 MiB measured for `filter`, for a 1.9× faster 4K Gaussian; BENCHMARKS.md.)
+const BUDGET: usize = 480 << 20;
 
 /// The relief: slopes `p = ½ cos(x/9) cos(y/13) + 0.2 sin((x−y)/4.7)`,
 /// `q = −½ sin(x/9) sin(y/13) − 0.2 sin((x−y)/4.7)`, from tables of their factors.
