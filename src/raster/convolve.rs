@@ -653,6 +653,26 @@ pub(crate) fn lanes_to_rows(lanes: &[Lane], width: usize, band: &mut [f32]) {
     }
 }
 
+/// The scalar rest of a full band's [`rows_to_lanes`]: columns `from..width`.
+#[cfg(target_arch = "x86_64")]
+fn rows_to_lanes_from(band: &[f32], width: usize, lanes: &mut [Lane], from: usize) {
+    for k in 0..LANES {
+        for x in from..width {
+            lanes[x][k] = band[k * width + x];
+        }
+    }
+}
+
+/// The scalar rest of a full band's [`lanes_to_rows`]: columns `from..width`.
+#[cfg(target_arch = "x86_64")]
+fn lanes_to_rows_from(lanes: &[Lane], width: usize, band: &mut [f32], from: usize) {
+    for k in 0..LANES {
+        for x in from..width {
+            band[k * width + x] = lanes[x][k];
+        }
+    }
+}
+
 /// The AVX-512 16 × 16 transposes behind [`rows_to_lanes`] and [`lanes_to_rows`] (data
 /// movement only: bit-identical to the scalar loops). Four shuffle stages of 16 instructions
 /// per 256 floats, a third fewer than two AVX 8 × 8 transposes per 16 × 8.
@@ -715,11 +735,7 @@ mod transpose_avx512 {
                 unsafe { _mm512_storeu_ps(lanes[x0 + j].as_mut_ptr(), v) };
             }
         }
-        for k in 0..LANES {
-            for x in full..width {
-                lanes[x][k] = band[k * width + x];
-            }
-        }
+        super::rows_to_lanes_from(band, width, lanes, full);
     }
 
     /// # Safety
@@ -739,11 +755,7 @@ mod transpose_avx512 {
                 unsafe { _mm512_storeu_ps(band.as_mut_ptr().add(k * width + x0), v) };
             }
         }
-        for k in 0..LANES {
-            for x in full..width {
-                band[k * width + x] = lanes[x][k];
-            }
-        }
+        super::lanes_to_rows_from(lanes, width, band, full);
     }
 }
 
@@ -808,11 +820,7 @@ mod transpose_avx {
                 }
             }
         }
-        for k in 0..LANES {
-            for x in full..width {
-                lanes[x][k] = band[k * width + x];
-            }
-        }
+        super::rows_to_lanes_from(band, width, lanes, full);
     }
 
     /// # Safety
@@ -836,11 +844,7 @@ mod transpose_avx {
                 }
             }
         }
-        for k in 0..LANES {
-            for x in full..width {
-                band[k * width + x] = lanes[x][k];
-            }
-        }
+        super::lanes_to_rows_from(lanes, width, band, full);
     }
 }
 
