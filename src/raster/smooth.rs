@@ -99,9 +99,7 @@ pub fn smooth_normals<F: LineFilter>(
         take_parked(h.div_ceil(LANES) * w),
         take_parked(h.div_ceil(LANES) * w),
     ];
-    let t0 = std::time::Instant::now();
     let (clamped, curl_before) = row_sweep(&sw, &mut park);
-    let t1 = std::time::Instant::now();
     let curl_after = column_sweep(
         &sw,
         &park,
@@ -113,14 +111,6 @@ pub fn smooth_normals<F: LineFilter>(
         unsafe { v.set_len(n) };
     }
     park.into_iter().for_each(give_parked);
-    if std::env::var_os("PROBE").is_some() {
-        eprintln!(
-            "row {:.1} col {:.1}",
-            (t1 - t0).as_secs_f64() * 1e3,
-            t1.elapsed().as_secs_f64() * 1e3
-        );
-    }
-
     SmoothedNormals {
         normal: out,
         clamped,
