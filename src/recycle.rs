@@ -107,6 +107,33 @@ impl Recycler {
     }
 }
 
+/// Asks for transparent huge pages over the 2 MiB-aligned interior of a new big block, before
+/// anything touches it (pages already faulted in stay small). A kept block keeps its pages, so
+/// this is what makes reused output planes huge-paged: a column sweep stores a row apart in
+/// each plane, one 4 KiB page per store, and with small pages every one of those stores
+/// missed the TLB (BENCHMARKS.md).
+fn advise_huge(p: *mut u8, size: usize) {
+    #[cfg(target_os = "linux")]
+    {
+        const HUGE: usize = 2 << 20;
+        if p.is_null() {
+            return;
+        }
+        let start = (p as usize).next_multiple_of(HUGE);
+        let end = (p as usize + size) & !(HUGE - 1);
+        if end > start {
+            // SAFETY: `[start, end)` lies inside the block just allocated and is page
+            // aligned; MADV_HUGEPAGE only changes how the range is backed, never its
+            // contents, and a refusal (THP disabled) is harmless, so the result is ignored.
+            unsafe {
+                libc::madvise(start as *mut libc::c_void, end - start, libc::MADV_HUGEPAGE);
+            }
+        }
+    }
+    #[cfg(not(target_os = "linux"))]
+    let _ = (p, size);
+}
+
 // SAFETY: every block comes from `System` with the layout it is later returned with: big
 // requests (size ≥ BIG) always with `big_layout(l)` — both when allocated and when freed, as a
 // block keeps its size — and small ones with `l`. A kept block is owned by `KEPT` alone until
@@ -126,7 +153,9 @@ unsafe impl GlobalAlloc for Recycler {
         }
         Self::release_all();
         // SAFETY: a valid layout of non-zero size.
-        unsafe { System.alloc(big_layout(l)) }
+        let p = unsafe { System.alloc(big_layout(l)) };
+        advise_huge(p, l.size());
+        p
     }
 
     unsafe fn alloc_zeroed(&self, l: Layout) -> *mut u8 {
@@ -136,7 +165,9 @@ unsafe impl GlobalAlloc for Recycler {
         }
         Self::release_all();
         // SAFETY: a valid layout of non-zero size.
-        unsafe { System.alloc_zeroed(big_layout(l)) }
+        let p = unsafe { System.alloc_zeroed(big_layout(l)) };
+        advise_huge(p, l.size());
+        p
     }
 
     unsafe fn dealloc(&self, ptr: *mut u8, l: Layout) {

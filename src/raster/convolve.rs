@@ -96,20 +96,6 @@ pub trait LineFilter: Sync {
     /// Filters `line` (length = line length, each element = `LANES` independent lines) in place.
     /// `scratch` is reusable working memory.
     fn run(&self, line: &mut [Lane], scratch: &mut Vec<Lane>, border: BorderMode);
-
-    /// Filters two lines of the same length, each exactly as [`run`](Self::run) would. A
-    /// recursive filter interleaves them: its steps are latency-bound, and two independent
-    /// recursions fill each other's pipeline bubbles.
-    fn run_pair(
-        &self,
-        a: &mut [Lane],
-        b: &mut [Lane],
-        scratch: &mut Vec<Lane>,
-        border: BorderMode,
-    ) {
-        self.run(a, scratch, border);
-        self.run(b, scratch, border);
-    }
 }
 
 #[inline(always)]
@@ -366,128 +352,9 @@ impl LineFilter for Deriche {
         }
         self.run_portable(line, scratch, border);
     }
-
-    fn run_pair(
-        &self,
-        a: &mut [Lane],
-        b: &mut [Lane],
-        scratch: &mut Vec<Lane>,
-        border: BorderMode,
-    ) {
-        #[cfg(target_arch = "x86_64")]
-        {
-            if std::arch::is_x86_feature_detected!("avx512f") {
-                // SAFETY: only requires AVX-512F, whose presence was just checked.
-                return unsafe { self.run_pair_avx512(a, b, scratch, border) };
-            }
-            if std::arch::is_x86_feature_detected!("avx2")
-                && std::arch::is_x86_feature_detected!("fma")
-            {
-                // SAFETY: only requires AVX2 and FMA, just checked.
-                return unsafe { self.run_pair_avx2(a, b, scratch, border) };
-            }
-        }
-        self.run_pair_portable(a, b, scratch, border);
-    }
 }
 
 impl Deriche {
-    /// [`Self::run_pair_portable`] compiled for AVX-512F (bit-identical, as `run_avx512`).
-    #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx512f")]
-    fn run_pair_avx512(
-        &self,
-        a: &mut [Lane],
-        b: &mut [Lane],
-        scratch: &mut Vec<Lane>,
-        border: BorderMode,
-    ) {
-        self.run_pair_portable(a, b, scratch, border);
-    }
-
-    /// [`Self::run_pair_portable`] compiled for AVX2 + FMA (bit-identical, as `run_avx2`).
-    #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx2,fma")]
-    fn run_pair_avx2(
-        &self,
-        a: &mut [Lane],
-        b: &mut [Lane],
-        scratch: &mut Vec<Lane>,
-        border: BorderMode,
-    ) {
-        self.run_pair_portable(a, b, scratch, border);
-    }
-
-    /// [`Self::run_portable`] on two lines at once, step by step interleaved: the same
-    /// operations on each line in the same order, so each result is bit-identical to `run`.
-    #[inline(always)]
-    fn run_pair_portable(
-        &self,
-        a: &mut [Lane],
-        b: &mut [Lane],
-        scratch: &mut Vec<Lane>,
-        border: BorderMode,
-    ) {
-        let n = a.len();
-        assert_eq!(n, b.len(), "run_pair: lines of different lengths");
-        if n == 0 {
-            return;
-        }
-        let pad = self.pad_for(border);
-        let [s0, s1] = self.sec;
-        if scratch.len() != 2 * n {
-            scratch.clear();
-            scratch.resize(2 * n, lane_splat(0.0));
-        }
-        let (sa, sb) = scratch.split_at_mut(n);
-        let (sa, sb) = (&mut sa[..n], &mut sb[..n]);
-        // Causal pass into the scratch halves.
-        let (a0, b0) = (
-            fetch(a, -(pad as isize) - 1, border),
-            fetch(b, -(pad as isize) - 1, border),
-        );
-        let (mut ap, mut bp) = (a0, b0);
-        let mut sta = steady_state(&a0, s0.gain(true), s1.gain(true));
-        let mut stb = steady_state(&b0, s0.gain(true), s1.gain(true));
-        for i in -(pad as isize)..0 {
-            let (xa, xb) = (fetch(a, i, border), fetch(b, i, border));
-            causal_step(&xa, &ap, &mut sta, &s0, &s1);
-            causal_step(&xb, &bp, &mut stb, &s0, &s1);
-            (ap, bp) = (xa, xb);
-        }
-        for i in 0..n {
-            let (xa, xb) = (a[i], b[i]);
-            sa[i] = causal_step(&xa, &ap, &mut sta, &s0, &s1);
-            sb[i] = causal_step(&xb, &bp, &mut stb, &s0, &s1);
-            (ap, bp) = (xa, xb);
-        }
-        // Anticausal pass, added in place.
-        let (ae, be) = (
-            fetch(a, (n + pad) as isize, border),
-            fetch(b, (n + pad) as isize, border),
-        );
-        let (mut a1, mut a2, mut b1, mut b2) = (ae, ae, be, be);
-        let mut sta = steady_state(&ae, s0.gain(false), s1.gain(false));
-        let mut stb = steady_state(&be, s0.gain(false), s1.gain(false));
-        for i in (n as isize..(n + pad) as isize).rev() {
-            anti_step(&a1, &a2, &mut sta, &s0, &s1);
-            anti_step(&b1, &b2, &mut stb, &s0, &s1);
-            (a2, b2) = (a1, b1);
-            (a1, b1) = (fetch(a, i, border), fetch(b, i, border));
-        }
-        for i in (0..n).rev() {
-            let ya = anti_step(&a1, &a2, &mut sta, &s0, &s1);
-            let yb = anti_step(&b1, &b2, &mut stb, &s0, &s1);
-            (a2, b2) = (a1, b1);
-            (a1, b1) = (a[i], b[i]);
-            let (ca, cb) = (sa[i], sb[i]);
-            for l in 0..LANES {
-                a[i][l] = ca[l] + ya[l];
-                b[i][l] = cb[l] + yb[l];
-            }
-        }
-    }
-
     /// [`Self::run_portable`] compiled with 256-bit AVX2 vectors and hardware FMA: the
     /// recursion is compute-bound and the baseline x86-64 target only has 128-bit SSE2. The
     /// steps are explicit fused multiply-adds (`f32::mul_add`, exactly rounded everywhere; Rust
@@ -1278,39 +1145,6 @@ mod tests {
                     unsafe { d.run_avx512(&mut c, &mut Vec::new(), border) };
                     assert!(same(&c, &b));
                 }
-            }
-        }
-    }
-
-    #[test]
-    fn run_pair_filters_each_line_exactly_as_run_does() {
-        // Two different lines (the pair must not mix them), every border, FIR and recursive.
-        let a0: Vec<Lane> = (0..257)
-            .map(|i| std::array::from_fn(|l| ((i * 31 + l * 7) % 53) as f32 * 0.1 - 2.0))
-            .collect();
-        let b0: Vec<Lane> = (0..257)
-            .map(|i| std::array::from_fn(|l| ((i * i + l) % 17) as f32 - 8.0))
-            .collect();
-        let same = |a: &[Lane], b: &[Lane]| {
-            a.iter()
-                .flatten()
-                .zip(b.iter().flatten())
-                .all(|(p, q)| p.to_bits() == q.to_bits())
-        };
-        let filters: [&dyn LineFilter; 3] = [
-            &Deriche::new(4.0),
-            &Deriche::new(32.0),
-            &BoxFilter { radius: 3 },
-        ];
-        for f in filters {
-            for border in BorderMode::ALL {
-                let (mut a, mut b) = (a0.clone(), b0.clone());
-                f.run_pair(&mut a, &mut b, &mut Vec::new(), border);
-                let (mut ea, mut eb) = (a0.clone(), b0.clone());
-                f.run(&mut ea, &mut Vec::new(), border);
-                f.run(&mut eb, &mut Vec::new(), border);
-                assert!(same(&a, &ea) && same(&b, &eb), "{border:?}");
-                assert!(!same(&a, &a0), "the filter changed the line");
             }
         }
     }

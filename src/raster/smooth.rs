@@ -5,12 +5,15 @@
 //! `filter_columns` → `curl_stats` → `to_normals` (what `ops::filter` runs for masks and
 //! compound kernels). Here:
 //!
-//! 1. **Row sweep** (bands of [`LANES`] rows): each row's `(p, q)` is computed from the normals
-//!    (same [`gradient_of_normal`] and `n_z` clamp), its curl sums (averaged model) are taken
-//!    with the previous row's `p`, `q` (one extra row per band is recomputed), then the band
-//!    is transposed into lanes (lane `k` = row `k` of the band) and `p` and `q` are filtered
-//!    along x together, in place in two *parked* planes kept in that lane order: band `b`'s
-//!    lanes at `b·w ..`. The parked pair is kept between calls (see [`take_parked`]).
+//! 1. **Row sweep** (bands of [`LANES`] rows), in chunks of [`GRADIENT_CHUNK`] columns that
+//!    stay in L1: each row's `(p, q)` is computed from the normals (same
+//!    [`gradient_of_normal`] and `n_z` clamp), its curl sums (averaged model) are taken with
+//!    the previous row's `p`, `q` (one extra row per band and one extra column per chunk are
+//!    recomputed), and the chunk is transposed into lanes (lane `k` = row `k` of the band) in
+//!    two *parked* planes kept in that lane order: band `b`'s lanes at `b·w ..`. Then `p` and
+//!    `q` are filtered along x in place there, one after the other (two recursions
+//!    interleaved step by step measured slower: BENCHMARKS.md). The parked pair is kept
+//!    between calls (see [`take_parked`]).
 //! 2. **Column sweep** (groups of [`LANES`] columns, [`TASK_GROUPS`] neighbouring groups a
 //!    task): a task reads its columns band by band (4 KiB contiguous per band and plane),
 //!    transposing each 16 × 16 block into rows; `p`, `q` are filtered along y, the curl sums
@@ -56,6 +59,9 @@ const TASK_GROUPS: usize = 4;
 
 /// Bands the column sweep's loads prefetch ahead.
 const PREFETCH_BANDS: usize = 2;
+
+/// Columns of the row sweep's gradient chunks: 17 rows × 257 columns × 2 planes = 35 KB, in L1.
+const GRADIENT_CHUNK: usize = 256;
 
 /// Rows of one column summed in `f32` before going to `f64`.
 const F32_RUN: usize = 64;
@@ -160,8 +166,6 @@ struct RowScratch {
     filter: Vec<Lane>,
     p_band: Vec<f32>,
     q_band: Vec<f32>,
-    q_row: Vec<f32>,
-    p_prev: Vec<f32>,
 }
 
 /// Per-thread buffers of the column sweep.
@@ -268,40 +272,64 @@ impl<F: LineFilter> Sweep<'_, F> {
     ) -> (usize, CurlSums) {
         let (w, [nx, ny, nz]) = (self.w, self.normal);
         let rows = LANES.min(self.h - r0);
-        // The band's gradient rows, contiguous (then transposed into lanes as a block).
-        s.p_band.resize(rows * w, 0.0);
-        s.q_band.resize(rows * w, 0.0);
-        s.p_prev.resize(w, 0.0);
-        s.q_row.resize(w, 0.0);
-        let (p_band, q_band) = (&mut s.p_band[..rows * w], &mut s.q_band[..rows * w]);
-        if r0 > 0 {
-            let o = (r0 - 1) * w..r0 * w;
-            let q_row = &mut s.q_row;
-            gradient_row(&nx[o.clone()], &ny[o.clone()], &nz[o], &mut s.p_prev, q_row);
-        }
+        // The row above the band too (its plaquettes with the band's first row are this
+        // band's), recomputed here rather than shared with the band above.
+        let above = usize::from(r0 > 0);
+        let first = r0 - above;
+        let nrows = rows + above;
+        let stride = GRADIENT_CHUNK + 1;
+        s.p_band.resize(nrows * stride, 0.0);
+        s.q_band.resize(nrows * stride, 0.0);
         let (mut clamped, mut sums) = (0usize, CurlSums::default());
-        for k in 0..rows {
-            let r = r0 + k;
-            let o = r * w..(r + 1) * w;
-            let (p_done, p_rest) = p_band.split_at_mut(k * w);
-            let (q_done, q_rest) = q_band.split_at_mut(k * w);
-            let (p_row, q_row) = (&mut p_rest[..w], &mut q_rest[..w]);
-            clamped += gradient_row(&nx[o.clone()], &ny[o.clone()], &nz[o.clone()], p_row, q_row);
-            if r >= 1 {
-                let (p_prev, q_prev) = if k == 0 {
-                    (&s.p_prev[..], &s.q_row[..])
-                } else {
-                    (&p_done[(k - 1) * w..], &q_done[(k - 1) * w..])
-                };
-                let m = self.mask.map(|m| (&m[(r - 1) * w..r * w], &m[o]));
-                sums = sums.merge(CurlSums::of_row(p_prev, q_prev, p_row, q_row, m));
+        // Chunks of columns, each with the next chunk's first column (for the plaquettes at
+        // its last column): the chunk's gradient rows stay in L1 while their curl sums are
+        // taken and they are transposed into lanes.
+        for c0 in (0..w).step_by(GRADIENT_CHUNK) {
+            let own = GRADIENT_CHUNK.min(w - c0);
+            let ext = (own + 1).min(w - c0);
+            let (pb, qb) = (&mut s.p_band[..nrows * ext], &mut s.q_band[..nrows * ext]);
+            for k in 0..nrows {
+                let o = (first + k) * w + c0;
+                let (pr, qr) = (
+                    &mut pb[k * ext..(k + 1) * ext],
+                    &mut qb[k * ext..(k + 1) * ext],
+                );
+                let c = gradient_row(
+                    &nx[o..o + own],
+                    &ny[o..o + own],
+                    &nz[o..o + own],
+                    &mut pr[..own],
+                    &mut qr[..own],
+                );
+                if ext > own {
+                    [pr[own], qr[own]] =
+                        gradient_of_normal([nx[o + own], ny[o + own], nz[o + own]]);
+                }
+                if k >= above {
+                    clamped += c;
+                }
+                if k >= 1 {
+                    let (pu, pc) = pb.split_at(k * ext);
+                    let (qu, qc) = qb.split_at(k * ext);
+                    let m = self.mask.map(|m| (&m[o - w..o - w + ext], &m[o..o + ext]));
+                    sums = sums.merge(CurlSums::of_row(
+                        &pu[(k - 1) * ext..],
+                        &qu[(k - 1) * ext..],
+                        &pc[..ext],
+                        &qc[..ext],
+                        m,
+                    ));
+                }
             }
+            // The band's rows of the chunk into lanes (the extra column too: the next chunk
+            // writes the same values there).
+            rows_into_lanes(&pb[above * ext..], ext, &mut lp[c0..c0 + ext]);
+            rows_into_lanes(&qb[above * ext..], ext, &mut lq[c0..c0 + ext]);
         }
-        // p and q filtered together (the recursion interleaves them), in place where they
-        // are parked (plain stores: the column sweep reads them back soon, often from cache).
-        rows_into_lanes(p_band, w, lp);
-        rows_into_lanes(q_band, w, lq);
-        self.f.run_pair(lp, lq, &mut s.filter, self.border);
+        // p and q filtered in place where they are parked (plain stores: the column sweep
+        // reads them back soon, often from cache).
+        self.f.run(lp, &mut s.filter, self.border);
+        self.f.run(lq, &mut s.filter, self.border);
         (clamped, sums)
     }
 
@@ -421,7 +449,8 @@ impl<F: LineFilter> Sweep<'_, F> {
         let mut result = Vec::with_capacity(k);
         for j in 0..k {
             let (bp, bq) = (&mut s.p[j][..h], &mut s.q[j][..h]);
-            self.f.run_pair(bp, bq, &mut s.filter, self.border);
+            self.f.run(bp, &mut s.filter, self.border);
+            self.f.run(bq, &mut s.filter, self.border);
             let cg = c0 + j * LANES;
             let cols = LANES.min(w - cg);
             let sums = group_curl(bp, bq, self.mask, w, cg, cols);
@@ -726,8 +755,12 @@ mod tests {
 
     #[test]
     fn fused_equals_the_unfused_reference() {
-        // Sizes around the lane count (partial bands and groups, single column/row groups).
+        // Sizes around the lane count (partial bands and groups, single column/row groups)
+        // and around the gradient chunk (a chunk of one column, chunks of 256 and 257).
         for (w, h) in [
+            (300, 20),
+            (257, 17),
+            (513, 3),
             (37, 21),
             (16, 16),
             (17, 33),
