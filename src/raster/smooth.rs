@@ -9,13 +9,14 @@
 //!    stay in L1: each row's `(p, q)` is computed from the normals (same
 //!    [`gradient_of_normal`] and `n_z` clamp), its curl sums (averaged model) are taken with
 //!    the previous row's `p`, `q` (one extra row per band and one extra column per chunk are
-//!    recomputed), and the chunk is transposed into lanes (lane `k` = row `k` of the band) in
-//!    two *parked* planes kept in that lane order: band `b`'s lanes at `b·w ..`. Then `p` and
-//!    `q` are filtered along x in place there, one after the other (two recursions
-//!    interleaved step by step measured slower: BENCHMARKS.md). The parked pair is kept
-//!    between calls (see [`take_parked`]).
+//!    recomputed), and the chunk is transposed into a per-thread band of lanes (lane `k` =
+//!    row `k` of the band). `p` and `q` are filtered along x there (in L2), one after the
+//!    other (two recursions interleaved step by step measured slower: BENCHMARKS.md), then
+//!    *parked* in two planes laid out for the column sweep: each task's columns contiguous,
+//!    band after band ([`park_offset`]), written with non-temporal stores where the AVX-512
+//!    twin runs. The parked pair is kept between calls (see [`take_parked`]).
 //! 2. **Column sweep** (groups of [`LANES`] columns, [`TASK_GROUPS`] neighbouring groups a
-//!    task): a task reads its columns band by band (4 KiB contiguous per band and plane),
+//!    task): a task reads its columns in one sequential run per plane,
 //!    transposing each 16 × 16 block into rows; `p`, `q` are filtered along y, the curl sums
 //!    of the filtered field are taken from the lane buffers, and [`normal_of_gradient`] is
 //!    written straight into the three output planes (allocated without a zero fill: the tasks
@@ -56,6 +57,21 @@ pub struct SmoothedNormals {
 /// Column groups of [`LANES`] one column-sweep task takes: 4 × 16 floats = 256 contiguous
 /// bytes per row and plane.
 const TASK_GROUPS: usize = 4;
+
+/// Columns of one column-sweep task.
+const TASK_COLUMNS: usize = TASK_GROUPS * LANES;
+
+/// Lanes of one parked plane of a `w × h` image.
+fn parked_len(w: usize, h: usize) -> usize {
+    h.div_ceil(LANES) * w
+}
+
+/// Where band `band`'s lanes of columns `c0 .. c0 + span` (one column-sweep task's columns,
+/// `c0` a multiple of [`TASK_COLUMNS`]) are parked, out of `nb` bands: each task's columns are
+/// contiguous, band after band, so the column sweep reads one sequential run per plane.
+fn park_offset(c0: usize, band: usize, nb: usize, span: usize) -> usize {
+    c0 * nb + band * span
+}
 
 /// Bands the column sweep's loads prefetch ahead.
 const PREFETCH_BANDS: usize = 2;
@@ -101,10 +117,7 @@ pub fn smooth_normals<F: LineFilter>(
         f,
         border,
     };
-    let mut park = [
-        take_parked(h.div_ceil(LANES) * w),
-        take_parked(h.div_ceil(LANES) * w),
-    ];
+    let mut park = [take_parked(parked_len(w, h)), take_parked(parked_len(w, h))];
     let (clamped, curl_before) = row_sweep(&sw, &mut park);
     let curl_after = column_sweep(
         &sw,
@@ -166,6 +179,9 @@ struct RowScratch {
     filter: Vec<Lane>,
     p_band: Vec<f32>,
     q_band: Vec<f32>,
+    /// The band's `p`, `q` in lanes (`w` each), filtered here and then parked.
+    lp: Vec<Lane>,
+    lq: Vec<Lane>,
 }
 
 /// Per-thread buffers of the column sweep.
@@ -212,65 +228,82 @@ struct Seam {
 }
 
 impl<F: LineFilter> Sweep<'_, F> {
-    /// One band of the row sweep (rows `r0..`, `pb`/`qb` = those rows of the output
-    /// `n_x`/`n_y` planes); returns (clamped, curl sums before). Dispatches to the AVX2 twin.
-    fn band(
+    /// One band of the row sweep (rows `r0..`, band `r0 / LANES`): filters the band's `p`,
+    /// `q` along x and parks them at `park` ([`park_offset`]); returns (clamped, curl sums
+    /// before). Dispatches to the widest vector twin.
+    ///
+    /// # Safety
+    /// `park` must point to two parked planes of [`parked_len`] lanes; no other task may
+    /// write this band's pieces of them.
+    unsafe fn band(
         &self,
         s: &mut RowScratch,
         r0: usize,
-        lp: &mut [Lane],
-        lq: &mut [Lane],
+        park: [SharedMut<Lane>; 2],
     ) -> (usize, CurlSums) {
         #[cfg(target_arch = "x86_64")]
         {
             if std::arch::is_x86_feature_detected!("avx512f") {
-                // SAFETY: `band_avx512` only requires AVX-512F, whose presence was just checked.
-                return unsafe { self.band_avx512(s, r0, lp, lq) };
+                // SAFETY: AVX-512F presence was just checked; the rest is the caller's contract.
+                return unsafe { self.band_avx512(s, r0, park) };
             }
             if std::arch::is_x86_feature_detected!("avx2") {
-                // SAFETY: `band_avx2` only requires AVX2, whose presence was just checked.
-                return unsafe { self.band_avx2(s, r0, lp, lq) };
+                // SAFETY: AVX2 presence was just checked; the rest is the caller's contract.
+                return unsafe { self.band_avx2(s, r0, park) };
             }
         }
-        self.band_portable(s, r0, lp, lq)
+        // SAFETY: the caller's contract.
+        unsafe { self.band_portable::<false>(s, r0, park) }
     }
 
     /// [`Self::band_portable`] compiled for AVX2 (no FMA: bit-identical results), as
     /// `convolve::Deriche::run_avx2`: the gradient and curl loops run 8 lanes wide.
+    ///
+    /// # Safety
+    /// As [`Self::band`], and AVX2 must be available.
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2")]
-    fn band_avx2(
+    unsafe fn band_avx2(
         &self,
         s: &mut RowScratch,
         r0: usize,
-        lp: &mut [Lane],
-        lq: &mut [Lane],
+        park: [SharedMut<Lane>; 2],
     ) -> (usize, CurlSums) {
-        self.band_portable(s, r0, lp, lq)
+        // SAFETY: the caller's contract.
+        unsafe { self.band_portable::<false>(s, r0, park) }
     }
 
-    /// [`Self::band_portable`] compiled for AVX-512F (one [`Lane`] per register, no FMA).
+    /// [`Self::band_portable`] compiled for AVX-512F (one [`Lane`] per register, no FMA),
+    /// parking with non-temporal stores.
+    ///
+    /// # Safety
+    /// As [`Self::band`], and AVX-512F must be available.
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx512f")]
-    fn band_avx512(
+    unsafe fn band_avx512(
         &self,
         s: &mut RowScratch,
         r0: usize,
-        lp: &mut [Lane],
-        lq: &mut [Lane],
+        park: [SharedMut<Lane>; 2],
     ) -> (usize, CurlSums) {
-        self.band_portable(s, r0, lp, lq)
+        // SAFETY: the caller's contract.
+        unsafe { self.band_portable::<true>(s, r0, park) }
     }
 
+    /// # Safety
+    /// As [`Self::band`].
     #[inline(always)]
-    fn band_portable(
+    unsafe fn band_portable<const STREAM: bool>(
         &self,
         s: &mut RowScratch,
         r0: usize,
-        lp: &mut [Lane],
-        lq: &mut [Lane],
+        park: [SharedMut<Lane>; 2],
     ) -> (usize, CurlSums) {
         let (w, [nx, ny, nz]) = (self.w, self.normal);
+        s.lp.resize(w, lane_splat(0.0));
+        s.lq.resize(w, lane_splat(0.0));
+        // The band's lanes, filtered here before they are parked.
+        let (lp, lq) = (&mut s.lp, &mut s.lq);
         let rows = LANES.min(self.h - r0);
         // The row above the band too (its plaquettes with the band's first row are this
         // band's), recomputed here rather than shared with the band above.
@@ -326,10 +359,32 @@ impl<F: LineFilter> Sweep<'_, F> {
             rows_into_lanes(&pb[above * ext..], ext, &mut lp[c0..c0 + ext]);
             rows_into_lanes(&qb[above * ext..], ext, &mut lq[c0..c0 + ext]);
         }
-        // p and q filtered in place where they are parked (plain stores: the column sweep
-        // reads them back soon, often from cache).
+        // p and q filtered along x one after the other (two recursions interleaved step by
+        // step measured slower), then parked piece by piece.
         self.f.run(lp, &mut s.filter, self.border);
         self.f.run(lq, &mut s.filter, self.border);
+        let (band, nb) = (r0 / LANES, self.h.div_ceil(LANES));
+        for (dst, src) in park.iter().zip([&s.lp, &s.lq]) {
+            let stream = STREAM && (dst.get() as usize).is_multiple_of(std::mem::size_of::<Lane>());
+            for c0 in (0..w).step_by(TASK_COLUMNS) {
+                let span = TASK_COLUMNS.min(w - c0);
+                let at = dst.get().wrapping_add(park_offset(c0, band, nb, span));
+                // SAFETY: `span` lanes of this band's piece, inside the parked plane
+                // (`park_offset`) and written by this task alone (the caller's contract).
+                unsafe {
+                    if stream {
+                        for (k, lane) in src[c0..c0 + span].iter().enumerate() {
+                            stream_lane(at.add(k).cast(), lane);
+                        }
+                    } else {
+                        std::ptr::copy_nonoverlapping(src[c0..].as_ptr(), at, span);
+                    }
+                }
+            }
+        }
+        if STREAM {
+            stream_fence();
+        }
         (clamped, sums)
     }
 
@@ -426,9 +481,11 @@ impl<F: LineFilter> Sweep<'_, F> {
                 }
             }
             for band in 0..nb {
-                let base = band * w + c0;
+                let base = park_offset(c0, band, nb, span);
                 prefetch_span(
-                    src.as_ptr().wrapping_add(base + PREFETCH_BANDS * w).cast(),
+                    src.as_ptr()
+                        .wrapping_add(park_offset(c0, band + PREFETCH_BANDS, nb, span))
+                        .cast(),
                     span * LANES,
                 );
                 for (j, b) in buf.iter_mut().enumerate() {
@@ -514,13 +571,16 @@ impl<F: LineFilter> Sweep<'_, F> {
 
 /// Step 1 of the module docs; returns (clamped, curl sums before).
 fn row_sweep<F: LineFilter>(sw: &Sweep<'_, F>, park: &mut [Vec<Lane>; 2]) -> (usize, CurlSums) {
-    let w = sw.w;
-    let [pp, pq] = park;
-    pp.par_chunks_mut(w)
-        .zip(pq.par_chunks_mut(w))
-        .enumerate()
-        .map_init(RowScratch::default, |s, (band, (lp, lq))| {
-            sw.band(s, band * LANES, lp, lq)
+    let n = parked_len(sw.w, sw.h);
+    assert!(park.iter().all(|p| p.len() == n));
+    let ptr = park.each_mut().map(|p| SharedMut(p.as_mut_ptr()));
+    (0..sw.h.div_ceil(LANES))
+        .into_par_iter()
+        // SAFETY: `ptr` point to the two parked planes of `parked_len` lanes, which nothing
+        // else touches during this call; each band is visited once and writes only its own
+        // pieces (`park_offset`).
+        .map_init(RowScratch::default, |s, band| unsafe {
+            sw.band(s, band * LANES, ptr)
         })
         .reduce(
             || (0, CurlSums::default()),
