@@ -3,6 +3,7 @@
 //!
 //! ```text
 //! cargo run --release --example diligent -- DIR [--solve-tol 1e-6] [--k 2] [--iters 100]
+//!     [--over-relaxation 2]
 //! ```
 //!
 //! `DIR` holds one folder per object with `normal_map.png` (16-bit RGB: red = x right,
@@ -142,6 +143,7 @@ fn main() -> std::process::ExitCode {
     let args: Vec<String> = std::env::args().skip(1).collect();
     let mut dir = None;
     let (mut solve_tol, mut k, mut iters) = (IntegrateParams::default().tolerance, 2.0, 100u32);
+    let mut beta = IntegrateParams::default().over_relaxation;
     let mut it = args.iter();
     while let Some(a) = it.next() {
         let mut num = |name: &str| -> f64 {
@@ -153,16 +155,17 @@ fn main() -> std::process::ExitCode {
             "--solve-tol" => solve_tol = num("--solve-tol"),
             "--k" => k = num("--k"),
             "--iters" => iters = num("--iters") as u32,
+            "--over-relaxation" => beta = num("--over-relaxation"),
             _ => dir = Some(PathBuf::from(a)),
         }
     }
     let Some(dir) = dir else {
-        eprintln!("usage: diligent DIR [--solve-tol T] [--k K] [--iters N]");
+        eprintln!("usage: diligent DIR [--solve-tol T] [--k K] [--iters N] [--over-relaxation B]");
         return std::process::ExitCode::from(2);
     };
     println!(
         "DiLiGenT MADE (mm), pinhole camera from K.txt; bilateral k = {k}, ≤ {iters} IRLS \
-         iterations, energy tolerance 1e-4, solve tolerance {solve_tol:e}"
+         iterations, energy tolerance 1e-4, solve tolerance {solve_tol:e}, over-relaxation {beta}"
     );
     println!(
         "| object | rgbn bilateral | rgbn masked_poisson | reference BiNI | bilateral time (s) | IRLS it. | pixels |"
@@ -183,6 +186,7 @@ fn main() -> std::process::ExitCode {
             sharpness: k,
             irls_iterations: iters,
             irls_tolerance: 1e-4,
+            over_relaxation: beta,
             ..Default::default()
         };
         let t = Instant::now();

@@ -175,6 +175,8 @@ crate::params! {
         pub irls_iterations: i64 = 150 => int.range(1.0, 1e6),
         /// Bilateral: stop when the relative energy change is below this.
         pub irls_tolerance: f64 = 1e-4 => float.range(1e-12, 0.5),
+        /// Bilateral: each reweighting step's change is taken this many times over when that lowers the energy (1 = the reference's plain steps).
+        pub over_relaxation: f64 = 2.0 => float.range(1.0, 10.0),
     }
 }
 
@@ -206,6 +208,7 @@ impl IntegrateSettings {
             irls_iterations: u32::try_from(self.irls_iterations)
                 .map_err(|_| RgbnError::param("irls_iterations", "out of range"))?,
             irls_tolerance: self.irls_tolerance,
+            over_relaxation: self.over_relaxation,
         };
         p.validate()?;
         Ok(p)

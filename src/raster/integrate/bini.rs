@@ -30,6 +30,18 @@
 //! sharpness), and the energy `Σ w (A u − c)²` with the new weights and `u`; it stops when the
 //! relative energy change is below the tolerance or after the iteration cap.
 //!
+//! **Over-relaxation** (`β` > 1, default 2; β = 1 is the reference's plain step): after each
+//! solve `u_new`, the iterate `u + β (u_new − u)` is reweighted as well and kept (with its
+//! weights and energy) when its energy is lower. IRLS moves slowly and in a steady direction
+//! while a discontinuity opens (the energy falls 0.05–3 % per step over a hundred steps on
+//! the bench scene), so the extrapolation is kept on most steps there; the safeguard keeps
+//! each step's energy at most the plain step's. Fixed points are unchanged (`u_new = u`).
+//! Measured: the tear test 94 → 59 steps at the same energy; the 4K bench scene at 960 × 540
+//! 150 (the cap, unconverged) → 131 steps (converged), mean abs error 0.68 → 0.50 px; the
+//! DiLiGenT objects 245 → 199 steps in all, mean MADE 1.500 → 1.435 mm (solve tol. 1e-3).
+//! Anderson acceleration (memory 5) was tried instead and lost: its extrapolations had the
+//! higher energy on almost every step (the weights' sigmoid makes the map far from linear).
+//!
 //! # The solve
 //!
 //! The two one-sided equations on one grid edge (pixel `i`'s towards `j` and `j`'s towards
@@ -59,6 +71,8 @@ pub(super) struct BilateralParams {
     pub solve_tolerance: f64,
     /// Iteration cap of each weighted solve.
     pub solve_max_iterations: u32,
+    /// The over-relaxation factor `β` ≥ 1 (module docs; 1: plain IRLS).
+    pub over_relaxation: f32,
 }
 
 /// What [`bilateral`] returns: the unknown `u` (height, or log-depth with a pinhole camera;
@@ -72,6 +86,8 @@ pub(super) struct BilateralOutcome {
     pub energy: f64,
     /// Domain pixels whose `n_z` (or `d`) was clamped.
     pub clamped: usize,
+    /// Iterations that kept the over-relaxed iterate.
+    pub over_relaxed: u32,
 }
 
 /// Per-pixel one-sided equations (module docs).
@@ -129,6 +145,65 @@ fn rows(normal: &[Vec<f32>; 3], w: usize, h: usize, cam: &Camera, dom: &[bool]) 
     out
 }
 
+/// The IRLS weights of `u` (module docs) into `wu`, `wv`, and the energy `Σ w (A u − c)²`.
+#[allow(clippy::too_many_arguments)]
+fn reweight(
+    u: &[f32],
+    rw: &Rows,
+    dom: &[bool],
+    w: usize,
+    h: usize,
+    k: f64,
+    wu: &mut [f32],
+    wv: &mut [f32],
+) -> f64 {
+    wu.par_chunks_mut(w)
+        .zip(wv.par_chunks_mut(w))
+        .enumerate()
+        .map(|(r, (wur, wvr))| {
+            let mut e = 0.0f64;
+            for x in 0..w {
+                let i = r * w + x;
+                if !dom[i] {
+                    continue;
+                }
+                let ui = f64::from(u[i]);
+                let (sx, sy) = (f64::from(rw.sx[i]), f64::from(rw.sy[i]));
+                let (cx, cy) = (f64::from(rw.cx[i]), f64::from(rw.cy[i]));
+                let ar = if x + 1 < w && dom[i + 1] {
+                    sx * (f64::from(u[i + 1]) - ui)
+                } else {
+                    0.0
+                };
+                let al = if x >= 1 && dom[i - 1] {
+                    sx * (ui - f64::from(u[i - 1]))
+                } else {
+                    0.0
+                };
+                let au = if r >= 1 && dom[i - w] {
+                    sy * (f64::from(u[i - w]) - ui)
+                } else {
+                    0.0
+                };
+                let ad = if r + 1 < h && dom[i + w] {
+                    sy * (ui - f64::from(u[i + w]))
+                } else {
+                    0.0
+                };
+                let nu = sigmoid(k * (ad * ad - au * au));
+                let nv = sigmoid(k * (al * al - ar * ar));
+                wur[x] = nu as f32;
+                wvr[x] = nv as f32;
+                e += nu * (au - cy).powi(2)
+                    + (1.0 - nu) * (ad - cy).powi(2)
+                    + nv * (ar - cx).powi(2)
+                    + (1.0 - nv) * (al - cx).powi(2);
+            }
+            e
+        })
+        .sum()
+}
+
 #[inline(always)]
 fn sigmoid(t: f64) -> f64 {
     1.0 / (1.0 + (-t).exp())
@@ -175,6 +250,8 @@ pub(super) fn bilateral(
         vec![0.0f32; n],
         vec![0.0f32; n],
     );
+    // Weights of the over-relaxed trial iterate.
+    let mut trial = (p.over_relaxation > 1.0).then(|| (vec![0.0f32; n], vec![0.0f32; n]));
     for _ in 0..p.max_irls {
         // Edge system from the current weights.
         wx.par_chunks_mut(w)
@@ -228,58 +305,30 @@ pub(super) fn bilateral(
             ey: &ey,
         };
         let sol = solve_edges(&sys, Some(&u), p.solve_tolerance, p.solve_max_iterations)?;
-        u = sol.z;
         out.solver_iterations += sol.iterations;
         let sol_it = sol.iterations;
         out.relative_residual = sol.relative_residual;
         out.irls_iterations += 1;
-        // New weights and energy.
-        let new_energy: f64 = wu
-            .par_chunks_mut(w)
-            .zip(wv.par_chunks_mut(w))
-            .enumerate()
-            .map(|(r, (wur, wvr))| {
-                let mut e = 0.0f64;
-                for x in 0..w {
-                    let i = r * w + x;
-                    if !dom[i] {
-                        continue;
-                    }
-                    let ui = f64::from(u[i]);
-                    let (sx, sy) = (f64::from(rw.sx[i]), f64::from(rw.sy[i]));
-                    let (cx, cy) = (f64::from(rw.cx[i]), f64::from(rw.cy[i]));
-                    let ar = if x + 1 < w && dom[i + 1] {
-                        sx * (f64::from(u[i + 1]) - ui)
-                    } else {
-                        0.0
-                    };
-                    let al = if x >= 1 && dom[i - 1] {
-                        sx * (ui - f64::from(u[i - 1]))
-                    } else {
-                        0.0
-                    };
-                    let au = if r >= 1 && dom[i - w] {
-                        sy * (f64::from(u[i - w]) - ui)
-                    } else {
-                        0.0
-                    };
-                    let ad = if r + 1 < h && dom[i + w] {
-                        sy * (ui - f64::from(u[i + w]))
-                    } else {
-                        0.0
-                    };
-                    let nu = sigmoid(k * (ad * ad - au * au));
-                    let nv = sigmoid(k * (al * al - ar * ar));
-                    wur[x] = nu as f32;
-                    wvr[x] = nv as f32;
-                    e += nu * (au - cy).powi(2)
-                        + (1.0 - nu) * (ad - cy).powi(2)
-                        + nv * (ar - cx).powi(2)
-                        + (1.0 - nv) * (al - cx).powi(2);
-                }
-                e
-            })
-            .sum();
+        // New weights and energy; then the over-relaxed iterate `u + β (u_new − u)`, kept
+        // when its energy (with its own weights) is lower.
+        let mut new_energy = reweight(&sol.z, &rw, &dom, w, h, k, &mut wu, &mut wv);
+        let prev = std::mem::replace(&mut u, sol.z);
+        if let Some((tu, tv)) = trial.as_mut() {
+            let beta = p.over_relaxation;
+            let x: Vec<f32> = prev
+                .par_iter()
+                .zip(&u)
+                .map(|(&a, &b)| a + beta * (b - a))
+                .collect();
+            let e = reweight(&x, &rw, &dom, w, h, k, tu, tv);
+            if e < new_energy {
+                new_energy = e;
+                u = x;
+                std::mem::swap(&mut wu, tu);
+                std::mem::swap(&mut wv, tv);
+                out.over_relaxed += 1;
+            }
+        }
         let old = energy;
         energy = new_energy;
         if std::env::var_os("RGBN_BINI_TRACE").is_some() {
@@ -393,6 +442,58 @@ mod tests {
         // squares (which spreads it over the image) misses most of it.
         assert!(jb <= 0.1 && jl >= 0.5, "{jb} {jl}");
         assert!(zb.data().iter().all(|v| v.is_finite()));
+    }
+
+    #[test]
+    fn over_relaxation_reaches_the_plain_energy_in_fewer_steps_and_keeps_the_tear() {
+        // The tear of the test above, solved with plain IRLS steps (β = 1, the reference's)
+        // and over-relaxed ones (β = 2). The over-relaxed iterate is kept only when its energy
+        // is lower, so both descend the same energy; β = 2 must stop (energy tolerance) in
+        // fewer reweighting steps, at an energy no higher than the plain run's final one
+        // (1 % slack: both stop on a 1e-4 relative change), and keep the jump as well.
+        let (size, c): (usize, f64) = (96, 0.5);
+        let (img, z, mask) = tear_scene(size, c);
+        let dom: Vec<f32> = mask.clone();
+        let run = |beta: f32| {
+            let p = BilateralParams {
+                sharpness: 2.0,
+                max_irls: 150,
+                irls_tolerance: 1e-4,
+                solve_tolerance: 1e-6,
+                solve_max_iterations: 2000,
+                over_relaxation: beta,
+            };
+            bilateral(
+                img.normal(),
+                size,
+                size,
+                Some(&dom),
+                &Camera::Orthographic,
+                &p,
+            )
+            .unwrap()
+        };
+        let (plain, fast) = (run(1.0), run(2.0));
+        let err = |o: &BilateralOutcome| {
+            let zb = Plane::from_vec(size, size, o.u.clone()).unwrap();
+            rmse_up_to_constant(&zb, &z, Some(&mask))
+        };
+        let (ep, ef) = (err(&plain), err(&fast));
+        eprintln!(
+            "plain: {} steps, energy {:.4}, RMSE {ep:.4} px; over-relaxed: {} steps ({} kept \
+             the extrapolation), energy {:.4}, RMSE {ef:.4} px",
+            plain.irls_iterations,
+            plain.energy,
+            fast.irls_iterations,
+            fast.over_relaxed,
+            fast.energy
+        );
+        assert_eq!(plain.over_relaxed, 0);
+        assert!(fast.over_relaxed > 0);
+        assert!(fast.irls_iterations < plain.irls_iterations);
+        assert!(fast.energy <= 1.01 * plain.energy);
+        let jump = c * (size / 2) as f64;
+        assert!(ef <= jump / 40.0, "{ef}");
     }
 
     #[test]

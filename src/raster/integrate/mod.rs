@@ -174,8 +174,16 @@ pub struct IntegrateParams {
     /// Bilateral: stop when the relative energy change is below this, in (0, 1).
     #[serde(default = "default_irls_tolerance")]
     pub irls_tolerance: f64,
+    /// Bilateral: the factor `β` by which each reweighting step's change `u_new − u` is
+    /// extrapolated when that lowers the energy ([`bini`] docs); 1 = the plain steps of the
+    /// reference implementation. Finite, in [1, 10].
+    #[serde(default = "default_over_relaxation")]
+    pub over_relaxation: f64,
 }
 
+fn default_over_relaxation() -> f64 {
+    2.0
+}
 fn default_sharpness() -> f64 {
     2.0
 }
@@ -197,6 +205,7 @@ impl Default for IntegrateParams {
             sharpness: default_sharpness(),
             irls_iterations: default_irls_iterations(),
             irls_tolerance: default_irls_tolerance(),
+            over_relaxation: default_over_relaxation(),
         }
     }
 }
@@ -226,6 +235,12 @@ impl IntegrateParams {
             return Err(RgbnError::param(
                 "irls_tolerance",
                 format!("must be in (0, 1), got {}", self.irls_tolerance),
+            ));
+        }
+        if !(self.over_relaxation >= 1.0 && self.over_relaxation <= 10.0) {
+            return Err(RgbnError::param(
+                "over_relaxation",
+                format!("must be in [1, 10], got {}", self.over_relaxation),
             ));
         }
         if let Camera::Pinhole(c) = &self.camera {
@@ -352,6 +367,7 @@ fn bilateral_height(
         irls_tolerance: params.irls_tolerance,
         solve_tolerance: params.tolerance,
         solve_max_iterations: params.max_iterations,
+        over_relaxation: params.over_relaxation as f32,
     };
     let out = bini::bilateral(normal, w, h, mask, &params.camera, &bp)?;
     if out.clamped == domain {
@@ -1354,6 +1370,17 @@ mod tests {
             ..Default::default()
         };
         assert!(bad.validate().is_err());
+        for beta in [0.5, 10.5, f64::NAN] {
+            let bad = IntegrateParams {
+                over_relaxation: beta,
+                ..Default::default()
+            };
+            let e = bad.validate().unwrap_err();
+            assert!(
+                matches!(e, RgbnError::InvalidParam { ref name, .. } if name == "over_relaxation"),
+                "{e}"
+            );
+        }
         // A single pixel and an isolated masked pixel work.
         let one = GradientField::zeros(1, 1);
         let (z, _) = integrate_gradients(&one, None, &IntegrateParams::default()).unwrap();
