@@ -34,9 +34,11 @@ mod support;
 static ALLOC: rgbn::recycle::Recycler = rgbn::recycle::Recycler;
 
 use criterion::{criterion_group, criterion_main, Criterion};
-use rgbn::eval::region::{crop, Rect, RegionOptions, DEFAULT_TILE, INTERACTIVE_TILE};
+use rgbn::eval::region::{RegionOptions, DEFAULT_TILE, INTERACTIVE_TILE};
 use rgbn::eval::{EvalOptions, Evaluator, Plan};
 use rgbn::graph::LoadedGraph;
+use rgbn::nodes::value::crop;
+use rgbn::raster::window::Rect;
 use std::collections::BTreeMap;
 use std::hint::black_box;
 use std::path::Path;

@@ -37,8 +37,8 @@ use rgbn::app::preview::{color_image, preview_level, Mode, PreviewSettings, View
 use rgbn::app::state::Document;
 use rgbn::app::worker::{evaluate, evaluate_view, EvalRequest, Sizes, ViewRequest};
 use rgbn::eval::Evaluator;
-use rgbn::ops::params::ParamValue;
-use rgbn::ops::Value;
+use rgbn::nodes::Value;
+use rgbn::params::ParamValue;
 use std::hint::black_box;
 use std::path::PathBuf;
 use std::sync::atomic::AtomicBool;

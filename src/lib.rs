@@ -6,11 +6,13 @@
 //! reports integrability as curl everywhere.
 //!
 //! Modules:
+//! - [`params`]: parameters declared once ([`params!`], [`choice_enum!`]): the visitor every
+//!   consumer (files, `--set`, `rgbn ops`, the editor's widgets) walks.
 //! - [`raster`]: the image model ([`RgbnImage`]), file I/O, gradient maths and curl,
 //!   convolution kernels, built-in sample and analytic surfaces.
 //! - [`capture`]: photometric stereo and light calibration (photos → RGBN).
 //! - [`ops`]: the pure operators (filters, combines, pen, …; no graph types) and their
-//!   parameters, declared once ([`ops::params`]).
+//!   parameters.
 //! - [`nodes`]: each operator's node form ([`nodes::Operator`], [`nodes::OpSpec`], typed ports)
 //!   and the registry.
 //! - [`graph`]: graphs of nodes, the versioned RON file format, validation.
@@ -21,6 +23,15 @@
 //! - `app` (feature `gui`): the egui editor, the only module that uses egui.
 //!
 //! The library never depends on the GUI: build with `--no-default-features` for the core.
+//!
+//! ## Layers
+//!
+//! The modules form layers, listed bottom first on the line below; a module uses only modules
+//! listed before it (`tests/it/layers.rs` checks every `crate::` path in `src/` against it):
+//!
+//! ```text
+//! layers: error test_data recycle params raster capture render ops nodes graph eval app cli
+//! ```
 
 #[cfg(feature = "gui")]
 pub mod app;
@@ -31,6 +42,7 @@ pub mod eval;
 pub mod graph;
 pub mod nodes;
 pub mod ops;
+pub mod params;
 pub mod raster;
 pub mod recycle;
 pub mod render;

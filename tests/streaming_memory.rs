@@ -7,7 +7,8 @@
 //! Its own test binary: the counting allocator sees every allocation of the process.
 
 use rgbn::ops::filter::{filter_normals, stream_halo, FilterOptions, Kernel};
-use rgbn::raster::io::stream::{PngRows, PngTarget, RowEncoding, RowMap};
+use rgbn::raster::io::stream::{PngRows, RowMap};
+use rgbn::raster::io::targets::{PngTarget, RowEncoding};
 use rgbn::raster::io::NormalConvention;
 use rgbn::raster::RgbnImage;
 use std::alloc::{GlobalAlloc, Layout, System};

@@ -88,3 +88,6 @@ static ALLOC: rgbn::recycle::Recycler = rgbn::recycle::Recycler;
 
 #[path = "it/fused_filter.rs"]
 mod fused_filter;
+
+#[path = "it/layers.rs"]
+mod layers;

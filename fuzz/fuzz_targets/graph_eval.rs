@@ -15,7 +15,7 @@ use libfuzzer_sys::fuzz_target;
 use rgbn::eval::{EvalOptions, Evaluator, Plan};
 use rgbn::graph::{Graph, LoadedGraph, PortRef, Source};
 use rgbn::nodes::{registry, PortType, Value};
-use rgbn::ops::params::{ParamKind, ParamValue};
+use rgbn::params::{ParamKind, ParamValue};
 use rgbn::RgbnImage;
 use std::collections::BTreeMap;
 use std::path::Path;

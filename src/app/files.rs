@@ -7,7 +7,7 @@ use super::state::Document;
 use super::worker::EvalOutcome;
 use super::EditorApp;
 use crate::graph::NodeId;
-use crate::ops::Value;
+use crate::nodes::Value;
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
@@ -115,7 +115,7 @@ impl EditorApp {
             FilePurpose::Param(id, name) => {
                 let base = recent::absolute(&self.session.doc.base_dir());
                 let rel = path.strip_prefix(&base).unwrap_or(path);
-                let v = crate::ops::params::ParamValue::Path(rel.to_string_lossy().into_owned());
+                let v = crate::params::ParamValue::Path(rel.to_string_lossy().into_owned());
                 self.session.doc.set_param(id, &name, v);
                 self.say(format!("#{id}.{name} = {}", rel.display()));
             }
@@ -224,7 +224,7 @@ impl EditorApp {
             .values()
             .flat_map(|n| n.params.values())
             .filter_map(|p| match p {
-                crate::ops::params::ParamValue::Path(p) if !p.is_empty() => Some(base.join(p)),
+                crate::params::ParamValue::Path(p) if !p.is_empty() => Some(base.join(p)),
                 _ => None,
             })
             .collect();
@@ -234,7 +234,8 @@ impl EditorApp {
             self.fail(e.to_string());
             return;
         }
-        match crate::ops::save::write_value(&v, path, &crate::raster::io::SaveOptions::default()) {
+        match crate::nodes::save::write_value(&v, path, &crate::raster::io::SaveOptions::default())
+        {
             Ok(()) => self.say(format!("exported {}", path.display())),
             Err(e) => self.fail(e.to_string()),
         }

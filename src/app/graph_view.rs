@@ -8,7 +8,7 @@
 
 use super::placement::{self, Rect as PlaceRect};
 use crate::graph::{Graph, NodeId, NodePorts};
-use crate::ops::{self, PortType};
+use crate::nodes::{self, PortType};
 use egui::{Color32, Id, Pos2, RichText, TextureHandle, Ui};
 use egui_snarl::ui::{PinInfo, SnarlPin, SnarlStyle, SnarlViewer, SnarlWidget};
 use egui_snarl::{InPin, InPinId, OutPin, OutPinId, Snarl};
@@ -297,8 +297,8 @@ pub fn add_node_menu_ui(ui: &mut Ui, search: &mut String) -> Option<&'static str
         );
     });
     let q = search.to_lowercase();
-    let mut cats: BTreeMap<&str, Vec<&'static dyn ops::DynOp>> = BTreeMap::new();
-    for op in ops::registry() {
+    let mut cats: BTreeMap<&str, Vec<&'static dyn nodes::DynOp>> = BTreeMap::new();
+    for op in nodes::registry() {
         let s = op.spec();
         let hit = q.is_empty()
             || s.id.to_lowercase().contains(&q)
@@ -357,7 +357,7 @@ pub fn node_title(graph: &Graph, id: NodeId) -> String {
     let Some(n) = graph.nodes.get(&id) else {
         return format!("#{id}");
     };
-    let op_title = ops::find(&n.op).map_or(n.op.as_str(), |o| o.spec().title);
+    let op_title = nodes::find(&n.op).map_or(n.op.as_str(), |o| o.spec().title);
     match &n.name {
         Some(name) => format!("{name} · {op_title}"),
         None => op_title.to_string(),
@@ -399,7 +399,7 @@ impl SnarlViewer<NodeId> for Viewer<'_, '_> {
         let title = self.title(&id);
         let r = ui.label(RichText::new(title).strong());
         if let Some(n) = self.data.graph.nodes.get(&id) {
-            if let Some(op) = ops::find(&n.op) {
+            if let Some(op) = nodes::find(&n.op) {
                 r.on_hover_text(op.spec().doc);
             }
         }

@@ -39,7 +39,7 @@ impl EditorApp {
         let rects: Vec<Rect> = self.node_rects().into_iter().map(|(_, r)| r).collect();
         let mut size = self.view.size_hint(&self.session.doc.graph, op);
         let needs_input =
-            crate::ops::find(op).is_some_and(|o| o.spec().inputs.iter().any(|p| !p.optional));
+            crate::nodes::find(op).is_some_and(|o| o.spec().inputs.iter().any(|p| !p.optional));
         if !connected && needs_input {
             size = [
                 size[0].max(ERROR_NODE_SIZE[0]),

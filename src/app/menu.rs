@@ -240,7 +240,7 @@ impl EditorApp {
 /// Every operator's documentation: doc, ports, parameters.
 pub(super) fn ops_doc_ui(ui: &mut egui::Ui) {
     egui::ScrollArea::vertical().show(ui, |ui| {
-        for op in crate::ops::registry() {
+        for op in crate::nodes::registry() {
             let s = op.spec();
             egui::CollapsingHeader::new(format!("{} — {} ({})", s.title, s.id, s.category)).show(
                 ui,

@@ -41,7 +41,7 @@ pub use dialogs::{Dialog, Then};
 pub use files::FilePurpose;
 
 use crate::graph::{NodeId, Source};
-use crate::ops::Value;
+use crate::nodes::Value;
 use egui::{Color32, RichText, TextureHandle};
 use graph_view::{Action, GraphView, ViewData};
 use menu::ops_doc_ui;

@@ -4,8 +4,8 @@
 //! text edit into one undo step.
 
 use crate::graph::{Graph, NodeId};
-use crate::ops::params::{ParamInfo, ParamKind, ParamValue};
-use crate::ops::{self, GRAPH_NODE_OP};
+use crate::nodes::{self, GRAPH_NODE_OP};
+use crate::params::{ParamInfo, ParamKind, ParamValue};
 use egui::{RichText, Ui};
 use std::path::Path;
 
@@ -386,7 +386,7 @@ pub fn node_params(
             ParamInfo {
                 name: "path",
                 kind: ParamKind::Path,
-                meta: crate::ops::params::Meta::new("The graph file this node uses."),
+                meta: crate::params::Meta::new("The graph file this node uses."),
                 default: ParamValue::Path(String::new()),
             },
         )];
@@ -409,7 +409,7 @@ pub fn node_params(
         }
         v
     } else {
-        ops::find(&n.op)
+        nodes::find(&n.op)
             .map(|o| {
                 o.params()
                     .iter()
@@ -439,7 +439,7 @@ pub fn inspector_ui(ui: &mut Ui, graph: &mut Graph, id: NodeId, base_dir: &Path)
         ui.weak("No node selected.");
         return None;
     };
-    let op = ops::find(&n.op);
+    let op = nodes::find(&n.op);
     ui.heading(super::graph_view::node_title(graph, id));
     ui.label(RichText::new(format!("#{id} · {}", n.op)).small().weak());
     if let Some(op) = op {

@@ -33,7 +33,7 @@ pub struct Runtime {
     pub progress: Option<(usize, usize)>,
     /// The latest accepted evaluation.
     pub outcome: EvalOutcome,
-    pub(super) thumbs: BTreeMap<NodeId, (Arc<crate::ops::Picture>, TextureHandle)>,
+    pub(super) thumbs: BTreeMap<NodeId, (Arc<crate::nodes::Picture>, TextureHandle)>,
     pub(super) ports: BTreeMap<NodeId, NodePorts>,
     pub(super) ports_for: Option<Graph>,
     /// Evaluation requests sent (tests).

@@ -6,8 +6,8 @@
 
 use crate::graph::file;
 use crate::graph::{At, Graph, GraphError, NodeDef, NodeId, NodePorts, Source};
-use crate::ops::params::ParamValue;
-use crate::ops::PortType;
+use crate::nodes::PortType;
+use crate::params::ParamValue;
 use std::collections::{BTreeMap, BTreeSet};
 use std::path::{Path, PathBuf};
 

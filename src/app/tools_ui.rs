@@ -12,7 +12,7 @@ use super::tools::{
     StampFrame, ToolKind, ToolState, ViewTransform, PICK_RADIUS_PT, ROTATE_HANDLE_GAP_PT,
 };
 use crate::graph::NodeId;
-use crate::ops::params::ParamValue;
+use crate::params::ParamValue;
 use egui::{Color32, Key, Painter, PointerButton, Pos2, Response, Shape, Stroke, Ui, Vec2};
 use std::time::Instant;
 

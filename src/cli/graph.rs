@@ -4,16 +4,17 @@ use super::error::{message, usage, CliError};
 use super::image::StreamMode;
 use super::out::Out;
 use crate::error::RgbnError;
-use crate::eval::region::{Rect, RegionOptions, DEFAULT_TILE};
+use crate::eval::region::{RegionOptions, DEFAULT_TILE};
 use crate::eval::stream::{StreamPlan, Streamable};
 use crate::eval::{EvalOptions, EvalResult, Evaluator, Plan, Status};
 use crate::graph::{GraphError, LoadedGraph};
-use crate::ops::params::{ParamKind, ParamValue};
-use crate::ops::save::write_value;
-use crate::ops::{registry, PortType, Value};
-use crate::raster::io::stream::{ExrTarget, PngTarget, RowEncoding};
+use crate::nodes::save::write_value;
+use crate::nodes::{registry, PortType, Value};
+use crate::params::{ParamKind, ParamValue};
+use crate::raster::io::targets::{ExrTarget, PngTarget, RowEncoding};
 use crate::raster::io::{self, SaveOptions};
 use crate::raster::io::{Format, NormalConvention};
+use crate::raster::window::Rect;
 use clap::{Args, ValueEnum};
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -323,10 +324,7 @@ pub fn eval_cmd(a: &EvalArgs, out: &mut Out<'_>) -> Result<(), CliError> {
             return Err(GraphError::Unknown {
                 what: "graph output",
                 name: name.to_string(),
-                suggestion: crate::ops::params::nearest(
-                    name,
-                    plan.outputs.keys().map(String::as_str),
-                ),
+                suggestion: crate::params::nearest(name, plan.outputs.keys().map(String::as_str)),
                 at: lg.at(),
             }
             .into());
@@ -833,7 +831,7 @@ pub fn ops_cmd(out: &mut Out<'_>) -> Result<(), CliError> {
     }
     out.line(format_args!(
             "{} — Graph file as a node [graph]\n    Uses another graph file (param path, relative to this file): its inputs, outputs and exposed parameters become the node's ports and parameters.",
-            crate::ops::GRAPH_NODE_OP
+            crate::nodes::GRAPH_NODE_OP
         ),
     )
 }

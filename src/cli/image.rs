@@ -7,7 +7,7 @@ use crate::ops::filter::{filter_normals, filter_streamed, FilterOptions, FilterR
 use crate::raster::convolve::BorderMode;
 use crate::raster::gradient::GradientField;
 use crate::raster::integrate::green_convention_fractions;
-use crate::raster::io::stream::{PngTarget, RowEncoding};
+use crate::raster::io::targets::{PngTarget, RowEncoding};
 use crate::raster::io::{
     self, ExrPrecision, Format, InputSpec, LoadOptions, NormalConvention, SaveOptions,
 };

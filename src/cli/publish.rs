@@ -4,8 +4,8 @@
 use super::error::CliError;
 use super::image::{InputArgs, ShadingArgs};
 use super::out::Out;
-use crate::ops::params::Choice;
 use crate::ops::publish::{publish, PublishOptions, WebView, MAX_LIGHTS};
+use crate::params::Choice;
 use clap::Args;
 use std::path::PathBuf;
 

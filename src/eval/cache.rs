@@ -1,7 +1,7 @@
 //! The in-memory cache: node outputs by content key, evicted least-recently-used beyond a byte
 //! budget.
 
-use crate::ops::Value;
+use crate::nodes::Value;
 use std::collections::HashMap;
 use std::sync::Arc;
 

@@ -11,7 +11,7 @@
 //! corrupt, of another format version or for another key is ignored (and recomputed).
 
 use super::cache::{CacheEntry, CacheKey};
-use crate::ops::{Picture, Value};
+use crate::nodes::{Picture, Value};
 use crate::raster::{Plane, RgbnImage};
 use std::path::{Path, PathBuf};
 use std::sync::Arc;

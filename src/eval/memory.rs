@@ -14,7 +14,7 @@
 
 use super::Plan;
 use crate::graph::{At, GraphError};
-use crate::ops::{PortType, Value};
+use crate::nodes::PortType;
 use std::collections::HashMap;
 
 /// Bytes per pixel of a value of type `ty` (an RGBN image with its mask: 7 `f32` planes).
@@ -72,17 +72,6 @@ pub fn sizes(plan: &Plan, cached: &HashMap<usize, (usize, usize)>) -> Vec<Option
         out.push(inst.op.out_size(&inst.params, &inputs));
     }
     out
-}
-
-/// The size of a computed value, if it has pixels.
-#[must_use]
-pub fn value_size(v: &Value) -> Option<(usize, usize)> {
-    match v {
-        Value::Rgbn(i) => Some((i.width(), i.height())),
-        Value::Mask(p) | Value::Scalar(p) => Some((p.width(), p.height())),
-        Value::Picture(p) => Some((p.width, p.height)),
-        Value::Number(_) => None,
-    }
 }
 
 /// Estimates the peak memory of running the instances `run` of `plan`.

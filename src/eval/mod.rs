@@ -30,8 +30,8 @@ pub use cache::{CacheEntry, CacheKey, MemCache};
 pub use disk::DiskCache;
 
 use crate::graph::{At, GraphError, LoadedGraph, NodeId, NodeKind, PortRef, Source};
-use crate::ops::params::{nearest, ParamKind, ParamValue};
-use crate::ops::{self, DynOp, PortType, RunContext, Value};
+use crate::nodes::{self, DynOp, PortType, RunContext, Value};
+use crate::params::{nearest, ParamKind, ParamValue};
 use crate::raster::gradient::GradientField;
 use rayon::prelude::*;
 use std::collections::{BTreeMap, HashMap, HashSet};
@@ -142,7 +142,7 @@ impl Plan {
                     })
                 }
             };
-            let op = ops::find(op_id).expect("registered");
+            let op = nodes::find(op_id).expect("registered");
             let mut params = BTreeMap::new();
             params.insert(param.to_string(), ParamValue::Path(display(path)));
             let params = op.canonical(&params).map_err(|e| GraphError::Param {
@@ -624,7 +624,7 @@ impl Evaluator {
         // Refuse before running what would not fit in memory (sizes known without running).
         let cached: HashMap<usize, (usize, usize)> = results
             .iter()
-            .filter_map(|(&i, e)| Some((i, e.values.iter().find_map(memory::value_size)?)))
+            .filter_map(|(&i, e)| Some((i, e.values.iter().find_map(Value::size)?)))
             .collect();
         let sizes = memory::sizes(plan, &cached);
         let estimate = memory::estimate(plan, &to_run, &sizes);

@@ -18,9 +18,9 @@
 use super::{Conn, Plan};
 use crate::error::RgbnError;
 use crate::graph::GraphError;
+use crate::nodes::load::LoadParams;
 use crate::nodes::{Footprint, PortType, RunContext, Value};
-use crate::ops::load::LoadParams;
-use crate::ops::params::from_values;
+use crate::params::from_values;
 use crate::raster::strips::{self, Opened, StreamInput};
 
 /// A plan that can be streamed, with its opened input.

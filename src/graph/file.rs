@@ -27,8 +27,8 @@
 #![allow(clippy::result_large_err)]
 
 use super::error::GraphError;
-use crate::ops::params::ParamValue;
-use crate::ops::PortType;
+use crate::nodes::PortType;
+use crate::params::ParamValue;
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 

@@ -15,8 +15,8 @@ pub mod file;
 pub use error::{At, GraphError};
 pub use file::{ExposedDef, InputDef, NodeDef, PortRef, Source};
 
-use crate::ops::params::{nearest, ParamInfo, ParamKind, ParamValue};
-use crate::ops::{self, DynOp, PortSpec, PortType, GRAPH_NODE_OP};
+use crate::nodes::{self, DynOp, PortSpec, PortType, GRAPH_NODE_OP};
+use crate::params::{nearest, ParamInfo, ParamKind, ParamValue};
 use std::collections::{BTreeMap, BTreeSet};
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
@@ -148,8 +148,8 @@ impl Graph {
             let sub = LoadedGraph::load(&base_dir.join(rel))?;
             return Ok(sub.ports_as_node());
         }
-        let Some(op) = ops::find(&node.op) else {
-            let ids = ops::registry()
+        let Some(op) = nodes::find(&node.op) else {
+            let ids = nodes::registry()
                 .iter()
                 .map(|o| o.spec().id)
                 .chain([GRAPH_NODE_OP]);
@@ -423,8 +423,8 @@ impl LoadedGraph {
         if node.op == GRAPH_NODE_OP {
             return self.resolve_graph_node(node, at, stack);
         }
-        let Some(op) = ops::find(&node.op) else {
-            let ids = ops::registry()
+        let Some(op) = nodes::find(&node.op) else {
+            let ids = nodes::registry()
                 .iter()
                 .map(|o| o.spec().id)
                 .chain([GRAPH_NODE_OP]);
@@ -725,7 +725,7 @@ impl LoadedGraph {
                     return Some(ParamInfo {
                         name: "path",
                         kind: ParamKind::Path,
-                        meta: crate::ops::params::Meta::new("The graph file this node uses."),
+                        meta: crate::params::Meta::new("The graph file this node uses."),
                         default: ParamValue::Path(String::new()),
                     });
                 }
@@ -862,8 +862,8 @@ impl LoadedGraph {
     }
 }
 
-fn param_error(e: &ops::params::ParamError, at: At) -> GraphError {
-    use ops::params::ParamError as P;
+fn param_error(e: &crate::params::ParamError, at: At) -> GraphError {
+    use crate::params::ParamError as P;
     let param = match e {
         P::Unknown { name, .. } | P::Kind { name, .. } | P::Range { name, .. } => name.clone(),
     };

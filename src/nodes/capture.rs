@@ -6,14 +6,124 @@
 //! the photos and their light directions at once. The evaluator keys the node by the bytes of the list,
 //! light, intensity and mask files; **editing a photo in place without touching the list file
 //! is not seen by the cache** (rewrite the list or run without a cache).
+//!
+//! Parameters of the photometric-stereo node (the nodes below); the solver lives in
+//! [`crate::capture::photometric`].
 
 use super::{Inputs, OpSpec, Operator, PortSpec, PortType, RunContext, Value};
 use crate::capture::inputs::load_inputs;
+use crate::capture::inputs::{read_name_list, PsInputSpec, Transfer};
+use crate::capture::lp::is_lp;
+use crate::capture::photometric::PsMethod;
 use crate::capture::photometric::{photometric_stereo, PhotometricParams};
 use crate::error::RgbnError;
-use crate::ops::capture::PhotometricSettings;
+use crate::params::Choice;
 use crate::raster::gradient::GradientField;
 use crate::raster::integrate::curl_interior;
+use std::path::{Path, PathBuf};
+
+impl Choice for PsMethod {
+    const ALL: &'static [Self] = &[PsMethod::LeastSquares, PsMethod::Trimmed];
+    fn name(self) -> &'static str {
+        match self {
+            PsMethod::LeastSquares => "ls",
+            PsMethod::Trimmed => "trimmed",
+        }
+    }
+    fn doc(self) -> &'static str {
+        match self {
+            PsMethod::LeastSquares => "Woodham's least squares on all unsaturated observations.",
+            PsMethod::Trimmed => {
+                "Drop the darkest/brightest and the shadowed observations, re-solve."
+            }
+        }
+    }
+}
+
+crate::params! {
+    /// Parameters of the photometric-stereo node: its input files and the method.
+    #[derive(Clone, Debug, PartialEq)]
+    pub struct PhotometricSettings {
+        /// Text file listing the photos (one file name per line, relative to the list's folder), in light-row order; or an RTI light-position file (.lp: a count line, then 'NAME x y z' per photo), which names the photos and their lights at once (leave lights empty).
+        pub photos: String = String::new() => path,
+        /// Light directions, one 'x y z' row per photo (x right, y up, z to the camera); an optional first line with the row count. Empty when photos is an .lp file.
+        pub lights: String = String::new() => path.optional(),
+        /// Optional per-light 'r g b' intensities, same layout (all 1 when empty).
+        pub intensities: String = String::new() => path.optional(),
+        /// Optional object mask (white = object), the photos' size.
+        pub mask: String = String::new() => path.optional(),
+        /// ls: Woodham's least squares on all unsaturated observations; trimmed: drop the darkest/brightest and the shadowed observations, re-solve (robust to shadows and highlights).
+        pub method: PsMethod = PsMethod::Trimmed => choice,
+        /// The photos are sRGB-encoded (decoded to linear); off for linear/raw data.
+        pub srgb: bool = false => bool,
+    }
+}
+
+/// The photo paths of a list file (relative names resolved against the list's folder).
+///
+/// # Errors
+/// File errors naming the list.
+pub fn photo_list(list: &Path) -> Result<Vec<PathBuf>, RgbnError> {
+    let dir = list.parent().unwrap_or(Path::new("."));
+    Ok(read_name_list(list)?
+        .into_iter()
+        .map(|n| dir.join(n))
+        .collect())
+}
+
+impl PhotometricSettings {
+    /// The input files these parameters name.
+    ///
+    /// # Errors
+    /// A missing `photos` or `lights`, `lights` given beside an `.lp` file, and list-file errors.
+    pub fn inputs(&self) -> Result<PsInputSpec, RgbnError> {
+        self.check_files()?;
+        let opt = |s: &String| (!s.is_empty()).then(|| PathBuf::from(s));
+        // An `.lp` file names the photos and their directions: `load_inputs` reads both from it.
+        let (photos, lights) = if is_lp(Path::new(&self.photos)) {
+            (Vec::new(), PathBuf::from(&self.photos))
+        } else {
+            (
+                photo_list(Path::new(&self.photos))?,
+                PathBuf::from(&self.lights),
+            )
+        };
+        Ok(PsInputSpec {
+            photos,
+            lights,
+            intensities: opt(&self.intensities),
+            names: None,
+            mask: opt(&self.mask),
+            transfer: if self.srgb {
+                Transfer::Srgb
+            } else {
+                Transfer::Linear
+            },
+        })
+    }
+
+    /// Checks that the files the node needs are named: `photos` always; `lights` unless
+    /// `photos` is an `.lp` file, and then not (the `.lp` gives the directions).
+    ///
+    /// # Errors
+    /// [`RgbnError::InvalidParam`] naming the parameter.
+    pub fn check_files(&self) -> Result<(), RgbnError> {
+        if self.photos.is_empty() {
+            return Err(RgbnError::param("photos", "a file path is required"));
+        }
+        match (is_lp(Path::new(&self.photos)), self.lights.is_empty()) {
+            (false, true) => Err(RgbnError::param(
+                "lights",
+                "a file path is required (or name an .lp light-position file as photos)",
+            )),
+            (true, false) => Err(RgbnError::param(
+                "lights",
+                "leave empty: the .lp file given as photos holds the light directions",
+            )),
+            _ => Ok(()),
+        }
+    }
+}
 
 /// Photometric stereo source.
 pub struct PhotometricStereoNode;

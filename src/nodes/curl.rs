@@ -4,7 +4,7 @@
 
 use super::{Footprint, Inputs, OpSpec, Operator, PortSpec, PortType, RunContext, Value};
 use crate::error::RgbnError;
-use crate::ops::params::NoParams;
+use crate::params::NoParams;
 use crate::raster::gradient::GradientField;
 use std::sync::Arc;
 

@@ -10,7 +10,7 @@ use crate::ops::filter::{
     filter_normals, BoxParams, DenseParams, DogParams, EdgeParams, FilterOptions, GaussianParams,
     HighPassParams, KernelParams, LogParams, ScaleParams, SeparableParams, SharpenParams,
 };
-use crate::ops::params::{ParamVisitor, Params};
+use crate::params::{ParamVisitor, Params};
 use std::marker::PhantomData;
 
 /// The node identity of a kernel's parameters ([`KernelParams`], declared in

@@ -2,7 +2,7 @@
 //! other) editing nodes report.
 
 use super::{Footprint, PortSpec, PortType};
-use crate::ops::params::{Meta, ParamVisitor};
+use crate::params::{Meta, ParamVisitor};
 use crate::raster::convolve::BorderMode;
 
 /// Border mode names, in [`BorderMode::ALL`] order.

@@ -77,104 +77,18 @@ pub mod render;
 pub mod rotate;
 pub mod save;
 pub mod stamp;
+pub mod value;
+
+pub use value::{Picture, PortType, Value};
 
 use crate::error::RgbnError;
-use crate::ops::params::{self, ParamError, ParamInfo, ParamValue, Params};
-use crate::raster::sample::Window;
+use crate::params::{self, ParamError, ParamInfo, ParamValue, Params};
+use crate::raster::window::Window;
 use crate::raster::{Plane, RgbnImage};
 use std::collections::BTreeMap;
 use std::marker::PhantomData;
 use std::path::PathBuf;
-use std::sync::{Arc, OnceLock};
-
-/// The type of a port; connections are checked against it.
-#[derive(
-    Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord, serde::Serialize, serde::Deserialize,
-)]
-pub enum PortType {
-    /// An RGBN image (colour, normals, optional mask).
-    Rgbn,
-    /// A coverage mask in [0, 1].
-    Mask,
-    /// A scalar field (height, curl).
-    Scalar,
-    /// A display picture: sRGB 8-bit RGBA (renders, views).
-    Picture,
-    /// A single number (statistics).
-    Number,
-}
-
-impl PortType {
-    /// Every port type.
-    pub const ALL: [PortType; 5] = [
-        PortType::Rgbn,
-        PortType::Mask,
-        PortType::Scalar,
-        PortType::Picture,
-        PortType::Number,
-    ];
-    /// Lower-case name.
-    #[must_use]
-    pub fn name(self) -> &'static str {
-        match self {
-            PortType::Rgbn => "rgbn",
-            PortType::Mask => "mask",
-            PortType::Scalar => "scalar",
-            PortType::Picture => "picture",
-            PortType::Number => "number",
-        }
-    }
-}
-
-/// An sRGB 8-bit RGBA picture, row-major, row 0 at the top.
-#[derive(Clone, Debug, PartialEq)]
-pub struct Picture {
-    /// Columns.
-    pub width: usize,
-    /// Rows.
-    pub height: usize,
-    /// `4 · width · height` bytes.
-    pub rgba: Vec<u8>,
-}
-
-/// A value flowing along an edge. Cloning is cheap (reference counted).
-#[derive(Clone, Debug, PartialEq)]
-pub enum Value {
-    /// An RGBN image (its planes are shared, copy-on-write).
-    Rgbn(RgbnImage),
-    /// A mask.
-    Mask(Arc<Plane>),
-    /// A scalar field.
-    Scalar(Arc<Plane>),
-    /// A display picture.
-    Picture(Arc<Picture>),
-    /// A number.
-    Number(f64),
-}
-
-impl Value {
-    /// The port type this value fits.
-    #[must_use]
-    pub fn port_type(&self) -> PortType {
-        match self {
-            Value::Rgbn(_) => PortType::Rgbn,
-            Value::Mask(_) => PortType::Mask,
-            Value::Scalar(_) => PortType::Scalar,
-            Value::Picture(_) => PortType::Picture,
-            Value::Number(_) => PortType::Number,
-        }
-    }
-    /// Bytes of pixel data held.
-    #[must_use]
-    pub fn byte_size(&self) -> usize {
-        match self {
-            Value::Rgbn(i) => i.byte_size(),
-            Value::Mask(p) | Value::Scalar(p) => p.data().len() * 4,
-            Value::Picture(p) => p.rgba.len(),
-            Value::Number(_) => 8,
-        }
-    }
-}
+use std::sync::OnceLock;
 
 /// One input or output port.
 #[derive(Clone, Debug, PartialEq)]
@@ -444,7 +358,7 @@ pub trait Operator: Send + Sync + 'static {
     ) -> Result<Vec<Value>, RgbnError> {
         Ok(Self::run(params, inputs, ctx)?
             .iter()
-            .map(|v| crate::eval::region::window_of(v, win))
+            .map(|v| value::window_of(v, win))
             .collect())
     }
     /// Where the outputs can change when the parameters go from `old` to `new` and the inputs

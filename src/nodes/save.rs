@@ -1,13 +1,64 @@
 //! Writing values to files: the `save` node and [`write_value`], which the CLI uses for graph
 //! outputs (`-o NAME=PATH`). Writes are atomic (temporary file + rename) and never overwrite a
 //! file the graph reads.
+//!
+//! Parameters of the image writer (the nodes below); the writing itself is
+//! [`crate::raster::io::save`].
 
 use super::{Inputs, OpSpec, Operator, PortSpec, PortType, RunContext, Value};
 use crate::error::RgbnError;
-use crate::ops::save::SaveParams;
 use crate::raster::io::{self, Format, SaveOptions};
+use crate::raster::io::{ExrPrecision, NormalConvention};
 use crate::raster::Plane;
 use std::path::{Path, PathBuf};
+
+crate::choice_enum! {
+    /// Bits per channel of PNG/TIFF normal maps.
+    pub enum Bits {
+        /// 8 bits.
+        Eight = "8",
+        /// 16 bits.
+        Sixteen = "16",
+    }
+}
+
+crate::params! {
+    /// Parameters of the image writer.
+    #[derive(Clone, Debug, PartialEq)]
+    pub struct SaveParams {
+        /// Output: .exr (colour + normals + mask) or .png/.tif (normal map).
+        pub path: String = String::new() => path.output(),
+        /// Bits per channel of PNG/TIFF normal maps.
+        pub bits: Bits = Bits::Sixteen => choice,
+        /// Write normal maps in the DirectX convention (green = −y).
+        pub dx: bool = false => bool,
+        /// Write EXR as 16-bit half floats.
+        pub half: bool = false => bool,
+    }
+}
+
+impl SaveParams {
+    /// The I/O options these parameters describe.
+    #[must_use]
+    pub fn options(&self) -> SaveOptions {
+        SaveOptions {
+            bits: match self.bits {
+                Bits::Eight => 8,
+                Bits::Sixteen => 16,
+            },
+            convention: if self.dx {
+                NormalConvention::DirectX
+            } else {
+                NormalConvention::OpenGl
+            },
+            precision: if self.half {
+                ExrPrecision::Half
+            } else {
+                ExrPrecision::Full
+            },
+        }
+    }
+}
 
 /// Writes `value` to `path` by its type and the path's extension:
 /// RGBN → `.exr` (everything) or `.png`/`.tif` (normal map); picture → `.png`/`.tif`;

@@ -25,8 +25,8 @@
 //! - C. Barré-Brisebois, S. Hill, "Blending in Detail", 2012.
 
 use super::band::{apply_band, Band, BandKind, BandOp};
-use super::params::Choice;
 use crate::error::RgbnError;
+use crate::params::Choice;
 use crate::raster::convolve::BorderMode;
 use crate::raster::gradient::{CurlStats, GradientField};
 use crate::raster::{Plane, RgbnImage};

@@ -8,7 +8,7 @@
 //! `CONTRIBUTING.md` for how to add an operator.
 //!
 //! ```
-//! use rgbn::ops::params::{describe, from_values, ParamKind, ParamValue};
+//! use rgbn::params::{describe, from_values, ParamKind, ParamValue};
 //! use rgbn::ops::band::{band_filter_image, BandOp, BandParams};
 //!
 //! // The same struct is the pure function's argument and the node's parameters.
@@ -26,24 +26,11 @@
 pub mod band;
 pub mod bilateral;
 pub mod brush;
-pub mod capture;
 pub mod combine;
 pub mod filter;
 pub mod geom;
-pub mod integrate;
-pub mod load;
 pub mod normalize;
-pub mod params;
 pub mod pen;
 pub mod publish;
-pub mod render;
 pub mod rotate;
-pub mod save;
 pub mod stamp;
-
-// The graph types and the registry live in `crate::nodes`; these re-exports keep the older
-// `crate::ops::{Operator, Value, registry, …}` paths working.
-pub use crate::nodes::{
-    find, registry, DynOp, Inputs, OpSpec, Operator, Picture, PortSpec, PortType, RunContext,
-    Value, GRAPH_NODE_OP,
-};

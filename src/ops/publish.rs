@@ -600,7 +600,7 @@ fn metadata_json(img: &RgbnImage, levels: &[Level], scale: f32, opts: &PublishOp
         img.width(),
         img.height(),
         img.mask().is_some(),
-        crate::ops::params::Choice::name(opts.view),
+        crate::params::Choice::name(opts.view),
         lights.join(", "),
         s.ambient,
         s.specular,

@@ -23,7 +23,7 @@ pub fn zeroed_f32(n: usize) -> Vec<f32> {
 
 /// An empty `Vec<f32>` with room for `n` values, for a kernel that writes all of them through
 /// raw pointers and then sets the length: nothing is zero-filled first, so a block the
-/// allocator reuses (see [`crate::alloc::Recycler`]) is written once, and a fresh one is
+/// allocator reuses (see [`crate::recycle::Recycler`]) is written once, and a fresh one is
 /// faulted in by the kernel's own writes.
 #[must_use]
 pub fn reserved_f32(n: usize) -> Vec<f32> {

@@ -21,6 +21,7 @@ pub mod sample;
 pub mod smooth;
 pub mod srgb;
 pub mod strips;
+pub mod window;
 
 use crate::error::RgbnError;
 use std::sync::Arc;

@@ -4,6 +4,7 @@
 //! Coordinates: pixel `(x, row)` maps to `u = x − cx`, `v = cy − row` (y up), heights in pixels.
 
 use super::gradient::{corner_samples, normal_of_gradient, GradientField};
+use super::window::Window;
 use super::{Plane, RgbnImage};
 use crate::raster::buf;
 use rayon::prelude::*;
@@ -161,37 +162,6 @@ impl Surface {
                 r * r - u * u - v * v <= 0.0
             }
             _ => false,
-        }
-    }
-}
-
-/// A rectangle of an image: columns `x..x + w`, rows `y..y + h`.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub struct Window {
-    /// First column.
-    pub x: usize,
-    /// First row.
-    pub y: usize,
-    /// Columns.
-    pub w: usize,
-    /// Rows.
-    pub h: usize,
-    /// Pixels of the full image per pixel of the window's grid along each axis (`2^level` at a
-    /// level of detail; 1 at full resolution): pixel `(x, row)` covers full-image pixels
-    /// `x·scale .. (x + 1)·scale`, and heights are in the window's pixels.
-    pub scale: usize,
-}
-
-impl Window {
-    /// The whole `w × h` image at full resolution.
-    #[must_use]
-    pub fn full(w: usize, h: usize) -> Self {
-        Self {
-            x: 0,
-            y: 0,
-            w,
-            h,
-            scale: 1,
         }
     }
 }

@@ -5,7 +5,7 @@
 
 use super::View;
 use crate::error::RgbnError;
-use crate::ops::params::{self, ParamInfo};
+use crate::params::{self, ParamInfo};
 use crate::raster::srgb::linear_to_srgb8;
 use crate::raster::RgbnImage;
 

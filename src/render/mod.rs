@@ -13,7 +13,7 @@ pub use curvature::{curvature_scale, mean_curvature};
 pub use inspect::InspectParams;
 
 use crate::error::RgbnError;
-use crate::ops::params::Choice;
+use crate::params::Choice;
 use crate::raster::buf;
 use crate::raster::fastmath::{exp2_fast, log2_fast, ROUND};
 use crate::raster::gradient::GradientField;
@@ -189,7 +189,7 @@ impl std::str::FromStr for View {
     fn from_str(s: &str) -> Result<Self, String> {
         View::from_name(s).ok_or_else(|| {
             let names = View::names().join(", ");
-            match crate::ops::params::nearest(s, View::names()) {
+            match crate::params::nearest(s, View::names()) {
                 Some(n) => format!("unknown view {s:?} (did you mean {n:?}? views: {names})"),
                 None => format!("unknown view {s:?} (views: {names})"),
             }

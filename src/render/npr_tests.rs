@@ -380,7 +380,7 @@ fn every_view_has_a_name_that_parses_and_its_parameters_carry_its_prefix() {
         }
     }
     // Every parameter belongs to exactly one view.
-    for i in crate::ops::params::describe::<InspectParams>() {
+    for i in crate::params::describe::<InspectParams>() {
         assert!(InspectParams::view_of(i.name).is_some(), "{}", i.name);
     }
     assert!("toonn"

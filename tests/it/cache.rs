@@ -3,7 +3,7 @@
 use crate::common::*;
 use rgbn::eval::{EvalOptions, EvalResult, Evaluator, Plan, Status};
 use rgbn::graph::{LoadedGraph, NodeDef};
-use rgbn::ops::params::ParamValue;
+use rgbn::params::ParamValue;
 use std::collections::BTreeMap;
 use std::path::Path;
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
@@ -313,7 +313,7 @@ fn curl_stats_are_measured_per_node() {
     // Exact normals of a height: curl at rounding level; the curl node's own output too.
     let c1 = by_node[&1].unwrap();
     let c2 = by_node[&2].unwrap();
-    let rgbn::ops::Value::Number(out) = r.outputs["curl"] else {
+    let rgbn::nodes::Value::Number(out) = r.outputs["curl"] else {
         panic!()
     };
     assert!((c2 - out).abs() < 1e-12, "{c2} vs {out}");

@@ -5,7 +5,7 @@
 use crate::common::*;
 use rgbn::eval::Evaluator;
 use rgbn::graph::LoadedGraph;
-use rgbn::ops::Value;
+use rgbn::nodes::Value;
 use rgbn::raster::io::{self, Format, LoadOptions};
 use rgbn::raster::sample::Surface;
 use rgbn::RgbnImage;

@@ -200,7 +200,7 @@ fn ops_lists_every_operator_from_the_specs() {
     let o = rgbn(Path::new("."), &["ops"]);
     assert_eq!(o.status.code(), Some(0));
     let out = text(&o.stdout);
-    for op in rgbn::ops::registry() {
+    for op in rgbn::nodes::registry() {
         let s = op.spec();
         assert!(out.contains(&format!("{} — {}", s.id, s.title)), "{}", s.id);
         assert!(out.contains(s.doc), "{}", s.id);

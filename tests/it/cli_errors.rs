@@ -299,7 +299,7 @@ fn man_page_names_every_subcommand_and_man_out_dir_writes_one_page_each() {
 /// A parameter error met while running a node names the parameter (never `parameter ""`).
 #[test]
 fn parameter_errors_name_their_parameter() {
-    use rgbn::ops::params::ParamError;
+    use rgbn::params::ParamError;
     let e = rgbn::RgbnError::from(ParamError::Kind {
         name: "sigma_px".into(),
         expected: "float",

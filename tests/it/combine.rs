@@ -5,7 +5,7 @@
 use super::common::write;
 use rgbn::eval::{EvalOptions, Evaluator, Plan};
 use rgbn::graph::LoadedGraph;
-use rgbn::ops::Value;
+use rgbn::nodes::Value;
 use rgbn::raster::io::{save_exr, ExrPrecision};
 use rgbn::RgbnImage;
 use std::collections::BTreeMap;

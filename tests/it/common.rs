@@ -108,8 +108,8 @@ pub fn stdout(o: &Output) -> String {
 }
 
 /// RMS difference of the normals of two RGBN values (all three planes, every pixel).
-pub fn rms_normals(a: &rgbn::ops::Value, b: &rgbn::ops::Value) -> f64 {
-    let (rgbn::ops::Value::Rgbn(a), rgbn::ops::Value::Rgbn(b)) = (a, b) else {
+pub fn rms_normals(a: &rgbn::nodes::Value, b: &rgbn::nodes::Value) -> f64 {
+    let (rgbn::nodes::Value::Rgbn(a), rgbn::nodes::Value::Rgbn(b)) = (a, b) else {
         panic!("images")
     };
     let (mut sum, mut n) = (0.0f64, 0usize);

@@ -11,7 +11,7 @@ use rgbn::app::state::Document;
 use rgbn::app::tools::ToolKind;
 use rgbn::app::EditorApp;
 use rgbn::graph::Source;
-use rgbn::ops::params::ParamValue;
+use rgbn::params::ParamValue;
 use std::time::{Duration, Instant};
 
 /// The demo graph at a small size (fast evaluations).
@@ -266,7 +266,7 @@ fn recover_autosave_export_any_node_split_and_height_views() {
     let out = dir.path().join("node1-image.exr");
     assert!(out.is_file(), "exported: {:?}", h.state().status);
     let back = rgbn::raster::io::load_exr(&out, &Default::default()).unwrap();
-    let rgbn::ops::Value::Rgbn(orig) =
+    let rgbn::nodes::Value::Rgbn(orig) =
         &h.state().runtime.outcome.values[&(1, "image".into())].value
     else {
         panic!("node 1 gives an RGBN image")
@@ -476,7 +476,7 @@ fn after_pan_and_zoom_an_edit_shows_the_viewport_first_then_the_whole_output() {
     use rgbn::eval::region::{RegionOptions, INTERACTIVE_TILE};
     use rgbn::eval::{EvalOptions, Evaluator, Plan};
     use rgbn::graph::{LoadedGraph, PortRef};
-    use rgbn::ops::Value;
+    use rgbn::nodes::Value;
     let mut d = small_demo();
     d.set_param(1, "size", ParamValue::Int(300));
     let mut h = harness(d);

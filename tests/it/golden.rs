@@ -15,7 +15,7 @@
 use crate::common::*;
 use rgbn::eval::{EvalOptions, Evaluator, Plan};
 use rgbn::graph::LoadedGraph;
-use rgbn::ops::Value;
+use rgbn::nodes::Value;
 use rgbn::raster::io::{self, ExrCompression, ExrPrecision};
 use rgbn::RgbnImage;
 use std::path::{Path, PathBuf};
@@ -161,7 +161,7 @@ fn check_output(file: &Path, v: &Value) -> Result<(), String> {
         }
         Value::Picture(p) => {
             if update() {
-                rgbn::ops::save::write_value(v, file, &Default::default())
+                rgbn::nodes::save::write_value(v, file, &Default::default())
                     .map_err(|e| e.to_string())?;
             }
             let want = image::open(file).map_err(|e| e.to_string())?.to_rgba8();

@@ -300,7 +300,7 @@ fn set_and_bind_errors() {
     lg.set_param("3", "amount", "0.5").unwrap();
     assert_eq!(
         lg.graph.nodes[&1].params["size"],
-        rgbn::ops::params::ParamValue::Int(32)
+        rgbn::params::ParamValue::Int(32)
     );
 
     // A graph input that is needed but not bound; a missing input file.

@@ -8,8 +8,8 @@
 use crate::common::*;
 use rgbn::eval::Evaluator;
 use rgbn::graph::LoadedGraph;
+use rgbn::nodes::{registry, Value};
 use rgbn::ops::filter::{filter_normals, FilterOptions, Kernel};
-use rgbn::ops::{registry, Value};
 use rgbn::raster::sample::Surface;
 use std::collections::BTreeSet;
 use std::fmt::Write as _;
@@ -160,7 +160,7 @@ fn registry_every_operator_is_documented_and_in_an_example_graph() {
         used.extend(lg.graph.nodes.values().map(|n| n.op.clone()));
     }
     assert!(
-        used.contains(rgbn::ops::GRAPH_NODE_OP),
+        used.contains(rgbn::nodes::GRAPH_NODE_OP),
         "no example uses a graph node"
     );
     for op in registry() {
@@ -190,10 +190,10 @@ fn registry_every_operator_is_documented_and_in_an_example_graph() {
             if let Some((lo, hi)) = p.meta.range {
                 assert!(lo <= hi, "{}.{}", s.id, p.name);
                 let vals: Vec<f64> = match &p.default {
-                    rgbn::ops::params::ParamValue::Int(i) => vec![*i as f64],
-                    rgbn::ops::params::ParamValue::Float(x) => vec![*x],
-                    rgbn::ops::params::ParamValue::Vec3(v) => v.to_vec(),
-                    rgbn::ops::params::ParamValue::Floats(v) => v.clone(),
+                    rgbn::params::ParamValue::Int(i) => vec![*i as f64],
+                    rgbn::params::ParamValue::Float(x) => vec![*x],
+                    rgbn::params::ParamValue::Vec3(v) => v.to_vec(),
+                    rgbn::params::ParamValue::Floats(v) => v.clone(),
                     other => panic!("{}.{}: range on a {other:?}", s.id, p.name),
                 };
                 for v in vals {

@@ -13,7 +13,7 @@
 
 use proptest::prelude::*;
 use rgbn::nodes::{registry, DynOp, Picture, PortType, RunContext, Value};
-use rgbn::ops::params::{ParamKind, ParamValue};
+use rgbn::params::{ParamKind, ParamValue};
 use rgbn::{Plane, RgbnImage};
 use std::collections::BTreeMap;
 use std::path::Path;

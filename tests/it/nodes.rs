@@ -5,11 +5,11 @@
 use crate::common::*;
 use rgbn::eval::Evaluator;
 use rgbn::graph::LoadedGraph;
+use rgbn::nodes::Value;
 use rgbn::ops::bilateral::{split, BilateralParams};
 use rgbn::ops::brush::{brush_image, BrushParams, BrushStroke};
 use rgbn::ops::filter::Kernel;
 use rgbn::ops::pen::{apply_pen, PenParams, Profile};
-use rgbn::ops::Value;
 use rgbn::raster::integrate::{integrate_normals, project_integrable, IntegrateParams};
 use rgbn::raster::sample::demo_medallion;
 use rgbn::RgbnImage;

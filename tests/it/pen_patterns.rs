@@ -2,11 +2,13 @@
 //! texture pattern follows its image at every level of detail, and a texture that does not fit
 //! (not one channel, too large, not asked for) is a one-line error naming the node and port.
 
-use rgbn::eval::region::{reduce, Rect, RegionOptions};
+use rgbn::eval::region::RegionOptions;
 use rgbn::eval::{EvalOptions, Evaluator, Plan};
 use rgbn::graph::LoadedGraph;
-use rgbn::ops::Value;
+use rgbn::nodes::value::reduce;
+use rgbn::nodes::Value;
 use rgbn::raster::gradient::GradientField;
+use rgbn::raster::window::Rect;
 use std::collections::BTreeMap;
 
 fn run(args: &[&str]) -> (Option<i32>, String) {

@@ -2,11 +2,13 @@
 //! equals the same rectangle of the whole-image result.
 
 use crate::common::*;
-use rgbn::eval::region::{crop, Rect, RegionOptions};
+use rgbn::eval::region::RegionOptions;
 use rgbn::eval::{EvalOptions, Evaluator, Plan};
 use rgbn::graph::LoadedGraph;
-use rgbn::ops::params::ParamValue;
-use rgbn::ops::{PortType, Value};
+use rgbn::nodes::value::crop;
+use rgbn::nodes::{PortType, Value};
+use rgbn::params::ParamValue;
+use rgbn::raster::window::Rect;
 use std::collections::BTreeMap;
 
 /// Largest absolute difference over every channel (pictures in units of 1/255).
@@ -369,9 +371,9 @@ fn inputs_of_different_sizes_are_an_error_naming_the_node_not_a_panic() {
 /// full image reduced by block means.
 #[test]
 fn procedural_sources_compute_any_window_exactly_and_coarse_levels_match_block_means() {
-    use rgbn::eval::region::reduce;
+    use rgbn::nodes::value::reduce;
     use rgbn::nodes::{find, RunContext};
-    use rgbn::raster::sample::Window;
+    use rgbn::raster::window::Window;
     let ctx = RunContext::default();
     let (w, h) = (203usize, 150usize);
     let surface = |shape: &str, analytic: bool| {
@@ -497,7 +499,7 @@ fn procedural_sources_compute_any_window_exactly_and_coarse_levels_match_block_m
 /// (a box blur) are computed at full resolution and reduced, exactly.
 #[test]
 fn a_level_of_detail_is_tiling_independent_and_approximates_the_reduced_full_result() {
-    use rgbn::eval::region::reduce;
+    use rgbn::nodes::value::reduce;
     let d = tempfile::tempdir().unwrap();
     let graph = |filter: &str| {
         format!(
@@ -629,7 +631,7 @@ fn cli_eval_level_writes_the_reduced_output_and_a_region_of_it() {
 /// error against it), and tilings of the level agree.
 #[test]
 fn pen_stamp_and_brush_at_a_coarse_level_reproduce_the_reduced_edit() {
-    use rgbn::eval::region::reduce;
+    use rgbn::nodes::value::reduce;
     let d = tempfile::tempdir().unwrap();
     let text = r#"(
     version: 1,
@@ -833,7 +835,7 @@ fn edits_at_a_coarse_level_patch_only_their_damage_and_equal_a_cold_evaluation()
 /// pixels) has no coarse form: that integration is computed whole and reduced, exactly.
 #[test]
 fn global_operators_run_at_a_coarse_level_and_approximate_the_reduced_full_result() {
-    use rgbn::eval::region::reduce;
+    use rgbn::nodes::value::reduce;
     let d = tempfile::tempdir().unwrap();
     std::fs::write(
         d.path().join("k.txt"),

@@ -2,10 +2,12 @@
 //! gives over a random rectangle what the whole-image evaluation gives there.
 
 use proptest::prelude::*;
-use rgbn::eval::region::{crop, Rect, RegionOptions};
+use rgbn::eval::region::RegionOptions;
 use rgbn::eval::{EvalOptions, Evaluator, Plan};
 use rgbn::graph::LoadedGraph;
+use rgbn::nodes::value::crop;
 use rgbn::raster::io::{save, SaveOptions};
+use rgbn::raster::window::Rect;
 use rgbn::raster::RgbnImage;
 use std::collections::BTreeMap;
 use std::path::Path;

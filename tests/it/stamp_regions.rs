@@ -5,8 +5,8 @@
 
 use rgbn::eval::{EvalOptions, Evaluator, Plan};
 use rgbn::graph::LoadedGraph;
+use rgbn::nodes::Value;
 use rgbn::ops::stamp::{stamp_image, StampParams};
-use rgbn::ops::Value;
 use rgbn::raster::gradient::{normal_of_gradient, GradientField};
 use rgbn::raster::integrate::{integrate_normals, non_integrable_fraction, IntegrateParams};
 use rgbn::raster::sample::Surface;

@@ -5,7 +5,7 @@
 use crate::common::*;
 use rgbn::eval::{EvalOptions, Evaluator, Plan};
 use rgbn::graph::LoadedGraph;
-use rgbn::ops::Value;
+use rgbn::nodes::Value;
 use rgbn::render::{self, InspectParams, Shading, View};
 use std::collections::BTreeMap;
 use std::path::Path;
@@ -171,7 +171,7 @@ fn render_help_documents_every_view_and_parameter() {
             v.name()
         );
     }
-    for i in rgbn::ops::params::describe::<InspectParams>() {
+    for i in rgbn::params::describe::<InspectParams>() {
         assert!(help.contains(i.name), "{}", i.name);
     }
     assert!(

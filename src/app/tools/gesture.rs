@@ -12,7 +12,7 @@ use super::vertices::drag_vertex;
 use super::MIN_SPACING_PX;
 use crate::app::state::Document;
 use crate::graph::{Graph, GraphError, NodeId};
-use crate::ops::params::ParamValue;
+use crate::params::ParamValue;
 use std::path::Path;
 
 /// A gesture in progress: everything it changes becomes one undo step when it ends.

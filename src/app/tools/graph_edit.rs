@@ -6,8 +6,8 @@
 
 use super::DEFAULT_STAMP_SIDE;
 use crate::graph::{Graph, GraphError, NodeId, Source};
-use crate::ops::params::ParamValue;
-use crate::ops::PortType;
+use crate::nodes::PortType;
+use crate::params::ParamValue;
 use std::path::Path;
 
 /// The parameter holding a node's point list, by operator.
@@ -37,7 +37,7 @@ pub fn param(g: &Graph, id: NodeId, name: &str) -> Option<ParamValue> {
     if let Some(v) = n.params.get(name) {
         return Some(v.clone());
     }
-    let op = crate::ops::find(&n.op)?;
+    let op = crate::nodes::find(&n.op)?;
     op.params()
         .iter()
         .find(|p| p.name == name)

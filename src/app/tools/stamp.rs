@@ -11,7 +11,7 @@ use super::DEFAULT_STAMP_SIDE;
 use super::MIN_STAMP_SCALE;
 use crate::app::state::Document;
 use crate::graph::{Graph, GraphError, NodeId};
-use crate::ops::params::ParamValue;
+use crate::params::ParamValue;
 
 /// Which part of a stamp placement is dragged.
 #[derive(Clone, Copy, Debug, PartialEq)]

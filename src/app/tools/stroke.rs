@@ -10,7 +10,7 @@ use super::graph_edit::{target, Target};
 use super::{ToolKind, ToolState};
 use crate::app::state::Document;
 use crate::graph::{Graph, GraphError, NodeId};
-use crate::ops::params::ParamValue;
+use crate::params::ParamValue;
 use std::path::Path;
 
 /// How a stroke joins the node's existing points.

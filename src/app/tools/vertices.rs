@@ -5,7 +5,7 @@ use super::gesture::{Gesture, GestureKind, Press};
 use super::graph_edit::{min_points, node_points, points_param, set};
 use crate::app::state::Document;
 use crate::graph::{Graph, NodeId};
-use crate::ops::params::ParamValue;
+use crate::params::ParamValue;
 
 impl Gesture {
     /// Starts dragging a vertex of the selected node (pen/brush/stamp), if `press` hits one.

@@ -13,16 +13,19 @@
 
 use super::tools::ViewTransform;
 use super::tools_ui::{ToolCx, Tools};
-use crate::ops::params;
-use crate::ops::{Picture, Value};
+use crate::nodes::Value;
 use crate::raster::gradient::GradientField;
 use crate::raster::Plane;
-use crate::render::{self, InspectParams, Light, Shading, View};
+use crate::render::{InspectParams, Light, Shading, View};
 use egui::{
     Color32, PointerButton, Pos2, Rect, Sense, Stroke, TextureHandle, TextureOptions, Ui, Vec2,
 };
-use std::sync::mpsc::{channel, Receiver, Sender};
 use std::sync::Arc;
+
+mod renderer;
+mod widgets;
+pub use renderer::*;
+pub use widgets::*;
 
 /// Where the preview panel shows an image: the panel's size, the zoom (`None`: fit) and the
 /// pan, all in screen points. The preview draws with it and the worker evaluates the part it
@@ -61,7 +64,7 @@ impl ViewSpec {
         &self,
         size: (usize, usize),
         tile: usize,
-    ) -> Option<(crate::eval::region::Rect, u32)> {
+    ) -> Option<(crate::raster::window::Rect, u32)> {
         self.visible_from(size, tile, 0)
     }
 
@@ -72,7 +75,7 @@ impl ViewSpec {
         size: (usize, usize),
         tile: usize,
         min_level: u32,
-    ) -> Option<(crate::eval::region::Rect, u32)> {
+    ) -> Option<(crate::raster::window::Rect, u32)> {
         let zoom = self.zoom_for(size);
         let level = Preview::stride_for_zoom(zoom)
             .ilog2()
@@ -99,7 +102,7 @@ impl ViewSpec {
         let (x0, x1) = span(min[0], self.panel[0], lw)?;
         let (y0, y1) = span(min[1], self.panel[1], lh)?;
         Some((
-            crate::eval::region::Rect::new(x0, y0, x1 - x0, y1 - y0),
+            crate::raster::window::Rect::new(x0, y0, x1 - x0, y1 - y0),
             level,
         ))
     }
@@ -231,202 +234,7 @@ pub struct PreviewRequest {
     pub stride: usize,
     /// For a viewport evaluated ahead of the whole output: its rectangle (level pixels) and
     /// level. The value rendered is then that part, at that level.
-    pub region: Option<(crate::eval::region::Rect, u32)>,
-}
-
-/// A render job for the preview thread.
-struct Job {
-    req: PreviewRequest,
-    /// Renders of an older epoch are dropped ([`Preview::clear_region`]).
-    epoch: u64,
-    value: Value,
-    before: Option<Value>,
-    ctx: egui::Context,
-}
-
-/// A finished render.
-struct Rendered {
-    req: PreviewRequest,
-    epoch: u64,
-    /// Size of the value in pixels (the texture is smaller when `req.stride > 1`).
-    logical: [usize; 2],
-    main: Option<egui::ColorImage>,
-    before: Option<egui::ColorImage>,
-    ms: f64,
-}
-
-/// The preview's render thread: renders the newest job, skipping older ones still queued.
-pub struct Renderer {
-    tx: Option<Sender<Job>>,
-    rx: Receiver<Rendered>,
-    handle: Option<std::thread::JoinHandle<()>>,
-}
-
-impl Default for Renderer {
-    fn default() -> Self {
-        let (tx, jobs) = channel::<Job>();
-        let (done, rx) = channel();
-        let handle = std::thread::Builder::new()
-            .name("rgbn-preview".into())
-            .spawn(move || {
-                let mut heights = HeightCache::default();
-                let mut small = SmallCache::default();
-                while let Ok(mut job) = jobs.recv() {
-                    while let Ok(newer) = jobs.try_recv() {
-                        job = newer;
-                    }
-                    let t0 = std::time::Instant::now();
-                    let settings = job.req.settings.clone().unwrap_or_default();
-                    let logical = value_size(&job.value);
-                    let stride = job.req.stride;
-                    let value = small.get(0, &job.value, job.req.key, stride);
-                    let main = render_color_image(&value, job.req.key, &settings, &mut heights);
-                    let before = job.before.as_ref().and_then(|b| {
-                        let key = job.req.before.unwrap_or(0);
-                        let b = small.get(1, b, key, stride);
-                        render_color_image(&b, key, &settings, &mut heights)
-                    });
-                    let out = Rendered {
-                        logical,
-                        epoch: job.epoch,
-                        req: job.req,
-                        main,
-                        before,
-                        ms: t0.elapsed().as_secs_f64() * 1e3,
-                    };
-                    if done.send(out).is_err() {
-                        break;
-                    }
-                    job.ctx.request_repaint();
-                }
-            })
-            .expect("spawn the preview thread");
-        Self {
-            tx: Some(tx),
-            rx,
-            handle: Some(handle),
-        }
-    }
-}
-
-impl Drop for Renderer {
-    fn drop(&mut self) {
-        self.tx = None;
-        if let Some(h) = self.handle.take() {
-            let _ = h.join();
-        }
-    }
-}
-
-/// Width and height of a value in pixels (`[0, 0]` for numbers).
-fn value_size(v: &Value) -> [usize; 2] {
-    match v {
-        Value::Rgbn(img) => [img.width(), img.height()],
-        Value::Mask(p) | Value::Scalar(p) => [p.width(), p.height()],
-        Value::Picture(p) => [p.width, p.height],
-        Value::Number(_) => [0, 0],
-    }
-}
-
-/// The preview's image at `stride` = 2^level: level `level` of the block-mean pyramid
-/// ([`crate::raster::pyramid`], as `rgbn eval --level` computes it), or the image itself.
-/// Detail finer than a screen pixel averages out rather than aliasing.
-#[must_use]
-pub fn preview_level(img: &crate::RgbnImage, stride: usize) -> crate::RgbnImage {
-    crate::raster::pyramid::reduce_rgbn(img, stride)
-}
-
-/// The reduced copies of the last two values rendered (main and before), by key and stride:
-/// while the light moves only the small image is relit.
-#[derive(Default)]
-struct SmallCache([Option<(u128, usize, Value)>; 2]);
-
-impl SmallCache {
-    fn get(&mut self, slot: usize, v: &Value, key: u128, stride: usize) -> Value {
-        let Value::Rgbn(img) = v else {
-            return v.clone();
-        };
-        if stride <= 1 {
-            return v.clone();
-        }
-        if let Some((k, s, small)) = &self.0[slot] {
-            if *k == key && *s == stride && key != 0 {
-                return small.clone();
-            }
-        }
-        let small = Value::Rgbn(preview_level(img, stride));
-        self.0[slot] = Some((key, stride, small.clone()));
-        small
-    }
-}
-
-/// The last integrated height, by the value's content key.
-#[derive(Default)]
-struct HeightCache(Option<(u128, Arc<Plane>)>);
-
-impl HeightCache {
-    fn get(&mut self, key: u128, img: &crate::RgbnImage) -> Option<Arc<Plane>> {
-        if let Some((k, p)) = &self.0 {
-            if *k == key && key != 0 {
-                return Some(p.clone());
-            }
-        }
-        let params = crate::raster::integrate::IntegrateParams::default();
-        let (z, _) = crate::raster::integrate::integrate_normals(img, &params).ok()?;
-        let z = Arc::new(z);
-        self.0 = Some((key, z.clone()));
-        Some(z)
-    }
-}
-
-fn render_color_image(
-    v: &Value,
-    key: u128,
-    s: &PreviewSettings,
-    heights: &mut HeightCache,
-) -> Option<egui::ColorImage> {
-    match (v, s.view) {
-        (Value::Rgbn(img), Mode::Height) => {
-            let z = heights.get(key, img)?;
-            Some(display_image(&super::worker::plane_picture(&z)))
-        }
-        _ => color_image(v, s),
-    }
-}
-
-/// The picture as an egui image. Pictures whose pixels are all opaque or transparent black
-/// (relit, albedo, normals, curl, height) are already premultiplied: their bytes are taken as
-/// they are instead of being converted pixel by pixel.
-#[must_use]
-pub fn display_image(p: &Picture) -> egui::ColorImage {
-    let premultiplied = p
-        .rgba
-        .chunks_exact(4)
-        .all(|c| c[3] == 255 || c == [0, 0, 0, 0]);
-    if premultiplied {
-        egui::ColorImage::from_rgba_premultiplied([p.width, p.height], &p.rgba)
-    } else {
-        egui::ColorImage::from_rgba_unmultiplied([p.width, p.height], &p.rgba)
-    }
-}
-
-/// What the preview shows of `v` under `s` (all but the height view), as an egui image. A
-/// view whose pixels are all opaque (any view of an unmasked RGBN; normals and curl always) is
-/// rendered straight into the texture's pixels: its sRGB bytes already are egui's
-/// premultiplied `Color32`s, so the 16 MB of a 2K frame are neither scanned, converted nor
-/// copied (the light-drag case).
-#[must_use]
-pub fn color_image(v: &Value, s: &PreviewSettings) -> Option<egui::ColorImage> {
-    if let (Value::Rgbn(img), Some(view)) = (v, s.view.render_view()) {
-        if img.mask().is_none() || matches!(view, View::Normals | View::Curl) {
-            let mut pixels: Vec<egui::Color32> = bytemuck::zeroed_vec(img.len());
-            crate::raster::buf::advise_huge_pages(&pixels);
-            let rgba: &mut [u8] = bytemuck::cast_slice_mut(&mut pixels);
-            render::render_with_into(img, view, &s.shading(), &s.inspect, rgba).ok()?;
-            return Some(egui::ColorImage::new([img.width(), img.height()], pixels));
-        }
-    }
-    Some(display_image(&render_value(v, s)?))
+    pub region: Option<(crate::raster::window::Rect, u32)>,
 }
 
 /// The preview's runtime state.
@@ -486,7 +294,7 @@ pub struct RegionShown {
     /// Content key of the whole output.
     pub key: u128,
     /// The rectangle, in pixels of the level.
-    pub rect: crate::eval::region::Rect,
+    pub rect: crate::raster::window::Rect,
     /// Level of detail.
     pub level: u32,
     /// A level coarser than the one shown, while edits keep coming (a global operator is
@@ -543,24 +351,6 @@ impl Default for Preview {
             overlay_fresh: false,
             overlay_render_ms: None,
         }
-    }
-}
-
-/// Renders a value for display (sRGB RGBA8), or `None` for numbers.
-pub fn render_value(v: &Value, s: &PreviewSettings) -> Option<Picture> {
-    match v {
-        Value::Rgbn(img) => {
-            let view = s.view.render_view().unwrap_or(View::Relit);
-            let rgba = render::render_with(img, view, &s.shading(), &s.inspect).ok()?;
-            Some(Picture {
-                width: img.width(),
-                height: img.height(),
-                rgba,
-            })
-        }
-        Value::Picture(p) => Some((**p).clone()),
-        Value::Mask(p) | Value::Scalar(p) => Some(super::worker::plane_picture(p)),
-        Value::Number(_) => None,
     }
 }
 
@@ -1082,50 +872,6 @@ impl Preview {
     }
 }
 
-/// A hemisphere seen from above: drag to move the light. Returns true if `light` changed.
-pub fn light_ui(ui: &mut Ui, light: &mut [f32; 3]) -> bool {
-    let size = 84.0;
-    let (rect, resp) = ui.allocate_exact_size(Vec2::splat(size), Sense::click_and_drag());
-    let c = rect.center();
-    let r = size * 0.5 - 3.0;
-    let painter = ui.painter_at(rect.expand(2.0));
-    // A small Lambert-shaded sphere shows where the light comes from.
-    let steps = 14;
-    for i in (1..=steps).rev() {
-        let t = i as f32 / steps as f32;
-        let g = (40.0 + 120.0 * (1.0 - t)) as u8;
-        painter.circle_filled(
-            c + Vec2::new(light[0], -light[1]) * r * (1.0 - t) * 0.6,
-            r * t,
-            Color32::from_gray(g),
-        );
-    }
-    painter.circle_stroke(c, r, Stroke::new(1.0, Color32::from_gray(110)));
-    let mut changed = false;
-    if let Some(p) = resp.interact_pointer_pos() {
-        if resp.dragged() || resp.clicked() {
-            let mut d = (p - c) / r;
-            if d.length() > 0.995 {
-                d = d.normalized() * 0.995;
-            }
-            let z = (1.0 - d.length_sq()).max(0.0).sqrt();
-            let new = [d.x, -d.y, z];
-            if new != *light {
-                *light = new;
-                changed = true;
-            }
-        }
-    }
-    let dot = c + Vec2::new(light[0], -light[1]) * r;
-    painter.circle_filled(dot, 5.0, Color32::from_rgb(255, 220, 80));
-    painter.circle_stroke(dot, 5.0, Stroke::new(1.0, Color32::BLACK));
-    resp.on_hover_text(format!(
-        "Light direction (drag): {:+.2} {:+.2} {:+.2}",
-        light[0], light[1], light[2]
-    ));
-    changed
-}
-
 fn set_texture(
     ctx: &egui::Context,
     slot: &mut Option<TextureHandle>,
@@ -1139,238 +885,5 @@ fn set_texture(
     }
 }
 
-/// The display controls: view mode, before/after split, light, ambient, specular, exposure.
-/// `can_split`: the viewed node has an RGBN input to compare with.
-pub fn settings_ui(ui: &mut Ui, s: &mut PreviewSettings, split: &mut Option<f32>, can_split: bool) {
-    ui.horizontal_wrapped(|ui| {
-        for v in Mode::ALL {
-            ui.selectable_value(&mut s.view, v, v.name())
-                .on_hover_text(v.doc());
-        }
-        ui.separator();
-        let mut on = split.is_some();
-        let r = ui
-            .add_enabled(can_split, egui::Checkbox::new(&mut on, "before/after"))
-            .on_hover_text("Show the node's input (before) left of a split line and its output (after) right of it");
-        if r.changed() {
-            *split = on.then_some(0.5);
-        }
-        if let Some(x) = split.as_mut() {
-            ui.add_enabled(can_split, egui::Slider::new(x, 0.0..=1.0).show_value(false))
-                .on_hover_text("Split position");
-        }
-    });
-    let view = s.view.render_view();
-    ui.horizontal(|ui| {
-        if view.is_some_and(View::lit) {
-            light_ui(ui, &mut s.light);
-            egui::Grid::new("shading").num_columns(2).show(ui, |ui| {
-                ui.label("ambient");
-                ui.add(egui::Slider::new(&mut s.ambient, 0.0..=1.0));
-                ui.end_row();
-                ui.label("specular");
-                ui.add(egui::Slider::new(&mut s.specular, 0.0..=2.0));
-                ui.end_row();
-                ui.label("shininess");
-                ui.add(egui::Slider::new(&mut s.shininess, 1.0..=200.0).logarithmic(true));
-                ui.end_row();
-                ui.label("exposure");
-                ui.add(egui::Slider::new(&mut s.exposure_ev, -4.0..=4.0).suffix(" EV"));
-                ui.end_row();
-            });
-        }
-        if let Some(v) = view {
-            view_params_ui(ui, v, &mut s.inspect);
-        }
-    });
-}
-
-/// The selected view's own parameters ([`InspectParams::describe`]) as the inspector's widgets.
-fn view_params_ui(ui: &mut Ui, view: View, p: &mut InspectParams) {
-    let infos = InspectParams::describe(view);
-    if infos.is_empty() {
-        return;
-    }
-    let mut values = params::to_values(p);
-    let mut changed = false;
-    egui::Grid::new("view_params")
-        .num_columns(2)
-        .show(ui, |ui| {
-            for info in &infos {
-                let mut browse = false;
-                let v = values
-                    .entry(info.name.to_string())
-                    .or_insert_with(|| info.default.clone());
-                let here = std::path::Path::new(".");
-                changed |= super::params_ui::param_ui(ui, info.name, info, v, here, &mut browse);
-            }
-        });
-    if changed {
-        // The widgets keep values in range; a value the core refuses leaves the settings as
-        // they were.
-        if let Ok(new) = params::from_values::<InspectParams>(&values) {
-            *p = new;
-        }
-    }
-}
-
 #[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn direct_rendering_gives_the_pixels_of_the_general_path() {
-        // Every view, unmasked (straight into Color32s) and masked with partial coverage
-        // (relit and albedo then go through the RGBA picture and the unmultiplied conversion):
-        // the same pixels as render → display_image.
-        let img = crate::raster::sample::demo_medallion(45);
-        let mut masked = img.clone();
-        let m: Vec<f32> = (0..img.len()).map(|i| (i % 5) as f32 / 4.0).collect();
-        masked.set_mask(Some(m)).unwrap();
-        for view in View::ALL.iter().map(|v| Mode::View(*v)) {
-            let s = PreviewSettings {
-                view,
-                ..PreviewSettings::default()
-            };
-            for im in [&img, &masked] {
-                let fast = color_image(&Value::Rgbn(im.clone()), &s).unwrap();
-                let rgba = render::render(im, view.render_view().unwrap(), &s.shading()).unwrap();
-                let want = display_image(&Picture {
-                    width: im.width(),
-                    height: im.height(),
-                    rgba,
-                });
-                assert_eq!(fast.size, [45, 45]);
-                assert!(fast.pixels == want.pixels, "{view:?}");
-            }
-        }
-    }
-
-    #[test]
-    fn a_viewport_pixel_covers_its_block_of_full_resolution_pixels() {
-        use crate::eval::region::Rect;
-        let r = RegionShown {
-            key: 1,
-            rect: Rect::new(10, 20, 5, 4),
-            level: 2,
-            coarse: false,
-            full_size: (100, 120),
-            value: Value::Number(0.0),
-        };
-        // Level 2: level pixel (10, 20) covers full pixels 40..44 × 80..84.
-        assert_eq!(r.pixel_of(40, 80), Some((0, 0)));
-        assert_eq!(r.pixel_of(43, 83), Some((0, 0)));
-        assert_eq!(r.pixel_of(44, 84), Some((1, 1)));
-        assert_eq!(r.pixel_of(59, 95), Some((4, 3)));
-        assert_eq!(r.pixel_of(60, 95), None, "right of the viewport");
-        assert_eq!(r.pixel_of(39, 90), None, "left of it");
-        assert_eq!(r.pixel_of(50, 96), None, "below it");
-    }
-
-    #[test]
-    fn the_visible_rectangle_follows_zoom_and_pan_in_whole_tiles() {
-        use crate::eval::region::Rect;
-        // 1:1 on a 4096² image in a 1000×800 panel, centred: image pixels 1548..2548 ×
-        // 1648..2448 are on screen, grown to 64-pixel tiles.
-        let mut v = ViewSpec {
-            panel: [1000.0, 800.0],
-            zoom: Some(1.0),
-            pan: [0.0, 0.0],
-        };
-        assert_eq!(
-            v.visible((4096, 4096), 64),
-            Some((Rect::new(1536, 1600, 2560 - 1536, 2496 - 1600), 0))
-        );
-        // Panned right by 300 points: the image moves right, the view sees 300 pixels less far.
-        v.pan = [300.0, 0.0];
-        let (r, _) = v.visible((4096, 4096), 1).unwrap();
-        assert_eq!((r.x, r.right()), (1248, 2248));
-        // Panned off the image: nothing to evaluate.
-        v.pan = [5000.0, 0.0];
-        assert_eq!(v.visible((4096, 4096), 64), None);
-        // A 16384² image fitted into 1600×1000: zoom 1000/16384, level 4 (1:16), all of its
-        // 1024² pixels.
-        let fit = ViewSpec {
-            panel: [1600.0, 1000.0],
-            zoom: None,
-            pan: [0.0, 0.0],
-        };
-        assert_eq!(
-            fit.visible((16384, 16384), 64),
-            Some((Rect::new(0, 0, 1024, 1024), 4))
-        );
-        // Zoomed to 1:2 with the top-left corner of a 5000×3000 image at the panel's: level 1
-        // (2500×1500), one level pixel per point, so the panel's 1000×800 points show level
-        // pixels 0..1000 × 0..800.
-        let corner = ViewSpec {
-            panel: [1000.0, 800.0],
-            zoom: Some(0.5),
-            pan: [1250.0 - 500.0, 750.0 - 400.0],
-        };
-        assert_eq!(
-            corner.visible((5000, 3000), 1),
-            Some((Rect::new(0, 0, 1000, 800), 1))
-        );
-    }
-
-    #[test]
-    fn zoomed_out_previews_render_a_block_mean_level_without_aliasing() {
-        assert_eq!(Preview::stride_for_zoom(1.0), 1);
-        assert_eq!(Preview::stride_for_zoom(4.0), 1);
-        assert_eq!(Preview::stride_for_zoom(0.5), 2);
-        assert_eq!(Preview::stride_for_zoom(0.34), 2);
-        assert_eq!(Preview::stride_for_zoom(0.3), 2);
-        assert_eq!(Preview::stride_for_zoom(0.25), 4);
-        assert_eq!(Preview::stride_for_zoom(0.061), 16);
-        assert_eq!(Preview::stride_for_zoom(0.01), 64);
-        // Ridges one pixel wide, tilted left and right in turn (a relief finer than the
-        // screen): every 2nd pixel would show one tilt everywhere; the block mean of each pair
-        // is flat, as the surface seen from afar is.
-        let (w, h) = (16usize, 6usize);
-        let t = 0.6f32;
-        let nx: Vec<f32> = (0..w * h)
-            .map(|i| if i % 2 == 0 { t } else { -t })
-            .collect();
-        let img = crate::RgbnImage::new(
-            w,
-            h,
-            [vec![0.5; w * h], vec![0.5; w * h], vec![0.5; w * h]],
-            [nx, vec![0.0; w * h], vec![(1.0 - t * t).sqrt(); w * h]],
-            None,
-        )
-        .unwrap();
-        let small = preview_level(&img, 2);
-        assert_eq!((small.width(), small.height()), (8, 3));
-        for r in 0..3 {
-            for x in 0..8 {
-                let n = small.normal_at(x, r);
-                assert!(n[0].abs() < 1e-6 && (n[2] - 1.0).abs() < 1e-6, "{n:?}");
-            }
-        }
-        // Relit, the level is one even tone: no stripes, no bias to either tilt.
-        let s = PreviewSettings::default();
-        let part = render_value(&Value::Rgbn(small), &s).unwrap();
-        let first = &part.rgba[0..4];
-        assert!(part.rgba.chunks(4).all(|p| p == first));
-    }
-
-    #[test]
-    fn preview_request_is_plain_data_keyed_apart_from_evaluation() {
-        let img = Value::Rgbn(crate::raster::sample::demo_medallion(16));
-        let mut s = PreviewSettings::default();
-        let a = Preview::request(&img, 42, &s);
-        assert_eq!(a, Preview::request(&img, 42, &s));
-        s.light = [0.0, 0.0, 1.0];
-        let b = Preview::request(&img, 42, &s);
-        assert_ne!(a, b, "moving the light changes the request, not the key");
-        assert_eq!(a.key, b.key);
-        // Pictures ignore display settings.
-        let pic = Value::Number(1.0);
-        assert_eq!(
-            Preview::request(&pic, 1, &s),
-            Preview::request(&pic, 1, &PreviewSettings::default())
-        );
-        let p = render_value(&img, &s).unwrap();
-        assert_eq!(p.rgba.len(), 16 * 16 * 4);
-    }
-}
+mod tests;

@@ -13,7 +13,7 @@
 //! The core never depends on egui: an editor implements [`ParamVisitor`] to draw widgets.
 //!
 //! ```
-//! use rgbn::ops::params::{Params, ParamVisitor, Meta, describe};
+//! use rgbn::params::{Params, ParamVisitor, Meta, describe};
 //! #[derive(Clone, Debug, PartialEq)]
 //! struct Blur { sigma_px: f64 }
 //! impl Default for Blur { fn default() -> Self { Self { sigma_px: 2.0 } } }
@@ -349,7 +349,7 @@ pub fn visit_choice<C: Choice>(
 ///         Remove = "remove",
 ///     }
 /// }
-/// use rgbn::ops::params::Choice;
+/// use rgbn::params::Choice;
 /// assert_eq!(Op::from_name("remove"), Some(Op::Remove));
 /// assert_eq!(Op::default(), Op::Keep); // the first variant
 /// assert_eq!(Op::Keep.doc(), "The band only.");
@@ -368,7 +368,7 @@ macro_rules! choice_enum {
             $first,
             $($(#[doc = $vdoc])* $variant,)*
         }
-        impl $crate::ops::params::Choice for $name {
+        impl $crate::params::Choice for $name {
             const ALL: &'static [Self] = &[Self::$first, $(Self::$variant,)*];
             fn name(self) -> &'static str {
                 match self {
@@ -403,7 +403,7 @@ macro_rules! choice_enum {
 ///         pub mask_aware: bool = false => bool,
 ///     }
 /// }
-/// let info = rgbn::ops::params::describe::<Blur>();
+/// let info = rgbn::params::describe::<Blur>();
 /// assert_eq!((info[0].name, info[0].meta.doc, info[0].meta.unit), ("sigma_px", "Gaussian σ.", "px"));
 /// ```
 #[macro_export]
@@ -421,10 +421,10 @@ macro_rules! params {
                 Self { $($field: $default,)* }
             }
         }
-        impl $crate::ops::params::Params for $name {
-            fn visit(&mut self, v: &mut dyn $crate::ops::params::ParamVisitor) {
+        impl $crate::params::Params for $name {
+            fn visit(&mut self, v: &mut dyn $crate::params::ParamVisitor) {
                 $(
-                    let meta = $crate::ops::params::Meta::new(concat!($($doc),*).trim_ascii())
+                    let meta = $crate::params::Meta::new(concat!($($doc),*).trim_ascii())
                         $(. $mc ( $($ma),* ))*;
                     $crate::params!(@visit $kind, v, stringify!($field), &mut self.$field, &meta);
                 )*
@@ -432,27 +432,11 @@ macro_rules! params {
         }
     };
     (@visit choice, $v:ident, $n:expr, $f:expr, $meta:expr) => {
-        $crate::ops::params::visit_choice($v, $n, $f, $meta)
+        $crate::params::visit_choice($v, $n, $f, $meta)
     };
     (@visit $kind:ident, $v:ident, $n:expr, $f:expr, $meta:expr) => {
         $v.$kind($n, $f, $meta)
     };
-}
-
-impl Choice for crate::raster::convolve::BorderMode {
-    const ALL: &'static [Self] = &Self::ALL;
-    fn name(self) -> &'static str {
-        Self::name(self)
-    }
-    fn doc(self) -> &'static str {
-        use crate::raster::convolve::BorderMode as B;
-        match self {
-            B::Mirror => "Half-sample symmetric reflection (no artificial edge).",
-            B::Clamp => "Repeat the edge sample.",
-            B::Wrap => "Periodic (tiles seamlessly).",
-            B::Zero => "Zero outside (the surface is flat outside the image).",
-        }
-    }
 }
 
 /// No parameters.

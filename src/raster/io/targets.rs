@@ -1,0 +1,450 @@
+//! Row-streamed writes: PNG and EXR targets filled a band of rows at a time (the writing
+//! side of [`super::stream`]).
+//!
+//! - [`PngTarget`] / [`PngRowWriter`] encode rows of normals or colour with the encoding and
+//!   compression of [`super::save_normal_map`] / [`super::save_color`] into an [`AtomicFile`]:
+//!   the target appears, complete, only when [`PngTarget::commit`] succeeds.
+//! - [`ExrTarget`] writes an RGBN EXR band by band through a writer thread.
+
+use super::temp;
+use super::{png_format, NormalConvention};
+use crate::error::RgbnError;
+use crate::raster::srgb::{linear_to_srgb, linear_to_srgb8};
+use std::fs::File;
+use std::io::{BufWriter, Write};
+use std::path::{Path, PathBuf};
+
+/// A file written under a temporary name beside its target and renamed over it by
+/// [`commit`](Self::commit); dropped uncommitted (an error, a panic), it removes the temporary
+/// and leaves the target as it was. See [`temp`].
+pub struct AtomicFile {
+    path: PathBuf,
+    tmp: PathBuf,
+    file: File,
+    _writing: temp::WriteGuard,
+}
+
+impl AtomicFile {
+    /// Starts writing `path` (its folder must exist).
+    pub fn create(path: &Path) -> Result<Self, RgbnError> {
+        let dir = match path.parent() {
+            Some(d) if !d.as_os_str().is_empty() => d,
+            _ => Path::new("."),
+        };
+        if !dir.is_dir() {
+            return Err(RgbnError::MissingDir { path: path.into() });
+        }
+        let name = path.file_name().and_then(|n| n.to_str()).unwrap_or("out");
+        let writing = temp::WriteGuard::begin();
+        // Temporaries of this target left by a killed process are removed first.
+        temp::clean_stale(dir, Some(name));
+        let tmp = temp::temp_path(dir, name);
+        let file = File::create(&tmp).map_err(|e| RgbnError::Write {
+            detail: e.to_string(),
+            path: path.into(),
+        })?;
+        Ok(Self {
+            path: path.into(),
+            tmp,
+            file,
+            _writing: writing,
+        })
+    }
+
+    /// A handle to write the bytes through (flush what buffers it before
+    /// [`commit`](Self::commit)).
+    pub fn handle(&self) -> Result<File, RgbnError> {
+        self.file.try_clone().map_err(|e| self.error(e))
+    }
+
+    /// The error of writing the target, `detail` saying what failed.
+    #[must_use]
+    pub fn error(&self, detail: impl ToString) -> RgbnError {
+        RgbnError::Write {
+            detail: detail.to_string(),
+            path: self.path.clone(),
+        }
+    }
+
+    /// Flushes, syncs and renames the temporary over the target.
+    pub fn commit(mut self) -> Result<(), RgbnError> {
+        self.file.sync_data().map_err(|e| self.error(e))?;
+        std::fs::rename(&self.tmp, &self.path).map_err(|e| self.error(e))?;
+        // Renamed: nothing left to remove.
+        self.tmp = PathBuf::new();
+        Ok(())
+    }
+}
+
+impl Drop for AtomicFile {
+    fn drop(&mut self) {
+        if !self.tmp.as_os_str().is_empty() {
+            let _ = std::fs::remove_file(&self.tmp);
+        }
+    }
+}
+
+/// Rows of an RGBN image on their way to an [`ExrTarget`]'s writer thread: the planes in the
+/// file's (alphabetical) channel order.
+struct ExrBand {
+    rows: usize,
+    mask: bool,
+    planes: Vec<Vec<f32>>,
+}
+
+/// An RGBN image written to an EXR a band of rows at a time, as [`super::save_exr`] writes it
+/// with its defaults: 32-bit floats `R,G,B`, `N.X,N.Y,N.Z` and `A` when there is a mask,
+/// uncompressed, one scan line per block, line order increasing. The exr crate writes a file
+/// within one call, so a thread owns the writer and the bands are sent to it (one band in
+/// flight). The target appears, complete, only when [`ExrTarget::commit`] succeeds.
+pub struct ExrTarget {
+    tx: Option<std::sync::mpsc::SyncSender<ExrBand>>,
+    thread: Option<std::thread::JoinHandle<Result<(), String>>>,
+    file: Option<AtomicFile>,
+    width: usize,
+}
+
+impl ExrTarget {
+    /// Starts writing a `width × height` RGBN EXR at `path` (its folder must exist).
+    pub fn create(path: &Path, width: usize, height: usize) -> Result<Self, RgbnError> {
+        let file = AtomicFile::create(path)?;
+        let handle = file.handle()?;
+        let (tx, rx) = std::sync::mpsc::sync_channel::<ExrBand>(1);
+        let thread = std::thread::Builder::new()
+            .name("rgbn-exr-writer".into())
+            .spawn(move || -> Result<(), String> {
+                let Ok(first) = rx.recv() else {
+                    return Err("no rows were written".into());
+                };
+                let names: &[&str] = if first.mask {
+                    &["A", "B", "G", "N.X", "N.Y", "N.Z", "R"]
+                } else {
+                    &["B", "G", "N.X", "N.Y", "N.Z", "R"]
+                };
+                use exr::meta::attribute::{ChannelDescription, LineOrder, SampleType};
+                use exr::meta::header::Header;
+                let channels = names
+                    .iter()
+                    .map(|n| ChannelDescription::named(*n, SampleType::F32))
+                    .collect();
+                let header = Header::new("rgbn".into(), (width, height), channels).with_encoding(
+                    exr::compression::Compression::Uncompressed,
+                    exr::meta::BlockDescription::ScanLines,
+                    LineOrder::Increasing,
+                );
+                let mut out = BufWriter::with_capacity(1 << 20, handle);
+                let headers: exr::meta::Headers = std::iter::once(header).collect();
+                exr::block::write(&mut out, headers, true, |meta, writer| {
+                    use exr::block::writer::ChunksWriter;
+                    let mut y = 0;
+                    let mut band = Some(first);
+                    let mut data = Vec::with_capacity(names.len() * width * 4);
+                    while let Some(b) = band.take().or_else(|| rx.recv().ok()) {
+                        for r in 0..b.rows {
+                            data.clear();
+                            for plane in &b.planes {
+                                for v in &plane[r * width..(r + 1) * width] {
+                                    data.extend_from_slice(&v.to_ne_bytes());
+                                }
+                            }
+                            let block = exr::block::UncompressedBlock {
+                                index: exr::block::BlockIndex {
+                                    layer: 0,
+                                    pixel_position: exr::math::Vec2(0, y),
+                                    pixel_size: exr::math::Vec2(width, 1),
+                                    level: exr::math::Vec2(0, 0),
+                                },
+                                data: data.clone(),
+                            };
+                            writer.write_chunk(y, block.compress_to_chunk(&meta.headers)?)?;
+                            y += 1;
+                        }
+                    }
+                    if y == height {
+                        Ok(())
+                    } else {
+                        Err(exr::error::Error::Invalid(
+                            format!("only {y} of {height} rows were written").into(),
+                        ))
+                    }
+                })
+                .map_err(|e| e.to_string())?;
+                out.flush().map_err(|e| e.to_string())
+            })
+            .map_err(|e| RgbnError::Write {
+                detail: format!("cannot start the EXR writer: {e}"),
+                path: path.into(),
+            })?;
+        Ok(Self {
+            tx: Some(tx),
+            thread: Some(thread),
+            file: Some(file),
+            width,
+        })
+    }
+
+    /// Writes rows `rows` of `img` (whose width is the target's) as the next rows of the file.
+    pub fn write(
+        &mut self,
+        img: &crate::raster::RgbnImage,
+        rows: std::ops::Range<usize>,
+    ) -> Result<(), RgbnError> {
+        let w = self.width;
+        let (a, b) = (rows.start * w, rows.end * w);
+        let [r, g, bl] = img.color();
+        let [nx, ny, nz] = img.normal();
+        let mut planes: Vec<Vec<f32>> = Vec::with_capacity(7);
+        if let Some(m) = img.mask() {
+            planes.push(m[a..b].to_vec());
+        }
+        for p in [bl, g, nx, ny, nz, r] {
+            planes.push(p[a..b].to_vec());
+        }
+        let band = ExrBand {
+            rows: rows.len(),
+            mask: img.mask().is_some(),
+            planes,
+        };
+        let sent = self.tx.as_ref().is_some_and(|tx| tx.send(band).is_ok());
+        if sent {
+            Ok(())
+        } else {
+            // The writer stopped: its error.
+            Err(self
+                .finish()
+                .err()
+                .unwrap_or_else(|| self.error("the EXR writer stopped")))
+        }
+    }
+
+    fn error(&self, detail: impl ToString) -> RgbnError {
+        match &self.file {
+            Some(f) => f.error(detail),
+            None => RgbnError::Write {
+                detail: detail.to_string(),
+                path: PathBuf::new(),
+            },
+        }
+    }
+
+    /// Ends the rows and waits for the writer.
+    fn finish(&mut self) -> Result<(), RgbnError> {
+        self.tx.take();
+        match self.thread.take().map(std::thread::JoinHandle::join) {
+            Some(Ok(Ok(()))) | None => Ok(()),
+            Some(Ok(Err(e))) => Err(self.error(e)),
+            Some(Err(_)) => Err(self.error("the EXR writer panicked")),
+        }
+    }
+
+    /// Completes the file (every row must have been written) and renames it over the target.
+    pub fn commit(mut self) -> Result<(), RgbnError> {
+        self.finish()?;
+        self.file.take().expect("committed once").commit()
+    }
+}
+
+impl Drop for ExrTarget {
+    fn drop(&mut self) {
+        // The writer stops (missing rows are its error) before the temporary file goes.
+        let _ = self.finish();
+    }
+}
+
+/// What a [`PngRowWriter`] writes.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum RowEncoding {
+    /// Normals as a normal map: `round((n+1)/2·(2^bits−1))` (RGB).
+    Normal(NormalConvention),
+    /// Linear colour as sRGB (RGB).
+    Srgb,
+}
+
+/// A PNG being written: its header is out, its rows go through [`rows`](Self::rows), and
+/// [`commit`](Self::commit) ends it and renames it into place.
+pub struct PngTarget {
+    file: AtomicFile,
+    writer: png::Writer<BufWriter<File>>,
+    width: usize,
+    height: usize,
+    bits: u8,
+}
+
+impl PngTarget {
+    /// Starts `path`: a `width × height` RGB PNG of `bits` (8 or 16) per sample, compressed
+    /// as [`super::save_normal_map`] does.
+    pub fn create(path: &Path, width: usize, height: usize, bits: u8) -> Result<Self, RgbnError> {
+        Self::start(path, width, height, bits, png::ColorType::Rgb)
+    }
+
+    /// Starts `path`: a `width × height` 8-bit RGBA PNG (pictures), written with
+    /// [`PngRowWriter::write_rgba8`].
+    pub fn create_rgba8(path: &Path, width: usize, height: usize) -> Result<Self, RgbnError> {
+        Self::start(path, width, height, 8, png::ColorType::Rgba)
+    }
+
+    fn start(
+        path: &Path,
+        width: usize,
+        height: usize,
+        bits: u8,
+        color: png::ColorType,
+    ) -> Result<Self, RgbnError> {
+        let file = AtomicFile::create(path)?;
+        let out = BufWriter::with_capacity(1 << 20, file.handle()?);
+        let (w, h) = (
+            u32::try_from(width).map_err(|e| file.error(e))?,
+            u32::try_from(height).map_err(|e| file.error(e))?,
+        );
+        let mut enc = png::Encoder::new(out, w, h);
+        png_format(&mut enc, color, bits == 16);
+        let writer = enc.write_header().map_err(|e| file.error(e))?;
+        Ok(Self {
+            file,
+            writer,
+            width,
+            height,
+            bits,
+        })
+    }
+
+    /// The row writer (call once; its [`finish`](PngRowWriter::finish) before
+    /// [`commit`](Self::commit)).
+    pub fn rows(&mut self, encoding: RowEncoding) -> Result<PngRowWriter<'_>, RgbnError> {
+        let stream = self
+            .writer
+            .stream_writer_with_size(1 << 16)
+            .map_err(|e| self.file.error(e))?;
+        Ok(PngRowWriter {
+            stream,
+            path: &self.file.path,
+            width: self.width,
+            height: self.height,
+            sixteen: self.bits == 16,
+            encoding,
+            row: 0,
+            bytes: Vec::new(),
+        })
+    }
+
+    /// Ends the PNG and renames it over the target.
+    pub fn commit(self) -> Result<(), RgbnError> {
+        let Self { file, writer, .. } = self;
+        writer.finish().map_err(|e| file.error(e))?;
+        file.commit()
+    }
+}
+
+/// The rows of a [`PngTarget`], a band at a time.
+pub struct PngRowWriter<'a> {
+    stream: png::StreamWriter<'a, BufWriter<File>>,
+    path: &'a Path,
+    width: usize,
+    height: usize,
+    sixteen: bool,
+    encoding: RowEncoding,
+    /// Rows written so far.
+    row: usize,
+    bytes: Vec<u8>,
+}
+
+impl PngRowWriter<'_> {
+    fn error(&self, detail: impl ToString) -> RgbnError {
+        RgbnError::Write {
+            detail: detail.to_string(),
+            path: self.path.into(),
+        }
+    }
+
+    /// Encodes planes `[a, b, c]` (normal x, y, z or linear R, G, B) into `self.bytes` as PNG
+    /// samples, with the arithmetic of the whole-image writers.
+    fn encode(&mut self, planes: [&[f32]; 3]) {
+        use rayon::prelude::*;
+        const CHUNK: usize = 4096;
+        let n = planes[0].len();
+        let sixteen = self.sixteen;
+        let per = if sixteen { 6 } else { 3 };
+        self.bytes.clear();
+        self.bytes.resize(n * per, 0);
+        let scale = if sixteen { 65535.0 } else { 255.0 };
+        let enc = self.encoding;
+        let sample = move |v: f32, k: usize| -> u16 {
+            match enc {
+                RowEncoding::Normal(conv) => {
+                    let v = if k == 1 && conv == NormalConvention::DirectX {
+                        -v
+                    } else {
+                        v
+                    };
+                    ((v.clamp(-1.0, 1.0) + 1.0) * 0.5 * scale + 0.5).min(scale) as u16
+                }
+                RowEncoding::Srgb if sixteen => {
+                    (linear_to_srgb(v.clamp(0.0, 1.0)) * 65535.0 + 0.5) as u16
+                }
+                RowEncoding::Srgb => u16::from(linear_to_srgb8(v)),
+            }
+        };
+        self.bytes
+            .par_chunks_mut(CHUNK * per)
+            .enumerate()
+            .for_each(|(ci, out)| {
+                let base = ci * CHUNK;
+                for (i, px) in out.chunks_exact_mut(per).enumerate() {
+                    for (k, plane) in planes.iter().enumerate() {
+                        let s = sample(plane[base + i], k);
+                        if sixteen {
+                            px[2 * k..2 * k + 2].copy_from_slice(&s.to_be_bytes());
+                        } else {
+                            px[k] = s as u8;
+                        }
+                    }
+                }
+            });
+    }
+
+    /// Appends the next rows: planes `[a, b, c]` of the same whole number of rows.
+    pub fn write(&mut self, planes: [&[f32]; 3]) -> Result<(), RgbnError> {
+        let rows = planes[0].len() / self.width;
+        if self.row + rows > self.height {
+            return Err(self.error(format!(
+                "{} rows written to a {}-row image",
+                self.row + rows,
+                self.height
+            )));
+        }
+        self.encode(planes);
+        self.row += rows;
+        let r = self.stream.write_all(&self.bytes);
+        r.map_err(|e| self.error(e))
+    }
+
+    /// Appends the next rows of an RGBA target: `4 · width` bytes per row.
+    pub fn write_rgba8(&mut self, bytes: &[u8]) -> Result<(), RgbnError> {
+        let rows = bytes.len() / (4 * self.width);
+        if self.row + rows > self.height {
+            return Err(self.error(format!(
+                "{} rows written to a {}-row image",
+                self.row + rows,
+                self.height
+            )));
+        }
+        self.row += rows;
+        let r = self.stream.write_all(bytes);
+        r.map_err(|e| self.error(e))
+    }
+
+    /// Checks that every row was written and ends the image data.
+    pub fn finish(self) -> Result<(), RgbnError> {
+        if self.row != self.height {
+            return Err(self.error(format!(
+                "only {} of {} rows were written",
+                self.row, self.height
+            )));
+        }
+        let path = self.path;
+        self.stream.finish().map_err(|e| RgbnError::Write {
+            detail: e.to_string(),
+            path: path.into(),
+        })
+    }
+}
