@@ -42,15 +42,19 @@ fn tile_keys_differ_by_every_coordinate() {
 
 #[test]
 fn damage_boxes_cover_the_pixels_whose_centres_they_contain() {
-    // A box from (3.5, 2.0) to (10.2, 4.0) touches pixel columns 3..=11 (the ceil of 10.2 and
-    // one more for the half-open end) and rows 2..=5, clamped to the image.
+    // A box from (3.5, 2.0) to (10.2, 4.0) touches pixel columns 3..=11 (floor of the start,
+    // ceil of the end) and rows 2..=4.
     let r = boxes_to_rects(&[[3.5, 2.0, 10.2, 4.0]], (100, 100));
-    assert_eq!(r, vec![Rect::new(3, 2, 9, 4)]);
-    // Outside the image: nothing; NaN coordinates clamp to the origin.
+    assert_eq!(r, vec![Rect::new(3, 2, 9, 3)]);
+    // Outside the image: nothing; partly outside: clamped to the image; NaN counts as 0.
     assert!(boxes_to_rects(&[[200.0, 200.0, 300.0, 300.0]], (100, 100)).is_empty());
     assert_eq!(
         boxes_to_rects(&[[-5.0, -5.0, 1.0, 1.0]], (100, 100)),
-        vec![Rect::new(0, 0, 3, 3)]
+        vec![Rect::new(0, 0, 2, 2)]
+    );
+    assert_eq!(
+        boxes_to_rects(&[[f64::NAN, 1.0, 2.0, 2.0]], (100, 100)),
+        vec![Rect::new(0, 1, 3, 2)]
     );
 }
 
