@@ -25,6 +25,7 @@
 //! assert_eq!(describe::<Blur>()[0].name, "sigma_px");
 //! ```
 
+use std::cell::Cell;
 use std::collections::BTreeMap;
 use std::fmt;
 
@@ -390,7 +391,9 @@ macro_rules! choice_enum {
 /// each field's doc comment is its documentation (inspector tooltip, `rgbn ops`), then
 /// `name: type = default => kind` with the [`Meta`] builder calls (`unit`, `range`, `output`,
 /// `optional`). `kind` is a [`ParamVisitor`] method (`float`, `int`, `bool`, `text`, `path`,
-/// `vec3`, `floats`, `profile`, `points`) or `choice` for a [`Choice`] enum.
+/// `vec3`, `floats`, `profile`, `points`), `choice` for a [`Choice`] enum, or `flatten` for a
+/// field that is itself a params struct (its parameters appear as the parent's, unprefixed:
+/// one declaration shared by several operators).
 ///
 /// ```
 /// rgbn::params! {
@@ -434,6 +437,10 @@ macro_rules! params {
     (@visit choice, $v:ident, $n:expr, $f:expr, $meta:expr) => {
         $crate::params::visit_choice($v, $n, $f, $meta)
     };
+    (@visit flatten, $v:ident, $n:expr, $f:expr, $meta:expr) => {{
+        let _ = $meta;
+        $crate::params::Params::visit($f, $v)
+    }};
     (@visit $kind:ident, $v:ident, $n:expr, $f:expr, $meta:expr) => {
         $v.$kind($n, $f, $meta)
     };
@@ -728,17 +735,15 @@ impl ParamVisitor for Apply<'_> {
     fn path(&mut self, name: &'static str, value: &mut String, meta: &Meta) {
         match self.get(name).cloned() {
             None => {}
-            Some(ParamValue::Path(s) | ParamValue::Text(s)) => {
-                if s.is_empty() && !meta.optional {
-                    self.errors.push(ParamError::Range {
-                        name: name.into(),
-                        detail: "a file path is required".into(),
-                    });
-                } else {
-                    *value = s;
-                }
-            }
-            Some(v) => self.kind_err(name, "path", &v),
+            Some(ParamValue::Path(s) | ParamValue::Text(s)) => *value = s,
+            Some(v) => return self.kind_err(name, "path", &v),
+        }
+        // A required path refused here, whether given empty or not given at all.
+        if value.is_empty() && !meta.optional {
+            self.errors.push(ParamError::Range {
+                name: name.into(),
+                detail: "a file path is required".into(),
+            });
         }
     }
     fn vec3(&mut self, name: &'static str, value: &mut [f64; 3], meta: &Meta) {
@@ -787,6 +792,17 @@ impl ParamVisitor for Apply<'_> {
 /// Builds `P` from defaults overridden by `values`. Unknown names, wrong kinds and values out of
 /// range are errors (the first one found is returned).
 pub fn from_values<P: Params>(values: &BTreeMap<String, ParamValue>) -> Result<P, ParamError> {
+    PARSES.with(|n| n.set(n.get() + 1));
+    apply(values)
+}
+
+/// Checks the values of `p` against their declarations (ranges, finite numbers, required
+/// paths): the checks [`from_values`] makes, on a struct built in code.
+pub fn check_ranges<P: Params>(p: &P) -> Result<(), ParamError> {
+    apply::<P>(&to_values(p)).map(|_| ())
+}
+
+fn apply<P: Params>(values: &BTreeMap<String, ParamValue>) -> Result<P, ParamError> {
     let known: Vec<&'static str> = describe::<P>().iter().map(|i| i.name).collect();
     if let Some(name) = values.keys().find(|k| !known.contains(&k.as_str())) {
         return Err(ParamError::Unknown {
@@ -804,6 +820,121 @@ pub fn from_values<P: Params>(values: &BTreeMap<String, ParamValue>) -> Result<P
         Some(e) => Err(e),
         None => Ok(p),
     }
+}
+
+thread_local! {
+    /// Parameter maps parsed into structs by [`from_values`] on this thread: a graph's nodes
+    /// are parsed once per change where the graph is built, and this counts it.
+    static PARSES: Cell<usize> = const { Cell::new(0) };
+}
+
+/// How many times [`from_values`] has run on this thread.
+#[must_use]
+pub fn parses() -> usize {
+    PARSES.with(Cell::get)
+}
+
+/// A position of a full-resolution image (pixel centres at whole numbers) on the grid reduced
+/// by `s`, whose pixel `X` covers full-resolution pixels `X·s .. (X + 1)·s`.
+#[must_use]
+pub fn scale_point(p: [f64; 2], s: f64) -> [f64; 2] {
+    p.map(|c| (c - (s - 1.0) / 2.0) / s)
+}
+
+/// Rewrites the lengths and positions of a params struct from their declarations.
+struct Rescale {
+    /// Divides lengths (`px` floats, lists and profiles); `None`: leaves them.
+    scale: Option<f64>,
+    /// Maps each point.
+    point: Box<dyn Fn([f64; 2]) -> [f64; 2]>,
+}
+
+impl Rescale {
+    fn length(&self, v: f64, meta: &Meta) -> f64 {
+        match self.scale {
+            Some(s) if meta.unit == "px" => {
+                let x = v / s;
+                match meta.range {
+                    Some((lo, hi)) => x.clamp(lo, hi),
+                    None => x,
+                }
+            }
+            _ => v,
+        }
+    }
+}
+
+impl ParamVisitor for Rescale {
+    fn bool(&mut self, _: &'static str, _: &mut bool, _: &Meta) {}
+    fn int(&mut self, _: &'static str, _: &mut i64, _: &Meta) {}
+    fn float(&mut self, _: &'static str, value: &mut f64, meta: &Meta) {
+        *value = self.length(*value, meta);
+    }
+    fn choice(&mut self, _: &'static str, _: &mut &'static str, _: &[&'static str], _: &Meta) {}
+    fn text(&mut self, _: &'static str, _: &mut String, _: &Meta) {}
+    fn path(&mut self, _: &'static str, _: &mut String, _: &Meta) {}
+    fn vec3(&mut self, _: &'static str, _: &mut [f64; 3], _: &Meta) {}
+    fn floats(&mut self, _: &'static str, value: &mut Vec<f64>, meta: &Meta) {
+        for v in value {
+            *v = self.length(*v, meta);
+        }
+    }
+    fn profile(&mut self, _: &'static str, value: &mut Vec<f64>, meta: &Meta) {
+        self.floats("", value, meta);
+    }
+    fn points(&mut self, _: &'static str, value: &mut Vec<[f64; 2]>, _: &Meta) {
+        for p in value {
+            *p = (self.point)(*p);
+        }
+    }
+}
+
+/// `p` on a grid `s` times coarser, from its declarations: every `float`, `floats` and
+/// `profile` with unit `px` divided by `s` and kept within its declared range, every `points`
+/// list mapped with [`scale_point`]. Integers (kernel radii and sizes in whole pixels) are left
+/// as they are: an operator with such lengths has no coarse form from its declarations.
+#[must_use]
+pub fn scaled<P: Params>(p: &P, s: f64) -> P {
+    let mut out = p.clone();
+    out.visit(&mut Rescale {
+        scale: Some(s),
+        point: Box::new(move |q| scale_point(q, s)),
+    });
+    out
+}
+
+/// `p` on the crop of the image whose top-left pixel is `(dx, dy)`: every `points` list moved
+/// by `(−dx, −dy)`. Operators use their points as `f32`; the shift is applied to those values,
+/// where moving by whole pixels is exact, so a crop sees a path exactly where the whole image
+/// does.
+#[must_use]
+pub fn shifted<P: Params>(p: &P, dx: f64, dy: f64) -> P {
+    let mut out = p.clone();
+    out.visit(&mut Rescale {
+        scale: None,
+        point: Box::new(move |q| [f64::from(q[0] as f32) - dx, f64::from(q[1] as f32) - dy]),
+    });
+    out
+}
+
+/// Passes every path parameter of `p` (name, metadata, value) through `f`.
+pub fn map_paths<P: Params>(p: &mut P, f: &mut dyn FnMut(&'static str, &Meta, &mut String)) {
+    struct Paths<'a>(&'a mut dyn FnMut(&'static str, &Meta, &mut String));
+    impl ParamVisitor for Paths<'_> {
+        fn bool(&mut self, _: &'static str, _: &mut bool, _: &Meta) {}
+        fn int(&mut self, _: &'static str, _: &mut i64, _: &Meta) {}
+        fn float(&mut self, _: &'static str, _: &mut f64, _: &Meta) {}
+        fn choice(&mut self, _: &'static str, _: &mut &'static str, _: &[&'static str], _: &Meta) {}
+        fn text(&mut self, _: &'static str, _: &mut String, _: &Meta) {}
+        fn path(&mut self, name: &'static str, value: &mut String, meta: &Meta) {
+            (self.0)(name, meta, value);
+        }
+        fn vec3(&mut self, _: &'static str, _: &mut [f64; 3], _: &Meta) {}
+        fn floats(&mut self, _: &'static str, _: &mut Vec<f64>, _: &Meta) {}
+        fn profile(&mut self, _: &'static str, _: &mut Vec<f64>, _: &Meta) {}
+        fn points(&mut self, _: &'static str, _: &mut Vec<[f64; 2]>, _: &Meta) {}
+    }
+    p.visit(&mut Paths(f));
 }
 
 /// Levenshtein distance (for "did you mean" suggestions).

@@ -91,3 +91,6 @@ mod fused_filter;
 
 #[path = "it/layers.rs"]
 mod layers;
+
+#[path = "it/parse_once.rs"]
+mod parse_once;

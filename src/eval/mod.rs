@@ -30,7 +30,7 @@ pub use cache::{CacheEntry, CacheKey, MemCache};
 pub use disk::DiskCache;
 
 use crate::graph::{At, GraphError, LoadedGraph, NodeId, NodeKind, PortRef, Source};
-use crate::nodes::{self, DynOp, PortType, RunContext, Value};
+use crate::nodes::{self, DynOp, Parsed, PortType, RunContext, Value};
 use crate::params::{nearest, ParamKind, ParamValue};
 use crate::raster::gradient::GradientField;
 use rayon::prelude::*;
@@ -68,8 +68,8 @@ pub enum Conn {
 pub struct Instance {
     /// The operator.
     pub op: &'static dyn DynOp,
-    /// Canonical parameters with resolved paths.
-    pub params: BTreeMap<String, ParamValue>,
+    /// Its parameters, parsed once (relative paths resolved).
+    pub params: Parsed,
     /// Inputs in port order.
     pub inputs: Vec<Conn>,
     /// The node it comes from (file, id, name).
@@ -145,7 +145,7 @@ impl Plan {
             let op = nodes::find(op_id).expect("registered");
             let mut params = BTreeMap::new();
             params.insert(param.to_string(), ParamValue::Path(display(path)));
-            let params = op.canonical(&params).map_err(|e| GraphError::Param {
+            let params = op.parse(&params).map_err(|e| GraphError::Param {
                 param: name.clone(),
                 detail: e.to_string(),
                 at: lg.at(),
@@ -206,27 +206,25 @@ impl Plan {
                 .collect();
             match &lg.kinds[id] {
                 NodeKind::Op { op, params } => {
-                    let mut params = params.clone();
-                    for info in op.params() {
-                        if info.kind != ParamKind::Path {
-                            continue;
-                        }
-                        if let Some(ParamValue::Path(p)) = params.get_mut(info.name) {
+                    let has_path = op.params().iter().any(|info| {
+                        info.kind == ParamKind::Path
+                            && matches!(params.values().get(info.name), Some(ParamValue::Path(p)) if !p.is_empty())
+                    });
+                    let params = if has_path {
+                        op.map_paths(params, &mut |_, meta, p| {
                             if p.is_empty() {
-                                continue;
+                                return;
                             }
-                            let base = if info.meta.output {
-                                out_dir
-                            } else {
-                                &lg.base_dir
-                            };
+                            let base = if meta.output { out_dir } else { &lg.base_dir };
                             let resolved = base.join(&*p);
-                            if !info.meta.output {
+                            if !meta.output {
                                 self.protected.push(resolved.clone());
                             }
                             *p = display(&resolved);
-                        }
-                    }
+                        })
+                    } else {
+                        params.clone()
+                    };
                     self.instances.push(Instance {
                         op: *op,
                         params,
@@ -501,23 +499,20 @@ impl Evaluator {
         let inst = &plan.instances[i];
         let spec = inst.op.spec();
         let mut h = xxhash_rust::xxh3::Xxh3::new();
-        h.update(b"rgbn-node-key-1\0");
+        h.update(b"rgbn-node-key-2\0");
         h.update(spec.id.as_bytes());
         h.update(&spec.version.to_le_bytes());
-        for (name, value) in &inst.params {
-            h.update(&(name.len() as u64).to_le_bytes());
-            h.update(name.as_bytes());
-            let is_input_file = inst
-                .op
-                .params()
-                .iter()
-                .any(|p| p.name == name && p.kind == ParamKind::Path && !p.meta.output);
-            match value {
-                ParamValue::Path(p) if is_input_file && !p.is_empty() => {
+        h.update(&inst.params.hash().to_le_bytes());
+        // Files read are keyed by their bytes (the parameters' hash leaves their paths out).
+        for info in inst.op.params() {
+            if info.kind != ParamKind::Path || info.meta.output {
+                continue;
+            }
+            if let Some(ParamValue::Path(p)) = inst.params.values().get(info.name) {
+                if !p.is_empty() {
                     h.update(b"file-content");
                     h.update(&self.file_hash(Path::new(p), &inst.at)?.to_le_bytes());
                 }
-                v => v.hash_into(&mut h),
             }
         }
         for c in &inst.inputs {
@@ -780,14 +775,14 @@ impl Evaluator {
             })
             .collect();
         let t0 = Instant::now();
-        let values =
-            inst.op
-                .run(&inst.params, &inputs, ctx)
-                .map_err(|source| GraphError::Node {
-                    op: spec.id.to_string(),
-                    source,
-                    at: inst.at.clone(),
-                })?;
+        let values = inst
+            .op
+            .run(&inst.params, inputs, ctx)
+            .map_err(|source| GraphError::Node {
+                op: spec.id.to_string(),
+                source,
+                at: inst.at.clone(),
+            })?;
         let (curl, fraction) = if opts.curl_stats {
             integrability_of(&values)
         } else {

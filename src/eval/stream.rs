@@ -20,7 +20,6 @@ use crate::error::RgbnError;
 use crate::graph::GraphError;
 use crate::nodes::load::LoadParams;
 use crate::nodes::{Footprint, PortType, RunContext, Value};
-use crate::params::from_values;
 use crate::raster::strips::{self, Opened, StreamInput};
 
 /// A plan that can be streamed, with its opened input.
@@ -136,12 +135,9 @@ impl<'p> StreamPlan<'p> {
         let Some(source) = source else {
             return no("the outputs depend on no loaded image".into());
         };
-        let p: LoadParams =
-            from_values(&plan.instances[source].params).map_err(|e| GraphError::Param {
-                param: "path".into(),
-                detail: e.to_string(),
-                at: plan.instances[source].at.clone(),
-            })?;
+        let Some(p) = plan.instances[source].params.get::<LoadParams>() else {
+            return no("the loaded image comes from another operator".into());
+        };
         let at = plan.instances[source].at.clone();
         let spec = p.input_spec().map_err(|source| GraphError::Node {
             op: "load".into(),
@@ -227,7 +223,7 @@ impl<'p> StreamPlan<'p> {
                     .collect();
                 let v = inst
                     .op
-                    .run_at(&inst.params, &inputs, &ctx, (0, y0))
+                    .run_at(&inst.params, inputs, &ctx, (0, y0), 1)
                     .map_err(|e| Fail::Graph(node_err(i, e)))?;
                 values[i] = Some(v);
             }

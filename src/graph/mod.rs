@@ -15,7 +15,7 @@ pub mod file;
 pub use error::{At, GraphError};
 pub use file::{ExposedDef, InputDef, NodeDef, PortRef, Source};
 
-use crate::nodes::{self, DynOp, PortSpec, PortType, GRAPH_NODE_OP};
+use crate::nodes::{self, DynOp, Parsed, PortSpec, PortType, GRAPH_NODE_OP};
 use crate::params::{nearest, ParamInfo, ParamKind, ParamValue};
 use std::collections::{BTreeMap, BTreeSet};
 use std::path::{Path, PathBuf};
@@ -148,17 +148,7 @@ impl Graph {
             let sub = LoadedGraph::load(&base_dir.join(rel))?;
             return Ok(sub.ports_as_node());
         }
-        let Some(op) = nodes::find(&node.op) else {
-            let ids = nodes::registry()
-                .iter()
-                .map(|o| o.spec().id)
-                .chain([GRAPH_NODE_OP]);
-            return Err(GraphError::UnknownOp {
-                op: node.op.clone(),
-                suggestion: nearest(&node.op, ids),
-                at,
-            });
-        };
+        let op = find_op(&node.op, at)?;
         Ok(NodePorts {
             inputs: op.spec().inputs.clone(),
             outputs: op.spec().outputs.clone(),
@@ -276,15 +266,30 @@ pub struct NodePorts {
     pub outputs: Vec<PortSpec>,
 }
 
+/// The registered operator `id`, or an error naming the nearest id.
+fn find_op(id: &str, at: At) -> Result<&'static dyn DynOp, GraphError> {
+    nodes::find(id).ok_or_else(|| {
+        let ids = nodes::registry()
+            .iter()
+            .map(|o| o.spec().id)
+            .chain([GRAPH_NODE_OP]);
+        GraphError::UnknownOp {
+            op: id.to_string(),
+            suggestion: nearest(id, ids),
+            at,
+        }
+    })
+}
+
 /// What a node runs.
 #[derive(Clone)]
 pub enum NodeKind {
-    /// A registered operator with its canonical parameters (every parameter present).
+    /// A registered operator with its parameters, parsed and checked once.
     Op {
         /// The operator.
         op: &'static dyn DynOp,
-        /// Canonical parameters.
-        params: BTreeMap<String, ParamValue>,
+        /// The parameters.
+        params: Parsed,
     },
     /// A graph file used as a node, loaded with this node's parameter overrides applied.
     Graph(Arc<LoadedGraph>),
@@ -423,19 +428,9 @@ impl LoadedGraph {
         if node.op == GRAPH_NODE_OP {
             return self.resolve_graph_node(node, at, stack);
         }
-        let Some(op) = nodes::find(&node.op) else {
-            let ids = nodes::registry()
-                .iter()
-                .map(|o| o.spec().id)
-                .chain([GRAPH_NODE_OP]);
-            return Err(GraphError::UnknownOp {
-                op: node.op.clone(),
-                suggestion: nearest(&node.op, ids),
-                at,
-            });
-        };
+        let op = find_op(&node.op, at.clone())?;
         let params = op
-            .canonical(&node.params)
+            .parse(&node.params)
             .map_err(|e| param_error(&e, at.clone()))?;
         let spec = op.spec();
         Ok((

@@ -10,7 +10,7 @@
 //! Parameters of the photometric-stereo node (the nodes below); the solver lives in
 //! [`crate::capture::photometric`].
 
-use super::{Inputs, OpSpec, Operator, PortSpec, PortType, RunContext, Value};
+use super::{Kind, NoInputs, OpSpec, Operator, RunContext};
 use crate::capture::inputs::load_inputs;
 use crate::capture::inputs::{read_name_list, PsInputSpec, Transfer};
 use crate::capture::lp::is_lp;
@@ -20,6 +20,7 @@ use crate::error::RgbnError;
 use crate::params::Choice;
 use crate::raster::gradient::GradientField;
 use crate::raster::integrate::curl_interior;
+use crate::RgbnImage;
 use std::path::{Path, PathBuf};
 
 impl Choice for PsMethod {
@@ -125,11 +126,25 @@ impl PhotometricSettings {
     }
 }
 
+crate::outputs! {
+    /// Outputs of [`PhotometricStereoNode`].
+    pub struct PhotometricOut {
+        /// Albedo + normals; mask 1 where a normal was estimated.
+        pub image: RgbnImage,
+        /// Pixels with an estimated normal.
+        pub solved: f64,
+        /// RMS(curl) / RMS(|g|) of the estimated normals (mask interior): the integrability readout (0 for the gradients of a height).
+        pub relative_rms_curl: f64,
+    }
+}
+
 /// Photometric stereo source.
 pub struct PhotometricStereoNode;
 
 impl Operator for PhotometricStereoNode {
     type Params = PhotometricSettings;
+    type In = NoInputs;
+    type Out = PhotometricOut;
     fn spec() -> OpSpec {
         OpSpec::new(
             "photometric_stereo",
@@ -137,48 +152,41 @@ impl Operator for PhotometricStereoNode {
             "input",
             "Builds an RGBN image from photos of one viewpoint under known directional lights (Woodham 1980; trimmed robust variant): albedo colour, unit normals and a mask of the solved pixels.",
         )
-        .output(PortSpec::new(
-            "image",
-            PortType::Rgbn,
-            "Albedo + normals; mask 1 where a normal was estimated.",
-        ))
-        .output(PortSpec::new(
-            "solved",
-            PortType::Number,
-            "Pixels with an estimated normal.",
-        ))
-        .output(super::kit::curl_port("estimated normals (mask interior)"))
     }
     fn check(p: &PhotometricSettings) -> Result<(), RgbnError> {
         p.check_files()
     }
+    fn kind(_: &PhotometricSettings) -> Kind {
+        // Reads files whole.
+        Kind::GLOBAL
+    }
     fn run(
         p: &PhotometricSettings,
-        _: &Inputs<'_>,
+        _: NoInputs,
         _: &RunContext,
-    ) -> Result<Vec<Value>, RgbnError> {
+    ) -> Result<PhotometricOut, RgbnError> {
         let inputs = load_inputs(&p.inputs()?)?;
         let params = PhotometricParams {
             method: p.method,
             ..PhotometricParams::default()
         };
-        let (img, rep) = photometric_stereo(
+        let (image, rep) = photometric_stereo(
             &inputs.stack,
             &inputs.lights,
             inputs.mask.as_deref(),
             &params,
         )?;
         // Over the mask's interior: the curl stencil must not straddle the silhouette.
-        let interior = img
+        let interior = image
             .mask()
-            .map(|m| curl_interior(m, img.width(), img.height()));
-        let curl = GradientField::from_normals(&img)
+            .map(|m| curl_interior(m, image.width(), image.height()));
+        let curl = GradientField::from_normals(&image)
             .curl_stats(interior.as_deref())
             .relative;
-        Ok(vec![
-            Value::Rgbn(img),
-            Value::Number(rep.solved as f64),
-            Value::Number(curl),
-        ])
+        Ok(PhotometricOut {
+            image,
+            solved: rep.solved as f64,
+            relative_rms_curl: curl,
+        })
     }
 }

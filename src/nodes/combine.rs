@@ -1,17 +1,44 @@
 //! The linear combine of [`crate::ops::combine`] as a node (`combine.linear`, with a detail
 //! given as normals or as a height); the rotation combine is in [`super::rotate`].
 
-use super::kit::{curl_port, kernel_footprint};
-use super::{Footprint, Inputs, OpSpec, Operator, PortSpec, PortType, RunContext, Value};
+use super::kit::kernel_kind;
+use super::{Coarse, Kind, Mask, OpSpec, Operator, RunContext, Scalar};
 use crate::error::RgbnError;
 use crate::ops::combine::{linear_combine_height, linear_combine_images, LinearCombineParams};
 use crate::raster::gradient::GradientField;
+use crate::RgbnImage;
+
+crate::inputs! {
+    /// Inputs of [`LinearCombineNode`].
+    pub struct LinearCombineIn {
+        /// Base image (colour and mask are kept).
+        pub base: RgbnImage,
+        /// Detail as normals (connect this or detail_height).
+        pub detail: Option<RgbnImage>,
+        /// Detail as a height in pixels (connect this or detail).
+        pub detail_height: Option<Scalar>,
+        /// Per-pixel weight m in [0, 1] (1 everywhere when unconnected).
+        pub weight: Option<Mask>,
+    }
+}
+
+crate::outputs! {
+    /// Outputs of [`LinearCombineNode`].
+    pub struct LinearCombineOut {
+        /// Combined image.
+        pub image: RgbnImage,
+        /// RMS(curl) / RMS(|g|) of the combined gradients inside the mask: the integrability readout (0 for the gradients of a height).
+        pub relative_rms_curl: f64,
+    }
+}
 
 /// Linear combine of gradients.
 pub struct LinearCombineNode;
 
 impl Operator for LinearCombineNode {
     type Params = LinearCombineParams;
+    type In = LinearCombineIn;
+    type Out = LinearCombineOut;
     fn spec() -> OpSpec {
         OpSpec::new(
             "combine.linear",
@@ -19,66 +46,39 @@ impl Operator for LinearCombineNode {
             "combine",
             "Adds a detail's relief to a base through their gradients (Pereira & Velho §IV): ∇b + α·m·∇h, optionally replacing a band of the base. With weight 1 it is the partial-derivative blend. A detail given as a height adds α·∇(m·h) instead, which stays integrable for any weight.",
         )
-        .input(PortSpec::new("base", PortType::Rgbn, "Base image (colour and mask are kept)."))
-        .input(
-            PortSpec::new(
-                "detail",
-                PortType::Rgbn,
-                "Detail as normals (connect this or detail_height).",
-            )
-            .optional(),
-        )
-        .input(
-            PortSpec::new(
-                "detail_height",
-                PortType::Scalar,
-                "Detail as a height in pixels (connect this or detail).",
-            )
-            .optional(),
-        )
-        .input(
-            PortSpec::new(
-                "weight",
-                PortType::Mask,
-                "Per-pixel weight m in [0, 1] (1 everywhere when unconnected).",
-            )
-            .optional(),
-        )
-        .output(PortSpec::new("image", PortType::Rgbn, "Combined image."))
-        .output(curl_port("combined gradients"))
     }
     fn check(p: &LinearCombineParams) -> Result<(), RgbnError> {
         p.validate()
     }
-    fn footprint(p: &LinearCombineParams, _input: usize) -> Footprint {
-        // A height or a weight is differentiated (one pixel); a replaced band is filtered.
-        match p.band() {
-            Ok(b) => kernel_footprint(p.border, 1.max(b.map_or(0, |b| b.kernel().support_px()))),
-            Err(_) => Footprint::Global,
-        }
+    fn kind(p: &LinearCombineParams) -> Kind {
+        // A height's gradient reads one pixel; a replaced band its kernel's reach.
+        let band = p.band().ok().flatten();
+        let halo = 1.max(band.map_or(0, |b| b.kernel().support_px()));
+        kernel_kind(p.border, halo, Coarse::None)
     }
     fn run(
         p: &LinearCombineParams,
-        i: &Inputs<'_>,
+        i: LinearCombineIn,
         _: &RunContext,
-    ) -> Result<Vec<Value>, RgbnError> {
-        p.validate()?;
-        let base = i.rgbn("base")?;
-        let weight = i.mask("weight")?;
-        match (i.rgbn_opt("detail")?, i.scalar("detail_height")?) {
+    ) -> Result<LinearCombineOut, RgbnError> {
+        let weight = i.weight.as_deref();
+        match (&i.detail, &i.detail_height) {
             (Some(detail), None) => {
-                let (img, rep) = linear_combine_images(base, detail, weight, p)?;
-                Ok(vec![
-                    Value::Rgbn(img),
-                    Value::Number(rep.curl_after.relative),
-                ])
+                let (image, rep) = linear_combine_images(&i.base, detail, weight, p)?;
+                Ok(LinearCombineOut {
+                    image,
+                    relative_rms_curl: rep.curl_after.relative,
+                })
             }
             (None, Some(h)) => {
-                let g = linear_combine_height(&GradientField::from_normals(base), h, weight, p)?;
-                let mut img = base.clone();
-                g.write_normals(&mut img);
-                let curl = g.curl_stats(base.mask()).relative;
-                Ok(vec![Value::Rgbn(img), Value::Number(curl)])
+                let g = linear_combine_height(&GradientField::from_normals(&i.base), h, weight, p)?;
+                let curl = g.curl_stats(i.base.mask()).relative;
+                let mut image = i.base;
+                g.write_normals(&mut image);
+                Ok(LinearCombineOut {
+                    image,
+                    relative_rms_curl: curl,
+                })
             }
             _ => Err(RgbnError::param(
                 "detail",

@@ -3,14 +3,15 @@
 //! parameters plus `border` and `mask_aware`. The node adds no maths: it calls
 //! [`filter_normals`] with a one-kernel list.
 
-use super::kit::kernel_footprint;
-use super::{Footprint, Inputs, OpSpec, Operator, PortSpec, PortType, RunContext, Value};
+use super::kit::kernel_kind;
+use super::{Coarse, Kind, OpSpec, Operator, RunContext};
 use crate::error::RgbnError;
 use crate::ops::filter::{
     filter_normals, BoxParams, DenseParams, DogParams, EdgeParams, FilterOptions, GaussianParams,
     HighPassParams, KernelParams, LogParams, ScaleParams, SeparableParams, SharpenParams,
 };
 use crate::params::{ParamVisitor, Params};
+use crate::RgbnImage;
 use std::marker::PhantomData;
 
 /// The node identity of a kernel's parameters ([`KernelParams`], declared in
@@ -41,35 +42,46 @@ impl<K: KernelNode> Params for FilterParams<K> {
     }
 }
 
+crate::inputs! {
+    /// Inputs of a filter node.
+    pub struct FilterIn {
+        /// Image to filter.
+        pub image: RgbnImage,
+    }
+}
+
+crate::outputs! {
+    /// Outputs of a filter node.
+    pub struct FilterOut {
+        /// Filtered normals; colour and mask unchanged.
+        pub image: RgbnImage,
+    }
+}
+
 /// A filter node for kernel parameters `K`.
 pub struct FilterOp<K>(PhantomData<fn() -> K>);
 
 impl<K: KernelNode> Operator for FilterOp<K> {
     type Params = FilterParams<K>;
+    type In = FilterIn;
+    type Out = FilterOut;
     fn spec() -> OpSpec {
         OpSpec::new(K::ID, K::TITLE, "filter", K::DOC)
-            .input(PortSpec::new("image", PortType::Rgbn, "Image to filter."))
-            .output(PortSpec::new(
-                "image",
-                PortType::Rgbn,
-                "Filtered normals; colour and mask unchanged.",
-            ))
     }
     fn check(p: &FilterParams<K>) -> Result<(), RgbnError> {
         p.kernel.kernel().validate()
     }
-    fn scaled(p: &FilterParams<K>, s: f64) -> Option<FilterParams<K>> {
-        Some(FilterParams {
-            kernel: p.kernel.scaled(s)?,
-            options: p.options,
-        })
+    fn kind(p: &FilterParams<K>) -> Kind {
+        let coarse = if K::COARSE {
+            Coarse::Scaled
+        } else {
+            Coarse::None
+        };
+        kernel_kind(p.options.border, p.kernel.kernel().support_px(), coarse)
     }
-    fn footprint(p: &FilterParams<K>, _input: usize) -> Footprint {
-        kernel_footprint(p.options.border, p.kernel.kernel().support_px())
-    }
-    fn run(p: &FilterParams<K>, i: &Inputs<'_>, _: &RunContext) -> Result<Vec<Value>, RgbnError> {
-        let (out, _) = filter_normals(i.rgbn("image")?, &[p.kernel.kernel()], &p.options)?;
-        Ok(vec![Value::Rgbn(out)])
+    fn run(p: &FilterParams<K>, i: FilterIn, _: &RunContext) -> Result<FilterOut, RgbnError> {
+        let (image, _) = filter_normals(&i.image, &[p.kernel.kernel()], &p.options)?;
+        Ok(FilterOut { image })
     }
 }
 

@@ -1,14 +1,10 @@
 //! Integration as nodes: normals → height ([`integrate_normals`]), the integrability projection
 //! ([`project_integrable`]), and two writers: a height to EXR (`save.height`) and a height +
-//! image to a mesh (`save.mesh`, [`save_mesh`]). The pure functions live in
-//! [`crate::raster::integrate`] and [`crate::raster::mesh`], the parameters in
-//! [`crate::nodes::integrate`].
-//!
-//! Parameters of the integration and mesh nodes (the nodes below); the solvers
-//! are [`crate::raster::integrate`] and [`crate::raster::mesh`].
+//! image to a mesh (`save.mesh`, [`save_mesh`]), with their parameters. The solvers are
+//! [`crate::raster::integrate`] and [`crate::raster::mesh`].
 
 use super::save::write_value;
-use super::{Inputs, OpSpec, Operator, PortSpec, PortType, RunContext, Value};
+use super::{Coarse, Kind, OpSpec, Operator, RunContext, Scalar, Value};
 use crate::error::RgbnError;
 use crate::params::Choice;
 use crate::raster::integrate::{
@@ -18,6 +14,7 @@ use crate::raster::integrate::{Camera, Differences, IntegrateParams, Pinhole};
 use crate::raster::io::{self, SaveOptions};
 use crate::raster::mesh::save_mesh;
 use crate::raster::mesh::{MeshFormat, MeshParams};
+use crate::RgbnImage;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
@@ -102,21 +99,34 @@ crate::choice_enum! {
     }
 }
 
-/// The camera fields shared by the integrate and mesh nodes.
-struct CameraSpec<'a> {
-    model: CameraModel,
-    focal_px: f64,
-    focal_y_px: f64,
-    principal_centred: bool,
-    principal_x: f64,
-    principal_y: f64,
-    k_file: &'a str,
+crate::params! {
+    /// The camera of the integrate, project and mesh nodes.
+    #[derive(Clone, Debug, PartialEq)]
+    pub struct CameraSettings {
+        /// orthographic: parallel projection (heights in pixels; mesh vertices at (x·pixel_size, −row·pixel_size, height·z_scale)); pinhole: a pinhole camera (focal_px, principal point): integration works on the log-depth and its height is −Z for a depth Z up to scale (geometric mean focal_px over the domain), and a mesh places the 3-D points z_scale·((x − cx)·Z/fx, −(row − cy)·Z/fy, −Z) (camera at the origin looking along −z); k_file: the same camera from a 3×3 K matrix in a text file.
+        pub camera: CameraModel = CameraModel::Orthographic => choice,
+        /// Pinhole focal length (x; also y unless focal_y_px is set).
+        pub focal_px: f64 = 1000.0 => float.unit("px").range(-1e9, 1e9),
+        /// Pinhole focal length along y; 0 = the same as focal_px.
+        pub focal_y_px: f64 = 0.0 => float.unit("px").range(-1e9, 1e9),
+        /// Principal point at the image centre ((W−1)/2, (H−1)/2); off: principal_x, principal_y.
+        pub principal_centred: bool = true => bool,
+        /// Principal point column (pixel centres at integers), when principal_centred is off.
+        pub principal_x: f64 = 0.0 => float.unit("px").range(-1e9, 1e9),
+        /// Principal point row (downwards, pixel centres at integers), when principal_centred is off.
+        pub principal_y: f64 = 0.0 => float.unit("px").range(-1e9, 1e9),
+        /// Text file with the 3×3 intrinsic matrix K (rows of numbers, NumPy savetxt form) for camera k_file.
+        pub k_file: String = String::new() => path.optional(),
+    }
 }
 
-impl CameraSpec<'_> {
+impl CameraSettings {
     /// The camera for a `w × h` image (reads the K file).
-    fn camera(&self, w: usize, h: usize) -> Result<Camera, RgbnError> {
-        Ok(match self.model {
+    ///
+    /// # Errors
+    /// A focal length ≤ 0, a missing, unreadable or malformed K file.
+    pub fn camera_for(&self, w: usize, h: usize) -> Result<Camera, RgbnError> {
+        Ok(match self.camera {
             CameraModel::Orthographic => Camera::Orthographic,
             CameraModel::Pinhole => {
                 if self.focal_px.is_nan() || self.focal_px <= 0.0 {
@@ -145,14 +155,52 @@ impl CameraSpec<'_> {
                 Camera::Pinhole(c)
             }
             CameraModel::KFile => {
-                if self.k_file.is_empty() {
-                    return Err(RgbnError::param(
-                        "k_file",
-                        "camera k_file needs a K file path",
-                    ));
-                }
-                Camera::Pinhole(Pinhole::from_k_file(std::path::Path::new(self.k_file))?)
+                self.check_k_file()?;
+                Camera::Pinhole(Pinhole::from_k_file(Path::new(&self.k_file))?)
             }
+        })
+    }
+
+    /// The same camera without reading a K file (an orthographic stand-in for it), for the
+    /// checks that need no image.
+    ///
+    /// # Errors
+    /// Camera `k_file` without a file.
+    fn without_file(&self) -> Result<Self, RgbnError> {
+        if self.camera != CameraModel::KFile {
+            return Ok(self.clone());
+        }
+        self.check_k_file()?;
+        Ok(Self {
+            camera: CameraModel::Orthographic,
+            ..self.clone()
+        })
+    }
+
+    fn check_k_file(&self) -> Result<(), RgbnError> {
+        if self.k_file.is_empty() {
+            return Err(RgbnError::param(
+                "k_file",
+                "camera k_file needs a K file path",
+            ));
+        }
+        Ok(())
+    }
+
+    /// The camera for the normals reduced by `s`: focal lengths ÷ `s`, the principal point on
+    /// the coarse grid. A K file states full-resolution pixels: no such form.
+    fn at_level(&self, s: f64) -> Option<Self> {
+        if self.camera == CameraModel::KFile {
+            return None;
+        }
+        let [principal_x, principal_y] =
+            crate::params::scale_point([self.principal_x, self.principal_y], s);
+        Some(Self {
+            focal_px: self.focal_px / s,
+            focal_y_px: self.focal_y_px / s,
+            principal_x,
+            principal_y,
+            ..self.clone()
         })
     }
 }
@@ -170,20 +218,8 @@ crate::params! {
         pub tolerance: f64 = IntegrateParams::default().tolerance => float.range(1e-12, 0.5),
         /// averaged: an edge's slope is the average of its two pixel samples (normals sampled at pixel centres; heights registered at pixel centres); forward: one pixel's sample per edge (exact for forward differences of a height; half a pixel staggered otherwise). Graphs that do not name it get averaged.
         pub differences: Differences = Differences::Averaged => choice,
-        /// orthographic: heights in pixels; pinhole: a pinhole camera (focal_px, principal point) — the log-depth is integrated and the height output is −Z for a depth Z up to scale (geometric mean focal_px over the domain); k_file: the same camera from a 3×3 K matrix in a text file.
-        pub camera: CameraModel = CameraModel::Orthographic => choice,
-        /// Pinhole focal length (x; also y unless focal_y_px is set).
-        pub focal_px: f64 = 1000.0 => float.unit("px").range(-1e9, 1e9),
-        /// Pinhole focal length along y; 0 = the same as focal_px.
-        pub focal_y_px: f64 = 0.0 => float.unit("px").range(-1e9, 1e9),
-        /// Principal point at the image centre ((W−1)/2, (H−1)/2); off: principal_x, principal_y.
-        pub principal_centred: bool = true => bool,
-        /// Principal point column (pixel centres at integers), when principal_centred is off.
-        pub principal_x: f64 = 0.0 => float.unit("px").range(-1e9, 1e9),
-        /// Principal point row (downwards, pixel centres at integers), when principal_centred is off.
-        pub principal_y: f64 = 0.0 => float.unit("px").range(-1e9, 1e9),
-        /// Text file with the 3×3 intrinsic matrix K (rows of numbers, NumPy savetxt form) for camera k_file.
-        pub k_file: String = String::new() => path.optional(),
+        /// The camera.
+        pub camera: CameraSettings = CameraSettings::default() => flatten,
         /// Bilateral: sigmoid sharpness k (larger keeps discontinuities more easily; 0 = least squares).
         pub sharpness: f64 = 2.0 => float.range(0.0, 1e3),
         /// Bilateral: cap on reweighting iterations.
@@ -202,23 +238,13 @@ impl IntegrateSettings {
     /// # Errors
     /// A parameter out of range, a focal length ≤ 0, an unreadable or malformed K file.
     pub fn params_for(&self, w: usize, h: usize) -> Result<IntegrateParams, RgbnError> {
-        let camera = CameraSpec {
-            model: self.camera,
-            focal_px: self.focal_px,
-            focal_y_px: self.focal_y_px,
-            principal_centred: self.principal_centred,
-            principal_x: self.principal_x,
-            principal_y: self.principal_y,
-            k_file: &self.k_file,
-        }
-        .camera(w, h)?;
         let p = IntegrateParams {
             method: self.method,
             max_iterations: u32::try_from(self.max_iterations)
                 .map_err(|_| RgbnError::param("max_iterations", "out of range"))?,
             tolerance: self.tolerance,
             differences: self.differences,
-            camera,
+            camera: self.camera.camera_for(w, h)?,
             sharpness: self.sharpness,
             irls_iterations: u32::try_from(self.irls_iterations)
                 .map_err(|_| RgbnError::param("irls_iterations", "out of range"))?,
@@ -235,21 +261,35 @@ impl IntegrateSettings {
     /// # Errors
     /// As [`Self::params_for`] without the K file.
     pub fn params(&self) -> Result<IntegrateParams, RgbnError> {
-        let no_file = Self {
-            camera: if self.camera == CameraModel::KFile {
-                if self.k_file.is_empty() {
-                    return Err(RgbnError::param(
-                        "k_file",
-                        "camera k_file needs a K file path",
-                    ));
-                }
-                CameraModel::Orthographic
+        Self {
+            camera: self.camera.without_file()?,
+            ..self.clone()
+        }
+        .params_for(1, 1)
+    }
+
+    /// The integration at a level of detail (the normals reduced by `s`): the camera's
+    /// lengths in pixels ÷ `s`, and the bilateral sharpness × `s²`, so that a depth jump of
+    /// `J` pixels, `J/s` on the coarse grid, is weighed as at full resolution.
+    fn at_level(&self, s: f64) -> Option<Self> {
+        Some(Self {
+            camera: self.camera.at_level(s)?,
+            sharpness: if self.method == IntegrationMethod::Bilateral {
+                self.sharpness * s * s
             } else {
-                self.camera
+                self.sharpness
             },
             ..self.clone()
-        };
-        no_file.params_for(1, 1)
+        })
+    }
+}
+
+crate::params! {
+    /// Parameters of writing a height (any scalar field) to EXR.
+    #[derive(Clone, Debug, PartialEq)]
+    pub struct SaveHeightParams {
+        /// Output .exr (one f32 channel Y).
+        pub path: String = String::new() => path.output(),
     }
 }
 
@@ -265,20 +305,8 @@ crate::params! {
         pub z_scale: f64 = 1.0 => float.range(-1e6, 1e6),
         /// World size of one pixel.
         pub pixel_size: f64 = 1.0 => float.range(1e-9, 1e9),
-        /// orthographic: vertices at (x·pixel_size, −row·pixel_size, height·z_scale); pinhole / k_file: the height is −Z of a pinhole integration and vertices are the 3-D points z_scale·((x − cx)·Z/fx, −(row − cy)·Z/fy, −Z) (camera at the origin looking along −z; use the integrate node's camera).
-        pub camera: CameraModel = CameraModel::Orthographic => choice,
-        /// Pinhole focal length (x; also y unless focal_y_px is set).
-        pub focal_px: f64 = 1000.0 => float.unit("px").range(-1e9, 1e9),
-        /// Pinhole focal length along y; 0 = the same as focal_px.
-        pub focal_y_px: f64 = 0.0 => float.unit("px").range(-1e9, 1e9),
-        /// Principal point at the image centre ((W−1)/2, (H−1)/2); off: principal_x, principal_y.
-        pub principal_centred: bool = true => bool,
-        /// Principal point column (pixel centres at integers), when principal_centred is off.
-        pub principal_x: f64 = 0.0 => float.unit("px").range(-1e9, 1e9),
-        /// Principal point row (downwards), when principal_centred is off.
-        pub principal_y: f64 = 0.0 => float.unit("px").range(-1e9, 1e9),
-        /// Text file with the 3×3 intrinsic matrix K for camera k_file.
-        pub k_file: String = String::new() => path.optional(),
+        /// The camera (use the integrate node's).
+        pub camera: CameraSettings = CameraSettings::default() => flatten,
     }
 }
 
@@ -288,17 +316,7 @@ impl SaveMeshSettings {
     /// # Errors
     /// A parameter out of range, a focal length ≤ 0, an unreadable or malformed K file.
     pub fn params_for(&self, w: usize, h: usize) -> Result<MeshParams, RgbnError> {
-        let camera = match (CameraSpec {
-            model: self.camera,
-            focal_px: self.focal_px,
-            focal_y_px: self.focal_y_px,
-            principal_centred: self.principal_centred,
-            principal_x: self.principal_x,
-            principal_y: self.principal_y,
-            k_file: &self.k_file,
-        })
-        .camera(w, h)?
-        {
+        let camera = match self.camera.camera_for(w, h)? {
             Camera::Orthographic => None,
             Camera::Pinhole(c) => Some(c),
         };
@@ -317,64 +335,38 @@ impl SaveMeshSettings {
     /// # Errors
     /// As [`Self::params_for`] without the K file.
     pub fn params(&self) -> Result<MeshParams, RgbnError> {
-        if self.camera == CameraModel::KFile {
-            if self.k_file.is_empty() {
-                return Err(RgbnError::param(
-                    "k_file",
-                    "camera k_file needs a K file path",
-                ));
-            }
-            return Self {
-                camera: CameraModel::Orthographic,
-                ..self.clone()
-            }
-            .params_for(1, 1);
+        Self {
+            camera: self.camera.without_file()?,
+            ..self.clone()
         }
-        self.params_for(1, 1)
+        .params_for(1, 1)
     }
 }
 
-crate::params! {
-    /// Parameters of writing a height (any scalar field) to EXR.
-    #[derive(Clone, Debug, PartialEq)]
-    pub struct SaveHeightParams {
-        /// Output .exr (one f32 channel Y).
-        pub path: String = String::new() => path.output(),
+/// `z` (a height in coarse pixels) multiplied by `s`: full-resolution pixels.
+fn height_times(z: Scalar, s: f64) -> Scalar {
+    let mut z = Arc::unwrap_or_clone(z.0);
+    let s = s as f32;
+    z.data_mut().iter_mut().for_each(|v| *v *= s);
+    Scalar::new(z)
+}
+
+crate::inputs! {
+    /// Inputs of [`IntegrateNode`].
+    pub struct IntegrateIn {
+        /// Image (its mask is the masked_poisson domain).
+        pub image: RgbnImage,
     }
 }
 
-/// The integration's form at a level of detail (the normals reduced by `s`): lengths in pixels
-/// divided by `s` (a pinhole's focal lengths and principal point), and the bilateral sharpness
-/// times `s²`, so that a depth jump of `J` pixels, `J/s` on the coarse grid, is weighed as at
-/// full resolution. A K file has no such form (it states full-resolution pixels).
-fn integrate_at_level(p: &IntegrateSettings, s: f64) -> Option<IntegrateSettings> {
-    if p.camera == CameraModel::KFile {
-        return None;
+crate::outputs! {
+    /// Outputs of [`IntegrateNode`].
+    pub struct IntegrateOut {
+        /// Height in pixels (orthographic), or −Z for the depth Z (pinhole; geometric mean focal_px over the domain).
+        pub height: Scalar,
+        /// RMS over the domain's edges of ∇z − g in pixels per pixel: how far the field is from integrable.
+        pub rms_residual: f64,
     }
-    let [principal_x, principal_y] = super::scale_point([p.principal_x, p.principal_y], s);
-    Some(IntegrateSettings {
-        focal_px: p.focal_px / s,
-        focal_y_px: p.focal_y_px / s,
-        principal_x,
-        principal_y,
-        sharpness: if p.method == IntegrationMethod::Bilateral {
-            p.sharpness * s * s
-        } else {
-            p.sharpness
-        },
-        ..p.clone()
-    })
-}
-
-/// Output `k` (a height in coarse pixels) multiplied by `s`: full-resolution pixels.
-fn height_times(mut outputs: Vec<Value>, k: usize, s: f64) -> Vec<Value> {
-    if let Some(Value::Scalar(z)) = outputs.get_mut(k) {
-        let mut z2 = (**z).clone();
-        let s = s as f32;
-        z2.data_mut().iter_mut().for_each(|v| *v *= s);
-        *z = Arc::new(z2);
-    }
-    outputs
 }
 
 /// Normals → height.
@@ -382,6 +374,8 @@ pub struct IntegrateNode;
 
 impl Operator for IntegrateNode {
     type Params = IntegrateSettings;
+    type In = IntegrateIn;
+    type Out = IntegrateOut;
     /// Working memory: the solvers' f64 vectors and transforms: up to ≈ 96 bytes per pixel over a 4-byte height (measured peak RSS of graphs/integrate.ron on a 2048² demo: 453 MB).
     const SCRATCH: f64 = 24.0;
     fn spec() -> OpSpec {
@@ -391,34 +385,58 @@ impl Operator for IntegrateNode {
             "analysis",
             "Integrates the normals' gradients to a height (least squares, Simchony et al. / Frankot & Chellappa / masked Poisson; bilateral normal integration, Cao et al. 2022, keeps depth discontinuities): zero mean over the domain, in pixels, y up. With a pinhole camera (focal length and principal point, or a K file) the log-depth is integrated and the height is −Z for a depth Z up to scale.",
         )
-        .input(PortSpec::new("image", PortType::Rgbn, "Image (its mask is the masked_poisson domain)."))
-        .output(PortSpec::new(
-            "height",
-            PortType::Scalar,
-            "Height in pixels (orthographic), or −Z for the depth Z (pinhole; geometric mean focal_px over the domain).",
-        ))
-        .output(PortSpec::new(
-            "rms_residual",
-            PortType::Number,
-            "RMS over the domain's edges of ∇z − g in pixels per pixel: how far the field is from integrable.",
-        ))
     }
     fn check(p: &IntegrateSettings) -> Result<(), RgbnError> {
         p.params().map(|_| ())
     }
+    fn kind(_: &IntegrateSettings) -> Kind {
+        // Every height depends on every normal; a coarse level integrates the reduced normals.
+        Kind::Global {
+            coarse: Coarse::Scaled,
+        }
+    }
     fn scaled(p: &IntegrateSettings, s: f64) -> Option<IntegrateSettings> {
-        integrate_at_level(p, s)
+        p.at_level(s)
     }
-    fn level_outputs(_: &IntegrateSettings, s: f64, outputs: Vec<Value>) -> Vec<Value> {
-        height_times(outputs, 0, s)
+    fn level_outputs(_: &IntegrateSettings, s: f64, o: IntegrateOut) -> IntegrateOut {
+        IntegrateOut {
+            height: height_times(o.height, s),
+            ..o
+        }
     }
-    fn run(p: &IntegrateSettings, i: &Inputs<'_>, _: &RunContext) -> Result<Vec<Value>, RgbnError> {
-        let img = i.rgbn("image")?;
+    fn run(
+        p: &IntegrateSettings,
+        i: IntegrateIn,
+        _: &RunContext,
+    ) -> Result<IntegrateOut, RgbnError> {
+        let img = &i.image;
         let (z, rep) = integrate_normals(img, &p.params_for(img.width(), img.height())?)?;
-        Ok(vec![
-            Value::Scalar(Arc::new(z)),
-            Value::Number(rep.rms_residual),
-        ])
+        Ok(IntegrateOut {
+            height: Scalar::new(z),
+            rms_residual: rep.rms_residual,
+        })
+    }
+}
+
+crate::inputs! {
+    /// Inputs of [`ProjectNode`].
+    pub struct ProjectIn {
+        /// Image to project.
+        pub image: RgbnImage,
+    }
+}
+
+crate::outputs! {
+    /// Outputs of [`ProjectNode`].
+    pub struct ProjectOut {
+        /// Projected normals; colour and mask unchanged.
+        pub image: RgbnImage,
+        /// The integrated height in pixels.
+        pub height: Scalar,
+        /// Relative RMS curl of the input (over the mask interior).
+        pub curl_before: f64,
+        /// Relative RMS curl of the output (≈ 0).
+        pub curl_after: f64,
     }
 }
 
@@ -427,6 +445,8 @@ pub struct ProjectNode;
 
 impl Operator for ProjectNode {
     type Params = IntegrateSettings;
+    type In = ProjectIn;
+    type Out = ProjectOut;
     /// Working memory: the integration's buffers over the RGBN and height outputs.
     const SCRATCH: f64 = 2.0;
     fn spec() -> OpSpec {
@@ -436,56 +456,61 @@ impl Operator for ProjectNode {
             "filter",
             "Replaces the normals by those of their integrated height: the nearest integrable field in the least-squares sense. Use after nonlinear edits (brush feathers, rotation combines) that left curl.",
         )
-        .input(PortSpec::new("image", PortType::Rgbn, "Image to project."))
-        .output(PortSpec::new(
-            "image",
-            PortType::Rgbn,
-            "Projected normals; colour and mask unchanged.",
-        ))
-        .output(PortSpec::new("height", PortType::Scalar, "The integrated height in pixels."))
-        .output(PortSpec::new(
-            "curl_before",
-            PortType::Number,
-            "Relative RMS curl of the input (over the mask interior).",
-        ))
-        .output(PortSpec::new(
-            "curl_after",
-            PortType::Number,
-            "Relative RMS curl of the output (≈ 0).",
-        ))
     }
     fn check(p: &IntegrateSettings) -> Result<(), RgbnError> {
         p.params().map(|_| ())
     }
+    fn kind(_: &IntegrateSettings) -> Kind {
+        Kind::Global {
+            coarse: Coarse::Scaled,
+        }
+    }
     fn scaled(p: &IntegrateSettings, s: f64) -> Option<IntegrateSettings> {
-        integrate_at_level(p, s)
+        p.at_level(s)
     }
-    fn level_outputs(_: &IntegrateSettings, s: f64, outputs: Vec<Value>) -> Vec<Value> {
-        height_times(outputs, 1, s)
+    fn level_outputs(_: &IntegrateSettings, s: f64, o: ProjectOut) -> ProjectOut {
+        ProjectOut {
+            height: height_times(o.height, s),
+            ..o
+        }
     }
-    fn run(p: &IntegrateSettings, i: &Inputs<'_>, _: &RunContext) -> Result<Vec<Value>, RgbnError> {
-        let img = i.rgbn("image")?;
+    fn run(p: &IntegrateSettings, i: ProjectIn, _: &RunContext) -> Result<ProjectOut, RgbnError> {
+        let img = &i.image;
         let params = ProjectParams {
             integrate: p.params_for(img.width(), img.height())?,
         };
-        let (img, z, rep) = project_integrable(img, &params)?;
-        Ok(vec![
-            Value::Rgbn(img),
-            Value::Scalar(Arc::new(z)),
-            Value::Number(rep.before.relative),
-            Value::Number(rep.after.relative),
-        ])
+        let (image, z, rep) = project_integrable(img, &params)?;
+        Ok(ProjectOut {
+            image,
+            height: Scalar::new(z),
+            curl_before: rep.before.relative,
+            curl_after: rep.after.relative,
+        })
     }
 }
 
+/// `path` as an output file the graph may write: not one it reads.
 fn check_output(path: &str, ctx: &RunContext) -> Result<PathBuf, RgbnError> {
-    if path.is_empty() {
-        return Err(RgbnError::param("path", "a file path is required"));
-    }
     let path = PathBuf::from(path);
     let protected: Vec<&Path> = ctx.protected.iter().map(PathBuf::as_path).collect();
     io::check_output(&path, &protected)?;
     Ok(path)
+}
+
+crate::inputs! {
+    /// Inputs of [`SaveHeight`].
+    pub struct SaveHeightIn {
+        /// Field to write.
+        pub height: Scalar,
+    }
+}
+
+crate::outputs! {
+    /// Outputs of [`SaveHeight`].
+    pub struct SaveHeightOut {
+        /// The same field.
+        pub height: Scalar,
+    }
 }
 
 /// Writes a height (any scalar field) to EXR.
@@ -493,6 +518,8 @@ pub struct SaveHeight;
 
 impl Operator for SaveHeight {
     type Params = SaveHeightParams;
+    type In = SaveHeightIn;
+    type Out = SaveHeightOut;
     fn spec() -> OpSpec {
         OpSpec::new(
             "save.height",
@@ -500,31 +527,50 @@ impl Operator for SaveHeight {
             "output",
             "Writes a scalar field (a height, a curl map) to a single-channel f32 EXR, atomically and never over a file the graph reads, and passes it through; runs whenever its output is requested.",
         )
-        .input(PortSpec::new("height", PortType::Scalar, "Field to write."))
-        .output(PortSpec::new("height", PortType::Scalar, "The same field."))
         .side_effect()
     }
     fn check(p: &SaveHeightParams) -> Result<(), RgbnError> {
-        if p.path.is_empty() {
-            return Err(RgbnError::param("path", "a file path is required"));
-        }
         if !p.path.to_ascii_lowercase().ends_with(".exr") {
             return Err(RgbnError::param("path", "a height is written as .exr"));
         }
         Ok(())
     }
+    fn kind(_: &SaveHeightParams) -> Kind {
+        // Writes the whole field.
+        Kind::GLOBAL
+    }
     fn run(
         p: &SaveHeightParams,
-        i: &Inputs<'_>,
+        i: SaveHeightIn,
         ctx: &RunContext,
-    ) -> Result<Vec<Value>, RgbnError> {
-        Self::check(p)?;
+    ) -> Result<SaveHeightOut, RgbnError> {
         let path = check_output(&p.path, ctx)?;
-        let v = i
-            .get("height")
-            .ok_or_else(|| RgbnError::InvalidImage("input \"height\" is not connected".into()))?;
-        write_value(v, &path, &SaveOptions::default())?;
-        Ok(vec![v.clone()])
+        write_value(
+            &Value::Scalar(i.height.0.clone()),
+            &path,
+            &SaveOptions::default(),
+        )?;
+        Ok(SaveHeightOut { height: i.height })
+    }
+}
+
+crate::inputs! {
+    /// Inputs of [`SaveMesh`].
+    pub struct SaveMeshIn {
+        /// Height in pixels.
+        pub height: Scalar,
+        /// Colour, normals and mask (the height's size).
+        pub image: RgbnImage,
+    }
+}
+
+crate::outputs! {
+    /// Outputs of [`SaveMesh`].
+    pub struct SaveMeshOut {
+        /// Vertices written.
+        pub vertices: f64,
+        /// Triangles written.
+        pub triangles: f64,
     }
 }
 
@@ -533,6 +579,8 @@ pub struct SaveMesh;
 
 impl Operator for SaveMesh {
     type Params = SaveMeshSettings;
+    type In = SaveMeshIn;
+    type Out = SaveMeshOut;
     fn spec() -> OpSpec {
         OpSpec::new(
             "save.mesh",
@@ -540,35 +588,28 @@ impl Operator for SaveMesh {
             "output",
             "Writes a triangle mesh of a height with the image's colours and normals (one vertex per pixel inside the mask; PLY or OBJ; x right, y up, z towards the viewer), atomically and never over a file the graph reads; runs whenever its output is requested.",
         )
-        .input(PortSpec::new("height", PortType::Scalar, "Height in pixels."))
-        .input(PortSpec::new(
-            "image",
-            PortType::Rgbn,
-            "Colour, normals and mask (the height's size).",
-        ))
-        .output(PortSpec::new("vertices", PortType::Number, "Vertices written."))
-        .output(PortSpec::new("triangles", PortType::Number, "Triangles written."))
         .side_effect()
     }
     fn check(p: &SaveMeshSettings) -> Result<(), RgbnError> {
-        if p.path.is_empty() {
-            return Err(RgbnError::param("path", "a file path is required"));
-        }
         p.params().map(|_| ())
+    }
+    fn kind(_: &SaveMeshSettings) -> Kind {
+        // Writes the whole mesh.
+        Kind::GLOBAL
     }
     fn run(
         p: &SaveMeshSettings,
-        i: &Inputs<'_>,
+        i: SaveMeshIn,
         ctx: &RunContext,
-    ) -> Result<Vec<Value>, RgbnError> {
-        let img = i.rgbn("image")?;
+    ) -> Result<SaveMeshOut, RgbnError> {
+        let img = &i.image;
         let params = p.params_for(img.width(), img.height())?;
         let path = check_output(&p.path, ctx)?;
-        let height = i
-            .scalar("height")?
-            .ok_or_else(|| RgbnError::InvalidImage("input \"height\" is not connected".into()))?;
         let protected: Vec<&Path> = ctx.protected.iter().map(PathBuf::as_path).collect();
-        let (v, t) = save_mesh(height, img, &path, &protected, &params)?;
-        Ok(vec![Value::Number(v as f64), Value::Number(t as f64)])
+        let (v, t) = save_mesh(&i.height, img, &path, &protected, &params)?;
+        Ok(SaveMeshOut {
+            vertices: v as f64,
+            triangles: t as f64,
+        })
     }
 }

@@ -8,7 +8,7 @@
 //! Parameters of the source nodes (the nodes below): files, the demo, analytic surfaces
 //! and masks; the images come from [`crate::raster::io`] and [`crate::raster::sample`].
 
-use super::{Footprint, Inputs, OpSpec, Operator, PortSpec, PortType, RunContext, Value};
+use super::{Kind, Mask, NoInputs, OpSpec, Operator, RunContext, Scalar};
 use crate::error::RgbnError;
 use crate::raster::io;
 use crate::raster::io::{Format, InputSpec, LoadOptions};
@@ -16,8 +16,8 @@ use crate::raster::sample::Surface;
 use crate::raster::sample::{demo_medallion, demo_window};
 use crate::raster::window::Window;
 use crate::raster::{check_size, Plane};
+use crate::RgbnImage;
 use std::path::PathBuf;
-use std::sync::Arc;
 
 crate::choice_enum! {
     /// The analytic surfaces offered by the `surface` node.
@@ -146,11 +146,21 @@ crate::params! {
     }
 }
 
+crate::outputs! {
+    /// Outputs of [`Demo`].
+    pub struct DemoOut {
+        /// The demo image.
+        pub image: RgbnImage,
+    }
+}
+
 /// The built-in demo medallion ([`demo_medallion`]).
 pub struct Demo;
 
 impl Operator for Demo {
     type Params = DemoParams;
+    type In = NoInputs;
+    type Out = DemoOut;
     fn spec() -> OpSpec {
         OpSpec::new(
             "demo",
@@ -158,27 +168,40 @@ impl Operator for Demo {
             "input",
             "The built-in procedural RGBN demo: a relief medallion whose normals are exactly a surface's, no files needed.",
         )
-        .output(PortSpec::new("image", PortType::Rgbn, "The demo image."))
+    }
+    fn kind(_: &DemoParams) -> Kind {
+        Kind::Source
     }
     fn out_size(p: &DemoParams, _: &[Option<(usize, usize)>]) -> Option<(usize, usize)> {
         Some((p.size as usize, p.size as usize))
     }
-    fn run(p: &DemoParams, _: &Inputs<'_>, _: &RunContext) -> Result<Vec<Value>, RgbnError> {
+    fn run(p: &DemoParams, _: NoInputs, _: &RunContext) -> Result<DemoOut, RgbnError> {
         let s = p.size as usize;
         check_size(s, s, "demo")?;
-        Ok(vec![Value::Rgbn(demo_medallion(s))])
-    }
-    fn regional(_: &DemoParams) -> bool {
-        true
+        Ok(DemoOut {
+            image: demo_medallion(s),
+        })
     }
     fn run_region(
         p: &DemoParams,
-        _: &Inputs<'_>,
+        _: NoInputs,
         win: Window,
         _: &RunContext,
-    ) -> Result<Vec<Value>, RgbnError> {
+    ) -> Result<DemoOut, RgbnError> {
         check_size(win.w, win.h, "demo")?;
-        Ok(vec![Value::Rgbn(demo_window(p.size as usize, win))])
+        Ok(DemoOut {
+            image: demo_window(p.size as usize, win),
+        })
+    }
+}
+
+crate::outputs! {
+    /// Outputs of [`SurfaceOp`].
+    pub struct SurfaceOut {
+        /// The surface's normals; masked where the slope is undefined.
+        pub image: RgbnImage,
+        /// Height in pixels (y up).
+        pub height: Scalar,
     }
 }
 
@@ -189,6 +212,8 @@ pub struct SurfaceOp;
 
 impl Operator for SurfaceOp {
     type Params = SurfaceParams;
+    type In = NoInputs;
+    type Out = SurfaceOut;
     fn spec() -> OpSpec {
         OpSpec::new(
             "surface",
@@ -196,46 +221,43 @@ impl Operator for SurfaceOp {
             "input",
             "An analytic height field (sphere, paraboloid, sinusoid, Gaussian bumps) with grey albedo and its height; normals from the height's differences (exactly a surface) or analytic.",
         )
-        .output(PortSpec::new(
-            "image",
-            PortType::Rgbn,
-            "The surface's normals; masked where the slope is undefined.",
-        ))
-        .output(PortSpec::new(
-            "height",
-            PortType::Scalar,
-            "Height in pixels (y up).",
-        ))
+    }
+    fn kind(_: &SurfaceParams) -> Kind {
+        Kind::Source
     }
     fn out_size(p: &SurfaceParams, _: &[Option<(usize, usize)>]) -> Option<(usize, usize)> {
         Some((p.width as usize, p.height as usize))
     }
-    fn run(
-        p: &SurfaceParams,
-        inputs: &Inputs<'_>,
-        ctx: &RunContext,
-    ) -> Result<Vec<Value>, RgbnError> {
+    fn run(p: &SurfaceParams, i: NoInputs, ctx: &RunContext) -> Result<SurfaceOut, RgbnError> {
         let (w, h) = (p.width as usize, p.height as usize);
-        Self::run_region(p, inputs, Window::full(w, h), ctx)
-    }
-    fn regional(_: &SurfaceParams) -> bool {
-        true
+        Self::run_region(p, i, Window::full(w, h), ctx)
     }
     fn run_region(
         p: &SurfaceParams,
-        _: &Inputs<'_>,
+        _: NoInputs,
         win: Window,
         _: &RunContext,
-    ) -> Result<Vec<Value>, RgbnError> {
+    ) -> Result<SurfaceOut, RgbnError> {
         let full = (p.width as usize, p.height as usize);
         check_size(win.w, win.h, "surface")?;
         let s = p.surface(full.0, full.1);
-        let (img, z) = if p.analytic_normals {
+        let (image, z) = if p.analytic_normals {
             s.render_window(full, win)
         } else {
             s.render_sampled_window(full, win)
         };
-        Ok(vec![Value::Rgbn(img), Value::Scalar(Arc::new(z))])
+        Ok(SurfaceOut {
+            image,
+            height: Scalar::new(z),
+        })
+    }
+}
+
+crate::outputs! {
+    /// Outputs of [`Load`].
+    pub struct LoadOut {
+        /// The loaded image.
+        pub image: RgbnImage,
     }
 }
 
@@ -244,6 +266,8 @@ pub struct Load;
 
 impl Operator for Load {
     type Params = LoadParams;
+    type In = NoInputs;
+    type Out = LoadOut;
     fn spec() -> OpSpec {
         OpSpec::new(
             "load",
@@ -251,21 +275,27 @@ impl Operator for Load {
             "input",
             "Loads an RGBN EXR, a PTM, or a normal map with an optional colour image and mask; bad normals are repaired (or refused with strict).",
         )
-        .output(PortSpec::new("image", PortType::Rgbn, "The loaded image."))
     }
-    fn check(p: &LoadParams) -> Result<(), RgbnError> {
-        if p.path.is_empty() {
-            return Err(RgbnError::param("path", "a file path is required"));
-        }
-        Ok(())
+    fn kind(_: &LoadParams) -> Kind {
+        // Reads files whole.
+        Kind::GLOBAL
     }
     fn out_size(p: &LoadParams, _: &[Option<(usize, usize)>]) -> Option<(usize, usize)> {
         io::dimensions(std::path::Path::new(&p.path))
     }
-    fn run(p: &LoadParams, _: &Inputs<'_>, _: &RunContext) -> Result<Vec<Value>, RgbnError> {
-        Self::check(p)?;
+    fn run(p: &LoadParams, _: NoInputs, _: &RunContext) -> Result<LoadOut, RgbnError> {
         let (spec, opts) = (p.input_spec()?, p.load_options());
-        Ok(vec![Value::Rgbn(io::load(&spec, &opts)?.image)])
+        Ok(LoadOut {
+            image: io::load(&spec, &opts)?.image,
+        })
+    }
+}
+
+crate::outputs! {
+    /// Outputs of [`LoadMask`].
+    pub struct LoadMaskOut {
+        /// The mask.
+        pub mask: Mask,
     }
 }
 
@@ -274,6 +304,8 @@ pub struct LoadMask;
 
 impl Operator for LoadMask {
     type Params = LoadMaskParams;
+    type In = NoInputs;
+    type Out = LoadMaskOut;
     fn spec() -> OpSpec {
         OpSpec::new(
             "load_mask",
@@ -281,21 +313,37 @@ impl Operator for LoadMask {
             "input",
             "Loads a coverage mask from a greyscale image (values in [0, 1]).",
         )
-        .output(PortSpec::new("mask", PortType::Mask, "The mask."))
     }
-    fn check(p: &LoadMaskParams) -> Result<(), RgbnError> {
-        if p.path.is_empty() {
-            return Err(RgbnError::param("path", "a file path is required"));
-        }
-        Ok(())
+    fn kind(_: &LoadMaskParams) -> Kind {
+        // Reads a file whole.
+        Kind::GLOBAL
     }
     fn out_size(p: &LoadMaskParams, _: &[Option<(usize, usize)>]) -> Option<(usize, usize)> {
         io::dimensions(std::path::Path::new(&p.path))
     }
-    fn run(p: &LoadMaskParams, _: &Inputs<'_>, _: &RunContext) -> Result<Vec<Value>, RgbnError> {
-        Self::check(p)?;
+    fn run(p: &LoadMaskParams, _: NoInputs, _: &RunContext) -> Result<LoadMaskOut, RgbnError> {
         let (w, h, m) = io::load_mask(std::path::Path::new(&p.path))?;
-        Ok(vec![Value::Mask(Arc::new(Plane::from_vec(w, h, m)?))])
+        Ok(LoadMaskOut {
+            mask: Mask::new(Plane::from_vec(w, h, m)?),
+        })
+    }
+}
+
+crate::inputs! {
+    /// Inputs of [`ApplyMask`].
+    pub struct ApplyMaskIn {
+        /// The image.
+        pub image: RgbnImage,
+        /// The new mask (same size).
+        pub mask: Option<Mask>,
+    }
+}
+
+crate::outputs! {
+    /// Outputs of [`ApplyMask`].
+    pub struct ApplyMaskOut {
+        /// The image with the mask.
+        pub image: RgbnImage,
     }
 }
 
@@ -304,6 +352,8 @@ pub struct ApplyMask;
 
 impl Operator for ApplyMask {
     type Params = ApplyMaskParams;
+    type In = ApplyMaskIn;
+    type Out = ApplyMaskOut;
     fn spec() -> OpSpec {
         OpSpec::new(
             "apply_mask",
@@ -311,16 +361,17 @@ impl Operator for ApplyMask {
             "input",
             "Sets the image's coverage mask (mask-aware operators then work inside it); without a mask input, removes the mask.",
         )
-        .input(PortSpec::new("image", PortType::Rgbn, "The image."))
-        .input(PortSpec::new("mask", PortType::Mask, "The new mask (same size).").optional())
-        .output(PortSpec::new("image", PortType::Rgbn, "The image with the mask."))
     }
-    fn footprint(_: &ApplyMaskParams, _input: usize) -> Footprint {
-        Footprint::POINT
+    fn kind(_: &ApplyMaskParams) -> Kind {
+        // Per pixel; a reduced image's normals are weighed by its old mask, so applying the
+        // reduced mask is not the reduced result: no coarse form.
+        Kind::Point {
+            coarse: super::Coarse::None,
+        }
     }
-    fn run(p: &ApplyMaskParams, i: &Inputs<'_>, _: &RunContext) -> Result<Vec<Value>, RgbnError> {
-        let mut img = i.rgbn("image")?.clone();
-        match i.mask("mask")? {
+    fn run(p: &ApplyMaskParams, i: ApplyMaskIn, _: &RunContext) -> Result<ApplyMaskOut, RgbnError> {
+        let mut img = i.image;
+        match i.mask {
             None => img.set_mask(None)?,
             Some(m) => {
                 if (m.width(), m.height()) != (img.width(), img.height()) {
@@ -340,6 +391,6 @@ impl Operator for ApplyMask {
                 img.set_mask(Some(data))?;
             }
         }
-        Ok(vec![Value::Rgbn(img)])
+        Ok(ApplyMaskOut { image: img })
     }
 }

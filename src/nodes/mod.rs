@@ -1,21 +1,24 @@
-//! Operators as typed graph nodes. Each file `src/nodes/<name>.rs` is the node form of the pure
-//! operator `src/ops/<name>.rs` (or of code living elsewhere: `load`, `save`, `render`,
-//! `integrate`, `capture`): an [`Operator`] whose spec names the ports and whose `run` adapts
-//! the input values to the pure function and its results to output values, nothing else.
+//! Operators as typed graph nodes. Each file `src/nodes/<name>.rs` is the node form of a pure
+//! operator (`src/ops/<name>.rs`, or code in `raster`, `render`, `capture`): an [`Operator`]
+//! that states its identity, its parameters, its ports and its [`Kind`], and whose `run` adapts
+//! the typed inputs to the pure function and its results to the typed outputs, nothing else.
 //!
-//! This module holds the graph types ([`Operator`], [`OpSpec`], [`PortSpec`], [`PortType`],
-//! [`Value`], [`Inputs`], [`RunContext`]) and the [`registry`]: the single list an operator is
-//! added to; registering it puts it under test (every registered operator must appear in some
-//! `graphs/*.ron` and document itself and each parameter). See `CONTRIBUTING.md`.
+//! This module holds the node interface ([`Operator`], [`Kind`], [`OpSpec`], the ports of
+//! [`ports`], the values of [`value`], [`RunContext`]), the type-erased face the graph and the
+//! engine use ([`DynOp`], with parameters parsed once into [`Parsed`]) and the [`registry`]:
+//! the single list an operator is added to. Registering puts it under test (every registered
+//! operator must appear in some `graphs/*.ron` and document itself, each port and each
+//! parameter). See `CONTRIBUTING.md`.
 //!
-//! ## Wrapping a pure function as a node
+//! ## An operator in full
 //!
 //! Given a pure function such as `emboss` below (normally in `src/ops/emboss.rs`, with tests)
-//! and its parameters declared once, the node is a spec and a one-line `run`:
+//! and its parameters declared once, the node declares its ports, its kind and a one-line
+//! `run`:
 //!
 //! ```
 //! use rgbn::error::RgbnError;
-//! use rgbn::nodes::{Inputs, OpSpec, Operator, PortSpec, PortType, RunContext, Value};
+//! use rgbn::nodes::{Coarse, Kind, OpSpec, Operator, RunContext};
 //! use rgbn::RgbnImage;
 //!
 //! rgbn::params! {
@@ -37,24 +40,42 @@
 //!     Ok(out)
 //! }
 //!
+//! rgbn::inputs! {
+//!     /// Inputs of the emboss node.
+//!     pub struct EmbossIn {
+//!         /// Image to emboss.
+//!         pub image: RgbnImage,
+//!     }
+//! }
+//! rgbn::outputs! {
+//!     /// Outputs of the emboss node.
+//!     pub struct EmbossOut {
+//!         /// The embossed image.
+//!         pub image: RgbnImage,
+//!     }
+//! }
+//!
 //! /// The node (`src/nodes/emboss.rs`).
 //! pub struct EmbossNode;
 //! impl Operator for EmbossNode {
 //!     type Params = EmbossParams;
+//!     type In = EmbossIn;
+//!     type Out = EmbossOut;
 //!     fn spec() -> OpSpec {
 //!         OpSpec::new("emboss", "Emboss", "filter", "Embosses the relief.")
-//!             .input(PortSpec::new("image", PortType::Rgbn, "Input."))
-//!             .output(PortSpec::new("image", PortType::Rgbn, "Embossed."))
 //!     }
-//!     fn run(p: &EmbossParams, i: &Inputs, _: &RunContext) -> Result<Vec<Value>, RgbnError> {
-//!         Ok(vec![Value::Rgbn(emboss(i.rgbn("image")?, p)?)])
+//!     // An output pixel reads only the same input pixel; no lengths, so the same parameters
+//!     // compute it at a coarse level.
+//!     fn kind(_: &EmbossParams) -> Kind {
+//!         Kind::Point { coarse: Coarse::Scaled }
+//!     }
+//!     fn run(p: &EmbossParams, i: EmbossIn, _: &RunContext) -> Result<EmbossOut, RgbnError> {
+//!         Ok(EmbossOut { image: emboss(&i.image, p)? })
 //!     }
 //! }
 //! # let img = RgbnImage::flat(4, 4, [0.5; 3]);
-//! # let spec = EmbossNode::spec();
-//! # let v = [Some(Value::Rgbn(img.clone()))];
-//! # let out = EmbossNode::run(&EmbossParams::default(), &Inputs::new(&spec.inputs, &v), &RunContext::default()).unwrap();
-//! # assert_eq!(out, vec![Value::Rgbn(img)]);
+//! # let out = EmbossNode::run(&EmbossParams::default(), EmbossIn { image: img.clone() }, &RunContext::default()).unwrap();
+//! # assert_eq!(out.image, img);
 //! ```
 //!
 //! then add `EmbossNode` to [`registry`] and an example `graphs/emboss.ron`. Bump
@@ -72,6 +93,7 @@ pub mod kit;
 pub mod load;
 pub mod normalize;
 pub mod pen;
+pub mod ports;
 pub mod publish;
 pub mod render;
 pub mod rotate;
@@ -79,48 +101,17 @@ pub mod save;
 pub mod stamp;
 pub mod value;
 
+pub use ports::{InPorts, InValue, Mask, NoInputs, OutPorts, OutValue, PortSpec, Read, Scalar};
 pub use value::{Picture, PortType, Value};
 
 use crate::error::RgbnError;
-use crate::params::{self, ParamError, ParamInfo, ParamValue, Params};
+use crate::params::{self, Meta, ParamError, ParamInfo, ParamValue, Params};
 use crate::raster::window::Window;
-use crate::raster::{Plane, RgbnImage};
-use std::collections::BTreeMap;
+use std::any::Any;
+use std::collections::{BTreeMap, HashMap};
 use std::marker::PhantomData;
 use std::path::PathBuf;
-use std::sync::OnceLock;
-
-/// One input or output port.
-#[derive(Clone, Debug, PartialEq)]
-pub struct PortSpec {
-    /// Name, unique among the node's inputs (or outputs).
-    pub name: String,
-    /// Type.
-    pub ty: PortType,
-    /// One-sentence doc.
-    pub doc: String,
-    /// Inputs only: may stay unconnected.
-    pub optional: bool,
-}
-
-impl PortSpec {
-    /// A required port.
-    #[must_use]
-    pub fn new(name: &str, ty: PortType, doc: &str) -> Self {
-        Self {
-            name: name.into(),
-            ty,
-            doc: doc.into(),
-            optional: false,
-        }
-    }
-    /// Marks an input as optional.
-    #[must_use]
-    pub fn optional(mut self) -> Self {
-        self.optional = true;
-        self
-    }
-}
+use std::sync::{Arc, Mutex, OnceLock};
 
 /// What an operator is: identity, documentation, ports.
 #[derive(Clone, Debug, PartialEq)]
@@ -135,16 +126,16 @@ pub struct OpSpec {
     pub doc: &'static str,
     /// Bumped when the output for the same inputs and params changes (invalidates caches).
     pub version: u32,
-    /// Input ports.
+    /// Input ports (from [`Operator::In`]).
     pub inputs: Vec<PortSpec>,
-    /// Output ports.
+    /// Output ports (from [`Operator::Out`]).
     pub outputs: Vec<PortSpec>,
     /// The node has an effect outside the graph (writes a file): it is never cached.
     pub side_effect: bool,
 }
 
 impl OpSpec {
-    /// A spec with no ports, version 1.
+    /// A spec with version 1; its ports are filled in from the operator's port structs.
     #[must_use]
     pub fn new(
         id: &'static str,
@@ -162,18 +153,6 @@ impl OpSpec {
             outputs: Vec::new(),
             side_effect: false,
         }
-    }
-    /// Adds an input port.
-    #[must_use]
-    pub fn input(mut self, p: PortSpec) -> Self {
-        self.inputs.push(p);
-        self
-    }
-    /// Adds an output port.
-    #[must_use]
-    pub fn output(mut self, p: PortSpec) -> Self {
-        self.outputs.push(p);
-        self
     }
     /// Sets the version.
     #[must_use]
@@ -196,72 +175,16 @@ pub struct RunContext {
     pub protected: Vec<PathBuf>,
 }
 
-/// The values on a node's input ports, by name (unconnected optional inputs are `None`).
-pub struct Inputs<'a> {
-    ports: &'a [PortSpec],
-    values: &'a [Option<Value>],
-}
-
-impl<'a> Inputs<'a> {
-    /// Wraps values in port order.
-    #[must_use]
-    pub fn new(ports: &'a [PortSpec], values: &'a [Option<Value>]) -> Self {
-        Self { ports, values }
-    }
-    /// The value on port `name`, if connected.
-    #[must_use]
-    pub fn get(&self, name: &str) -> Option<&'a Value> {
-        let i = self.ports.iter().position(|p| p.name == name)?;
-        self.values.get(i)?.as_ref()
-    }
-    fn missing(name: &str) -> RgbnError {
-        RgbnError::InvalidImage(format!(
-            "input {name:?} is not connected or has the wrong type"
-        ))
-    }
-    /// The RGBN image on port `name`.
-    pub fn rgbn(&self, name: &str) -> Result<&'a RgbnImage, RgbnError> {
-        match self.get(name) {
-            Some(Value::Rgbn(i)) => Ok(i),
-            _ => Err(Self::missing(name)),
-        }
-    }
-    /// The RGBN image on port `name`, `None` when unconnected (optional inputs).
-    pub fn rgbn_opt(&self, name: &str) -> Result<Option<&'a RgbnImage>, RgbnError> {
-        match self.get(name) {
-            Some(Value::Rgbn(i)) => Ok(Some(i)),
-            None => Ok(None),
-            _ => Err(Self::missing(name)),
-        }
-    }
-    /// The scalar field on port `name`, `None` when unconnected.
-    pub fn scalar(&self, name: &str) -> Result<Option<&'a Plane>, RgbnError> {
-        match self.get(name) {
-            Some(Value::Scalar(p)) => Ok(Some(p)),
-            None => Ok(None),
-            _ => Err(Self::missing(name)),
-        }
-    }
-    /// The mask on port `name`, `None` when unconnected.
-    pub fn mask(&self, name: &str) -> Result<Option<&'a Plane>, RgbnError> {
-        match self.get(name) {
-            Some(Value::Mask(m)) => Ok(Some(m)),
-            None => Ok(None),
-            _ => Err(Self::missing(name)),
-        }
-    }
-}
-
-/// What part of an input an operator needs to compute part of its outputs: how the evaluator
-/// may compute it region by region (see `eval::region`; GEGL's `get_required_for_output`).
+/// What part of an input an operator needs to compute part of its outputs (GEGL's
+/// `get_required_for_output`), as the engine sees it: derived from the operator's [`Kind`] and
+/// the input's [`Read`].
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Footprint {
     /// An output pixel depends only on the pixels of this input within `halo` pixels of it
-    /// (Chebyshev distance; 0: a point operation), and on its own position only through the
-    /// parameters [`Operator::shifted`] moves. Run on a crop of the input, the operator gives
-    /// the pixels that lie `halo` or more inside the crop's cut edges exactly as on the whole
-    /// image (within the operator's documented truncation, e.g. a recursive Gaussian's). The
-    /// outputs then have the crop's size.
+    /// (Chebyshev distance; 0: a point operation). Run on a crop of the input with its
+    /// positions shifted, the operator gives the pixels that lie `halo` or more inside the
+    /// crop's cut edges exactly as on the whole image (within the operator's documented
+    /// truncation, e.g. a recursive Gaussian's). The outputs then have the crop's size.
     Local {
         /// Reach in pixels.
         halo: usize,
@@ -280,23 +203,105 @@ impl Footprint {
     pub const POINT: Self = Self::Local { halo: 0 };
 }
 
-/// A typed node. See the module docs for how to wrap a pure function.
+/// Whether an operator has a form at a coarse level of detail (inputs reduced `s` times).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Coarse {
+    /// It has: its parameters at the level are [`Operator::scaled`] (by default from the
+    /// declarations: lengths in `px` divided by `s`, points mapped with [`params::scale_point`]),
+    /// and its outputs approximate the full-resolution ones reduced. A coarse level then costs
+    /// the level's pixels.
+    Scaled,
+    /// It has not (a nonlinear operator, a kernel in whole pixels, taps): a coarse level
+    /// computes it at full resolution over what is needed and reduces the result.
+    None,
+}
+
+/// What an operator is, for the region engine (GEGL's operation classes: point filter, area
+/// filter, source, and operations that need everything). Every operator states its kind, as a
+/// function of its parameters; the kind answers the region questions — which input pixels an
+/// output pixel reads ([`Footprint`]), whether positions move on a crop (every `points`
+/// parameter does), and whether a coarse level has its own form ([`Coarse`]). There is no
+/// default: `Global` is written in the node when it is the answer.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Kind {
+    /// An output pixel depends only on the same pixel of the inputs.
+    Point {
+        /// A coarse form.
+        coarse: Coarse,
+    },
+    /// An output pixel depends on the input pixels within `halo` pixels of it.
+    Area {
+        /// Reach in pixels.
+        halo: usize,
+        /// A coarse form.
+        coarse: Coarse,
+    },
+    /// Procedural: any window of the outputs at any level, computed on its own
+    /// ([`Operator::run_region`]); its inputs, if any, come whole.
+    Source,
+    /// The inputs are needed whole (solvers, statistics, files, writers, a periodic border).
+    /// With a coarse form, a coarse level runs it whole on the inputs at that level
+    /// ([`Operator::level_outputs`] maps units back).
+    Global {
+        /// A coarse form.
+        coarse: Coarse,
+    },
+}
+
+impl Kind {
+    /// A point operation with a coarse form from its declarations.
+    pub const POINT: Self = Self::Point {
+        coarse: Coarse::Scaled,
+    };
+    /// A global operation with no coarse form.
+    pub const GLOBAL: Self = Self::Global {
+        coarse: Coarse::None,
+    };
+
+    /// Its coarse form.
+    #[must_use]
+    pub fn coarse(self) -> Coarse {
+        match self {
+            Kind::Point { coarse } | Kind::Area { coarse, .. } | Kind::Global { coarse } => coarse,
+            Kind::Source => Coarse::None,
+        }
+    }
+
+    /// What an input read as `read` must provide.
+    #[must_use]
+    pub fn footprint(self, read: Read) -> Footprint {
+        match (read, self) {
+            (Read::Pattern, _) => Footprint::Pattern,
+            (Read::Whole, _) | (_, Kind::Global { .. } | Kind::Source) => Footprint::Global,
+            (Read::ByKind, Kind::Point { .. }) => Footprint::POINT,
+            (Read::ByKind, Kind::Area { halo, .. }) => Footprint::Local { halo },
+        }
+    }
+}
+
+/// A typed node. See the module docs for an operator in full.
 pub trait Operator: Send + Sync + 'static {
-    /// Parameters, declared once through [`Params::visit`].
+    /// Parameters, declared once (`params!`).
     type Params: Params;
-    /// Identity, doc and ports.
+    /// Input ports (`inputs!`).
+    type In: InPorts;
+    /// Output ports (`outputs!`).
+    type Out: OutPorts;
+    /// Identity and documentation (the ports come from `In` and `Out`).
     fn spec() -> OpSpec;
-    /// Checks combinations of parameters beyond the per-parameter ranges (called when a graph
-    /// is validated, before evaluation).
+    /// What it is for the region engine (no default: see [`Kind`]).
+    fn kind(params: &Self::Params) -> Kind;
+    /// Checks combinations of parameters beyond the per-parameter ranges (called once, when
+    /// the parameters are parsed).
     fn check(_params: &Self::Params) -> Result<(), RgbnError> {
         Ok(())
     }
-    /// Computes the outputs, in the order of `spec().outputs`.
+    /// Computes the outputs.
     fn run(
         params: &Self::Params,
-        inputs: &Inputs<'_>,
+        inputs: Self::In,
         ctx: &RunContext,
-    ) -> Result<Vec<Value>, RgbnError>;
+    ) -> Result<Self::Out, RgbnError>;
     /// The pixel size (width, height) of the outputs, known before running, from the sizes of
     /// the inputs in port order (`None`: unconnected or unknown). Sources state it from their
     /// parameters or file headers; every other operator makes outputs of its first image
@@ -311,55 +316,34 @@ pub trait Operator: Send + Sync + 'static {
     /// bytes (gradient planes, transforms, solver vectors): used by the evaluator's estimate of
     /// a plan's peak memory (see `eval::memory`).
     const SCRATCH: f64 = 1.0;
-    /// What input `input` (port order) must provide for a region of the outputs. An operator
-    /// is computed region by region when at least one of its inputs is
-    /// [`Footprint::Local`]; its `Global` inputs are then passed whole, and its `Number`
-    /// outputs are not computed (a consumer of one needs the operator whole). Default: global
-    /// (sources, solvers, sinks).
-    fn footprint(_params: &Self::Params, _input: usize) -> Footprint {
-        Footprint::Global
+    /// The parameters at a level `s` times coarser, when [`Kind::coarse`] is
+    /// [`Coarse::Scaled`]. Default: from the declarations ([`params::scaled`]: lengths in `px`
+    /// ÷ `s` within their range, points through [`params::scale_point`]). Override only for
+    /// what the declarations cannot say (a principal point, a weight that scales with `s²`);
+    /// `None` when these particular parameters have no coarse form.
+    fn scaled(params: &Self::Params, s: f64) -> Option<Self::Params> {
+        Some(params::scaled(params, s))
     }
-    /// The parameters that compute, on the crop of the inputs whose top-left pixel is `(dx, dy)`
-    /// of the whole image, the same pixels as `params` on the whole image: positions (pen and
-    /// brush points, stamp placements) moved by `(−dx, −dy)`. Default: unchanged (nothing
-    /// positional).
-    fn shifted(params: &Self::Params, _dx: f64, _dy: f64) -> Self::Params {
-        params.clone()
-    }
-    /// The parameters that compute this operator on its inputs reduced by `s` (a level of
-    /// detail, [`crate::raster::pyramid`]) so that the outputs approximate its full-resolution
-    /// outputs reduced by `s`: lengths in pixels divided by `s`, positions mapped with
-    /// [`scale_point`]. `None` when it has no such form (then a coarse level computes it at full
-    /// resolution and reduces it). Default: `None`.
-    fn scaled(_params: &Self::Params, _s: f64) -> Option<Self::Params> {
-        None
-    }
-    /// The outputs of a run at a level of detail (inputs reduced by `s`, `params` from
+    /// The outputs of a run at a level of detail (inputs reduced by `s`, parameters from
     /// [`Operator::scaled`]) mapped to approximate the full-resolution outputs reduced by `s`:
     /// a height in pixels is multiplied by `s`. Default: unchanged (normals, colours, slopes).
-    fn level_outputs(_params: &Self::Params, _s: f64, outputs: Vec<Value>) -> Vec<Value> {
+    fn level_outputs(_params: &Self::Params, _s: f64, outputs: Self::Out) -> Self::Out {
         outputs
     }
-    /// Whether the outputs can be computed over any window, at any level of detail, without
-    /// the rest of the image ([`Operator::run_region`]): procedural sources. The region
-    /// evaluator then computes them tile by tile rather than whole. Default: no.
-    fn regional(_params: &Self::Params) -> bool {
-        false
-    }
-    /// The outputs of [`Operator::run`] over `win` of the whole image, at `win.scale`: what
-    /// [`crate::raster::pyramid`] makes of the full-resolution outputs, or (procedural sources)
-    /// the surface sampled on the coarse grid directly. Default: `run` on the whole image, then
-    /// cut and reduced — correct, but it computes everything.
+    /// The outputs over `win` of the whole image, at `win.scale`, for a [`Kind::Source`]:
+    /// what the full-resolution outputs reduced by the scale would be, or the procedure
+    /// sampled on the coarse grid directly. Every source implements it; for other kinds it is
+    /// never called.
     fn run_region(
-        params: &Self::Params,
-        inputs: &Inputs<'_>,
-        win: Window,
-        ctx: &RunContext,
-    ) -> Result<Vec<Value>, RgbnError> {
-        Ok(Self::run(params, inputs, ctx)?
-            .iter()
-            .map(|v| value::window_of(v, win))
-            .collect())
+        _params: &Self::Params,
+        _inputs: Self::In,
+        _win: Window,
+        _ctx: &RunContext,
+    ) -> Result<Self::Out, RgbnError> {
+        Err(RgbnError::InvalidImage(format!(
+            "operator {} computes no windows (it is not a source)",
+            Self::spec().id
+        )))
     }
     /// Where the outputs can change when the parameters go from `old` to `new` and the inputs
     /// (sizes in port order, `None` when unconnected) stay the same: boxes
@@ -375,98 +359,185 @@ pub trait Operator: Send + Sync + 'static {
     }
 }
 
-/// A position of a full-resolution image (pixel centres at whole numbers) on the grid reduced
-/// by `s`, whose pixel `X` covers full-resolution pixels `X·s .. (X + 1)·s`.
-#[must_use]
-pub fn scale_point(p: [f64; 2], s: f64) -> [f64; 2] {
-    p.map(|c| (c - (s - 1.0) / 2.0) / s)
+/// An operator's parameters parsed and checked once: the typed struct, the canonical map
+/// (every parameter present; what files store and `--set` edits) and the hash of that map that
+/// content keys use (input file paths left out: files are keyed by their bytes). Cloning is
+/// cheap.
+#[derive(Clone)]
+pub struct Parsed {
+    typed: Arc<dyn Any + Send + Sync>,
+    values: Arc<BTreeMap<String, ParamValue>>,
+    hash: u128,
 }
 
-/// The object-safe face of an [`Operator`], as held by the registry.
+impl Parsed {
+    /// The canonical map.
+    #[must_use]
+    pub fn values(&self) -> &BTreeMap<String, ParamValue> {
+        &self.values
+    }
+    /// The typed parameters, when they are a `P`.
+    #[must_use]
+    pub fn get<P: 'static>(&self) -> Option<&P> {
+        self.typed.downcast_ref()
+    }
+    /// Hash of the canonical map, input file paths left out.
+    #[must_use]
+    pub fn hash(&self) -> u128 {
+        self.hash
+    }
+}
+
+impl PartialEq for Parsed {
+    fn eq(&self, o: &Self) -> bool {
+        self.hash == o.hash && self.values == o.values
+    }
+}
+
+impl std::fmt::Debug for Parsed {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        self.values.fmt(f)
+    }
+}
+
+/// The object-safe face of an [`Operator`], as held by the registry. Every method but
+/// [`DynOp::parse`] takes parameters already parsed.
 pub trait DynOp: Send + Sync {
     /// The spec.
     fn spec(&self) -> &OpSpec;
     /// Every parameter with doc, range and default.
     fn params(&self) -> &[ParamInfo];
-    /// Applies `values` over the defaults, checks them, and returns the complete canonical map
-    /// (every parameter present), which is what cache keys hash.
-    fn canonical(
-        &self,
-        values: &BTreeMap<String, ParamValue>,
-    ) -> Result<BTreeMap<String, ParamValue>, ParamError>;
-    /// Runs on canonical params.
-    fn run(
-        &self,
-        values: &BTreeMap<String, ParamValue>,
-        inputs: &[Option<Value>],
-        ctx: &RunContext,
-    ) -> Result<Vec<Value>, RgbnError>;
-    /// [`Operator::out_size`] on canonical params (`None` also when they do not parse).
-    fn out_size(
-        &self,
-        values: &BTreeMap<String, ParamValue>,
-        inputs: &[Option<(usize, usize)>],
-    ) -> Option<(usize, usize)>;
+    /// Applies `values` over the defaults and checks them ([`Operator::check`]): the one parse
+    /// of a node's parameters (memoised by content: parsing the same map again returns the
+    /// same [`Parsed`]).
+    fn parse(&self, values: &BTreeMap<String, ParamValue>) -> Result<Parsed, ParamError>;
+    /// `p` with every path parameter passed through `f` (name, metadata, value): relative
+    /// paths resolved against a folder. Not a parse: the typed parameters are rewritten.
+    fn map_paths(&self, p: &Parsed, f: &mut dyn FnMut(&'static str, &Meta, &mut String)) -> Parsed;
+    /// [`Operator::kind`].
+    fn kind(&self, p: &Parsed) -> Kind;
+    /// What input `input` (port order) must provide, from the kind and the port's [`Read`].
+    fn footprint(&self, p: &Parsed, input: usize) -> Footprint {
+        let read = self
+            .spec()
+            .inputs
+            .get(input)
+            .map_or(Read::Whole, |s| s.read);
+        self.kind(p).footprint(read)
+    }
+    /// Whether it computes windows on its own ([`Kind::Source`]).
+    fn regional(&self, p: &Parsed) -> bool {
+        self.kind(p) == Kind::Source
+    }
+    /// The parameters at a level `s` times coarser (`None`: no coarse form).
+    fn scaled(&self, p: &Parsed, s: f64) -> Option<Parsed>;
+    /// [`Operator::out_size`].
+    fn out_size(&self, p: &Parsed, inputs: &[Option<(usize, usize)>]) -> Option<(usize, usize)>;
     /// [`Operator::SCRATCH`].
     fn scratch(&self) -> f64;
-    /// [`Operator::footprint`] on canonical params (`Global` when they do not parse).
-    fn footprint(&self, values: &BTreeMap<String, ParamValue>, input: usize) -> Footprint;
-    /// [`Operator::damage`] on canonical params (`None` when they do not parse).
+    /// [`Operator::damage`].
     fn damage(
         &self,
-        old: &BTreeMap<String, ParamValue>,
-        new: &BTreeMap<String, ParamValue>,
+        old: &Parsed,
+        new: &Parsed,
         inputs: &[Option<(usize, usize)>],
     ) -> Option<Vec<[f64; 4]>>;
-    /// [`Operator::scaled`] on canonical params, as canonical params (`None` also when they do
-    /// not parse).
-    fn scaled(
+    /// Runs on the whole inputs.
+    fn run(
         &self,
-        values: &BTreeMap<String, ParamValue>,
-        s: f64,
-    ) -> Option<BTreeMap<String, ParamValue>>;
-    /// [`Operator::level_outputs`] on canonical params (unchanged when they do not parse).
-    fn level_outputs(
+        p: &Parsed,
+        inputs: Vec<Option<Value>>,
+        ctx: &RunContext,
+    ) -> Result<Vec<Value>, RgbnError> {
+        self.run_at(p, inputs, ctx, (0, 0), 1)
+    }
+    /// Runs on the crop whose top-left pixel is `origin` of the whole image (positions
+    /// shifted by the declarations), at a level of reduction `scale` (`p` already scaled;
+    /// outputs mapped by [`Operator::level_outputs`] when `scale > 1`).
+    fn run_at(
         &self,
-        values: &BTreeMap<String, ParamValue>,
-        s: f64,
-        outputs: Vec<Value>,
-    ) -> Vec<Value>;
-    /// [`Operator::regional`] on canonical params (`false` when they do not parse).
-    fn regional(&self, values: &BTreeMap<String, ParamValue>) -> bool;
-    /// [`Operator::run_region`] on canonical params.
+        p: &Parsed,
+        inputs: Vec<Option<Value>>,
+        ctx: &RunContext,
+        origin: (usize, usize),
+        scale: usize,
+    ) -> Result<Vec<Value>, RgbnError>;
+    /// [`Operator::run_region`].
     fn run_region(
         &self,
-        values: &BTreeMap<String, ParamValue>,
-        inputs: &[Option<Value>],
+        p: &Parsed,
+        inputs: Vec<Option<Value>>,
         win: Window,
         ctx: &RunContext,
     ) -> Result<Vec<Value>, RgbnError>;
-    /// Runs on the crop whose top-left pixel is `origin` of the whole image:
-    /// [`Operator::run`] with [`Operator::shifted`] params.
-    fn run_at(
-        &self,
-        values: &BTreeMap<String, ParamValue>,
-        inputs: &[Option<Value>],
-        ctx: &RunContext,
-        origin: (usize, usize),
-    ) -> Result<Vec<Value>, RgbnError>;
 }
+
+/// Parsed parameters kept per operator, by the hash of the map they were parsed from.
+const MEMO: usize = 512;
 
 struct Entry<T: Operator> {
     spec: OpSpec,
     params: Vec<ParamInfo>,
+    memo: Mutex<HashMap<u128, Parsed>>,
     _op: PhantomData<fn() -> T>,
 }
 
 impl<T: Operator> Entry<T> {
     fn boxed() -> Box<dyn DynOp> {
+        let mut spec = T::spec();
+        debug_assert!(spec.inputs.is_empty() && spec.outputs.is_empty());
+        spec.inputs = T::In::ports();
+        spec.outputs = T::Out::ports();
         Box::new(Self {
-            spec: T::spec(),
+            spec,
             params: params::describe::<T::Params>(),
+            memo: Mutex::new(HashMap::new()),
             _op: PhantomData,
         })
     }
+
+    fn typed<'a>(&self, p: &'a Parsed) -> &'a T::Params {
+        p.get::<T::Params>()
+            .unwrap_or_else(|| panic!("parameters of another operator passed to {}", self.spec.id))
+    }
+
+    /// Wraps typed parameters with their canonical map and hash.
+    fn wrap(&self, typed: T::Params) -> Parsed {
+        let values = params::to_values(&typed);
+        let mut h = xxhash_rust::xxh3::Xxh3::new();
+        for (name, value) in &values {
+            h.update(&(name.len() as u64).to_le_bytes());
+            h.update(name.as_bytes());
+            let input_file = self
+                .params
+                .iter()
+                .any(|i| i.name == name && i.kind == params::ParamKind::Path && !i.meta.output);
+            if input_file {
+                h.update(b"input-file");
+            } else {
+                value.hash_into(&mut h);
+            }
+        }
+        Parsed {
+            typed: Arc::new(typed),
+            values: Arc::new(values),
+            hash: h.digest128(),
+        }
+    }
+}
+
+fn map_hash(values: &BTreeMap<String, ParamValue>) -> u128 {
+    let mut h = xxhash_rust::xxh3::Xxh3::new();
+    for (name, value) in values {
+        h.update(&(name.len() as u64).to_le_bytes());
+        h.update(name.as_bytes());
+        value.hash_into(&mut h);
+    }
+    h.digest128()
+}
+
+fn lock<T>(m: &Mutex<T>) -> std::sync::MutexGuard<'_, T> {
+    m.lock().unwrap_or_else(std::sync::PoisonError::into_inner)
 }
 
 impl<T: Operator> DynOp for Entry<T> {
@@ -476,12 +547,13 @@ impl<T: Operator> DynOp for Entry<T> {
     fn params(&self) -> &[ParamInfo] {
         &self.params
     }
-    fn canonical(
-        &self,
-        values: &BTreeMap<String, ParamValue>,
-    ) -> Result<BTreeMap<String, ParamValue>, ParamError> {
-        let p: T::Params = params::from_values(values)?;
-        T::check(&p).map_err(|e| match e {
+    fn parse(&self, values: &BTreeMap<String, ParamValue>) -> Result<Parsed, ParamError> {
+        let key = map_hash(values);
+        if let Some(p) = lock(&self.memo).get(&key) {
+            return Ok(p.clone());
+        }
+        let typed: T::Params = params::from_values(values)?;
+        T::check(&typed).map_err(|e| match e {
             RgbnError::InvalidParam { name, detail } => ParamError::Range { name, detail },
             // Not about one parameter (checks report `InvalidParam`): name the operator.
             other => ParamError::Range {
@@ -489,93 +561,74 @@ impl<T: Operator> DynOp for Entry<T> {
                 detail: other.to_string(),
             },
         })?;
-        Ok(params::to_values(&p))
+        let p = self.wrap(typed);
+        let mut memo = lock(&self.memo);
+        if memo.len() >= MEMO {
+            memo.clear();
+        }
+        memo.insert(key, p.clone());
+        Ok(p)
     }
-    fn run(
-        &self,
-        values: &BTreeMap<String, ParamValue>,
-        inputs: &[Option<Value>],
-        ctx: &RunContext,
-    ) -> Result<Vec<Value>, RgbnError> {
-        self.run_at(values, inputs, ctx, (0, 0))
+    fn map_paths(&self, p: &Parsed, f: &mut dyn FnMut(&'static str, &Meta, &mut String)) -> Parsed {
+        let mut typed = self.typed(p).clone();
+        params::map_paths(&mut typed, f);
+        self.wrap(typed)
     }
-    fn out_size(
-        &self,
-        values: &BTreeMap<String, ParamValue>,
-        inputs: &[Option<(usize, usize)>],
-    ) -> Option<(usize, usize)> {
-        let p: T::Params = params::from_values(values).ok()?;
-        T::out_size(&p, inputs)
+    fn kind(&self, p: &Parsed) -> Kind {
+        T::kind(self.typed(p))
+    }
+    fn scaled(&self, p: &Parsed, s: f64) -> Option<Parsed> {
+        let t = self.typed(p);
+        match T::kind(t).coarse() {
+            Coarse::Scaled => T::scaled(t, s).map(|t| self.wrap(t)),
+            Coarse::None => None,
+        }
+    }
+    fn out_size(&self, p: &Parsed, inputs: &[Option<(usize, usize)>]) -> Option<(usize, usize)> {
+        T::out_size(self.typed(p), inputs)
     }
     fn scratch(&self) -> f64 {
         T::SCRATCH
     }
-    fn footprint(&self, values: &BTreeMap<String, ParamValue>, input: usize) -> Footprint {
-        match params::from_values::<T::Params>(values) {
-            Ok(p) => T::footprint(&p, input),
-            Err(_) => Footprint::Global,
-        }
-    }
     fn damage(
         &self,
-        old: &BTreeMap<String, ParamValue>,
-        new: &BTreeMap<String, ParamValue>,
+        old: &Parsed,
+        new: &Parsed,
         inputs: &[Option<(usize, usize)>],
     ) -> Option<Vec<[f64; 4]>> {
-        let old: T::Params = params::from_values(old).ok()?;
-        let new: T::Params = params::from_values(new).ok()?;
-        T::damage(&old, &new, inputs)
-    }
-    fn scaled(
-        &self,
-        values: &BTreeMap<String, ParamValue>,
-        s: f64,
-    ) -> Option<BTreeMap<String, ParamValue>> {
-        let p: T::Params = params::from_values(values).ok()?;
-        T::scaled(&p, s).map(|p| params::to_values(&p))
-    }
-    fn level_outputs(
-        &self,
-        values: &BTreeMap<String, ParamValue>,
-        s: f64,
-        outputs: Vec<Value>,
-    ) -> Vec<Value> {
-        match params::from_values::<T::Params>(values) {
-            Ok(p) => T::level_outputs(&p, s, outputs),
-            Err(_) => outputs,
-        }
-    }
-    fn regional(&self, values: &BTreeMap<String, ParamValue>) -> bool {
-        params::from_values::<T::Params>(values).is_ok_and(|p| T::regional(&p))
-    }
-    fn run_region(
-        &self,
-        values: &BTreeMap<String, ParamValue>,
-        inputs: &[Option<Value>],
-        win: Window,
-        ctx: &RunContext,
-    ) -> Result<Vec<Value>, RgbnError> {
-        let p: T::Params = params::from_values(values)?;
-        let out = T::run_region(&p, &Inputs::new(&self.spec.inputs, inputs), win, ctx)?;
-        debug_assert_eq!(out.len(), self.spec.outputs.len());
-        Ok(out)
+        T::damage(self.typed(old), self.typed(new), inputs)
     }
     fn run_at(
         &self,
-        values: &BTreeMap<String, ParamValue>,
-        inputs: &[Option<Value>],
+        p: &Parsed,
+        inputs: Vec<Option<Value>>,
         ctx: &RunContext,
         origin: (usize, usize),
+        scale: usize,
     ) -> Result<Vec<Value>, RgbnError> {
-        let p: T::Params = params::from_values(values)?;
-        let p = if origin == (0, 0) {
-            p
+        let t = self.typed(p);
+        let shifted;
+        let t = if origin == (0, 0) {
+            t
         } else {
-            T::shifted(&p, origin.0 as f64, origin.1 as f64)
+            shifted = params::shifted(t, origin.0 as f64, origin.1 as f64);
+            &shifted
         };
-        let out = T::run(&p, &Inputs::new(&self.spec.inputs, inputs), ctx)?;
-        debug_assert_eq!(out.len(), self.spec.outputs.len());
-        Ok(out)
+        let mut out = T::run(t, T::In::from_values(inputs)?, ctx)?;
+        if scale > 1 {
+            out = T::level_outputs(t, scale as f64, out);
+        }
+        Ok(out.into_values())
+    }
+    fn run_region(
+        &self,
+        p: &Parsed,
+        inputs: Vec<Option<Value>>,
+        win: Window,
+        ctx: &RunContext,
+    ) -> Result<Vec<Value>, RgbnError> {
+        let out = T::run_region(self.typed(p), T::In::from_values(inputs)?, win, ctx)?;
+        Ok(out.into_values())
     }
 }
 
@@ -642,7 +695,7 @@ pub fn find(id: &str) -> Option<&'static dyn DynOp> {
         .map(|b| b.as_ref())
 }
 
-/// The id of the reusable-graph node (a graph file used as a node; see [`crate::graph`]).
+/// The id of the reusable-graph node (a graph file used as a node; see `crate::graph`).
 pub const GRAPH_NODE_OP: &str = "graph";
 
 #[cfg(test)]
@@ -677,9 +730,9 @@ mod tests {
                 }
             }
             if required {
-                assert!(op.canonical(&BTreeMap::new()).is_err(), "{}", s.id);
+                assert!(op.parse(&BTreeMap::new()).is_err(), "{}", s.id);
             }
-            assert!(op.canonical(&given).is_ok(), "{}", s.id);
+            assert!(op.parse(&given).is_ok(), "{}", s.id);
         }
     }
 }

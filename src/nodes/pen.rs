@@ -1,20 +1,41 @@
 //! The pen of [`crate::ops::pen`] as a node: sculpt a relief along an open or closed path with a
 //! profile and an optional pattern along it ([`crate::ops::pen::apply_pen_with`]).
 
-use super::kit::{curl_port, shift_points};
-use super::{
-    scale_point, Footprint, Inputs, OpSpec, Operator, PortSpec, PortType, RunContext, Value,
-};
+use super::{Coarse, Kind, OpSpec, Operator, RunContext, Scalar};
 use crate::error::RgbnError;
 use crate::ops::geom::{changed_path_bounds, paths_bounds};
 use crate::ops::pen::{apply_pen_with, PenMode, PenParams};
-use std::sync::Arc;
+use crate::RgbnImage;
+
+crate::inputs! {
+    /// Inputs of [`PenNode`].
+    pub struct PenIn {
+        /// Image to draw on.
+        pub image: RgbnImage,
+        /// Optional height image for pattern: texture (at most 1024 px a side): columns across the stroke, rows along one period (along_period_px); its edge columns are pinned to the surface.
+        pub texture: Option<Scalar> => pattern,
+    }
+}
+
+crate::outputs! {
+    /// Outputs of [`PenNode`].
+    pub struct PenOut {
+        /// Image with the relief added; colour and mask unchanged.
+        pub image: RgbnImage,
+        /// The pen's height in pixels (its gradients are what was added).
+        pub height: Scalar,
+        /// RMS(curl) / RMS(|g|) of the result's gradients inside the mask: the integrability readout (0 for the gradients of a height).
+        pub relative_rms_curl: f64,
+    }
+}
 
 /// Pen.
 pub struct PenNode;
 
 impl Operator for PenNode {
     type Params = PenParams;
+    type In = PenIn;
+    type Out = PenOut;
     fn spec() -> OpSpec {
         OpSpec::new(
             "pen",
@@ -22,61 +43,21 @@ impl Operator for PenNode {
             "draw",
             "Sculpts a relief along a path (Pereira & Velho §V–VI): a profile across an open or closed polyline, added to the image's gradients. Open paths must end at the level they start (bump, ridge, crease, scratch); a step raises the inside of a closed path.",
         )
-        .input(PortSpec::new("image", PortType::Rgbn, "Image to draw on."))
-        .input(
-            PortSpec::new(
-                "texture",
-                PortType::Scalar,
-                "Optional height image for pattern: texture (at most 1024 px a side): columns across the stroke, rows along one period (along_period_px); its edge columns are pinned to the surface.",
-            )
-            .optional(),
-        )
-        .output(PortSpec::new(
-            "image",
-            PortType::Rgbn,
-            "Image with the relief added; colour and mask unchanged.",
-        ))
-        .output(PortSpec::new(
-            "height",
-            PortType::Scalar,
-            "The pen's height in pixels (its gradients are what was added).",
-        ))
-        .output(curl_port("result's gradients"))
     }
     fn check(p: &PenParams) -> Result<(), RgbnError> {
         p.validate()
     }
-    fn footprint(p: &PenParams, input: usize) -> Footprint {
-        if input == 1 {
-            // The texture is one period of the pattern, used whole all along the path and
-            // sampled in coordinates relative to its size: never reduced at coarse levels.
-            return Footprint::Pattern;
-        }
-        match p.mode {
+    fn kind(p: &PenParams) -> Kind {
+        let halo = match p.mode {
             // Heights differentiated forward, gradients at staggered points: one pixel.
-            PenMode::Integrable | PenMode::Analytic => Footprint::Local { halo: 1 },
+            PenMode::Integrable | PenMode::Analytic => 1,
             // Distances from the rasterised path matter up to the stroke's half width and taper.
-            PenMode::DistanceTransform => Footprint::Local {
-                halo: (p.width_px / 2.0 + p.taper_px).ceil() as usize + 2,
-            },
-        }
-    }
-    fn scaled(p: &PenParams, s: f64) -> Option<PenParams> {
-        Some(PenParams {
-            points: p.points.iter().map(|&q| scale_point(q, s)).collect(),
-            width_px: p.width_px / s,
-            height_px: p.height_px / s,
-            samples_px: p.samples_px.iter().map(|v| v / s).collect(),
-            taper_px: p.taper_px / s,
-            along_period_px: p.along_period_px / s,
-            pattern_height_px: p.pattern_height_px / s,
-            ..p.clone()
-        })
-    }
-    fn shifted(p: &PenParams, dx: f64, dy: f64) -> PenParams {
-        PenParams {
-            points: shift_points(&p.points, dx, dy),
-            ..p.clone()
+            PenMode::DistanceTransform => (p.width_px / 2.0 + p.taper_px).ceil() as usize + 2,
+        };
+        // Lengths and points are declared in pixels: the level's pen is the declared scaling.
+        Kind::Area {
+            halo,
+            coarse: Coarse::Scaled,
         }
     }
     fn damage(
@@ -103,13 +84,13 @@ impl Operator for PenNode {
         }
         paths_bounds(&[&old.points, &new.points], reach(old).max(reach(new))).map(|b| vec![b])
     }
-    fn run(p: &PenParams, i: &Inputs<'_>, _: &RunContext) -> Result<Vec<Value>, RgbnError> {
-        let (out, rep) = apply_pen_with(i.rgbn("image")?, p, i.scalar("texture")?)?;
-        let curl = rep.curl_after.relative;
-        Ok(vec![
-            Value::Rgbn(out),
-            Value::Scalar(Arc::new(rep.height)),
-            Value::Number(curl),
-        ])
+    fn run(p: &PenParams, i: PenIn, _: &RunContext) -> Result<PenOut, RgbnError> {
+        let (image, rep) = apply_pen_with(&i.image, p, i.texture.as_deref())?;
+        let relative_rms_curl = rep.curl_after.relative;
+        Ok(PenOut {
+            image,
+            height: Scalar::new(rep.height),
+            relative_rms_curl,
+        })
     }
 }

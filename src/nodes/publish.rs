@@ -1,15 +1,34 @@
 //! The `publish` node: writes the web viewer folder of [`crate::ops::publish`].
 
-use super::{Inputs, OpSpec, Operator, PortSpec, PortType, RunContext, Value};
+use super::{Kind, OpSpec, Operator, RunContext};
 use crate::error::RgbnError;
 use crate::ops::publish::{publish, PublishParams};
+use crate::RgbnImage;
 use std::path::{Path, PathBuf};
+
+crate::inputs! {
+    /// Inputs of [`PublishNode`].
+    pub struct PublishIn {
+        /// Image to publish.
+        pub image: RgbnImage,
+    }
+}
+
+crate::outputs! {
+    /// Outputs of [`PublishNode`].
+    pub struct PublishOut {
+        /// The same image.
+        pub image: RgbnImage,
+    }
+}
 
 /// Writes a self-contained web folder relighting its input and passes the input through.
 pub struct PublishNode;
 
 impl Operator for PublishNode {
     type Params = PublishParams;
+    type In = PublishIn;
+    type Out = PublishOut;
     fn spec() -> OpSpec {
         OpSpec::new(
             "publish",
@@ -17,21 +36,18 @@ impl Operator for PublishNode {
             "output",
             "Writes a self-contained folder (index.html, viewer.js, image.json, PNG textures; a tile pyramid over 4096²) that relights the image in any WebGL2 browser with no network access: drag the light, zoom, pan, switch relit / normals / specular_enhancement / curvature, exposure. Replaces only an earlier publish; passes the image through.",
         )
-        .input(PortSpec::new("image", PortType::Rgbn, "Image to publish."))
-        .output(PortSpec::new("image", PortType::Rgbn, "The same image."))
         .side_effect()
     }
     fn check(p: &PublishParams) -> Result<(), RgbnError> {
-        if p.path.is_empty() {
-            return Err(RgbnError::param("path", "a folder path is required"));
-        }
         p.options().shading.validate()
     }
-    fn run(p: &PublishParams, i: &Inputs<'_>, ctx: &RunContext) -> Result<Vec<Value>, RgbnError> {
-        Self::check(p)?;
-        let img = i.rgbn("image")?;
+    fn kind(_: &PublishParams) -> Kind {
+        // Writes the whole image.
+        Kind::GLOBAL
+    }
+    fn run(p: &PublishParams, i: PublishIn, ctx: &RunContext) -> Result<PublishOut, RgbnError> {
         let protected: Vec<&Path> = ctx.protected.iter().map(PathBuf::as_path).collect();
-        publish(img, Path::new(&p.path), &p.options(), &protected)?;
-        Ok(vec![Value::Rgbn(img.clone())])
+        publish(&i.image, Path::new(&p.path), &p.options(), &protected)?;
+        Ok(PublishOut { image: i.image })
     }
 }

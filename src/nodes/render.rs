@@ -5,11 +5,12 @@
 //! Parameters of the render nodes (the nodes below); the renderers themselves are
 //! [`crate::render::relight`] and [`crate::render::render`].
 
-use super::{Footprint, Inputs, OpSpec, Operator, Picture, PortSpec, PortType, RunContext, Value};
+use super::{Kind, OpSpec, Operator, Picture, RunContext};
 use crate::error::RgbnError;
 use crate::params::{visit_choice, Meta, ParamVisitor, Params};
 use crate::render::{self, View};
 use crate::render::{InspectParams, Light, Shading};
+use crate::RgbnImage;
 use std::sync::Arc;
 
 crate::params! {
@@ -83,19 +84,37 @@ impl Params for ViewParams {
     }
 }
 
-/// Relights an image.
-pub struct Relight;
+crate::inputs! {
+    /// Inputs of [`Relight`].
+    pub struct RelightIn {
+        /// Image to light.
+        pub image: RgbnImage,
+    }
+}
 
-fn picture(w: usize, h: usize, rgba: Vec<u8>) -> Value {
-    Value::Picture(Arc::new(Picture {
+crate::outputs! {
+    /// Outputs of [`Relight`].
+    pub struct RelightOut {
+        /// The relit picture.
+        pub picture: Arc<Picture>,
+    }
+}
+
+fn picture(w: usize, h: usize, rgba: Vec<u8>) -> Arc<Picture> {
+    Arc::new(Picture {
         width: w,
         height: h,
         rgba,
-    }))
+    })
 }
+
+/// Relights an image.
+pub struct Relight;
 
 impl Operator for Relight {
     type Params = RelightParams;
+    type In = RelightIn;
+    type Out = RelightOut;
     fn spec() -> OpSpec {
         OpSpec::new(
             "relight",
@@ -103,22 +122,18 @@ impl Operator for Relight {
             "render",
             "Lambert + Blinn-Phong relighting with one directional light, ambient and exposure, to an sRGB picture (masked-out pixels transparent).",
         )
-        .input(PortSpec::new("image", PortType::Rgbn, "Image to light."))
-        .output(PortSpec::new("picture", PortType::Picture, "The relit picture."))
     }
     fn check(p: &RelightParams) -> Result<(), RgbnError> {
         p.shading().validate()
     }
-    fn footprint(_: &RelightParams, _input: usize) -> Footprint {
-        Footprint::POINT
+    fn kind(_: &RelightParams) -> Kind {
+        Kind::POINT
     }
-    fn scaled(p: &RelightParams, _: f64) -> Option<RelightParams> {
-        Some(p.clone())
-    }
-    fn run(p: &RelightParams, i: &Inputs<'_>, _: &RunContext) -> Result<Vec<Value>, RgbnError> {
-        let img = i.rgbn("image")?;
-        let rgba = render::relight(img, &p.shading())?;
-        Ok(vec![picture(img.width(), img.height(), rgba)])
+    fn run(p: &RelightParams, i: RelightIn, _: &RunContext) -> Result<RelightOut, RgbnError> {
+        let rgba = render::relight(&i.image, &p.shading())?;
+        Ok(RelightOut {
+            picture: picture(i.image.width(), i.image.height(), rgba),
+        })
     }
 }
 
@@ -137,15 +152,31 @@ fn view_doc() -> &'static str {
     })
 }
 
+crate::inputs! {
+    /// Inputs of [`ViewOp`].
+    pub struct ViewIn {
+        /// Image to show.
+        pub image: RgbnImage,
+    }
+}
+
+crate::outputs! {
+    /// Outputs of [`ViewOp`].
+    pub struct ViewOut {
+        /// The view.
+        pub picture: Arc<Picture>,
+    }
+}
+
 /// A view of an image (any [`View`]).
 pub struct ViewOp;
 
 impl Operator for ViewOp {
     type Params = ViewParams;
+    type In = ViewIn;
+    type Out = ViewOut;
     fn spec() -> OpSpec {
         OpSpec::new("view", "View", "render", view_doc())
-            .input(PortSpec::new("image", PortType::Rgbn, "Image to show."))
-            .output(PortSpec::new("picture", PortType::Picture, "The view."))
     }
     fn check(p: &ViewParams) -> Result<(), RgbnError> {
         if p.view.lit() {
@@ -153,9 +184,16 @@ impl Operator for ViewOp {
         }
         p.inspect.validate()
     }
-    fn run(p: &ViewParams, i: &Inputs<'_>, _: &RunContext) -> Result<Vec<Value>, RgbnError> {
-        let img = i.rgbn("image")?;
+    fn kind(_: &ViewParams) -> Kind {
+        // Curvature, lines, occlusion and the enhancement views read neighbourhoods of
+        // different sizes (some the whole image): computed whole.
+        Kind::GLOBAL
+    }
+    fn run(p: &ViewParams, i: ViewIn, _: &RunContext) -> Result<ViewOut, RgbnError> {
+        let img = &i.image;
         let rgba = render::render_with(img, p.view, &p.shading.shading(), &p.inspect)?;
-        Ok(vec![picture(img.width(), img.height(), rgba)])
+        Ok(ViewOut {
+            picture: picture(img.width(), img.height(), rgba),
+        })
     }
 }

@@ -5,11 +5,12 @@
 //! Parameters of the image writer (the nodes below); the writing itself is
 //! [`crate::raster::io::save`].
 
-use super::{Inputs, OpSpec, Operator, PortSpec, PortType, RunContext, Value};
+use super::{Kind, OpSpec, Operator, RunContext, Value};
 use crate::error::RgbnError;
 use crate::raster::io::{self, Format, SaveOptions};
 use crate::raster::io::{ExrPrecision, NormalConvention};
 use crate::raster::Plane;
+use crate::RgbnImage;
 use std::path::{Path, PathBuf};
 
 crate::choice_enum! {
@@ -130,11 +131,29 @@ fn write_exr_plane(p: &Plane, path: &Path) -> Result<(), RgbnError> {
     })
 }
 
+crate::inputs! {
+    /// Inputs of [`Save`].
+    pub struct SaveIn {
+        /// Image to write.
+        pub image: RgbnImage,
+    }
+}
+
+crate::outputs! {
+    /// Outputs of [`Save`].
+    pub struct SaveOut {
+        /// The same image.
+        pub image: RgbnImage,
+    }
+}
+
 /// Writes its input to a file when evaluated and passes it through. Never cached.
 pub struct Save;
 
 impl Operator for Save {
     type Params = SaveParams;
+    type In = SaveIn;
+    type Out = SaveOut;
     fn spec() -> OpSpec {
         OpSpec::new(
             "save",
@@ -142,14 +161,9 @@ impl Operator for Save {
             "output",
             "Writes the image to a file (atomically; never over a file the graph reads) and passes it through; runs whenever its output is requested.",
         )
-        .input(PortSpec::new("image", PortType::Rgbn, "Image to write."))
-        .output(PortSpec::new("image", PortType::Rgbn, "The same image."))
         .side_effect()
     }
     fn check(p: &SaveParams) -> Result<(), RgbnError> {
-        if p.path.is_empty() {
-            return Err(RgbnError::param("path", "a file path is required"));
-        }
         match Format::of(Path::new(&p.path))? {
             Format::Ptm => Err(unsupported(
                 Path::new(&p.path),
@@ -158,13 +172,15 @@ impl Operator for Save {
             _ => Ok(()),
         }
     }
-    fn run(p: &SaveParams, i: &Inputs<'_>, ctx: &RunContext) -> Result<Vec<Value>, RgbnError> {
-        Self::check(p)?;
-        let img = i.rgbn("image")?;
+    fn kind(_: &SaveParams) -> Kind {
+        // Writes the whole image.
+        Kind::GLOBAL
+    }
+    fn run(p: &SaveParams, i: SaveIn, ctx: &RunContext) -> Result<SaveOut, RgbnError> {
         let path = PathBuf::from(&p.path);
         let protected: Vec<&Path> = ctx.protected.iter().map(PathBuf::as_path).collect();
         io::check_output(&path, &protected)?;
-        io::save(img, &path, &p.options())?;
-        Ok(vec![Value::Rgbn(img.clone())])
+        io::save(&i.image, &path, &p.options())?;
+        Ok(SaveOut { image: i.image })
     }
 }

@@ -1,18 +1,40 @@
 //! The stamp of [`crate::ops::stamp`] as a node: place an RGBN stamp at positions with an affine map
 //! ([`stamp_image`]).
 
-use super::kit::{curl_port, shift_points};
-use super::{
-    scale_point, Footprint, Inputs, OpSpec, Operator, PortSpec, PortType, RunContext, Value,
-};
+use super::{Coarse, Kind, Mask, OpSpec, Operator, RunContext};
 use crate::error::RgbnError;
 use crate::ops::stamp::{extract, placement_bounds, stamp_image, ExtractParams, StampParams};
+use crate::RgbnImage;
+
+crate::inputs! {
+    /// Inputs of [`StampNode`].
+    pub struct StampIn {
+        /// Target image.
+        pub image: RgbnImage,
+        /// The stamp (at most 512 px a side); its mask limits its relief (feathered over the falloff) and its colour.
+        pub stamp: RgbnImage => whole,
+        /// Optional region (the target's size): the stamped relief and colour are multiplied by it, integrably.
+        pub region: Option<Mask>,
+    }
+}
+
+crate::outputs! {
+    /// Outputs of [`StampNode`].
+    pub struct StampOut {
+        /// Stamped image.
+        pub image: RgbnImage,
+        /// RMS(curl) / RMS(|g|) of the result's gradients inside the mask: the integrability readout (0 for the gradients of a height).
+        pub relative_rms_curl: f64,
+    }
+}
 
 /// Stamp.
 pub struct StampNode;
 
 impl Operator for StampNode {
     type Params = StampParams;
+    type In = StampIn;
+    type Out = StampOut;
     fn spec() -> OpSpec {
         OpSpec::new(
             "stamp",
@@ -20,46 +42,16 @@ impl Operator for StampNode {
             "combine",
             "Places a small RGBN (its relief, optionally its colour) at positions with an affine map (Pereira & Velho §IV, Fig. 4). The stamp is integrated once and its windowed height added, so the stamped relief is integrable for any map.",
         )
-        .input(PortSpec::new("image", PortType::Rgbn, "Target image."))
-        .input(PortSpec::new(
-            "stamp",
-            PortType::Rgbn,
-            "The stamp (at most 512 px a side); its mask limits its relief (feathered over the falloff) and its colour.",
-        ))
-        .input(
-            PortSpec::new(
-                "region",
-                PortType::Mask,
-                "Optional region (the target's size): the stamped relief and colour are multiplied by it, integrably.",
-            )
-            .optional(),
-        )
-        .output(PortSpec::new("image", PortType::Rgbn, "Stamped image."))
-        .output(curl_port("result's gradients"))
     }
     fn check(p: &StampParams) -> Result<(), RgbnError> {
         p.validate()
     }
-    fn footprint(_: &StampParams, input: usize) -> Footprint {
-        // The stamp is used whole at every placement; target and region are differentiated.
-        if input == 1 {
-            Footprint::Global
-        } else {
-            Footprint::Local { halo: 1 }
-        }
-    }
-    fn scaled(p: &StampParams, s: f64) -> Option<StampParams> {
-        // The stamp image is reduced with the target: the affine map stays, placements move.
-        Some(StampParams {
-            positions: p.positions.iter().map(|&q| scale_point(q, s)).collect(),
-            falloff_px: p.falloff_px / s,
-            ..p.clone()
-        })
-    }
-    fn shifted(p: &StampParams, dx: f64, dy: f64) -> StampParams {
-        StampParams {
-            positions: shift_points(&p.positions, dx, dy),
-            ..p.clone()
+    fn kind(_: &StampParams) -> Kind {
+        // The stamped height is differentiated over one pixel; the stamp itself is read whole
+        // (its port says so). Positions and the falloff are declared in pixels.
+        Kind::Area {
+            halo: 1,
+            coarse: Coarse::Scaled,
         }
     }
     fn damage(
@@ -88,13 +80,31 @@ impl Operator for StampNode {
         }
         Some(out)
     }
-    fn run(p: &StampParams, i: &Inputs<'_>, _: &RunContext) -> Result<Vec<Value>, RgbnError> {
-        let region = i.mask("region")?.map(|m| m.data());
-        let (img, rep) = stamp_image(i.rgbn("image")?, i.rgbn("stamp")?, region, p)?;
-        Ok(vec![
-            Value::Rgbn(img),
-            Value::Number(rep.curl_after.relative),
-        ])
+    fn run(p: &StampParams, i: StampIn, _: &RunContext) -> Result<StampOut, RgbnError> {
+        let region = i.region.as_ref().map(|m| m.data());
+        let (image, rep) = stamp_image(&i.image, &i.stamp, region, p)?;
+        Ok(StampOut {
+            image,
+            relative_rms_curl: rep.curl_after.relative,
+        })
+    }
+}
+
+crate::inputs! {
+    /// Inputs of [`ExtractNode`].
+    pub struct ExtractIn {
+        /// Image to cut from.
+        pub image: RgbnImage,
+        /// Optional region (the image's size): its bounding box is cut, its coverage is the piece's mask.
+        pub region: Option<Mask>,
+    }
+}
+
+crate::outputs! {
+    /// Outputs of [`ExtractNode`].
+    pub struct ExtractOut {
+        /// The piece (at most 512 px a side).
+        pub stamp: RgbnImage,
     }
 }
 
@@ -103,6 +113,8 @@ pub struct ExtractNode;
 
 impl Operator for ExtractNode {
     type Params = ExtractParams;
+    type In = ExtractIn;
+    type Out = ExtractOut;
     fn spec() -> OpSpec {
         OpSpec::new(
             "extract",
@@ -110,26 +122,21 @@ impl Operator for ExtractNode {
             "combine",
             "Cuts a piece out of an RGBN image to stamp elsewhere (Pereira & Velho Fig. 4): a rectangle, or the bounding box of a region mask whose coverage becomes the piece's mask; optionally high-passed so only its detail is stamped.",
         )
-        .input(PortSpec::new("image", PortType::Rgbn, "Image to cut from."))
-        .input(
-            PortSpec::new(
-                "region",
-                PortType::Mask,
-                "Optional region (the image's size): its bounding box is cut, its coverage is the piece's mask.",
-            )
-            .optional(),
-        )
-        .output(PortSpec::new("stamp", PortType::Rgbn, "The piece (at most 512 px a side)."))
+    }
+    fn kind(_: &ExtractParams) -> Kind {
+        // The piece's size and place come from the whole region.
+        Kind::GLOBAL
     }
     fn out_size(p: &ExtractParams, inputs: &[Option<(usize, usize)>]) -> Option<(usize, usize)> {
-        // With a region the size depends on its pixels: at most a stamp's largest side.
         match inputs.get(1) {
             Some(Some(_)) => Some((512, 512)),
             _ => Some((p.width as usize, p.height as usize)),
         }
     }
-    fn run(p: &ExtractParams, i: &Inputs<'_>, _: &RunContext) -> Result<Vec<Value>, RgbnError> {
-        let region = i.mask("region")?.map(|m| m.data());
-        Ok(vec![Value::Rgbn(extract(i.rgbn("image")?, region, p)?)])
+    fn run(p: &ExtractParams, i: ExtractIn, _: &RunContext) -> Result<ExtractOut, RgbnError> {
+        let region = i.region.as_ref().map(|m| m.data());
+        Ok(ExtractOut {
+            stamp: extract(&i.image, region, p)?,
+        })
     }
 }

@@ -714,20 +714,11 @@ fn smooth_window<F: LineFilter>(win: &Window<'_>, f: &F, border: BorderMode) -> 
 pub trait KernelParams: crate::params::Params {
     /// The kernel these parameters describe (validated by [`Kernel::validate`]).
     fn kernel(&self) -> Kernel;
-    /// The same filter on gradients reduced by `s` (a level of detail): widths in pixels
-    /// divided by `s`; `None` where no such form exists (box radii are whole pixels, a LoG's
-    /// response scales with σ⁻², free kernels are taps). Default: `None`.
-    fn scaled(&self, _s: f64) -> Option<Self>
-    where
-        Self: Sized,
-    {
-        None
-    }
-}
-
-/// A Gaussian width at a level `s` times coarser, kept within the parameter's range.
-fn coarser(sigma_px: f64, s: f64) -> f64 {
-    (sigma_px / s).max(0.05)
+    /// Whether the same filter on gradients reduced by `s` (a level of detail) is this one
+    /// with its widths in pixels divided by `s` (as their declarations say: see
+    /// `crate::params::scaled`); not for box radii (whole pixels), a LoG (its response scales
+    /// with σ⁻²) or free kernels (taps).
+    const COARSE: bool;
 }
 
 fn f32s(v: &[f64]) -> Vec<f32> {
@@ -744,11 +735,7 @@ crate::params! {
 }
 
 impl KernelParams for GaussianParams {
-    fn scaled(&self, s: f64) -> Option<Self> {
-        Some(Self {
-            sigma_px: coarser(self.sigma_px, s),
-        })
-    }
+    const COARSE: bool = true;
     fn kernel(&self) -> Kernel {
         Kernel::Gaussian {
             sigma_px: self.sigma_px as f32,
@@ -766,6 +753,7 @@ crate::params! {
 }
 
 impl KernelParams for BoxParams {
+    const COARSE: bool = false;
     fn kernel(&self) -> Kernel {
         Kernel::Box {
             radius_px: self.radius_px.clamp(0, i64::from(u32::MAX)) as u32,
@@ -785,12 +773,7 @@ crate::params! {
 }
 
 impl KernelParams for SharpenParams {
-    fn scaled(&self, s: f64) -> Option<Self> {
-        Some(Self {
-            sigma_px: coarser(self.sigma_px, s),
-            ..self.clone()
-        })
-    }
+    const COARSE: bool = true;
     fn kernel(&self) -> Kernel {
         Kernel::Sharpen {
             sigma_px: self.sigma_px as f32,
@@ -813,13 +796,7 @@ crate::params! {
 }
 
 impl KernelParams for EdgeParams {
-    fn scaled(&self, s: f64) -> Option<Self> {
-        Some(Self {
-            sigma_fine_px: coarser(self.sigma_fine_px, s),
-            sigma_coarse_px: coarser(self.sigma_coarse_px, s),
-            ..self.clone()
-        })
-    }
+    const COARSE: bool = true;
     fn kernel(&self) -> Kernel {
         Kernel::EdgeEnhance {
             sigma_fine_px: self.sigma_fine_px as f32,
@@ -839,11 +816,7 @@ crate::params! {
 }
 
 impl KernelParams for HighPassParams {
-    fn scaled(&self, s: f64) -> Option<Self> {
-        Some(Self {
-            sigma_px: coarser(self.sigma_px, s),
-        })
-    }
+    const COARSE: bool = true;
     fn kernel(&self) -> Kernel {
         Kernel::HighPass {
             sigma_px: self.sigma_px as f32,
@@ -863,12 +836,7 @@ crate::params! {
 }
 
 impl KernelParams for DogParams {
-    fn scaled(&self, s: f64) -> Option<Self> {
-        Some(Self {
-            sigma_fine_px: coarser(self.sigma_fine_px, s),
-            sigma_coarse_px: coarser(self.sigma_coarse_px, s),
-        })
-    }
+    const COARSE: bool = true;
     fn kernel(&self) -> Kernel {
         Kernel::DoG {
             sigma_fine_px: self.sigma_fine_px as f32,
@@ -887,6 +855,7 @@ crate::params! {
 }
 
 impl KernelParams for LogParams {
+    const COARSE: bool = false;
     fn kernel(&self) -> Kernel {
         Kernel::LoG {
             sigma_px: self.sigma_px as f32,
@@ -904,9 +873,7 @@ crate::params! {
 }
 
 impl KernelParams for ScaleParams {
-    fn scaled(&self, _s: f64) -> Option<Self> {
-        Some(self.clone())
-    }
+    const COARSE: bool = true;
     fn kernel(&self) -> Kernel {
         Kernel::DepthScale {
             scale: self.scale as f32,
@@ -926,6 +893,7 @@ crate::params! {
 }
 
 impl KernelParams for SeparableParams {
+    const COARSE: bool = false;
     fn kernel(&self) -> Kernel {
         Kernel::Separable {
             row: f32s(&self.row),
@@ -949,6 +917,7 @@ crate::params! {
 }
 
 impl KernelParams for DenseParams {
+    const COARSE: bool = false;
     fn kernel(&self) -> Kernel {
         Kernel::Dense {
             width: self.width.max(0) as usize,

@@ -129,8 +129,7 @@ impl InspectParams {
 
     /// Checks every value against its declared range: an error names the parameter.
     pub fn validate(&self) -> Result<(), RgbnError> {
-        params::from_values::<Self>(&params::to_values(self))?;
-        Ok(())
+        Ok(params::check_ranges(self)?)
     }
 
     /// Sets parameters from `name=value` strings (the command line's `--param`): an unknown

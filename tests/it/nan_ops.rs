@@ -21,7 +21,7 @@ use std::sync::Arc;
 
 /// Default parameters, with every path parameter inside `dir` (the first extension the
 /// operator accepts: outputs are written there, inputs are missing and give an error).
-fn params(op: &dyn DynOp, dir: &Path) -> BTreeMap<String, ParamValue> {
+fn params(op: &dyn DynOp, dir: &Path) -> rgbn::nodes::Parsed {
     let mut last = None;
     for ext in ["exr", "png", "obj", "ply", "lp", "txt", "json", ""] {
         let mut given = BTreeMap::new();
@@ -34,7 +34,7 @@ fn params(op: &dyn DynOp, dir: &Path) -> BTreeMap<String, ParamValue> {
                 );
             }
         }
-        match op.canonical(&given) {
+        match op.parse(&given) {
             Ok(v) => return v,
             Err(e) => last = Some(e),
         }
@@ -181,7 +181,7 @@ proptest! {
                 })
                 .collect();
             let run = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
-                op.run(&values, &inputs, &ctx)
+                op.run(&values, inputs.clone(), &ctx)
             }));
             match run {
                 Err(_) => prop_assert!(false, "{} panicked on a {w}×{h} image", s.id),
@@ -248,10 +248,10 @@ fn every_parameter_outside_its_range_is_refused_by_name() {
         for p in op.params() {
             let Some(range) = p.meta.range else { continue };
             for v in out_of_range(&p.kind, range) {
-                let mut values = good.clone();
+                let mut values = good.values().clone();
                 values.insert(p.name.to_string(), v.clone());
                 let id = op.spec().id;
-                match op.canonical(&values) {
+                match op.parse(&values) {
                     Ok(_) => panic!("{id}.{}: {v:?} outside {range:?} was accepted", p.name),
                     Err(e) => {
                         let msg = e.to_string();

@@ -83,7 +83,7 @@ fn every_graph_output_over_a_region_equals_the_whole_results_crop() {
         // change (2e-3 over two passes for gradients up to 1.4; unit normals change less).
         // Elsewhere only the order of float operations may differ. Pictures: one 8-bit level.
         let recursive = plan.instances.iter().any(|i| {
-            i.params.iter().any(|(k, v)| {
+            i.params.values().iter().any(|(k, v)| {
                 ["sigma_px", "sigma_fine_px", "sigma_coarse_px"].contains(&k.as_str())
                     && matches!(v, ParamValue::Float(s) if *s >= 3.0)
             })
@@ -396,13 +396,13 @@ fn procedural_sources_compute_any_window_exactly_and_coarse_levels_match_block_m
     let mut rng = Rng(0x51ed_2701_9c3b_44a1);
     for (id, values) in &cases {
         let op = find(id).unwrap();
-        let params = op.canonical(values).unwrap();
-        let whole = op.run(&params, &[], &ctx).unwrap();
+        let params = op.parse(values).unwrap();
+        let whole = op.run(&params, vec![], &ctx).unwrap();
         let Value::Rgbn(img) = &whole[0] else {
             panic!("{id}: not an image")
         };
         let size = (img.width(), img.height());
-        let sphere = params.get("shape") == Some(&ParamValue::Choice("sphere".into()));
+        let sphere = params.values().get("shape") == Some(&ParamValue::Choice("sphere".into()));
         assert_eq!(img.mask().is_some(), sphere, "{id} {params:?}");
         let mut windows = vec![Rect::new(size.0 / 2 - 5, size.1 / 2 - 5, 10, 10)];
         for _ in 0..6 {
@@ -422,7 +422,7 @@ fn procedural_sources_compute_any_window_exactly_and_coarse_levels_match_block_m
                 h: r.h,
                 scale: 1,
             };
-            let part = op.run_region(&params, &[], win, &ctx).unwrap();
+            let part = op.run_region(&params, vec![], win, &ctx).unwrap();
             assert_eq!(part.len(), whole.len());
             for (a, b) in whole.iter().zip(&part) {
                 let d = max_diff(&crop(a, r), b);
@@ -442,7 +442,7 @@ fn procedural_sources_compute_any_window_exactly_and_coarse_levels_match_block_m
             h: ch,
             scale: s,
         };
-        let coarse = op.run_region(&params, &[], win, &ctx).unwrap();
+        let coarse = op.run_region(&params, vec![], win, &ctx).unwrap();
         let (Value::Rgbn(a), Value::Rgbn(b)) = (&coarse[0], &reduce(&whole[0], s)) else {
             panic!()
         };

@@ -5,17 +5,16 @@
 
 use super::super::{CacheKey, Conn, Plan};
 use super::grid::LevelParams;
-use crate::nodes::{Footprint, Value};
-use crate::params::ParamValue;
+use crate::nodes::{Footprint, Parsed, Value};
 use crate::raster::window::Rect;
-use std::collections::{BTreeMap, HashMap};
+use std::collections::HashMap;
 
 /// A tiled instance as last evaluated: what a later evaluation compares with to find what an
 /// edit changed (damage).
 #[derive(Clone, Debug)]
 pub(super) struct Seen {
     pub(super) key: CacheKey,
-    pub(super) params: BTreeMap<String, ParamValue>,
+    pub(super) params: Parsed,
     /// Content keys of the inputs in port order.
     pub(super) inputs: Vec<Option<CacheKey>>,
     /// The edits that led to `key`, oldest first: each an earlier key and what changed from

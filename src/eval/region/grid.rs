@@ -4,10 +4,9 @@
 
 use super::super::{CacheEntry, CacheKey, Conn, Plan};
 use crate::nodes::value::gather_value;
-use crate::nodes::{Footprint, Value};
-use crate::params::ParamValue;
+use crate::nodes::{Footprint, Parsed, Value};
 use crate::raster::window::Rect;
-use std::collections::{BTreeMap, HashMap};
+use std::collections::HashMap;
 use std::sync::Arc;
 
 /// How an instance is evaluated for a region, in increasing order of what it needs: a value
@@ -25,16 +24,12 @@ pub(super) enum Mode {
 }
 
 /// Parameters per instance at a level of detail.
-pub(super) type LevelParams = [Option<BTreeMap<String, ParamValue>>];
+pub(super) type LevelParams = [Option<Parsed>];
 
 /// The parameters of every instance at level `level` (reduction `s`): their own at level 0 and
 /// for regional sources (which sample the level themselves), [`crate::nodes::Operator::scaled`]
 /// otherwise (`None`: no coarse form).
-pub(super) fn level_params(
-    plan: &Plan,
-    level: u32,
-    s: usize,
-) -> Vec<Option<BTreeMap<String, ParamValue>>> {
+pub(super) fn level_params(plan: &Plan, level: u32, s: usize) -> Vec<Option<Parsed>> {
     plan.instances
         .iter()
         .map(|inst| {

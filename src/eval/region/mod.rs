@@ -603,7 +603,7 @@ impl Evaluator {
                             scale: s,
                         };
                         inst.op
-                            .run_region(params, &inputs, win, &ctx)
+                            .run_region(params, inputs, win, &ctx)
                             .map_err(node_err)?
                     } else {
                         // The operator runs on its inputs cropped to the tile and its halo.
@@ -637,13 +637,10 @@ impl Evaluator {
                                 }
                             })
                             .collect();
-                        let mut values = inst
+                        let values = inst
                             .op
-                            .run_at(params, &inputs, &ctx, (crop_rect.x, crop_rect.y))
+                            .run_at(params, inputs, &ctx, (crop_rect.x, crop_rect.y), s)
                             .map_err(node_err)?;
-                        if s > 1 {
-                            values = inst.op.level_outputs(params, s as f64, values);
-                        }
                         let inner = Rect::new(tr.x - crop_rect.x, tr.y - crop_rect.y, tr.w, tr.h);
                         values
                             .iter()
@@ -749,8 +746,7 @@ impl Evaluator {
             .collect();
         let values = inst
             .op
-            .run(params, &inputs, ctx)
-            .map(|v| inst.op.level_outputs(params, s as f64, v))
+            .run_at(params, inputs, ctx, (0, 0), s)
             .map_err(|source| GraphError::Node {
                 op: inst.op.spec().id.to_string(),
                 source,
