@@ -28,15 +28,8 @@ pub struct EvalArgs {
     /// Bind a graph input to a file: NAME=PATH (repeatable).
     #[arg(long = "input", short = 'i', value_name = "NAME=PATH")]
     pub inputs: Vec<String>,
-    /// Set a parameter: NODE.PARAM=VALUE, NODE a node id or name (repeatable). Lists are
-    /// comma separated, points x:y,x:y.
-    #[arg(
-        long = "set",
-        short = 's',
-        value_name = "NODE.PARAM=VALUE",
-        allow_hyphen_values = true
-    )]
-    pub sets: Vec<String>,
+    #[command(flatten)]
+    pub set: SetArgs,
     /// Write a graph output: NAME=PATH (repeatable). Without -o every output is evaluated and
     /// summarised, nothing written.
     #[arg(short = 'o', long = "output", value_name = "NAME=PATH")]
@@ -45,9 +38,8 @@ pub struct EvalArgs {
     /// fraction F).
     #[arg(long)]
     pub stats: bool,
-    /// Keep node results in this folder and reuse them across runs.
-    #[arg(long, value_name = "DIR")]
-    pub cache_dir: Option<PathBuf>,
+    #[command(flatten)]
+    pub cache: CacheArgs,
     /// Evaluate only this rectangle of the outputs, X,Y,W,H in pixels: the engine computes
     /// the tiles it covers plus the halos the operators need (whole only where an operator is
     /// global). Each -o file then holds the rectangle; number outputs have no region.
@@ -63,10 +55,40 @@ pub struct EvalArgs {
     /// Tile side in pixels for --region and --level.
     #[arg(long, value_name = "PX", default_value_t = DEFAULT_TILE as u64, value_parser = clap::value_parser!(u64).range(16..=8192))]
     pub tile: u64,
+    #[command(flatten)]
+    pub streaming: GraphStreamArgs,
+}
+
+/// `--set`, shared by `rgbn eval` and `rgbn batch`.
+#[derive(Args, Debug, Default)]
+pub struct SetArgs {
+    /// Set a parameter: NODE.PARAM=VALUE, NODE a node id or name (repeatable; in a batch, for
+    /// every file). Lists are comma separated, points x:y,x:y.
+    #[arg(
+        long = "set",
+        short = 's',
+        value_name = "NODE.PARAM=VALUE",
+        allow_hyphen_values = true
+    )]
+    pub sets: Vec<String>,
+}
+
+/// `--cache-dir`, shared by `rgbn eval` and `rgbn batch`.
+#[derive(Args, Debug, Default)]
+pub struct CacheArgs {
+    /// Keep node results in this folder and reuse them across runs.
+    #[arg(long, value_name = "DIR")]
+    pub cache_dir: Option<PathBuf>,
+}
+
+/// Streaming a graph, shared by `rgbn eval` and `rgbn batch`.
+#[derive(Args, Debug)]
+pub struct GraphStreamArgs {
     /// Evaluate strip by strip, reading and writing rows, with memory bounded by the strip:
     /// `auto` does for images over 16 Mpx (or the pixel limit) when the graph allows (one
-    /// `load` of PNG, TIFF or EXR files, local operators only, images written as PNG or EXR and pictures as PNG),
-    /// `always` insists (and says why not), `never` evaluates whole images.
+    /// `load` of PNG, TIFF or EXR files, local operators only, images written as PNG or EXR
+    /// and pictures as PNG; in a batch, per file), `always` insists (and says why not; in a
+    /// batch a file that cannot is a failure), `never` evaluates whole images.
     #[arg(long, value_enum, default_value_t = StreamMode::Auto)]
     pub stream: StreamMode,
     /// Rows per strip when streaming (default: 4 Mpx worth, at least 64 rows and four halos).
@@ -83,14 +105,8 @@ pub struct BatchArgs {
     /// the same for every file.
     #[arg(long = "input", short = 'i', value_name = "NAME=GLOB", required = true)]
     pub inputs: Vec<String>,
-    /// Set a parameter for every run: NODE.PARAM=VALUE.
-    #[arg(
-        long = "set",
-        short = 's',
-        value_name = "NODE.PARAM=VALUE",
-        allow_hyphen_values = true
-    )]
-    pub sets: Vec<String>,
+    #[command(flatten)]
+    pub set: SetArgs,
     /// Folder for the results: STEM.OUTPUT.EXT per input file and graph output (.exr for
     /// images and fields, .png for pictures and masks, .txt for numbers).
     #[arg(long)]
@@ -103,23 +119,14 @@ pub struct BatchArgs {
     /// Slurm array (`--shard $SLURM_ARRAY_TASK_ID/N`), a Kubernetes indexed job or GNU parallel.
     #[arg(long, value_name = "K/N", value_parser = parse_shard)]
     pub shard: Option<(usize, usize)>,
-    /// Keep node results in this folder and reuse them across runs.
-    #[arg(long, value_name = "DIR")]
-    pub cache_dir: Option<PathBuf>,
+    #[command(flatten)]
+    pub cache: CacheArgs,
     /// File format of image (RGBN) outputs: exr (float normals, colour and mask) or png
     /// (16-bit normal maps). Both are written row by row when streaming (see --stream).
     #[arg(long, value_enum, default_value_t = ImageFiles::Exr)]
     pub images: ImageFiles,
-    /// Per file, as `rgbn eval --stream`: evaluate strip by strip, reading and writing rows,
-    /// with memory bounded by the strip. `auto` does for images over 16 Mpx (or the pixel
-    /// limit) when the graph allows (its input a PNG, TIFF or EXR read by one `load`, local operators
-    /// only, images and pictures as outputs, no fields or numbers), `always`
-    /// insists (a file that cannot is a failure saying why), `never` evaluates whole images.
-    #[arg(long, value_enum, default_value_t = StreamMode::Auto)]
-    pub stream: StreamMode,
-    /// Rows per strip when streaming (default: 4 Mpx worth, at least 64 rows and four halos).
-    #[arg(long, value_name = "ROWS", value_parser = clap::value_parser!(u64).range(1..))]
-    pub strip_rows: Option<u64>,
+    #[command(flatten)]
+    pub streaming: GraphStreamArgs,
 }
 
 /// `rgbn batch --images`.
@@ -313,7 +320,7 @@ fn print_stats(out: &mut Out<'_>, r: &EvalResult, top: &str) -> Result<(), CliEr
 
 /// `rgbn eval`.
 pub fn eval_cmd(a: &EvalArgs, out: &mut Out<'_>) -> Result<(), CliError> {
-    let lg = load_graph(&a.graph, &a.sets)?;
+    let lg = load_graph(&a.graph, &a.set.sets)?;
     let inputs = parse_inputs(&a.inputs)?;
     let cwd = PathBuf::from(".");
     let plan = Plan::new(&lg, &inputs, &cwd)?;
@@ -342,7 +349,7 @@ pub fn eval_cmd(a: &EvalArgs, out: &mut Out<'_>) -> Result<(), CliError> {
     }
     let names: Vec<&str> = requested.iter().map(|(n, _)| n.as_str()).collect();
     // Streamed when it can be and should be.
-    let why_whole = if a.stream == StreamMode::Never {
+    let why_whole = if a.streaming.stream == StreamMode::Never {
         None
     } else if a.region.is_some() || a.level > 0 {
         Some("--region and --level evaluate tiles of a rectangle".to_string())
@@ -353,14 +360,14 @@ pub fn eval_cmd(a: &EvalArgs, out: &mut Out<'_>) -> Result<(), CliError> {
     } else {
         match stream_plan(&plan, &requested)? {
             Err(why) => Some(why),
-            Ok(sp) if a.stream.streams(sp.size()) => {
-                return eval_stream(&plan, sp, &requested, a.strip_rows, out);
+            Ok(sp) if a.streaming.stream.streams(sp.size()) => {
+                return eval_stream(&plan, sp, &requested, a.streaming.strip_rows, out);
             }
             Ok(_) => None,
         }
     };
-    a.stream.allows(why_whole.as_deref())?;
-    let ev = evaluator(a.cache_dir.as_deref())?;
+    a.streaming.stream.allows(why_whole.as_deref())?;
+    let ev = evaluator(a.cache.cache_dir.as_deref())?;
     let pb = progress_bar(0);
     let pb2 = pb.clone();
     let opts = EvalOptions {
@@ -590,7 +597,7 @@ fn extension(ty: PortType, images: ImageFiles) -> &'static str {
 
 /// `rgbn batch`.
 pub fn batch_cmd(a: &BatchArgs, out: &mut Out<'_>) -> Result<(), CliError> {
-    let lg = load_graph(&a.graph, &a.sets)?;
+    let lg = load_graph(&a.graph, &a.set.sets)?;
     let (first, rest) = a
         .inputs
         .split_first()
@@ -623,7 +630,7 @@ pub fn batch_cmd(a: &BatchArgs, out: &mut Out<'_>) -> Result<(), CliError> {
             return Ok(());
         }
     }
-    let ev = evaluator(a.cache_dir.as_deref())?;
+    let ev = evaluator(a.cache.cache_dir.as_deref())?;
     if !a.out_dir.is_dir() {
         // As `mkdir -p`; a file in the way (or no permission) is an error naming the folder.
         std::fs::create_dir_all(&a.out_dir).map_err(|e| RgbnError::Write {
@@ -653,15 +660,15 @@ pub fn batch_cmd(a: &BatchArgs, out: &mut Out<'_>) -> Result<(), CliError> {
             requested.push((oname.clone(), path));
         }
         // Strip by strip when it can be and should be (as `rgbn eval`).
-        if a.stream != StreamMode::Never {
+        if a.streaming.stream != StreamMode::Never {
             let why = match stream_plan(&plan, &requested)? {
-                Ok(sp) if a.stream.streams(sp.size()) => {
+                Ok(sp) if a.streaming.stream.streams(sp.size()) => {
                     let mut sink = std::io::sink();
                     eval_stream(
                         &plan,
                         sp,
                         &requested,
-                        a.strip_rows,
+                        a.streaming.strip_rows,
                         &mut Out::new(&mut sink),
                     )?;
                     written.fetch_add(requested.len(), std::sync::atomic::Ordering::Relaxed);
@@ -671,7 +678,7 @@ pub fn batch_cmd(a: &BatchArgs, out: &mut Out<'_>) -> Result<(), CliError> {
                 Ok(_) => None,
                 Err(why) => Some(why),
             };
-            a.stream.allows(why.as_deref())?;
+            a.streaming.stream.allows(why.as_deref())?;
         }
         let opts = EvalOptions {
             cancel: super::interrupt::flag(),

@@ -20,7 +20,7 @@
 //! - T. Pereira, L. Velho, "RGBN image editing", SIBGRAPI 2011, §III–IV.
 //! - D. Marr, E. Hildreth, "Theory of edge detection", Proc. R. Soc. B 207 (1980) (LoG, DoG).
 
-use super::filter::{filter_gradients, FilterOptions, Kernel, MAX_SIGMA_PX};
+use super::filter::{check_sigma, filter_gradients, FilterOptions, Kernel, SIGMA_RANGE};
 use crate::error::RgbnError;
 use crate::raster::convolve::BorderMode;
 use crate::raster::gradient::{CurlStats, GradientField};
@@ -52,18 +52,8 @@ impl Default for Band {
     }
 }
 
-fn check_sigma(name: &str, s: f32) -> Result<(), RgbnError> {
-    if !(s.is_finite() && s > 0.0 && s <= MAX_SIGMA_PX) {
-        return Err(RgbnError::param(
-            name,
-            format!("{s} must be in (0, {MAX_SIGMA_PX}] pixels"),
-        ));
-    }
-    Ok(())
-}
-
 impl Band {
-    /// Checks the σ's (positive, finite, ≤ [`MAX_SIGMA_PX`]; `σ_f < σ_c` for a band-pass).
+    /// Checks the σ's (positive, finite, ≤ [`super::filter::MAX_SIGMA_PX`]; `σ_f < σ_c` for a band-pass).
     pub fn validate(&self) -> Result<(), RgbnError> {
         match self {
             Band::LowPass { sigma_px } | Band::HighPass { sigma_px } | Band::LoG { sigma_px } => {
@@ -181,9 +171,9 @@ crate::params! {
         /// Which band: lowpass G_σ, highpass I − G_σ, bandpass G_σ − G_coarse (DoG), log −σ²∇²G_σ.
         pub band: BandKind = BandKind::BandPass => choice,
         /// σ of the band (low-pass, high-pass, LoG), or the finer σ of a band-pass.
-        pub sigma_px: f64 = 1.0 => float.unit("px").range(0.05, 4096.0),
+        pub sigma_px: f64 = 1.0 => float.unit("px").range(SIGMA_RANGE.0, SIGMA_RANGE.1),
         /// The coarser σ of a band-pass (must exceed sigma_px); unused by the others.
-        pub sigma_coarse_px: f64 = 4.0 => float.unit("px").range(0.05, 4096.0),
+        pub sigma_coarse_px: f64 = 4.0 => float.unit("px").range(SIGMA_RANGE.0, SIGMA_RANGE.1),
         /// keep: B * g (the band only); remove: g − B * g (everything but the band).
         pub op: BandOp = BandOp::Keep => choice,
         /// How the image is extended beyond its border.

@@ -54,7 +54,7 @@
 //! - C. Tomasi, R. Manduchi, "Bilateral filtering for gray and color images", ICCV 1998.
 //! - T. Pereira, L. Velho, "RGBN image editing", SIBGRAPI 2011, §VII.
 
-use super::rotate::{normalize3, Frame, FrameKind};
+use super::rotate::{normalize3, Frame, FrameSettings};
 use crate::error::RgbnError;
 use crate::raster::bilateral as kernel;
 use crate::raster::buf;
@@ -125,10 +125,8 @@ crate::params! {
         pub method: BilateralMethod = BilateralMethod::Auto => choice,
         /// Also smooth the base's colour with the same weights.
         pub filter_color: bool = false => bool,
-        /// Tangent frame of the base normal: minimal (shortest-arc rotation from +z; Blend = RNM) or oriented (tangent = orientation projected on the tangent plane).
-        pub frame: FrameKind = FrameKind::Minimal => choice,
-        /// Orientation vector of the oriented frame (x right, y up, z to the viewer).
-        pub orientation: [f64; 3] = [1.0, 0.0, 0.0] => vec3.range(-1e6, 1e6),
+        /// The detail's tangent frame.
+        pub tangent: FrameSettings = FrameSettings::default() => flatten,
     }
 }
 
@@ -146,12 +144,12 @@ impl BilateralParams {
     /// The frame of the detail in [`split`].
     #[must_use]
     pub fn detail_frame(&self) -> Frame {
-        self.frame.frame(self.orientation)
+        self.tangent.get()
     }
     /// These parameters with the detail frame `frame`.
     #[must_use]
     pub fn with_frame(mut self, frame: &Frame) -> Self {
-        (self.frame, self.orientation) = FrameKind::of(frame, self.orientation);
+        self.tangent.set(frame);
         self
     }
 
@@ -239,7 +237,7 @@ pub fn bilateral(
 }
 
 /// Splits an image into `(base, detail)` (module docs): base = [`bilateral`], detail normals =
-/// `Fᵀ(n̂) n` in the base's frame (`params.frame`, `params.orientation`), detail colour = the input's.
+/// `Fᵀ(n̂) n` in the base's frame (`params.tangent`), detail colour = the input's.
 pub fn split(
     img: &RgbnImage,
     params: &BilateralParams,

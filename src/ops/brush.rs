@@ -21,7 +21,7 @@
 //! - T. Pereira, L. Velho, "RGBN image editing", SIBGRAPI 2011, §III, Fig. 1.
 
 use super::combine::check_weight;
-use super::filter::{filter_gradients, FilterOptions, Kernel};
+use super::filter::{filter_gradients, FilterOptions, Kernel, SIGMA_RANGE};
 use super::geom::{check_points, smoothstep, Polyline};
 use crate::error::RgbnError;
 use crate::raster::convolve::BorderMode;
@@ -144,9 +144,9 @@ crate::params! {
         /// The linear filter painted with the brush (as the filter.* nodes): gaussian, box, sharpen, edge, highpass, dog, log, scale.
         pub kernel: BrushKernel = BrushKernel::Gaussian => choice,
         /// σ of the kernel (the finer σ of edge and dog).
-        pub sigma_px: f64 = 3.0 => float.unit("px").range(0.05, 4096.0),
+        pub sigma_px: f64 = 3.0 => float.unit("px").range(SIGMA_RANGE.0, SIGMA_RANGE.1),
         /// Coarser σ of edge and dog (must exceed sigma_px).
-        pub sigma_coarse_px: f64 = 6.0 => float.unit("px").range(0.05, 4096.0),
+        pub sigma_coarse_px: f64 = 6.0 => float.unit("px").range(SIGMA_RANGE.0, SIGMA_RANGE.1),
         /// Amount of sharpen and edge; the depth factor of scale.
         pub amount: f64 = 1.0 => float.range(-100.0, 100.0),
         /// Half-width of the box kernel.

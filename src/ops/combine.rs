@@ -25,6 +25,7 @@
 //! - C. Barré-Brisebois, S. Hill, "Blending in Detail", 2012.
 
 use super::band::{apply_band, Band, BandKind, BandOp};
+use super::filter::SIGMA_RANGE;
 use crate::error::RgbnError;
 use crate::params::Choice;
 use crate::raster::convolve::BorderMode;
@@ -75,9 +76,9 @@ crate::params! {
         /// gets the detail's band: w = ∇b − m·B(∇b) + α·m·B(∇h).
         pub replace_band: ReplaceBand = ReplaceBand::None => choice,
         /// σ of the band (low-pass, high-pass, LoG), or the finer σ of a band-pass.
-        pub sigma_px: f64 = 1.0 => float.unit("px").range(0.05, 4096.0),
+        pub sigma_px: f64 = 1.0 => float.unit("px").range(SIGMA_RANGE.0, SIGMA_RANGE.1),
         /// The coarser σ of a band-pass (must exceed sigma_px); unused by the others.
-        pub sigma_coarse_px: f64 = 4.0 => float.unit("px").range(0.05, 4096.0),
+        pub sigma_coarse_px: f64 = 4.0 => float.unit("px").range(SIGMA_RANGE.0, SIGMA_RANGE.1),
         /// How the image is extended beyond its border.
         pub border: BorderMode = BorderMode::Mirror => choice,
     }

@@ -40,6 +40,10 @@ use rayon::prelude::*;
 
 /// Largest σ or radius accepted (pixels): beyond this a filter is a constant.
 pub const MAX_SIGMA_PX: f32 = 4096.0;
+/// Smallest σ a parameter accepts (pixels): narrower Gaussians are the identity to `f32`.
+pub const MIN_SIGMA_PX: f32 = 0.05;
+/// [`MIN_SIGMA_PX`] and [`MAX_SIGMA_PX`] as a parameter's range.
+pub const SIGMA_RANGE: (f64, f64) = (MIN_SIGMA_PX as f64, MAX_SIGMA_PX as f64);
 /// Largest side of a user kernel.
 pub const MAX_USER_KERNEL: usize = 63;
 
@@ -94,7 +98,8 @@ enum Smoother<'a> {
     Dense(usize, usize, &'a [f32]),
 }
 
-fn check_sigma(name: &str, s: f32) -> Result<(), RgbnError> {
+/// Refuses a σ that is not in (0, [`MAX_SIGMA_PX`]] pixels, naming the parameter.
+pub fn check_sigma(name: &str, s: f32) -> Result<(), RgbnError> {
     if !(s.is_finite() && s > 0.0 && s <= MAX_SIGMA_PX) {
         return Err(RgbnError::param(
             name,
@@ -730,7 +735,7 @@ crate::params! {
     #[derive(Clone, Debug, PartialEq)]
     pub struct GaussianParams {
         /// Standard deviation of the Gaussian.
-        pub sigma_px: f64 = 2.0 => float.unit("px").range(0.05, 4096.0),
+        pub sigma_px: f64 = 2.0 => float.unit("px").range(SIGMA_RANGE.0, SIGMA_RANGE.1),
     }
 }
 
@@ -766,7 +771,7 @@ crate::params! {
     #[derive(Clone, Debug, PartialEq)]
     pub struct SharpenParams {
         /// σ of the Gaussian whose residual is added.
-        pub sigma_px: f64 = 2.0 => float.unit("px").range(0.05, 4096.0),
+        pub sigma_px: f64 = 2.0 => float.unit("px").range(SIGMA_RANGE.0, SIGMA_RANGE.1),
         /// How much of the high-pass is added.
         pub amount: f64 = 1.0 => float.range(-100.0, 100.0),
     }
@@ -787,9 +792,9 @@ crate::params! {
     #[derive(Clone, Debug, PartialEq)]
     pub struct EdgeParams {
         /// σ of the finer Gaussian.
-        pub sigma_fine_px: f64 = 1.0 => float.unit("px").range(0.05, 4096.0),
+        pub sigma_fine_px: f64 = 1.0 => float.unit("px").range(SIGMA_RANGE.0, SIGMA_RANGE.1),
         /// σ of the coarser Gaussian.
-        pub sigma_coarse_px: f64 = 4.0 => float.unit("px").range(0.05, 4096.0),
+        pub sigma_coarse_px: f64 = 4.0 => float.unit("px").range(SIGMA_RANGE.0, SIGMA_RANGE.1),
         /// How much of the band-pass is added.
         pub amount: f64 = 1.0 => float.range(-100.0, 100.0),
     }
@@ -811,7 +816,7 @@ crate::params! {
     #[derive(Clone, Debug, PartialEq)]
     pub struct HighPassParams {
         /// σ of the Gaussian removed.
-        pub sigma_px: f64 = 4.0 => float.unit("px").range(0.05, 4096.0),
+        pub sigma_px: f64 = 4.0 => float.unit("px").range(SIGMA_RANGE.0, SIGMA_RANGE.1),
     }
 }
 
@@ -829,9 +834,9 @@ crate::params! {
     #[derive(Clone, Debug, PartialEq)]
     pub struct DogParams {
         /// σ of the finer Gaussian.
-        pub sigma_fine_px: f64 = 1.0 => float.unit("px").range(0.05, 4096.0),
+        pub sigma_fine_px: f64 = 1.0 => float.unit("px").range(SIGMA_RANGE.0, SIGMA_RANGE.1),
         /// σ of the coarser Gaussian.
-        pub sigma_coarse_px: f64 = 4.0 => float.unit("px").range(0.05, 4096.0),
+        pub sigma_coarse_px: f64 = 4.0 => float.unit("px").range(SIGMA_RANGE.0, SIGMA_RANGE.1),
     }
 }
 
@@ -850,7 +855,7 @@ crate::params! {
     #[derive(Clone, Debug, PartialEq)]
     pub struct LogParams {
         /// σ of the Gaussian.
-        pub sigma_px: f64 = 2.0 => float.unit("px").range(0.05, 4096.0),
+        pub sigma_px: f64 = 2.0 => float.unit("px").range(SIGMA_RANGE.0, SIGMA_RANGE.1),
     }
 }
 

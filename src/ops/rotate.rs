@@ -220,6 +220,30 @@ crate::choice_enum! {
     }
 }
 
+crate::params! {
+    /// The tangent frame of a base normal as parameters (the rotation combine's and the
+    /// bilateral split's detail frame).
+    #[derive(Clone, Debug, PartialEq)]
+    pub struct FrameSettings {
+        /// Tangent frame of the base normal: minimal (shortest-arc rotation from +z; Blend = RNM) or oriented (tangent = orientation projected on the tangent plane).
+        pub frame: FrameKind = FrameKind::Minimal => choice,
+        /// Orientation vector of the oriented frame (x right, y up, z to the viewer).
+        pub orientation: [f64; 3] = [1.0, 0.0, 0.0] => vec3.range(-1e6, 1e6),
+    }
+}
+
+impl FrameSettings {
+    /// The frame, not checked (see [`Frame::validate`]).
+    #[must_use]
+    pub fn get(&self) -> Frame {
+        self.frame.frame(self.orientation)
+    }
+    /// Sets the frame `frame` (a minimal frame keeps the orientation vector).
+    pub fn set(&mut self, frame: &Frame) {
+        (self.frame, self.orientation) = FrameKind::of(frame, self.orientation);
+    }
+}
+
 impl FrameKind {
     /// The kind and orientation vector of `frame` (`orientation` is kept for a minimal frame):
     /// the parameter form of a [`Frame`].
@@ -272,10 +296,8 @@ crate::params! {
     pub struct RotateParams {
         /// replace: the existing normal a becomes the detail on the base, b = F d, where w ≥ ½; blend: slerp(a, b, w); rotate: a rotated by the rotation taking the base to b (§VII); rnm, udn, whiteout, partial_derivative: the blends of Barré-Brisebois & Hill (on the base, ignoring a).
         pub mode: CombineMode = CombineMode::Blend => choice,
-        /// Tangent frame of the base normal: minimal (shortest-arc rotation from +z; Blend = RNM) or oriented (tangent = orientation projected on the tangent plane).
-        pub frame: FrameKind = FrameKind::Minimal => choice,
-        /// Orientation vector of the oriented frame (x right, y up, z to the viewer).
-        pub orientation: [f64; 3] = [1.0, 0.0, 0.0] => vec3.range(-1e6, 1e6),
+        /// The tangent frame (used by replace, blend and rotate; the industry modes ignore it).
+        pub tangent: FrameSettings = FrameSettings::default() => flatten,
         /// Global weight multiplying the per-pixel weight.
         pub strength: f64 = 1.0 => float.range(0.0, 1.0),
         /// Move vectors with n_z < min_z back along the great arc to n_z = min_z (§VII's
@@ -290,13 +312,13 @@ impl RotateParams {
     /// The tangent frame (used by Replace / Blend / Rotate; the industry modes ignore it).
     #[must_use]
     pub fn tangent_frame(&self) -> Frame {
-        self.frame.frame(self.orientation)
+        self.tangent.get()
     }
 
     /// These parameters with tangent frame `frame`.
     #[must_use]
     pub fn with_frame(mut self, frame: &Frame) -> Self {
-        (self.frame, self.orientation) = FrameKind::of(frame, self.orientation);
+        self.tangent.set(frame);
         self
     }
 
