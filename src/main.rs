@@ -21,16 +21,29 @@ fn main() -> ExitCode {
 
 /// Warnings and errors logged by the library (e.g. "disk cache write failed") go to stderr as
 /// `rgbn: warning: …` lines. `RUST_LOG` selects more (`RUST_LOG=debug`, `RUST_LOG=rgbn=info`);
-/// the default is `warn` for rgbn and `error` for the libraries it uses.
+/// the default is `warn` for rgbn and `error` for the libraries it uses. Diagnostics have their
+/// own targets: `rgbn::editor::timing` (info: the editor's timings) and `rgbn::bini` (debug:
+/// each reweighting step of bilateral integration); the older switches `RGBN_EDITOR_TIMING`
+/// and `RGBN_BINI_TRACE` enable them too.
 fn init_logging() {
     // Without RUST_LOG: rgbn's own warnings, and only errors from the libraries beneath it
     // (winit and eframe warn about things a user cannot act on, e.g. a virtual display's size).
-    let filter = match std::env::var("RUST_LOG") {
-        Ok(v) if !v.trim().is_empty() => EnvFilter::builder()
-            .with_default_directive(LevelFilter::WARN.into())
-            .parse_lossy(v),
-        _ => EnvFilter::new("error,rgbn=warn"),
+    let mut directives = match std::env::var("RUST_LOG") {
+        Ok(v) if !v.trim().is_empty() => v,
+        _ => "error,rgbn=warn".to_string(),
     };
+    for (var, directive) in [
+        ("RGBN_EDITOR_TIMING", "rgbn::editor::timing=info"),
+        ("RGBN_BINI_TRACE", "rgbn::bini=debug"),
+    ] {
+        if std::env::var_os(var).is_some() {
+            directives.push(',');
+            directives.push_str(directive);
+        }
+    }
+    let filter = EnvFilter::builder()
+        .with_default_directive(LevelFilter::WARN.into())
+        .parse_lossy(directives);
     let _ = tracing_subscriber::fmt()
         .with_env_filter(filter)
         .with_writer(std::io::stderr)

@@ -41,6 +41,16 @@ pub use dialogs::{Dialog, Then};
 pub use files::FilePurpose;
 
 use crate::graph::{NodeId, Source};
+
+/// The tracing target of the editor's timings: `RUST_LOG=rgbn::editor::timing=info` logs them
+/// (`RGBN_EDITOR_TIMING=1` is an alias the binary keeps).
+pub const TIMING: &str = "rgbn::editor::timing";
+
+/// Whether the editor's timings are logged.
+#[must_use]
+pub fn timing_enabled() -> bool {
+    tracing::enabled!(target: TIMING, tracing::Level::INFO)
+}
 use crate::nodes::Value;
 use egui::{Color32, RichText, TextureHandle};
 use graph_view::{Action, GraphView, ViewData};
@@ -659,8 +669,7 @@ impl EditorApp {
                 if self.preview.renders != renders {
                     if let Some((first, last)) = self.tools.preview_rendered() {
                         if self.prefs.timing {
-                            eprintln!(
-                                "rgbn editor: tool edit → relit preview after {last:.0} ms (newest edit shown), {first:.0} ms (oldest; texture render {:.0} ms)",
+                            tracing::info!(target: TIMING, "tool edit → relit preview after {last:.0} ms (newest edit shown), {first:.0} ms (oldest; texture render {:.0} ms)",
                                 self.preview.render_ms
                             );
                         }
@@ -674,11 +683,10 @@ impl EditorApp {
         }
         if self.preview.update_region(&ctx, &self.prefs.settings) && self.prefs.timing {
             if let Some((first, last)) = self.tools.preview_rendered() {
-                eprintln!(
-                    "rgbn editor: tool edit → relit viewport after {last:.0} ms (newest edit shown), {first:.0} ms (oldest)"
+                tracing::info!(target: TIMING, "tool edit → relit viewport after {last:.0} ms (newest edit shown), {first:.0} ms (oldest)"
                 );
             } else if let Some(ms) = self.preview.overlay_render_ms {
-                eprintln!("rgbn editor: viewport re-rendered in {ms:.1} ms");
+                tracing::info!(target: TIMING, "viewport re-rendered in {ms:.1} ms");
             }
         }
         if self.runtime.first_preview.is_none()
@@ -687,8 +695,7 @@ impl EditorApp {
             let t = self.runtime.started.elapsed();
             self.runtime.first_preview = Some(t);
             if self.prefs.timing {
-                eprintln!(
-                    "rgbn editor: first preview after {:.0} ms",
+                tracing::info!(target: TIMING, "first preview after {:.0} ms",
                     t.as_secs_f64() * 1e3
                 );
             }

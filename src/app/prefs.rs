@@ -14,7 +14,8 @@ pub struct Preferences {
     pub recent: RecentFiles,
     /// The folder the file dialog opens in: the last one used, else the graph's folder.
     pub dialog_dir: Option<PathBuf>,
-    /// Timings on stderr (`RGBN_EDITOR_TIMING` set).
+    /// Timings logged (target [`super::TIMING`] enabled: `RUST_LOG=rgbn::editor::timing=info`,
+    /// or `RGBN_EDITOR_TIMING` set).
     pub(super) timing: bool,
 }
 
@@ -24,7 +25,7 @@ impl Default for Preferences {
             settings: PreviewSettings::default(),
             recent: RecentFiles::default(),
             dialog_dir: None,
-            timing: std::env::var_os("RGBN_EDITOR_TIMING").is_some(),
+            timing: super::timing_enabled(),
         }
     }
 }

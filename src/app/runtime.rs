@@ -119,8 +119,9 @@ impl EditorApp {
                                         r.ready.saturating_duration_since(t).as_secs_f64() * 1e3
                                     )
                                 });
-                            eprintln!(
-                                "rgbn editor: viewport {}×{} at level {} of {}×{} evaluated and relit in {:.1} ms ({} tiles computed){after_edit}",
+                            tracing::info!(
+                                target: super::TIMING,
+                                "viewport {}×{} at level {} of {}×{} evaluated and relit in {:.1} ms ({} tiles computed){after_edit}",
                                 r.rect.w,
                                 r.rect.h,
                                 r.level,
@@ -151,8 +152,9 @@ impl EditorApp {
                         self.runtime.progress = None;
                         if self.prefs.timing {
                             let (n, sum, max) = self.runtime.eval_frames;
-                            eprintln!(
-                                "rgbn editor: evaluation {} took {:.0} ms ({} computed); {n} UI frames meanwhile, mean {:.2} ms, max {:.2} ms",
+                            tracing::info!(
+                                target: super::TIMING,
+                                "evaluation {} took {:.0} ms ({} computed); {n} UI frames meanwhile, mean {:.2} ms, max {:.2} ms",
                                 out.generation,
                                 out.elapsed.as_secs_f64() * 1e3,
                                 out.computed,

@@ -218,11 +218,12 @@ impl Tools {
         if self.gesture.is_some() && (resp.drag_stopped() || released) {
             let g = self.gesture.take().expect("checked");
             let (_, iv) = std::mem::take(&mut self.frames);
-            if !iv.is_empty() && std::env::var_os("RGBN_EDITOR_TIMING").is_some() {
+            if !iv.is_empty() && super::timing_enabled() {
                 let mut s = iv.clone();
                 s.sort_by(f64::total_cmp);
-                eprintln!(
-                    "rgbn editor: gesture of {} frames; frame interval median {:.1} ms, p90 {:.1} ms, max {:.1} ms",
+                tracing::info!(
+                                target: super::TIMING,
+                                "gesture of {} frames; frame interval median {:.1} ms, p90 {:.1} ms, max {:.1} ms",
                     s.len() + 1,
                     s[s.len() / 2],
                     s[s.len() * 9 / 10],

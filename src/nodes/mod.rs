@@ -735,4 +735,39 @@ mod tests {
             assert!(op.parse(&given).is_ok(), "{}", s.id);
         }
     }
+
+    #[test]
+    fn every_source_computes_its_windows_as_the_whole_image_has_them() {
+        // A source (Kind::Source) is tiled by the engine: its run_region must be implemented
+        // and give, at full resolution, exactly the pixels of the whole run.
+        let mut sources = 0;
+        for op in registry() {
+            let Ok(p) = op.parse(&BTreeMap::new()) else {
+                continue;
+            };
+            if op.kind(&p) != Kind::Source {
+                continue;
+            }
+            sources += 1;
+            let id = op.spec().id;
+            let none = || vec![None; op.spec().inputs.len()];
+            let ctx = RunContext::default();
+            let whole = op.run(&p, none(), &ctx).unwrap_or_else(|e| panic!("{id}: {e}"));
+            let win = Window {
+                x: 3,
+                y: 5,
+                w: 20,
+                h: 11,
+                scale: 1,
+            };
+            let part = op
+                .run_region(&p, none(), win, &ctx)
+                .unwrap_or_else(|e| panic!("{id}: {e}"));
+            assert_eq!(part.len(), whole.len(), "{id}");
+            for (a, b) in part.iter().zip(&whole) {
+                assert_eq!(*a, value::window_of(b, win), "{id}");
+            }
+        }
+        assert!(sources >= 2, "demo and surface are sources");
+    }
 }

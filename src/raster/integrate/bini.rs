@@ -331,9 +331,10 @@ pub(super) fn bilateral(
         }
         let old = energy;
         energy = new_energy;
-        if std::env::var_os("RGBN_BINI_TRACE").is_some() {
-            eprintln!("bini: energy {old:.6e} -> {energy:.6e}, solver {sol_it} it");
-        }
+        tracing::debug!(
+            target: "rgbn::bini",
+            "energy {old:.6e} -> {energy:.6e}, solver {sol_it} it"
+        );
         if old.is_nan() || old <= 0.0 || (energy - old).abs() / old < p.irls_tolerance {
             break;
         }
