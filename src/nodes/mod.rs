@@ -99,6 +99,7 @@ pub mod render;
 pub mod rotate;
 pub mod save;
 pub mod stamp;
+pub mod transform;
 pub mod value;
 
 pub use ports::{InPorts, InValue, Mask, NoInputs, OutPorts, OutValue, PortSpec, Read, Scalar};
@@ -666,6 +667,7 @@ pub fn registry() -> &'static [Box<dyn DynOp>] {
             Entry::<brush::BrushNode>::boxed(),
             Entry::<bilateral::BilateralNode>::boxed(),
             Entry::<integrate::ProjectNode>::boxed(),
+            Entry::<transform::TransformNode>::boxed(),
             // combine and draw
             Entry::<combine::LinearCombineNode>::boxed(),
             Entry::<rotate::RotationCombineNode>::boxed(),
@@ -752,7 +754,9 @@ mod tests {
             let id = op.spec().id;
             let none = || vec![None; op.spec().inputs.len()];
             let ctx = RunContext::default();
-            let whole = op.run(&p, none(), &ctx).unwrap_or_else(|e| panic!("{id}: {e}"));
+            let whole = op
+                .run(&p, none(), &ctx)
+                .unwrap_or_else(|e| panic!("{id}: {e}"));
             let win = Window {
                 x: 3,
                 y: 5,

@@ -34,3 +34,4 @@ pub mod pen;
 pub mod publish;
 pub mod rotate;
 pub mod stamp;
+pub mod transform;
