@@ -8,7 +8,7 @@ use crate::capture::inputs::{load_inputs, PhotoStack, PsInputSpec, Transfer};
 use crate::capture::photometric::{photometric_stereo, PhotometricParams, PsMethod};
 use crate::raster::gradient::GradientField;
 use crate::raster::integrate::curl_interior;
-use crate::raster::io::{self, SaveOptions};
+use crate::raster::io;
 use clap::{Args, ValueEnum};
 use std::io::Write;
 use std::path::{Path, PathBuf};
@@ -60,6 +60,8 @@ pub struct CaptureArgs {
     /// Output: RGBN EXR (photometric stereo) or a light text file (--chrome). Never an input.
     #[arg(short = 'o', long = "output")]
     pub output: PathBuf,
+    #[command(flatten)]
+    pub exr: super::ExrArgs,
 }
 
 pub fn capture_cmd(a: &CaptureArgs, out: &mut Out<'_>) -> Result<(), CliError> {
@@ -161,7 +163,7 @@ pub fn capture_cmd(a: &CaptureArgs, out: &mut Out<'_>) -> Result<(), CliError> {
     };
     let (img, rep) = photometric_stereo(&ps.stack, &ps.lights, ps.mask.as_deref(), &params)?;
     super::interrupt::check()?;
-    io::save(&img, &a.output, &SaveOptions::default())?;
+    io::save(&img, &a.output, &a.exr.save_options())?;
     let interior = img
         .mask()
         .map(|m| curl_interior(m, img.width(), img.height()));

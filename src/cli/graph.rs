@@ -3,6 +3,7 @@
 use super::error::{message, usage, CliError};
 use super::image::StreamMode;
 use super::out::Out;
+use super::ExrArgs;
 use crate::error::RgbnError;
 use crate::eval::region::{RegionOptions, DEFAULT_TILE};
 use crate::eval::stream::{StreamPlan, Streamable};
@@ -12,7 +13,7 @@ use crate::nodes::save::write_value;
 use crate::nodes::{registry, PortType, Value};
 use crate::params::{ParamKind, ParamValue};
 use crate::raster::io::targets::{ExrTarget, PngTarget, RowEncoding};
-use crate::raster::io::{self, SaveOptions};
+use crate::raster::io::{self, ExrFormat, SaveOptions};
 use crate::raster::io::{Format, NormalConvention};
 use crate::raster::window::Rect;
 use clap::{Args, ValueEnum};
@@ -57,6 +58,8 @@ pub struct EvalArgs {
     pub tile: u64,
     #[command(flatten)]
     pub streaming: GraphStreamArgs,
+    #[command(flatten)]
+    pub exr: ExrArgs,
 }
 
 /// `--set`, shared by `rgbn eval` and `rgbn batch`.
@@ -127,6 +130,8 @@ pub struct BatchArgs {
     pub images: ImageFiles,
     #[command(flatten)]
     pub streaming: GraphStreamArgs,
+    #[command(flatten)]
+    pub exr: ExrArgs,
 }
 
 /// `rgbn batch --images`.
@@ -361,7 +366,14 @@ pub fn eval_cmd(a: &EvalArgs, out: &mut Out<'_>) -> Result<(), CliError> {
         match stream_plan(&plan, &requested)? {
             Err(why) => Some(why),
             Ok(sp) if a.streaming.stream.streams(sp.size()) => {
-                return eval_stream(&plan, sp, &requested, a.streaming.strip_rows, out);
+                return eval_stream(
+                    &plan,
+                    sp,
+                    &requested,
+                    a.streaming.strip_rows,
+                    a.exr.format(),
+                    out,
+                );
             }
             Ok(_) => None,
         }
@@ -393,7 +405,7 @@ pub fn eval_cmd(a: &EvalArgs, out: &mut Out<'_>) -> Result<(), CliError> {
     for (name, path) in &requested {
         let v = &r.outputs[name];
         super::interrupt::check()?;
-        write_value(v, path, &SaveOptions::default())?;
+        write_value(v, path, &a.exr.save_options())?;
         out.line(format_args!(
             "wrote {name} ({}): {}",
             describe_value(v),
@@ -442,6 +454,7 @@ fn eval_stream(
     sp: StreamPlan<'_>,
     requested: &[(String, PathBuf)],
     strip_rows: Option<u64>,
+    exr_format: ExrFormat,
     out: &mut Out<'_>,
 ) -> Result<(), CliError> {
     let (w, h) = sp.size();
@@ -451,7 +464,7 @@ fn eval_stream(
     for (name, path) in requested {
         let exr = Format::of(path)? == Format::Exr;
         exrs.push(if exr {
-            Some(ExrTarget::create(path, w, h)?)
+            Some(ExrTarget::create(path, w, h, exr_format)?)
         } else {
             None
         });
@@ -560,7 +573,7 @@ fn eval_region(
         );
         match path {
             Some(path) => {
-                write_value(&r.value, path, &SaveOptions::default())?;
+                write_value(&r.value, path, &a.exr.save_options())?;
                 out.line(format_args!("wrote {name} ({what}): {}", path.display()))?;
             }
             None => out.line(format_args!("{name}: {what}"))?,
@@ -669,6 +682,7 @@ pub fn batch_cmd(a: &BatchArgs, out: &mut Out<'_>) -> Result<(), CliError> {
                         sp,
                         &requested,
                         a.streaming.strip_rows,
+                        a.exr.format(),
                         &mut Out::new(&mut sink),
                     )?;
                     written.fetch_add(requested.len(), std::sync::atomic::Ordering::Relaxed);
@@ -687,7 +701,7 @@ pub fn batch_cmd(a: &BatchArgs, out: &mut Out<'_>) -> Result<(), CliError> {
         let r = ev.eval(&plan, &[], &opts)?;
         for (oname, path) in &requested {
             super::interrupt::check()?;
-            write_value(&r.outputs[oname], path, &SaveOptions::default())?;
+            write_value(&r.outputs[oname], path, &a.exr.save_options())?;
             written.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
         }
         Ok(())

@@ -154,9 +154,11 @@ pub struct FilterArgs {
     /// Write normal maps in the DirectX convention.
     #[arg(long)]
     pub out_dx: bool,
-    /// Write EXR as 16-bit half floats.
+    /// Write EXR as 16-bit half floats (the same as --exr-type f16).
     #[arg(long)]
     pub half: bool,
+    #[command(flatten)]
+    pub exr: super::ExrArgs,
     /// Read and write row by row, in strips, with memory bounded by the strip instead of the
     /// image: `auto` does for images over 16 Mpx (or the pixel limit) when it can (PNG, TIFF in strips or scan-line EXR in, PNG out, any border but
     /// wrap), `always` insists (and says why not), `never` reads the image whole.
@@ -550,8 +552,9 @@ pub(super) fn filter_cmd(a: &FilterArgs, out: &mut Out<'_>) -> Result<(), CliErr
         precision: if a.half {
             ExrPrecision::Half
         } else {
-            ExrPrecision::Full
+            a.exr.exr_type
         },
+        compression: a.exr.exr_compression,
     };
     super::interrupt::check()?;
     io::save(&filtered, &a.output, &save)?;

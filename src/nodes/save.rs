@@ -8,7 +8,7 @@
 use super::{Kind, OpSpec, Operator, RunContext, Value};
 use crate::error::RgbnError;
 use crate::raster::io::{self, Format, SaveOptions};
-use crate::raster::io::{ExrPrecision, NormalConvention};
+use crate::raster::io::{ExrCompression, ExrPrecision, NormalConvention};
 use crate::raster::Plane;
 use crate::RgbnImage;
 use std::path::{Path, PathBuf};
@@ -33,8 +33,10 @@ crate::params! {
         pub bits: Bits = Bits::Sixteen => choice,
         /// Write normal maps in the DirectX convention (green = −y).
         pub dx: bool = false => bool,
-        /// Write EXR as 16-bit half floats.
+        /// Write EXR as 16-bit half floats (f16) instead of 32-bit floats.
         pub half: bool = false => bool,
+        /// Compression of an EXR (lossless): none, rle (default: constant planes vanish, as fast as none), zips, zip (zlib over 16 lines), piz.
+        pub exr_compression: ExrCompression = ExrCompression::default() => choice,
     }
 }
 
@@ -57,6 +59,7 @@ impl SaveParams {
             } else {
                 ExrPrecision::Full
             },
+            compression: self.exr_compression,
         }
     }
 }

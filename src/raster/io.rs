@@ -17,9 +17,12 @@
 //! Writes are atomic (a temporary file in the same folder, then rename) and refuse to write over
 //! any input (see [`check_output`]).
 
+mod exr_write;
 mod openexr;
 pub mod stream;
 pub mod targets;
+
+pub use exr_write::ExrFormat;
 pub mod temp;
 
 pub use openexr::{
@@ -30,7 +33,7 @@ use super::srgb::{linear_to_srgb, linear_to_srgb8, srgb16_lut, srgb8_lut};
 use super::{check_size, RgbnImage, Validation};
 use crate::error::RgbnError;
 use crate::raster::buf;
-use openexr::{read_exr_channels, write_exr_channels};
+use openexr::read_exr_channels;
 use rayon::prelude::*;
 use std::path::{Path, PathBuf};
 
@@ -645,18 +648,12 @@ pub fn write_atomic(
 pub fn save_color(img: &RgbnImage, path: &Path, bits: u8) -> Result<(), RgbnError> {
     match Format::of(path)? {
         Format::Exr => {
-            use exr::prelude::*;
-            let list = ["R", "G", "B"]
-                .iter()
-                .zip(img.color())
-                .map(|(n, p)| AnyChannel::new(*n, FlatSamples::F32(p.clone())))
-                .collect();
-            write_exr_channels(
-                img.width(),
-                img.height(),
-                list,
+            let [r, g, b] = img.color();
+            openexr::write_planes_atomic(
                 path,
-                ExrCompression::default(),
+                (img.width(), img.height()),
+                &[("R", r), ("G", g), ("B", b)],
+                ExrFormat::default(),
             )
         }
         fmt => {
@@ -689,19 +686,18 @@ pub fn save_normal_map(
     };
     match Format::of(path)? {
         Format::Exr => {
-            use exr::prelude::*;
-            let ny: Vec<f32> = ny.iter().map(|v| v * flip).collect();
-            let list = vec![
-                AnyChannel::new("R", FlatSamples::F32(nx.clone())),
-                AnyChannel::new("G", FlatSamples::F32(ny)),
-                AnyChannel::new("B", FlatSamples::F32(nz.clone())),
-            ];
-            write_exr_channels(
-                img.width(),
-                img.height(),
-                list,
+            let flipped: Vec<f32>;
+            let ny: &[f32] = if flip < 0.0 {
+                flipped = ny.iter().map(|v| -v).collect();
+                &flipped
+            } else {
+                ny
+            };
+            openexr::write_planes_atomic(
                 path,
-                ExrCompression::default(),
+                (img.width(), img.height()),
+                &[("R", nx), ("G", ny), ("B", nz)],
+                ExrFormat::default(),
             )
         }
         Format::Jpeg => Err(RgbnError::UnsupportedFormat {
@@ -942,7 +938,7 @@ pub fn write_raster16(
 /// the normal map (`bits` 8 or 16).
 pub fn save(img: &RgbnImage, path: &Path, opts: &SaveOptions) -> Result<(), RgbnError> {
     match Format::of(path)? {
-        Format::Exr => save_exr(img, path, opts.precision),
+        Format::Exr => save_exr_with(img, path, opts.precision, opts.compression),
         _ => save_normal_map(img, path, opts.bits, opts.convention),
     }
 }
@@ -953,6 +949,7 @@ pub struct SaveOptions {
     pub bits: u8,
     pub convention: NormalConvention,
     pub precision: ExrPrecision,
+    pub compression: ExrCompression,
 }
 
 impl Default for SaveOptions {
@@ -961,6 +958,7 @@ impl Default for SaveOptions {
             bits: 16,
             convention: NormalConvention::OpenGl,
             precision: ExrPrecision::Full,
+            compression: ExrCompression::default(),
         }
     }
 }

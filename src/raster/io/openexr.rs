@@ -1,6 +1,7 @@
 //! EXR files (exr crate): colour `R,G,B` (linear), normal `N.X,N.Y,N.Z`, mask `A`; f16 or f32
 //! (module docs of [`super`]).
 
+use super::exr_write::{write_planes, ExrFormat};
 use super::{open_check, write_atomic, Format, LoadOptions, DEFAULT_ALBEDO};
 use crate::error::RgbnError;
 use crate::raster::{buf, check_size, Plane, RgbnImage};
@@ -152,40 +153,91 @@ pub enum ExrPrecision {
     Full,
 }
 
-/// Compression of EXR output.
+/// Compression of EXR output (lossless; PIZ only for its ratio on noisy data). Each is the
+/// OpenEXR compression of the same name, written by [`super::exr_write`] block by block on
+/// every core. The default is chosen by size and speed measured on 4K RGBN images
+/// (BENCHMARKS.md, "EXR compression").
 #[derive(
     Clone, Copy, Debug, Default, PartialEq, Eq, Hash, serde::Serialize, serde::Deserialize,
 )]
 pub enum ExrCompression {
-    /// No compression: fastest to write and read, largest files (24–28 bytes/pixel in f32).
-    /// The default: at 4K, f32 normals barely compress losslessly (ZIP: ~2.7×) while ZIP
-    /// costs ~7× the write time (measured with `examples/perf_probe.rs exr`).
-    #[default]
+    /// No compression: the largest files (24–28 bytes a pixel in f32).
     None,
-    /// Run-length: shrinks constant planes (default albedo, full mask) to almost nothing,
-    /// leaves varying float data as is; ~1.5× the write time of `None`.
+    /// Run-length over byte differences, one line a block: constant planes (a default albedo,
+    /// a full mask) shrink to almost nothing, varying floats stay as they are; about as fast
+    /// as no compression.
+    #[default]
     Rle,
-    /// zlib over 16 scan lines (OpenCV's default): ~2× smaller on smooth data, several times
-    /// slower to write.
-    Zip16,
-    /// Wavelet + Huffman: good ratio on noisy data, slower than RLE.
+    /// zlib, one line a block.
+    Zips,
+    /// zlib over blocks of 16 lines (OpenEXR's and OpenCV's default).
+    Zip,
+    /// Wavelet + Huffman over 32 lines: good on noisy data, slower.
     Piz,
 }
 
 impl ExrCompression {
-    fn to_exr(self) -> exr::compression::Compression {
+    /// Every compression, in menu order.
+    pub const ALL: [Self; 5] = [Self::None, Self::Rle, Self::Zips, Self::Zip, Self::Piz];
+
+    /// The name used on the command line and in graph files.
+    #[must_use]
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::None => "none",
+            Self::Rle => "rle",
+            Self::Zips => "zips",
+            Self::Zip => "zip",
+            Self::Piz => "piz",
+        }
+    }
+
+    pub(super) fn to_exr(self) -> exr::compression::Compression {
         use exr::compression::Compression as C;
         match self {
             Self::None => C::Uncompressed,
             Self::Rle => C::RLE,
-            Self::Zip16 => C::ZIP16,
+            Self::Zips => C::ZIP1,
+            Self::Zip => C::ZIP16,
             Self::Piz => C::PIZ,
         }
     }
 }
 
+impl crate::params::Choice for ExrCompression {
+    const ALL: &'static [Self] = &Self::ALL;
+    fn name(self) -> &'static str {
+        Self::name(self)
+    }
+    fn doc(self) -> &'static str {
+        match self {
+            Self::None => "No compression (largest files).",
+            Self::Rle => "Run-length: constant planes vanish, floats stay; about as fast as none.",
+            Self::Zips => "zlib, one line a block.",
+            Self::Zip => "zlib over 16 lines (OpenEXR's default).",
+            Self::Piz => "Wavelet + Huffman over 32 lines: good on noisy data, slower.",
+        }
+    }
+}
+
+impl crate::params::Choice for ExrPrecision {
+    const ALL: &'static [Self] = &[Self::Full, Self::Half];
+    fn name(self) -> &'static str {
+        match self {
+            Self::Full => "f32",
+            Self::Half => "f16",
+        }
+    }
+    fn doc(self) -> &'static str {
+        match self {
+            Self::Full => "32-bit floats: exact round trip.",
+            Self::Half => "16-bit half floats: half the size, ~3 decimal digits.",
+        }
+    }
+}
+
 /// Writes an RGBN EXR (`R,G,B`, `N.X,N.Y,N.Z`, and `A` if masked) with the default
-/// [`ExrCompression`] (uncompressed).
+/// compression.
 pub fn save_exr(img: &RgbnImage, path: &Path, precision: ExrPrecision) -> Result<(), RgbnError> {
     save_exr_with(img, path, precision, ExrCompression::default())
 }
@@ -197,51 +249,38 @@ pub fn save_exr_with(
     precision: ExrPrecision,
     compression: ExrCompression,
 ) -> Result<(), RgbnError> {
-    use exr::prelude::*;
-    let mut list = Vec::with_capacity(7);
-    let mut push = |name: &str, data: &[f32]| {
-        let samples = match precision {
-            ExrPrecision::Full => FlatSamples::F32(data.to_vec()),
-            ExrPrecision::Half => {
-                FlatSamples::F16(data.par_iter().map(|&v| f16::from_f32(v)).collect())
-            }
-        };
-        list.push(AnyChannel::new(name, samples));
-    };
-    for (name, plane) in ["R", "G", "B"].iter().zip(img.color()) {
-        push(name, plane);
-    }
-    for (name, plane) in ["N.X", "N.Y", "N.Z"].iter().zip(img.normal()) {
-        push(name, plane);
-    }
+    let [r, g, b] = img.color();
+    let [nx, ny, nz] = img.normal();
+    let mut channels: Vec<(&str, &[f32])> = vec![
+        ("R", r),
+        ("G", g),
+        ("B", b),
+        ("N.X", nx),
+        ("N.Y", ny),
+        ("N.Z", nz),
+    ];
     if let Some(m) = img.mask() {
-        push("A", m);
+        channels.push(("A", m));
     }
-    write_exr_channels(img.width(), img.height(), list, path, compression)
+    write_planes_atomic(
+        path,
+        (img.width(), img.height()),
+        &channels,
+        ExrFormat {
+            precision,
+            compression,
+        },
+    )
 }
 
-pub(super) fn write_exr_channels(
-    w: usize,
-    h: usize,
-    list: Vec<exr::prelude::AnyChannel<exr::prelude::FlatSamples>>,
+/// Writes named planes as an EXR, atomically.
+pub(super) fn write_planes_atomic(
     path: &Path,
-    compression: ExrCompression,
+    size: (usize, usize),
+    channels: &[(&str, &[f32])],
+    f: ExrFormat,
 ) -> Result<(), RgbnError> {
-    use exr::prelude::*;
-    let layer = Layer::new(
-        (w, h),
-        LayerAttributes::named("rgbn"),
-        Encoding {
-            compression: compression.to_exr(),
-            blocks: Blocks::ScanLines,
-            line_order: LineOrder::Increasing,
-        },
-        AnyChannels::sort(SmallVec::from_vec(list)),
-    );
-    let image = Image::from_layer(layer);
-    write_atomic(path, |out| {
-        image.write().to_buffered(out).map_err(|e| e.to_string())
-    })
+    write_atomic(path, |out| write_planes(out, size, channels, f))
 }
 
 /// Writes one plane (e.g. an integrated height, in pixels) as a single-channel 32-bit EXR
@@ -256,17 +295,11 @@ pub fn save_plane_exr(plane: &Plane, channel: &str, path: &Path) -> Result<(), R
             path: path.into(),
         });
     }
-    use exr::prelude::*;
-    let list = vec![AnyChannel::new(
-        channel,
-        FlatSamples::F32(plane.data().to_vec()),
-    )];
-    write_exr_channels(
-        plane.width(),
-        plane.height(),
-        list,
+    write_planes_atomic(
         path,
-        ExrCompression::default(),
+        (plane.width(), plane.height()),
+        &[(channel, plane.data())],
+        ExrFormat::default(),
     )
 }
 
@@ -305,6 +338,57 @@ mod tests {
         for (a, b) in img.normal().iter().zip(back.normal()) {
             for (x, y) in a.iter().zip(b) {
                 assert!((x - y).abs() <= 5e-4, "{x} {y}");
+            }
+        }
+    }
+
+    #[test]
+    fn every_compression_round_trips_f32_exactly_and_f16_to_half_precision() {
+        let mut img = demo_medallion(40);
+        img.set_mask(Some((0..40 * 40).map(|i| (i % 5) as f32 / 4.0).collect()))
+            .unwrap();
+        let d = tempfile::tempdir().unwrap();
+        for c in ExrCompression::ALL {
+            let p = d.path().join(format!("{}.exr", c.name()));
+            save_exr_with(&img, &p, ExrPrecision::Full, c).unwrap();
+            let back = load_exr(&p, &LoadOptions::default()).unwrap();
+            assert_eq!(back, img, "{}", c.name());
+            save_exr_with(&img, &p, ExrPrecision::Half, c).unwrap();
+            let back = load_exr(&p, &LoadOptions::default()).unwrap();
+            for (a, b) in img.normal().iter().zip(back.normal()) {
+                for (x, y) in a.iter().zip(b) {
+                    assert!((x - y).abs() <= 5e-4, "{}: {x} {y}", c.name());
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn rows_written_band_by_band_make_the_same_file_as_the_whole_image() {
+        use super::super::targets::ExrTarget;
+        // 37 rows in bands of 5: blocks of 16 (zip) and 32 (piz) lines span several bands.
+        let img = demo_medallion(37);
+        let d = tempfile::tempdir().unwrap();
+        for c in ExrCompression::ALL {
+            for precision in [ExrPrecision::Full, ExrPrecision::Half] {
+                let whole = d.path().join("whole.exr");
+                save_exr_with(&img, &whole, precision, c).unwrap();
+                let banded = d.path().join("banded.exr");
+                let format = ExrFormat {
+                    precision,
+                    compression: c,
+                };
+                let mut t = ExrTarget::create(&banded, 37, 37, format).unwrap();
+                for y in (0..37).step_by(5) {
+                    t.write(&img, y..(y + 5).min(37)).unwrap();
+                }
+                t.commit().unwrap();
+                assert_eq!(
+                    std::fs::read(&whole).unwrap(),
+                    std::fs::read(&banded).unwrap(),
+                    "{} {precision:?}",
+                    c.name()
+                );
             }
         }
     }

@@ -6,6 +6,7 @@
 //!   the target appears, complete, only when [`PngTarget::commit`] succeeds.
 //! - [`ExrTarget`] writes an RGBN EXR band by band through a writer thread.
 
+use super::exr_write::{ExrFormat, RowBlocks};
 use super::temp;
 use super::{png_format, NormalConvention};
 use crate::error::RgbnError;
@@ -92,11 +93,12 @@ struct ExrBand {
     planes: Vec<Vec<f32>>,
 }
 
-/// An RGBN image written to an EXR a band of rows at a time, as [`super::save_exr`] writes it
-/// with its defaults: 32-bit floats `R,G,B`, `N.X,N.Y,N.Z` and `A` when there is a mask,
-/// uncompressed, one scan line per block, line order increasing. The exr crate writes a file
-/// within one call, so a thread owns the writer and the bands are sent to it (one band in
-/// flight). The target appears, complete, only when [`ExrTarget::commit`] succeeds.
+/// An RGBN image written to an EXR a band of rows at a time, as [`super::save_exr_with`]
+/// writes it: `R,G,B`, `N.X,N.Y,N.Z` and `A` when there is a mask, in the given
+/// [`ExrFormat`]; whole blocks are compressed on every core as soon as their rows arrive. The
+/// exr crate writes a file within one call, so a thread owns the writer and the bands are sent
+/// to it (one band in flight). The target appears, complete, only when [`ExrTarget::commit`]
+/// succeeds.
 pub struct ExrTarget {
     tx: Option<std::sync::mpsc::SyncSender<ExrBand>>,
     thread: Option<std::thread::JoinHandle<Result<(), String>>>,
@@ -106,7 +108,12 @@ pub struct ExrTarget {
 
 impl ExrTarget {
     /// Starts writing a `width × height` RGBN EXR at `path` (its folder must exist).
-    pub fn create(path: &Path, width: usize, height: usize) -> Result<Self, RgbnError> {
+    pub fn create(
+        path: &Path,
+        width: usize,
+        height: usize,
+        format: ExrFormat,
+    ) -> Result<Self, RgbnError> {
         let file = AtomicFile::create(path)?;
         let handle = file.handle()?;
         let (tx, rx) = std::sync::mpsc::sync_channel::<ExrBand>(1);
@@ -116,55 +123,24 @@ impl ExrTarget {
                 let Ok(first) = rx.recv() else {
                     return Err("no rows were written".into());
                 };
-                let names: &[&str] = if first.mask {
-                    &["A", "B", "G", "N.X", "N.Y", "N.Z", "R"]
+                let names: Vec<&'static str> = if first.mask {
+                    vec!["A", "B", "G", "N.X", "N.Y", "N.Z", "R"]
                 } else {
-                    &["B", "G", "N.X", "N.Y", "N.Z", "R"]
+                    vec!["B", "G", "N.X", "N.Y", "N.Z", "R"]
                 };
-                use exr::meta::attribute::{ChannelDescription, LineOrder, SampleType};
-                use exr::meta::header::Header;
-                let channels = names
-                    .iter()
-                    .map(|n| ChannelDescription::named(*n, SampleType::F32))
-                    .collect();
-                let header = Header::new("rgbn".into(), (width, height), channels).with_encoding(
-                    exr::compression::Compression::Uncompressed,
-                    exr::meta::BlockDescription::ScanLines,
-                    LineOrder::Increasing,
-                );
+                let mut rows = RowBlocks::new(width, height, names);
                 let mut out = BufWriter::with_capacity(1 << 20, handle);
-                let headers: exr::meta::Headers = std::iter::once(header).collect();
+                let headers: exr::meta::Headers = std::iter::once(rows.header(format)).collect();
                 exr::block::write(&mut out, headers, true, |meta, writer| {
-                    use exr::block::writer::ChunksWriter;
-                    let mut y = 0;
                     let mut band = Some(first);
-                    let mut data = Vec::with_capacity(names.len() * width * 4);
                     while let Some(b) = band.take().or_else(|| rx.recv().ok()) {
-                        for r in 0..b.rows {
-                            data.clear();
-                            for plane in &b.planes {
-                                for v in &plane[r * width..(r + 1) * width] {
-                                    data.extend_from_slice(&v.to_ne_bytes());
-                                }
-                            }
-                            let block = exr::block::UncompressedBlock {
-                                index: exr::block::BlockIndex {
-                                    layer: 0,
-                                    pixel_position: exr::math::Vec2(0, y),
-                                    pixel_size: exr::math::Vec2(width, 1),
-                                    level: exr::math::Vec2(0, 0),
-                                },
-                                data: data.clone(),
-                            };
-                            writer.write_chunk(y, block.compress_to_chunk(&meta.headers)?)?;
-                            y += 1;
-                        }
+                        rows.push(writer, &meta.headers, &b.planes, b.rows)?;
                     }
-                    if y == height {
+                    if rows.written() == height {
                         Ok(())
                     } else {
                         Err(exr::error::Error::Invalid(
-                            format!("only {y} of {height} rows were written").into(),
+                            format!("only {} of {height} rows were written", rows.written()).into(),
                         ))
                     }
                 })
