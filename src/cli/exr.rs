@@ -26,9 +26,9 @@ impl ValueEnum for ExrPrecision {
 /// How EXR files are written.
 #[derive(Args, Clone, Copy, Debug, Default)]
 pub struct ExrArgs {
-    /// Compression of the EXR files written (lossless). The default, rle, stores constant
-    /// planes (a default albedo, a full mask) in almost nothing at the speed of none; zip and
-    /// zips shrink smooth data more, slower (BENCHMARKS.md, "EXR compression").
+    /// Compression of the EXR files written (all lossless). The default, zip, writes about
+    /// the size of OpenEXR's ZIP for little more time than none (BENCHMARKS.md, "EXR
+    /// compression").
     #[arg(long, value_enum, value_name = "C", default_value_t = ExrCompression::default())]
     pub exr_compression: ExrCompression,
     /// Sample type of the EXR files written: f32 (exact) or f16 (half the bytes).

@@ -35,7 +35,7 @@ crate::params! {
         pub dx: bool = false => bool,
         /// Write EXR as 16-bit half floats (f16) instead of 32-bit floats.
         pub half: bool = false => bool,
-        /// Compression of an EXR (lossless): none, rle (default: constant planes vanish, as fast as none), zips, zip (zlib over 16 lines), piz.
+        /// Compression of an EXR (lossless): zip (default: zlib over 16 lines, about OpenEXR's size for little more time than none), zips, rle, piz or none.
         pub exr_compression: ExrCompression = ExrCompression::default() => choice,
     }
 }

@@ -41,9 +41,9 @@ use rayon::prelude::*;
 /// Largest σ or radius accepted (pixels): beyond this a filter is a constant.
 pub const MAX_SIGMA_PX: f32 = 4096.0;
 /// Smallest σ a parameter accepts (pixels): narrower Gaussians are the identity to `f32`.
-pub const MIN_SIGMA_PX: f32 = 0.05;
+pub const MIN_SIGMA_PX: f64 = 0.05;
 /// [`MIN_SIGMA_PX`] and [`MAX_SIGMA_PX`] as a parameter's range.
-pub const SIGMA_RANGE: (f64, f64) = (MIN_SIGMA_PX as f64, MAX_SIGMA_PX as f64);
+pub const SIGMA_RANGE: (f64, f64) = (MIN_SIGMA_PX, MAX_SIGMA_PX as f64);
 /// Largest side of a user kernel.
 pub const MAX_USER_KERNEL: usize = 63;
 

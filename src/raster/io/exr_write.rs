@@ -71,6 +71,149 @@ fn block_bytes(
     out
 }
 
+/// The zlib level of the compressed runs of ZIP blocks (level 1 is zlib's fixed-code fast path,
+/// which grows incompressible bytes; 2 is about as fast here and smaller: BENCHMARKS.md, "EXR
+/// compression").
+const ZIP_LEVEL: u32 = 2;
+
+/// Bits of order-0 entropy per byte above which a segment is stored rather than compressed:
+/// the low bytes of float mantissas (7.9–8 bits) are stored, constant and smooth planes, and
+/// the high bytes, compressed.
+const NOISE_BITS: f64 = 7.5;
+
+/// A ZIP or ZIPS block prepared as OpenEXR does it — bytes split into even and odd halves, each
+/// byte replaced by its difference to the previous one plus 128 — then deflated segment by
+/// segment ([`deflate_segments`]: noise stored, the rest compressed with zlib-rs), where the exr
+/// crate's own deflate compresses everything at level 4, several times slower for about the
+/// same size on float data. `None` for the other compressions. A block that does not shrink is
+/// stored as it is, as the format allows.
+fn zip_chunk(
+    headers: &[Header],
+    data: &[u8],
+    y: usize,
+    width_bytes: usize,
+) -> Option<exr::block::chunk::Chunk> {
+    use exr::compression::Compression as C;
+    // The format's bytes are little-endian and the block was built in native order: on a
+    // big-endian machine the exr crate, which swaps them, compresses it.
+    if !matches!(headers[0].compression, C::ZIP1 | C::ZIP16) || cfg!(target_endian = "big") {
+        return None;
+    }
+    let n = data.len();
+    let half = n.div_ceil(2);
+    let mut t = vec![0u8; n];
+    for (k, b) in data.iter().enumerate() {
+        t[if k % 2 == 0 { k / 2 } else { half + k / 2 }] = *b;
+    }
+    let mut prev = t.first().copied().unwrap_or(0);
+    for v in t.iter_mut().skip(1) {
+        let cur = *v;
+        *v = cur.wrapping_sub(prev).wrapping_add(128);
+        prev = cur;
+    }
+    let seg = (width_bytes / 2).max(1);
+    let packed = deflate_segments(&t, seg)?;
+    let compressed_pixels_le = if packed.len() < n {
+        packed
+    } else {
+        data.to_vec()
+    };
+    Some(exr::block::chunk::Chunk {
+        layer_index: 0,
+        compressed_block: exr::block::chunk::CompressedBlock::ScanLine(
+            exr::block::chunk::CompressedScanLineBlock {
+                y_coordinate: i32::try_from(y).ok()?,
+                compressed_pixels_le,
+            },
+        ),
+    })
+}
+
+/// The order-0 entropy of `b` in bits per byte.
+fn entropy(b: &[u8]) -> f64 {
+    let mut h = [0u32; 256];
+    for v in b {
+        h[*v as usize] += 1;
+    }
+    let n = b.len() as f64;
+    h.iter()
+        .filter(|c| **c > 0)
+        .map(|c| {
+            let p = f64::from(*c) / n;
+            -p * p.log2()
+        })
+        .sum()
+}
+
+/// Adler-32 of `b` (the zlib trailer).
+fn adler32(b: &[u8]) -> u32 {
+    const MOD: u32 = 65_521;
+    let (mut a, mut s) = (1u32, 0u32);
+    // 5552 bytes keep the sums below 2^32 before the reduction.
+    for c in b.chunks(5552) {
+        for v in c {
+            a += u32::from(*v);
+            s += a;
+        }
+        a %= MOD;
+        s %= MOD;
+    }
+    (s << 16) | a
+}
+
+/// `t` as one zlib stream, `seg` bytes at a time: a run of segments that look like noise
+/// (order-0 entropy over [`NOISE_BITS`]: the low bytes of float mantissas) is written as stored
+/// deflate blocks, a run of the others is compressed at [`ZIP_LEVEL`] by a compressor without
+/// history (what comes before it may be stored, which a compressor's window would not know)
+/// and sync-flushed, so every run ends on a byte and the blocks simply follow one another.
+fn deflate_segments(t: &[u8], seg: usize) -> Option<Vec<u8>> {
+    use flate2::{Compress, Compression, FlushCompress};
+    let (level, limit) = (ZIP_LEVEL, NOISE_BITS);
+    // zlib header: deflate with a 32 KiB window, no dictionary, (CMF·256 + FLG) % 31 == 0.
+    let mut out = Vec::with_capacity(t.len() + t.len() / 64 + 64);
+    out.extend_from_slice(&[0x78, 0x01]);
+    let mut c = Compress::new(Compression::new(level), false);
+    let noisy: Vec<bool> = t.chunks(seg).map(|p| entropy(p) > limit).collect();
+    let mut k = 0;
+    while k < noisy.len() {
+        let mut end = k + 1;
+        while end < noisy.len() && noisy[end] == noisy[k] {
+            end += 1;
+        }
+        let run = &t[k * seg..(end * seg).min(t.len())];
+        if noisy[k] {
+            // Stored blocks of at most 65535 bytes: header byte (not final, type 00), LEN, NLEN.
+            for b in run.chunks(65_535) {
+                let len = u16::try_from(b.len()).ok()?;
+                out.push(0);
+                out.extend_from_slice(&len.to_le_bytes());
+                out.extend_from_slice(&(!len).to_le_bytes());
+                out.extend_from_slice(b);
+            }
+        } else {
+            c.reset();
+            let mut done = 0;
+            loop {
+                out.reserve(run.len() - done + 1024);
+                let before = c.total_in();
+                let status = c
+                    .compress_vec(&run[done..], &mut out, FlushCompress::Sync)
+                    .ok()?;
+                done += usize::try_from(c.total_in() - before).ok()?;
+                if done == run.len() && out.capacity() > out.len() && status == flate2::Status::Ok {
+                    // A sync flush that had room finished: the output ends on a byte.
+                    break;
+                }
+            }
+        }
+        k = end;
+    }
+    // The final block (empty, stored), then the Adler-32 of the data, big-endian.
+    out.extend_from_slice(&[1, 0, 0, 0xff, 0xff]);
+    out.extend_from_slice(&adler32(t).to_be_bytes());
+    Some(out)
+}
+
 /// Compresses and writes the blocks covering rows `0..rows` of `planes` (local rows; image row
 /// `first_row + r`), `first_row` a multiple of the block height. Returns the rows written: all
 /// of them when `last` (the image's final rows), else only whole blocks.
@@ -95,6 +238,11 @@ fn write_rows<W: ChunksWriter>(
             .map(|k| {
                 let (r0, r1) = (k * lines, ((k + 1) * lines).min(whole));
                 let y = first_row + r0;
+                let data = block_bytes(planes, width, r0..r1, half);
+                if let Some(zipped) = zip_chunk(headers, &data, y, width * if half { 2 } else { 4 })
+                {
+                    return Ok((y / lines, zipped));
+                }
                 let block = UncompressedBlock {
                     index: BlockIndex {
                         layer: 0,
@@ -102,7 +250,7 @@ fn write_rows<W: ChunksWriter>(
                         pixel_size: Vec2(width, r1 - r0),
                         level: Vec2(0, 0),
                     },
-                    data: block_bytes(planes, width, r0..r1, half),
+                    data,
                 };
                 Ok((y / lines, block.compress_to_chunk(headers)?))
             })
@@ -212,5 +360,57 @@ impl RowBlocks {
     /// Rows written so far.
     pub(crate) fn written(&self) -> usize {
         self.written
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Bytes of pseudo-random noise.
+    fn noise(n: usize, mut s: u64) -> Vec<u8> {
+        (0..n)
+            .map(|_| {
+                s ^= s << 13;
+                s ^= s >> 7;
+                s ^= s << 17;
+                (s >> 32) as u8
+            })
+            .collect()
+    }
+
+    #[test]
+    fn mixed_segments_make_one_zlib_stream_that_inflates_to_the_data() {
+        // Runs of noise (stored) between runs of smooth data (compressed), with a short last
+        // segment: the stream must decode, by another implementation, to exactly the input.
+        let seg = 4000;
+        let mut t = Vec::new();
+        for k in 0..9 {
+            if k % 3 == 1 {
+                t.extend(noise(seg, 7 + k));
+            } else {
+                t.extend((0..seg).map(|i| (i / 40 % 7) as u8));
+            }
+        }
+        t.extend(noise(123, 99));
+        let z = deflate_segments(&t, seg).expect("compressed");
+        let mut back = Vec::new();
+        std::io::Read::read_to_end(&mut flate2::read::ZlibDecoder::new(&z[..]), &mut back)
+            .expect("a valid zlib stream");
+        assert_eq!(back, t);
+        // The smooth runs shrank to a small part of their size; the noise was kept.
+        let noisy = 3 * seg + 123;
+        assert!(z.len() > noisy, "{} bytes", z.len());
+        assert!(
+            z.len() < noisy + (t.len() - noisy) / 10,
+            "{} bytes",
+            z.len()
+        );
+        // An order-0 entropy estimate: one symbol 0 bits, uniform bytes 8.
+        assert_eq!(entropy(&[5; 100]), 0.0);
+        let all: Vec<u8> = (0..=255).collect();
+        assert!((entropy(&all) - 8.0).abs() < 1e-12);
+        // Adler-32 of "Wikipedia" (the textbook example).
+        assert_eq!(adler32(b"Wikipedia"), 0x11E6_0398);
     }
 }

@@ -153,24 +153,24 @@ pub enum ExrPrecision {
     Full,
 }
 
-/// Compression of EXR output (lossless; PIZ only for its ratio on noisy data). Each is the
-/// OpenEXR compression of the same name, written by [`super::exr_write`] block by block on
-/// every core. The default is chosen by size and speed measured on 4K RGBN images
-/// (BENCHMARKS.md, "EXR compression").
+/// Compression of EXR output (all lossless). Each is the OpenEXR compression of the same name,
+/// written block by block on every core. The default, ZIP, is chosen by size and speed
+/// measured on 4K RGBN images (BENCHMARKS.md, "EXR compression"): about the size of
+/// OpenEXR's own ZIP for little more time than no compression, because the blocks' noise
+/// (float mantissas) is stored and only the rest deflated.
 #[derive(
     Clone, Copy, Debug, Default, PartialEq, Eq, Hash, serde::Serialize, serde::Deserialize,
 )]
 pub enum ExrCompression {
     /// No compression: the largest files (24–28 bytes a pixel in f32).
     None,
-    /// Run-length over byte differences, one line a block: constant planes (a default albedo,
-    /// a full mask) shrink to almost nothing, varying floats stay as they are; about as fast
-    /// as no compression.
-    #[default]
+    /// Run-length over byte differences, one line a block: fast; shrinks constant half-float
+    /// planes, but not 32-bit ones (their bytes alternate rather than repeat).
     Rle,
     /// zlib, one line a block.
     Zips,
     /// zlib over blocks of 16 lines (OpenEXR's and OpenCV's default).
+    #[default]
     Zip,
     /// Wavelet + Huffman over 32 lines: good on noisy data, slower.
     Piz,
@@ -212,9 +212,9 @@ impl crate::params::Choice for ExrCompression {
     fn doc(self) -> &'static str {
         match self {
             Self::None => "No compression (largest files).",
-            Self::Rle => "Run-length: constant planes vanish, floats stay; about as fast as none.",
+            Self::Rle => "Run-length, one line a block: fast; shrinks constant half floats only.",
             Self::Zips => "zlib, one line a block.",
-            Self::Zip => "zlib over 16 lines (OpenEXR's default).",
+            Self::Zip => "zlib over 16 lines (the default; OpenEXR's too).",
             Self::Piz => "Wavelet + Huffman over 32 lines: good on noisy data, slower.",
         }
     }
