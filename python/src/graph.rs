@@ -32,15 +32,22 @@ pub struct Graph {
 }
 
 /// A Python value as a graph value for an input of type `ty`.
-fn input_value(py: Python<'_>, name: &str, ty: PortType, obj: &Bound<'_, PyAny>) -> PyResult<Value> {
+fn input_value(
+    py: Python<'_>,
+    name: &str,
+    ty: PortType,
+    obj: &Bound<'_, PyAny>,
+) -> PyResult<Value> {
     if let Ok(img) = obj.cast::<Image>() {
         return img.get().to_value(py);
     }
     if let Ok(a) = obj.cast::<PyUntypedArray>() {
         if a.ndim() == 2 && matches!(ty, PortType::Mask | PortType::Scalar) {
-            let a = obj
-                .cast::<PyArray2<f32>>()
-                .map_err(|_| input(format!("graph input {name:?}: an H×W array must be float32")))?;
+            let a = obj.cast::<PyArray2<f32>>().map_err(|_| {
+                input(format!(
+                    "graph input {name:?}: an H×W array must be float32"
+                ))
+            })?;
             let (h, w) = (a.shape()[0], a.shape()[1]);
             let data = py_vec(a)?;
             let p = Arc::new(Plane::from_vec(w, h, data).map_err(crate::error::rgbn_err)?);
@@ -74,7 +81,9 @@ fn py_vec(a: &Bound<'_, PyArray2<f32>>) -> PyResult<Vec<f32>> {
 /// A graph value as a Python object: `Image`, H×W float32 array, H×W×4 uint8 array or float.
 pub fn output_value<'py>(py: Python<'py>, v: &Value) -> PyResult<Bound<'py, PyAny>> {
     Ok(match v {
-        Value::Rgbn(img) => Bound::new(py, Image::planar(img.clone(), Default::default()))?.into_any(),
+        Value::Rgbn(img) => {
+            Bound::new(py, Image::planar(img.clone(), Default::default()))?.into_any()
+        }
         Value::Mask(p) | Value::Scalar(p) => {
             array2(py, p.height(), p.width(), p.data().to_vec())?.into_any()
         }
@@ -133,7 +142,9 @@ impl Graph {
         }
         match self.lg.param_info(id, param) {
             Some(info) => py_of(py, &info.default),
-            None => Err(input(format!("unknown parameter {param:?} of node {node:?}"))),
+            None => Err(input(format!(
+                "unknown parameter {param:?} of node {node:?}"
+            ))),
         }
     }
 
@@ -155,7 +166,12 @@ impl Graph {
             .graph
             .outputs
             .keys()
-            .map(|n| (n.clone(), self.lg.output_type(n).map_or("?", PortType::name)))
+            .map(|n| {
+                (
+                    n.clone(),
+                    self.lg.output_type(n).map_or("?", PortType::name),
+                )
+            })
             .collect()
     }
 
@@ -176,12 +192,18 @@ impl Graph {
         let mut files = BTreeMap::new();
         let mut values = BTreeMap::new();
         for (name, obj) in inputs.unwrap_or_default() {
-            let is_path = obj.is_instance_of::<pyo3::types::PyString>() || obj.hasattr("__fspath__")?;
+            let is_path =
+                obj.is_instance_of::<pyo3::types::PyString>() || obj.hasattr("__fspath__")?;
             if is_path {
                 files.insert(name, PathBuf::from(text_of(&obj)?));
                 continue;
             }
-            let ty = self.lg.graph.inputs.get(&name).map_or(PortType::Rgbn, |d| d.ty);
+            let ty = self
+                .lg
+                .graph
+                .inputs
+                .get(&name)
+                .map_or(PortType::Rgbn, |d| d.ty);
             values.insert(name.clone(), input_value(py, &name, ty, &obj)?);
         }
         let out_dir = out_dir.unwrap_or_else(|| PathBuf::from("."));

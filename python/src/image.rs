@@ -83,7 +83,9 @@ fn array_arg<'py>(
         let parts: Vec<String> = dims
             .iter()
             .enumerate()
-            .map(|(i, d)| d.map_or_else(|| ["H", "W", "C"][i.min(2)].to_string(), |d| d.to_string()))
+            .map(|(i, d)| {
+                d.map_or_else(|| ["H", "W", "C"][i.min(2)].to_string(), |d| d.to_string())
+            })
             .collect();
         format!("({})", parts.join(", "))
     };
@@ -96,7 +98,10 @@ fn array_arg<'py>(
     };
     let got = arr.shape().to_vec();
     let fits = got.len() == shape.len()
-        && got.iter().zip(shape).all(|(g, s)| s.is_none_or(|s| s == *g));
+        && got
+            .iter()
+            .zip(shape)
+            .all(|(g, s)| s.is_none_or(|s| s == *g));
     if !fits {
         let got: Vec<String> = got.iter().map(ToString::to_string).collect();
         return Err(input(format!(
@@ -194,7 +199,12 @@ pub fn join3(p: &[Vec<f32>; 3]) -> Vec<f32> {
 }
 
 /// An H×W×3 float32 array owning `data` (no copy).
-fn array3(py: Python<'_>, h: usize, w: usize, data: Vec<f32>) -> PyResult<Bound<'_, PyArray3<f32>>> {
+fn array3(
+    py: Python<'_>,
+    h: usize,
+    w: usize,
+    data: Vec<f32>,
+) -> PyResult<Bound<'_, PyArray3<f32>>> {
     let a = Array::from_shape_vec((h, w, 3), data).map_err(|e| input(e.to_string()))?;
     Ok(a.into_pyarray(py))
 }
@@ -258,13 +268,25 @@ impl Image {
             Storage::Arrays(a) => a,
         };
         let (w, h) = (self.width, self.height);
-        let n = a.normals.bind(py).try_readonly().map_err(|e| input(e.to_string()))?;
+        let n = a
+            .normals
+            .bind(py)
+            .try_readonly()
+            .map_err(|e| input(e.to_string()))?;
         let c = match &a.color {
-            Some(c) => Some(c.bind(py).try_readonly().map_err(|e| input(e.to_string()))?),
+            Some(c) => Some(
+                c.bind(py)
+                    .try_readonly()
+                    .map_err(|e| input(e.to_string()))?,
+            ),
             None => None,
         };
         let m = match &a.mask {
-            Some(m) => Some(m.bind(py).try_readonly().map_err(|e| input(e.to_string()))?),
+            Some(m) => Some(
+                m.bind(py)
+                    .try_readonly()
+                    .map_err(|e| input(e.to_string()))?,
+            ),
             None => None,
         };
         let ns = n.as_slice().map_err(|e| input(e.to_string()))?;
@@ -358,11 +380,27 @@ impl Image {
         let n = n.cast_into::<PyArray3<f32>>()?;
         let v = {
             let nr = n.try_readonly().map_err(|e| input(e.to_string()))?;
-            let cr = c.as_ref().map(|c| c.try_readonly()).transpose().map_err(|e| input(e.to_string()))?;
-            let mr = m.as_ref().map(|m| m.try_readonly()).transpose().map_err(|e| input(e.to_string()))?;
+            let cr = c
+                .as_ref()
+                .map(|c| c.try_readonly())
+                .transpose()
+                .map_err(|e| input(e.to_string()))?;
+            let mr = m
+                .as_ref()
+                .map(|m| m.try_readonly())
+                .transpose()
+                .map_err(|e| input(e.to_string()))?;
             let ns = nr.as_slice().map_err(|e| input(e.to_string()))?;
-            let cs = cr.as_ref().map(|c| c.as_slice()).transpose().map_err(|e| input(e.to_string()))?;
-            let ms = mr.as_ref().map(|m| m.as_slice()).transpose().map_err(|e| input(e.to_string()))?;
+            let cs = cr
+                .as_ref()
+                .map(|c| c.as_slice())
+                .transpose()
+                .map_err(|e| input(e.to_string()))?;
+            let ms = mr
+                .as_ref()
+                .map(|m| m.as_slice())
+                .transpose()
+                .map_err(|e| input(e.to_string()))?;
             py.detach(|| validate_interleaved(ns, cs, ms))
         };
         if strict {
@@ -575,9 +613,9 @@ fn value_of(py: Python<'_>, obj: &Bound<'_, PyAny>, as_mask: bool) -> PyResult<V
             return Ok(Value::Picture(Arc::new(Picture {
                 width: w,
                 height: h,
-                rgba: a.to_vec().or_else(|_| {
-                    Ok::<_, PyErr>(a.to_owned_array().iter().copied().collect())
-                })?,
+                rgba: a
+                    .to_vec()
+                    .or_else(|_| Ok::<_, PyErr>(a.to_owned_array().iter().copied().collect()))?,
             })));
         }
         let a = array_arg(obj, "array", &[None, None])?;

@@ -49,6 +49,7 @@ fn _rgbn(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(ops::render, m)?)?;
     m.add_function(wrap_pyfunction!(ops::info, m)?)?;
     m.add_function(wrap_pyfunction!(ops::main, m)?)?;
+    m.add_function(wrap_pyfunction!(ops::_kernel_time, m)?)?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     Ok(())
 }

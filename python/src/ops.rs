@@ -52,15 +52,15 @@ pub fn ops(py: Python<'_>) -> PyResult<Bound<'_, PyList>> {
         d.set_item("id", s.id)?;
         d.set_item("title", s.title)?;
         d.set_item("category", s.category)?;
-        d.set_item("doc", s.doc.as_ref() as &str)?;
+        d.set_item("doc", s.doc)?;
         for (key, ports) in [("inputs", &s.inputs), ("outputs", &s.outputs)] {
             let pl = PyList::empty(py);
             for p in ports {
                 let pd = PyDict::new(py);
-                pd.set_item("name", p.name)?;
+                pd.set_item("name", &p.name)?;
                 pd.set_item("type", p.ty.name())?;
                 pd.set_item("optional", p.optional)?;
-                pd.set_item("doc", p.doc)?;
+                pd.set_item("doc", &p.doc)?;
                 pl.append(pd)?;
             }
             d.set_item(key, pl)?;
@@ -154,10 +154,15 @@ pub fn run_op<'py>(
     params: Option<BTreeMap<String, Bound<'py, PyAny>>>,
 ) -> PyResult<Bound<'py, PyDict>> {
     let dynop = find_op(op)?;
-    let values = run_values(py, dynop, inputs.unwrap_or_default(), &params.unwrap_or_default())?;
+    let values = run_values(
+        py,
+        dynop,
+        inputs.unwrap_or_default(),
+        &params.unwrap_or_default(),
+    )?;
     let d = PyDict::new(py);
     for (port, v) in dynop.spec().outputs.iter().zip(&values) {
-        d.set_item(port.name, output_value(py, v)?)?;
+        d.set_item(&port.name, output_value(py, v)?)?;
     }
     Ok(d)
 }
@@ -181,13 +186,13 @@ fn run_parsed<'py>(
     values: BTreeMap<String, ParamValue>,
 ) -> PyResult<Vec<Value>> {
     let spec = op.spec();
-    let parsed = op
-        .parse(&values)
+    let canonical = op
+        .canonical(&values)
         .map_err(|e| input(format!("{e}: {}", spec.id)))?;
     let mut ins = Vec::with_capacity(spec.inputs.len());
     for p in &spec.inputs {
-        ins.push(match inputs.remove(p.name) {
-            Some(obj) if !obj.is_none() => Some(port_value(py, p.name, p.ty, &obj)?),
+        ins.push(match inputs.remove(&p.name) {
+            Some(obj) if !obj.is_none() => Some(port_value(py, &p.name, p.ty, &obj)?),
             _ if p.optional => None,
             _ => {
                 return Err(input(format!(
@@ -203,13 +208,14 @@ fn run_parsed<'py>(
         return Err(input(format!(
             "{} has no input {name:?}{}",
             spec.id,
-            nearest(name, spec.inputs.iter().map(|p| p.name))
+            nearest(name, spec.inputs.iter().map(|p| p.name.as_str()))
                 .map(|s| format!(" (did you mean {s:?}?)"))
                 .unwrap_or_default()
         )));
     }
     interruptible(py, None, move || {
-        op.run(&parsed, ins, &RunContext::default()).map_err(rgbn_err)
+        op.run(&canonical, &ins, &RunContext::default())
+            .map_err(rgbn_err)
     })
 }
 
@@ -273,7 +279,9 @@ fn integrate_values(
             .extract()
             .map_err(|_| input("camera must be a 3×3 intrinsic matrix K (rows of numbers)"))?;
         if k.len() != 3 || k.iter().any(|r| r.len() != 3) {
-            return Err(input("camera must be a 3×3 intrinsic matrix K (rows of numbers)"));
+            return Err(input(
+                "camera must be a 3×3 intrinsic matrix K (rows of numbers)",
+            ));
         }
         // As a K file is read (`Pinhole::from_k_file`): fx = K[0][0], fy = K[1][1],
         // cx = K[0][2], cy = K[1][2].
@@ -297,7 +305,8 @@ fn integrate_run<'py>(
 ) -> PyResult<(Vec<Value>, bool)> {
     let op = find_op("integrate")?;
     let values = integrate_values(op, method, camera, &params.unwrap_or_default())?;
-    let pinhole = matches!(values.get("camera"), Some(ParamValue::Choice(c)) if c != "orthographic");
+    let pinhole =
+        matches!(values.get("camera"), Some(ParamValue::Choice(c)) if c != "orthographic");
     let mut img = image_arg(py, image)?;
     if let Some(m) = mask.filter(|m| !m.is_none()) {
         img = Image::planar(img, Default::default()).with_mask_value(py, m)?;
@@ -344,7 +353,9 @@ pub fn integrate_depth<'py>(
     params: Option<BTreeMap<String, Bound<'py, PyAny>>>,
 ) -> PyResult<Bound<'py, PyAny>> {
     if camera.is_none() {
-        return Err(input("integrate_depth needs camera=K (a 3×3 intrinsic matrix)"));
+        return Err(input(
+            "integrate_depth needs camera=K (a 3×3 intrinsic matrix)",
+        ));
     }
     let (values, pinhole) = integrate_run(py, image, method, mask, Some(camera), params)?;
     if !pinhole {
@@ -390,8 +401,12 @@ pub fn capture<'py>(
             .map_err(|_| input(format!("{what} must be N×3 numbers")))?;
         v.into_iter()
             .map(|r| {
-                <[f32; 3]>::try_from(r.as_slice())
-                    .map_err(|_| input(format!("{what} must be N×3 numbers, got a row of {}", r.len())))
+                <[f32; 3]>::try_from(r.as_slice()).map_err(|_| {
+                    input(format!(
+                        "{what} must be N×3 numbers, got a row of {}",
+                        r.len()
+                    ))
+                })
             })
             .collect()
     };
@@ -439,7 +454,10 @@ pub fn capture<'py>(
                     m.shape()[0]
                 )));
             }
-            Some(m.to_vec().or_else(|_| Ok::<_, PyErr>(m.to_owned_array().iter().copied().collect()))?)
+            Some(
+                m.to_vec()
+                    .or_else(|_| Ok::<_, PyErr>(m.to_owned_array().iter().copied().collect()))?,
+            )
         }
         None => None,
     };
@@ -554,4 +572,30 @@ pub fn main(py: Python<'_>, args: Vec<String>) -> i32 {
     let argv: Vec<String> = std::iter::once("rgbn".to_string()).chain(args).collect();
     let code = py.detach(|| rgbn::cli::run(argv));
     i32::from(u8::from(code))
+}
+
+/// Benchmark helper (``bench/bench_calls.py``): the mean time in nanoseconds of
+/// `filter_normals(image, kernel)` called `repeats` times inside Rust — the kernel without the
+/// Python call around it.
+#[pyfunction]
+pub fn _kernel_time(
+    py: Python<'_>,
+    image: &Bound<'_, PyAny>,
+    kernel: &str,
+    repeats: u32,
+) -> PyResult<f64> {
+    let k = [Kernel::parse(kernel).map_err(rgbn_err)?];
+    let img = image_arg(py, image)?;
+    let opts = FilterOptions {
+        border: BorderMode::Mirror,
+        mask_aware: false,
+    };
+    py.detach(|| {
+        let t = std::time::Instant::now();
+        for _ in 0..repeats.max(1) {
+            std::hint::black_box(filter_normals(&img, &k, &opts)?);
+        }
+        Ok(t.elapsed().as_nanos() as f64 / f64::from(repeats.max(1)))
+    })
+    .map_err(rgbn_err)
 }

@@ -13,7 +13,12 @@ use std::collections::BTreeMap;
 /// as they are, sequences comma separated (pairs as `x:y`).
 pub fn text_of(v: &Bound<'_, PyAny>) -> PyResult<String> {
     if v.is_instance_of::<PyBool>() {
-        return Ok(if v.extract::<bool>()? { "true" } else { "false" }.into());
+        return Ok(if v.extract::<bool>()? {
+            "true"
+        } else {
+            "false"
+        }
+        .into());
     }
     if v.is_instance_of::<PyInt>() || v.is_instance_of::<PyFloat>() {
         return Ok(v.repr()?.to_string());

@@ -39,8 +39,12 @@ where
             let _ = tx.send(r);
         })
         .map_err(|e| EvalError::new_err(format!("cannot start a worker thread: {e}")))?;
+    let mut rx = rx;
     loop {
-        match py.detach(|| rx.recv_timeout(POLL)) {
+        // The receiver moves into the GIL-free wait and back (it is `Send`, not `Sync`).
+        let (got, back) = py.detach(move || (rx.recv_timeout(POLL), rx));
+        rx = back;
+        match got {
             Ok(Ok(r)) => return r,
             Ok(Err(panic)) => {
                 let what = panic
@@ -57,12 +61,14 @@ where
                     if let Some(c) = &cancel {
                         c.store(true, Ordering::SeqCst);
                     }
-                    let _ = py.detach(|| rx.recv_timeout(GRACE));
+                    let _ = py.detach(move || rx.recv_timeout(GRACE).is_ok());
                     return Err(e);
                 }
             }
             Err(RecvTimeoutError::Disconnected) => {
-                return Err(EvalError::new_err("the worker thread ended without a result"))
+                return Err(EvalError::new_err(
+                    "the worker thread ended without a result",
+                ))
             }
         }
     }

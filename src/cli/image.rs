@@ -614,7 +614,11 @@ fn filter_stream(
 
 /// The note `InputArgs::load` prints when normals were repaired.
 fn note_repairs(r: &Validation, name: &Option<PathBuf>) {
-    let name = name.as_deref().unwrap_or(Path::new("")).display().to_string();
+    let name = name
+        .as_deref()
+        .unwrap_or(Path::new(""))
+        .display()
+        .to_string();
     if let Some(note) = r.repair_note(&name) {
         eprintln!("rgbn: note: {note}");
     }

@@ -183,7 +183,9 @@ mod tests {
             .unwrap_err()
             .to_string();
         assert!(e.contains("did you mean \"image\""), "{e}");
-        let held = plan.bind_values(&lg, [("image".into(), img)].into()).unwrap();
+        let held = plan
+            .bind_values(&lg, [("image".into(), img)].into())
+            .unwrap();
         drop(held);
         let e = Evaluator::default()
             .eval(&plan, &[], &EvalOptions::default())

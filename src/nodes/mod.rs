@@ -710,7 +710,9 @@ pub fn bound_op(ty: PortType) -> Option<&'static dyn DynOp> {
             Entry::<bound::BoundScalar>::boxed(),
         ]
     });
-    ops.iter().map(|b| b.as_ref()).find(|o| o.spec().outputs[0].ty == ty)
+    ops.iter()
+        .map(|b| b.as_ref())
+        .find(|o| o.spec().outputs[0].ty == ty)
 }
 
 /// The id of the reusable-graph node (a graph file used as a node; see `crate::graph`).
