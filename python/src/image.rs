@@ -346,7 +346,11 @@ impl Image {
     ) -> PyResult<Self> {
         let n = array_arg(normals, "normals", &[None, None, Some(3)])?;
         let (h, w) = (n.shape()[0], n.shape()[1]);
-        check_size(w, h, "normals").map_err(rgbn_err)?;
+        if w == 0 || h == 0 {
+            return Err(input(format!("image has no pixels ({w}×{h}): normals")));
+        }
+        // Too many pixels: the command line's message (RGBN_MAX_PIXELS), as bad input.
+        check_size(w, h, "normals").map_err(|e| input(e.to_string()))?;
         let size_err = |what: &'static str, got: &[usize]| {
             rgbn_err(RgbnError::SizeMismatch {
                 what,

@@ -56,7 +56,7 @@ def test_a_non_contiguous_array_is_copied_once_and_accepted():
     [
         (np.zeros((4, 4), np.float32), "normals must have shape (H, W, 3), got (4, 4)"),
         (np.zeros((4, 4, 4), np.float32), "normals must have shape (H, W, 3), got (4, 4, 4)"),
-        (np.zeros((4, 4, 3), np.float64), "normals must be float32, got <f8 (convert with .astype(numpy.float32))"),
+        (np.zeros((4, 4, 3), np.float64), "normals must be float32, got float64 (convert with .astype(numpy.float32))"),
         ([[1.0, 2.0, 3.0]], "normals must be a NumPy array of shape (H, W, 3), got list"),
         (np.zeros((0, 4, 3), np.float32), "image has no pixels (4×0)"),
     ],
