@@ -69,6 +69,9 @@ pub struct Image {
     normals_out: OnceLock<Py<PyArray3<f32>>>,
     color_out: OnceLock<Py<PyArray3<f32>>>,
     mask_out: OnceLock<Option<Py<PyArray2<f32>>>>,
+    /// Array-backed without colour: the 0.75 grey planes, made once and shared by every
+    /// planar copy.
+    grey: OnceLock<RgbnImage>,
 }
 
 /// A float32 array of `shape` (`None`: any size on that axis) taken from `obj`, C-contiguous
@@ -130,71 +133,107 @@ fn array_arg<'py>(
 /// Counts what [`RgbnImage::validate`] counts, over interleaved normals and colours (the same
 /// rule, without making planes).
 fn validate_interleaved(n: &[f32], c: Option<&[f32]>, m: Option<&[f32]>) -> Validation {
-    const CHUNK: usize = 1 << 16;
+    const CHUNK: usize = 1 << 15;
     let px = n.len() / 3;
     (0..px.div_ceil(CHUNK))
         .into_par_iter()
         .map(|k| {
             let r = k * CHUNK..((k + 1) * CHUNK).min(px);
-            let mut v = Validation {
-                pixels: r.len(),
-                ..Validation::default()
-            };
-            for i in r {
-                let col_ok = c.is_none_or(|c| c[3 * i..3 * i + 3].iter().all(|x| x.is_finite()))
-                    & m.is_none_or(|m| m[i].is_finite());
-                let [x, y, z] = [n[3 * i], n[3 * i + 1], n[3 * i + 2]];
+            // Branch-free per-pixel flags summed in u32 lanes (the loop vectorises).
+            let mut counts = [0u32; 5];
+            for px in n[3 * r.start..3 * r.end].chunks_exact(3) {
+                let [x, y, z] = [px[0], px[1], px[2]];
                 let finite = x.is_finite() & y.is_finite() & z.is_finite();
                 let len = (x * x + y * y + z * z).sqrt();
                 let zero = finite & (len < MIN_NORMAL_LENGTH);
                 let ok = finite & !zero;
-                v.non_finite_color += usize::from(!col_ok);
-                v.non_finite_normal += usize::from(!finite);
-                v.zero_length_normal += usize::from(zero);
-                v.non_unit += usize::from(ok & ((len - 1.0).abs() > 1e-3));
-                v.back_facing += usize::from(ok & (z <= 0.0));
+                counts[0] += u32::from(!finite);
+                counts[1] += u32::from(zero);
+                counts[2] += u32::from(ok & ((len - 1.0).abs() > 1e-3));
+                counts[3] += u32::from(ok & (z <= 0.0));
+            }
+            if let Some(c) = c {
+                for px in c[3 * r.start..3 * r.end].chunks_exact(3) {
+                    counts[4] +=
+                        u32::from(!(px[0].is_finite() & px[1].is_finite() & px[2].is_finite()));
+                }
+            }
+            let mut v = Validation {
+                pixels: r.len(),
+                non_finite_normal: counts[0] as usize,
+                zero_length_normal: counts[1] as usize,
+                non_unit: counts[2] as usize,
+                back_facing: counts[3] as usize,
+                non_finite_color: counts[4] as usize,
+            };
+            if let Some(m) = m {
+                // A pixel counts once whether its colour, its mask or both are non-finite.
+                let c = c.map(|c| &c[3 * r.start..3 * r.end]);
+                v.non_finite_color += m[r.clone()]
+                    .iter()
+                    .enumerate()
+                    .filter(|(i, v)| {
+                        !v.is_finite()
+                            && c.is_none_or(|c| c[3 * i..3 * i + 3].iter().all(|x| x.is_finite()))
+                    })
+                    .count();
             }
             v
         })
         .reduce(Validation::default, Validation::merge)
 }
 
-/// Interleaved H×W×3 samples as three planes (one pass, rows in parallel).
+/// Interleaved H×W×3 samples as three planes (one pass, rows in parallel; the planes are not
+/// zero-filled first, so blocks the allocator recycles are written once).
 pub fn split3(src: &[f32]) -> [Vec<f32>; 3] {
     let n = src.len() / 3;
-    let mut out = [vec![0.0f32; n], vec![0.0f32; n], vec![0.0f32; n]];
+    let mut out = [
+        rgbn::raster::buf::reserved_f32(n),
+        rgbn::raster::buf::reserved_f32(n),
+        rgbn::raster::buf::reserved_f32(n),
+    ];
     const CHUNK: usize = 1 << 14;
-    let [a, b, c] = &mut out;
-    a.par_chunks_mut(CHUNK)
-        .zip(b.par_chunks_mut(CHUNK))
-        .zip(c.par_chunks_mut(CHUNK))
-        .enumerate()
-        .for_each(|(k, ((a, b), c))| {
-            let s = &src[3 * k * CHUNK..3 * (k * CHUNK + a.len())];
-            for (i, px) in s.chunks_exact(3).enumerate() {
-                a[i] = px[0];
-                b[i] = px[1];
-                c[i] = px[2];
-            }
-        });
+    {
+        let [a, b, c] = &mut out;
+        a.spare_capacity_mut()[..n]
+            .par_chunks_mut(CHUNK)
+            .zip(b.spare_capacity_mut()[..n].par_chunks_mut(CHUNK))
+            .zip(c.spare_capacity_mut()[..n].par_chunks_mut(CHUNK))
+            .enumerate()
+            .for_each(|(k, ((a, b), c))| {
+                let s = &src[3 * k * CHUNK..3 * (k * CHUNK + a.len())];
+                for (i, px) in s.chunks_exact(3).enumerate() {
+                    a[i].write(px[0]);
+                    b[i].write(px[1]);
+                    c[i].write(px[2]);
+                }
+            });
+    }
+    for v in &mut out {
+        // SAFETY: every one of the first `n` values was written above.
+        unsafe { v.set_len(n) };
+    }
     out
 }
 
 /// Three planes as interleaved H×W×3 samples.
 pub fn join3(p: &[Vec<f32>; 3]) -> Vec<f32> {
     let n = p[0].len();
-    let mut out = vec![0.0f32; 3 * n];
+    let mut out = rgbn::raster::buf::reserved_f32(3 * n);
     const CHUNK: usize = 1 << 14;
-    out.par_chunks_mut(3 * CHUNK)
+    out.spare_capacity_mut()[..3 * n]
+        .par_chunks_mut(3 * CHUNK)
         .enumerate()
         .for_each(|(k, o)| {
             let base = k * CHUNK;
             for (i, px) in o.chunks_exact_mut(3).enumerate() {
-                px[0] = p[0][base + i];
-                px[1] = p[1][base + i];
-                px[2] = p[2][base + i];
+                px[0].write(p[0][base + i]);
+                px[1].write(p[1][base + i]);
+                px[2].write(p[2][base + i]);
             }
         });
+    // SAFETY: every one of the `3 n` values was written above.
+    unsafe { out.set_len(3 * n) };
     out
 }
 
@@ -257,6 +296,7 @@ impl Image {
             normals_out: OnceLock::new(),
             color_out: OnceLock::new(),
             mask_out: OnceLock::new(),
+            grey: OnceLock::new(),
         }
     }
 
@@ -300,13 +340,19 @@ impl Image {
         };
         let copies = 1 + u64::from(cs.is_some()) + u64::from(ms.is_some());
         PLANAR_COPIES.fetch_add(copies, Ordering::Relaxed);
+        let grey = &self.grey;
         py.detach(|| {
             let normal = split3(ns);
-            let color = match cs {
-                Some(c) => split3(c),
-                None => std::array::from_fn(|_| vec![io::DEFAULT_ALBEDO; w * h]),
-            };
-            RgbnImage::new(w, h, color, normal, ms.map(<[f32]>::to_vec))
+            let mask = ms.map(<[f32]>::to_vec);
+            match cs {
+                Some(c) => RgbnImage::new(w, h, split3(c), normal, mask),
+                None => {
+                    let base = grey.get_or_init(|| RgbnImage::flat(w, h, [io::DEFAULT_ALBEDO; 3]));
+                    let mut img = base.with_normals(normal)?;
+                    img.set_mask(mask)?;
+                    Ok(img)
+                }
+            }
         })
         .map_err(rgbn_err)
     }
@@ -424,6 +470,7 @@ impl Image {
             normals_out: OnceLock::new(),
             color_out: OnceLock::new(),
             mask_out: OnceLock::new(),
+            grey: OnceLock::new(),
         };
         if v.is_clean() {
             return Ok(arrays);
