@@ -237,6 +237,24 @@ pub fn join3(p: &[Vec<f32>; 3]) -> Vec<f32> {
     out
 }
 
+/// A flat image of the default grey colour: the last one made, shared when the size is the
+/// same (its planes are reference-counted and copy-on-write), so a new array-backed `Image`
+/// of a size seen before costs no colour planes.
+fn grey_base(w: usize, h: usize) -> RgbnImage {
+    static LAST: std::sync::Mutex<Option<RgbnImage>> = std::sync::Mutex::new(None);
+    let mut last = LAST
+        .lock()
+        .unwrap_or_else(std::sync::PoisonError::into_inner);
+    match &*last {
+        Some(img) if (img.width(), img.height()) == (w, h) => img.clone(),
+        _ => {
+            let img = RgbnImage::flat(w, h, [io::DEFAULT_ALBEDO; 3]);
+            *last = Some(img.clone());
+            img
+        }
+    }
+}
+
 /// An H×W×3 float32 array owning `data` (no copy).
 fn array3(
     py: Python<'_>,
@@ -347,7 +365,7 @@ impl Image {
             match cs {
                 Some(c) => RgbnImage::new(w, h, split3(c), normal, mask),
                 None => {
-                    let base = grey.get_or_init(|| RgbnImage::flat(w, h, [io::DEFAULT_ALBEDO; 3]));
+                    let base = grey.get_or_init(|| grey_base(w, h));
                     let mut img = base.with_normals(normal)?;
                     img.set_mask(mask)?;
                     Ok(img)
