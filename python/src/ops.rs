@@ -17,7 +17,7 @@ use rgbn::capture::inputs::{Lights, PhotoStack};
 use rgbn::capture::photometric::{photometric_stereo, PhotometricParams, PsMethod};
 use rgbn::nodes::{registry, DynOp, PortType, RunContext, Value};
 use rgbn::ops::filter::{filter_normals, FilterOptions, Kernel};
-use rgbn::ops::params::{nearest, Choice, ParamKind, ParamValue};
+use rgbn::params::{nearest, Choice, ParamKind, ParamValue};
 use rgbn::raster::convolve::BorderMode;
 use rgbn::raster::gradient::{Differences, GradientField};
 use rgbn::raster::integrate::green_convention_fractions;

@@ -6,7 +6,7 @@
 use crate::error::input;
 use pyo3::prelude::*;
 use pyo3::types::{PyBool, PyFloat, PyInt, PyList, PyString, PyTuple};
-use rgbn::ops::params::{nearest, ParamInfo, ParamValue};
+use rgbn::params::{nearest, ParamInfo, ParamValue};
 use std::collections::BTreeMap;
 
 /// The `--set` text of a Python value: `True`/`False`, numbers by `repr`, strings and paths
