@@ -1,6 +1,9 @@
 //! `rgbn.Graph`: a graph file, its parameters, and a lazy cache of node results that lives as
 //! long as the object ([`Evaluator`]).
 
+// Graph errors carry their location by value, as in the crate (cold paths).
+#![allow(clippy::result_large_err)]
+
 use crate::error::{graph_err, input};
 use crate::image::{array2, Image};
 use crate::params::{py_of, text_of};
