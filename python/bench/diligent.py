@@ -49,6 +49,7 @@ def main():
     p.add_argument("--reference", required=True, type=pathlib.Path)
     p.add_argument("--solve-tol", type=float, default=1e-3)
     p.add_argument("--objects", nargs="*", default=OBJECTS)
+    p.add_argument("--repeat", type=int, default=1, help="alternated runs per object (median taken)")
     a = p.parse_args()
     sys.path.insert(0, str(a.reference))
     import contextlib
@@ -66,20 +67,24 @@ def main():
     print("|---|---|---|---|---|")
     for obj in a.objects:
         nm, mask, K, gt = load(data / obj)
-        t0 = time.perf_counter()
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore", rgbn.RepairWarning)
-            img = rgbn.Image(nm.astype(np.float32), mask=mask.astype(np.float32))
-        z = rgbn.integrate_depth(img, "bilateral", camera=K, sharpness=2.0, irls_iterations=100,
-                                 irls_tolerance=1e-4, tolerance=a.solve_tol)
-        tr = time.perf_counter() - t0
-        t0 = time.perf_counter()
-        with contextlib.redirect_stderr(io.StringIO()), contextlib.redirect_stdout(io.StringIO()):
-            zref, *_ = reference(normal_map=nm, normal_mask=mask, k=2, K=K, max_iter=100, tol=1e-4)
-        tref = time.perf_counter() - t0
+        trs, trefs = [], []
+        for _ in range(a.repeat):
+            t0 = time.perf_counter()
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore", rgbn.RepairWarning)
+                img = rgbn.Image(nm.astype(np.float32), mask=mask.astype(np.float32))
+            z = rgbn.integrate_depth(img, "bilateral", camera=K, sharpness=2.0, irls_iterations=100,
+                                     irls_tolerance=1e-4, tolerance=a.solve_tol)
+            trs.append(time.perf_counter() - t0)
+            t0 = time.perf_counter()
+            with contextlib.redirect_stderr(io.StringIO()), contextlib.redirect_stdout(io.StringIO()):
+                zref, *_ = reference(normal_map=nm, normal_mask=mask, k=2, K=K, max_iter=100, tol=1e-4)
+            trefs.append(time.perf_counter() - t0)
+        tr, tref = statistics.median(trs), statistics.median(trefs)
         mr, mref = made(z, gt, mask), made(zref, gt, mask)
         rows.append((mr, mref, tr, tref))
-        print(f"| {obj} | {mr:.3f} | {mref:.3f} | {tr:.2f} | {tref:.2f} |", flush=True)
+        spread = f" (runs {'/'.join(f'{t:.2f}' for t in trs)} vs {'/'.join(f'{t:.2f}' for t in trefs)})" if a.repeat > 1 else ""
+        print(f"| {obj} | {mr:.3f} | {mref:.3f} | {tr:.2f} | {tref:.2f} |{spread}", flush=True)
     mr, mref = statistics.mean(r[0] for r in rows), statistics.mean(r[1] for r in rows)
     tr, tref = sum(r[2] for r in rows), sum(r[3] for r in rows)
     print(f"| **mean / total** | **{mr:.3f}** | {mref:.3f} | {tr:.2f} | {tref:.2f} |")
