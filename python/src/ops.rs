@@ -186,8 +186,8 @@ fn run_parsed<'py>(
     values: BTreeMap<String, ParamValue>,
 ) -> PyResult<Vec<Value>> {
     let spec = op.spec();
-    let canonical = op
-        .canonical(&values)
+    let parsed = op
+        .parse(&values)
         .map_err(|e| input(format!("{e}: {}", spec.id)))?;
     let mut ins = Vec::with_capacity(spec.inputs.len());
     for p in &spec.inputs {
@@ -214,7 +214,7 @@ fn run_parsed<'py>(
         )));
     }
     interruptible(py, None, move || {
-        op.run(&canonical, &ins, &RunContext::default())
+        op.run(&parsed, ins, &RunContext::default())
             .map_err(rgbn_err)
     })
 }
