@@ -105,7 +105,7 @@ def photometric_stereo(*, photos: str | os.PathLike[str] = '', lights: str | os.
     Returns a dict of the outputs:
         image (rgbn): Albedo + normals; mask 1 where a normal was estimated.
         solved (number): Pixels with an estimated normal.
-        relative_rms_curl (number): RMS(curl) / RMS(|g|) of the estimated normals (mask interior) inside the mask: the integrability readout (0 for the gradients of a height).
+        relative_rms_curl (number): RMS(curl) / RMS(|g|) of the estimated normals (mask interior): the integrability readout (0 for the gradients of a height).
     
     The graph node 'photometric_stereo', run by rgbn.run_op.
     """
@@ -408,7 +408,7 @@ def project(image: Image, *, method: Literal['poisson_dct', 'frankot_chellappa',
         max_iterations (int; in [1, 1e+07], default 2000): Conjugate-gradient iteration cap (masked_poisson only).
         tolerance (float; in [1e-12, 0.5], default 1e-06): Stop when ‖b − Lz‖ ≤ tolerance·‖b‖ (masked_poisson only).
         differences (choice; default 'averaged'): averaged: an edge's slope is the average of its two pixel samples (normals sampled at pixel centres; heights registered at pixel centres); forward: one pixel's sample per edge (exact for forward differences of a height; half a pixel staggered otherwise). Graphs that do not name it get averaged.
-        camera (choice; default 'orthographic'): orthographic: heights in pixels; pinhole: a pinhole camera (focal_px, principal point) — the log-depth is integrated and the height output is −Z for a depth Z up to scale (geometric mean focal_px over the domain); k_file: the same camera from a 3×3 K matrix in a text file.
+        camera (choice; default 'orthographic'): orthographic: parallel projection (heights in pixels; mesh vertices at (x·pixel_size, −row·pixel_size, height·z_scale)); pinhole: a pinhole camera (focal_px, principal point): integration works on the log-depth and its height is −Z for a depth Z up to scale (geometric mean focal_px over the domain), and a mesh places the 3-D points z_scale·((x − cx)·Z/fx, −(row − cy)·Z/fy, −Z) (camera at the origin looking along −z); k_file: the same camera from a 3×3 K matrix in a text file.
         focal_px (float; px, in [-1e+09, 1e+09], default 1000.0): Pinhole focal length (x; also y unless focal_y_px is set).
         focal_y_px (float; px, in [-1e+09, 1e+09], default 0.0): Pinhole focal length along y; 0 = the same as focal_px.
         principal_centred (bool; default True): Principal point at the image centre ((W−1)/2, (H−1)/2); off: principal_x, principal_y.
@@ -659,7 +659,7 @@ def integrate(image: Image, *, method: Literal['poisson_dct', 'frankot_chellappa
         max_iterations (int; in [1, 1e+07], default 2000): Conjugate-gradient iteration cap (masked_poisson only).
         tolerance (float; in [1e-12, 0.5], default 1e-06): Stop when ‖b − Lz‖ ≤ tolerance·‖b‖ (masked_poisson only).
         differences (choice; default 'averaged'): averaged: an edge's slope is the average of its two pixel samples (normals sampled at pixel centres; heights registered at pixel centres); forward: one pixel's sample per edge (exact for forward differences of a height; half a pixel staggered otherwise). Graphs that do not name it get averaged.
-        camera (choice; default 'orthographic'): orthographic: heights in pixels; pinhole: a pinhole camera (focal_px, principal point) — the log-depth is integrated and the height output is −Z for a depth Z up to scale (geometric mean focal_px over the domain); k_file: the same camera from a 3×3 K matrix in a text file.
+        camera (choice; default 'orthographic'): orthographic: parallel projection (heights in pixels; mesh vertices at (x·pixel_size, −row·pixel_size, height·z_scale)); pinhole: a pinhole camera (focal_px, principal point): integration works on the log-depth and its height is −Z for a depth Z up to scale (geometric mean focal_px over the domain), and a mesh places the 3-D points z_scale·((x − cx)·Z/fx, −(row − cy)·Z/fy, −Z) (camera at the origin looking along −z); k_file: the same camera from a 3×3 K matrix in a text file.
         focal_px (float; px, in [-1e+09, 1e+09], default 1000.0): Pinhole focal length (x; also y unless focal_y_px is set).
         focal_y_px (float; px, in [-1e+09, 1e+09], default 0.0): Pinhole focal length along y; 0 = the same as focal_px.
         principal_centred (bool; default True): Principal point at the image centre ((W−1)/2, (H−1)/2); off: principal_x, principal_y.
@@ -727,13 +727,13 @@ def save_mesh(height: numpy.ndarray, image: Image, *, path: str | os.PathLike[st
         format (choice; default 'ply'): ply (binary little-endian), ply_ascii, or obj (v x y z r g b, vn, f).
         z_scale (float; in [-1e+06, 1e+06], default 1.0): Multiplies the height (relief exaggeration; not 0).
         pixel_size (float; in [1e-09, 1e+09], default 1.0): World size of one pixel.
-        camera (choice; default 'orthographic'): orthographic: vertices at (x·pixel_size, −row·pixel_size, height·z_scale); pinhole / k_file: the height is −Z of a pinhole integration and vertices are the 3-D points z_scale·((x − cx)·Z/fx, −(row − cy)·Z/fy, −Z) (camera at the origin looking along −z; use the integrate node's camera).
+        camera (choice; default 'orthographic'): orthographic: parallel projection (heights in pixels; mesh vertices at (x·pixel_size, −row·pixel_size, height·z_scale)); pinhole: a pinhole camera (focal_px, principal point): integration works on the log-depth and its height is −Z for a depth Z up to scale (geometric mean focal_px over the domain), and a mesh places the 3-D points z_scale·((x − cx)·Z/fx, −(row − cy)·Z/fy, −Z) (camera at the origin looking along −z); k_file: the same camera from a 3×3 K matrix in a text file.
         focal_px (float; px, in [-1e+09, 1e+09], default 1000.0): Pinhole focal length (x; also y unless focal_y_px is set).
         focal_y_px (float; px, in [-1e+09, 1e+09], default 0.0): Pinhole focal length along y; 0 = the same as focal_px.
         principal_centred (bool; default True): Principal point at the image centre ((W−1)/2, (H−1)/2); off: principal_x, principal_y.
         principal_x (float; px, in [-1e+09, 1e+09], default 0.0): Principal point column (pixel centres at integers), when principal_centred is off.
-        principal_y (float; px, in [-1e+09, 1e+09], default 0.0): Principal point row (downwards), when principal_centred is off.
-        k_file (path; default ''): Text file with the 3×3 intrinsic matrix K for camera k_file.
+        principal_y (float; px, in [-1e+09, 1e+09], default 0.0): Principal point row (downwards, pixel centres at integers), when principal_centred is off.
+        k_file (path; default ''): Text file with the 3×3 intrinsic matrix K (rows of numbers, NumPy savetxt form) for camera k_file.
     
     Returns a dict of the outputs:
         vertices (number): Vertices written.
