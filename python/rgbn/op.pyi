@@ -429,6 +429,30 @@ def project(image: Image, *, method: Literal['poisson_dct', 'frankot_chellappa',
     The graph node 'project', run by rgbn.run_op.
     """
 
+def transform(image: Image, *, crop_x: int = 0, crop_y: int = 0, crop_width: int = 0, crop_height: int = 0, mirror: bool = False, flip: bool = False, rotate: Literal['0', '90', '180', '270'] = '0', resize_width: int = 0, resize_height: int = 0) -> Image:
+    """Transform.
+    
+    Crops, mirrors, flips, turns by quarter turns and resizes a whole image; the normals turn with it (a mirror negates n_x, a rotation rotates (n_x, n_y)) and a resize works on the gradients, so a surface stays a surface.
+    
+    Inputs:
+        image (rgbn): Image to transform.
+    
+    Parameters:
+        crop_x (int; px, in [0, 1e+09], default 0): First column of the crop.
+        crop_y (int; px, in [0, 1e+09], default 0): First row of the crop (row 0 at the top).
+        crop_width (int; px, in [0, 1e+09], default 0): Columns of the crop; 0 = to the right edge.
+        crop_height (int; px, in [0, 1e+09], default 0): Rows of the crop; 0 = to the bottom edge.
+        mirror (bool; default False): Mirror left–right (n_x changes sign).
+        flip (bool; default False): Flip top–bottom (n_y changes sign).
+        rotate (choice; default '0'): Counter-clockwise rotation in degrees: 0, 90, 180 or 270 ((n_x, n_y) rotates with the image).
+        resize_width (int; px, in [0, 1e+06], default 0): Width after resizing; 0 = keep (or follow resize_height, keeping the aspect ratio).
+        resize_height (int; px, in [0, 1e+06], default 0): Height after resizing; 0 = keep (or follow resize_width, keeping the aspect ratio).
+    
+    Returns the output 'image' (rgbn): The transformed image, its normals turned with it.
+    
+    The graph node 'transform', run by rgbn.run_op.
+    """
+
 def combine_linear(base: Image, detail: Image | None = None, detail_height: numpy.ndarray | None = None, weight: numpy.ndarray | None = None, *, alpha: float = 1.0, replace_band: Literal['none', 'lowpass', 'highpass', 'bandpass', 'log'] = 'none', sigma_px: float = 1.0, sigma_coarse_px: float = 4.0, border: Literal['mirror', 'clamp', 'wrap', 'zero'] = 'mirror') -> dict[str, Any]:
     """Linear combine.
     
