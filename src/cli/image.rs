@@ -617,12 +617,13 @@ fn filter_stream(
 
 /// The note `InputArgs::load` prints when normals were repaired.
 fn note_repairs(r: &Validation, name: &Option<PathBuf>) {
-    if !r.is_clean() {
-        let name = name.as_deref().unwrap_or(Path::new("")).display();
-        eprintln!(
-            "rgbn: note: repaired {} NaN/inf and {} zero-length normals (now (0,0,1)), renormalised {}, zeroed {} non-finite colour values: {name}",
-            r.non_finite_normal, r.zero_length_normal, r.non_unit, r.non_finite_color
-        );
+    let name = name
+        .as_deref()
+        .unwrap_or(Path::new(""))
+        .display()
+        .to_string();
+    if let Some(note) = r.repair_note(&name) {
+        eprintln!("rgbn: note: {note}");
     }
 }
 

@@ -20,6 +20,7 @@
 // Graph errors carry their location (file, node, names) by value; they are cold paths.
 #![allow(clippy::result_large_err)]
 
+pub mod bind;
 pub mod cache;
 pub mod disk;
 pub mod memory;

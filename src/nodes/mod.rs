@@ -83,6 +83,7 @@
 
 pub mod band;
 pub mod bilateral;
+pub mod bound;
 pub mod brush;
 pub mod capture;
 pub mod combine;
@@ -695,6 +696,23 @@ pub fn find(id: &str) -> Option<&'static dyn DynOp> {
         .iter()
         .find(|o| o.spec().id == id)
         .map(|b| b.as_ref())
+}
+
+/// The source node of a value bound from memory with port type `ty` ([`bound`]; Rgbn, Mask or
+/// Scalar), outside the registry: graph files cannot name it.
+#[must_use]
+pub fn bound_op(ty: PortType) -> Option<&'static dyn DynOp> {
+    static BOUND: OnceLock<[Box<dyn DynOp>; 3]> = OnceLock::new();
+    let ops = BOUND.get_or_init(|| {
+        [
+            Entry::<bound::BoundRgbn>::boxed(),
+            Entry::<bound::BoundMask>::boxed(),
+            Entry::<bound::BoundScalar>::boxed(),
+        ]
+    });
+    ops.iter()
+        .map(|b| b.as_ref())
+        .find(|o| o.spec().outputs[0].ty == ty)
 }
 
 /// The id of the reusable-graph node (a graph file used as a node; see `crate::graph`).

@@ -215,24 +215,10 @@ pub fn load(spec: &InputSpec, opts: &LoadOptions) -> Result<Loaded, RgbnError> {
         image.set_mask(Some(mask))?;
     }
     let before = image.validate();
-    if opts.strict && !before.is_clean() {
-        let (count, kind) = if before.non_finite_normal > 0 {
-            (before.non_finite_normal, "NaN or infinite")
-        } else if before.zero_length_normal > 0 {
-            (before.zero_length_normal, "zero-length")
-        } else if before.non_finite_color > 0 {
-            (
-                before.non_finite_color,
-                "non-finite colour or mask values, not normals",
-            )
-        } else {
-            (before.non_unit, "not unit length")
-        };
-        return Err(RgbnError::InvalidNormals {
-            count,
-            kind: kind.into(),
-            path: normal_path,
-        });
+    if opts.strict {
+        if let Some(e) = before.strict_error(&normal_path) {
+            return Err(e);
+        }
     }
     image.repair_validated(&before);
     Ok(Loaded {

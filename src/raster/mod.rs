@@ -201,6 +201,44 @@ impl Validation {
             && self.zero_length_normal == 0
             && self.non_unit == 0
     }
+
+    /// The error a strict load gives for these counts (`None` when clean), naming `path`:
+    /// the first problem found, in the order NaN/inf normals, zero-length normals, non-finite
+    /// colour or mask values, normals not of unit length.
+    #[must_use]
+    pub fn strict_error(&self, path: &std::path::Path) -> Option<RgbnError> {
+        if self.is_clean() {
+            return None;
+        }
+        let (count, kind) = if self.non_finite_normal > 0 {
+            (self.non_finite_normal, "NaN or infinite")
+        } else if self.zero_length_normal > 0 {
+            (self.zero_length_normal, "zero-length")
+        } else if self.non_finite_color > 0 {
+            (
+                self.non_finite_color,
+                "non-finite colour or mask values, not normals",
+            )
+        } else {
+            (self.non_unit, "not unit length")
+        };
+        Some(RgbnError::InvalidNormals {
+            count,
+            kind: kind.into(),
+            path: path.into(),
+        })
+    }
+
+    /// The note printed when a load repaired these (`None` when clean), naming `name`.
+    #[must_use]
+    pub fn repair_note(&self, name: &str) -> Option<String> {
+        (!self.is_clean()).then(|| {
+            format!(
+                "repaired {} NaN/inf and {} zero-length normals (now (0,0,1)), renormalised {}, zeroed {} non-finite colour values: {name}",
+                self.non_finite_normal, self.zero_length_normal, self.non_unit, self.non_finite_color
+            )
+        })
+    }
 }
 
 impl RgbnImage {
