@@ -37,6 +37,10 @@ mod editor;
 #[path = "it/editor_images.rs"]
 mod editor_images;
 
+#[cfg(feature = "gui")]
+#[path = "it/editor_start.rs"]
+mod editor_start;
+
 #[path = "it/nodes.rs"]
 mod nodes;
 

@@ -1,10 +1,13 @@
-//! `rgbn publish`: the folder it writes, its refusals, and the viewer in a real browser.
+//! `rgbn publish`: the folder it writes (Deep Zoom tiles), its refusals, streaming, and the
+//! viewer in a real browser — ours, from disk and from `rgbn serve`, and OpenSeadragon.
 //!
 //! The browser tests start headless Chromium (software GL: SwiftShader through ANGLE) on
 //! `index.html?bare&light=…&view=…`, crop the screenshot to the image and compare it with
 //! `rgbn render` (mean |Δ| over RGB ≤ 3 levels; the measured means are printed). Without
 //! Chromium they print `skipped: chromium not found`; with `RGBN_REQUIRE_BROWSER=1` (CI,
-//! `.ci/run`) its absence fails. `RGBN_CHROMIUM` names the browser binary explicitly.
+//! `.ci/run`) its absence fails. `RGBN_CHROMIUM` names the browser binary explicitly. The
+//! OpenSeadragon test needs its npm package (`npm install --prefix target/osd openseadragon`,
+//! as `.ci/run` does, or `RGBN_OPENSEADRAGON` naming `openseadragon.min.js`).
 
 use crate::common::*;
 use image::RgbaImage;
@@ -59,17 +62,22 @@ fn screenshot(browser: &Path, folder: &Path, query: &str, w: usize, h: usize) ->
 }
 
 /// [`screenshot`]; `file_access: false` leaves out `--allow-file-access-from-files`, as a
-/// browser opening the page by double-click is (the viewer then uses the `data:` URL scripts).
+/// browser opening the page by double-click is (the viewer then uses the fallback scripts).
 fn screenshot_with(
     browser: &Path,
     folder: &Path,
     query: &str,
-    (w, h): (usize, usize),
+    size: (usize, usize),
     file_access: bool,
 ) -> RgbaImage {
+    let url = format!("file://{}?{query}", folder.join("index.html").display());
+    shoot(browser, &url, size, file_access)
+}
+
+/// A `w × h` screenshot of `url`.
+fn shoot(browser: &Path, url: &str, (w, h): (usize, usize), file_access: bool) -> RgbaImage {
     let scratch = tempfile::tempdir().unwrap();
     let shot = scratch.path().join("shot.png");
-    let url = format!("file://{}?{query}", folder.join("index.html").display());
     let o = Command::new(browser)
         .args([
             "--headless",
@@ -82,7 +90,7 @@ fn screenshot_with(
             "--disable-sync",
             "--no-first-run",
             "--hide-scrollbars",
-            "--virtual-time-budget=10000",
+            "--virtual-time-budget=15000",
         ])
         .arg(format!(
             "--user-data-dir={}",
@@ -91,7 +99,7 @@ fn screenshot_with(
         .args(file_access.then_some("--allow-file-access-from-files"))
         .arg(format!("--window-size={w},{h}"))
         .arg(format!("--screenshot={}", shot.display()))
-        .arg(&url)
+        .arg(url)
         .output()
         .expect("chromium runs");
     assert!(
@@ -270,30 +278,38 @@ fn large_images_get_a_tile_pyramid_that_the_viewer_loads() {
         folder.display().to_string(),
     );
     run_ok(&["publish", "--normal", &n, "--color", &c, "-o", &f]);
-    // Level 0: 4200×300 in 1024² tiles (5 columns, the last 104 wide); level 1: 2100×150
-    // (3 columns), which fits in 4096: no level 2.
+    // Deep Zoom: level 13 is 4200×300 (2^13 = 8192 ≥ 4200), in 512² tiles grown by one pixel
+    // into their neighbours: 9 columns, widths 513, 514 … 514 and 4200 − (8·512 − 1) = 105;
+    // level 12 is 2100×150 (5 columns, the last 2100 − 2047 = 53 wide); level 0 one pixel.
+    let mut l13 = vec![513u32];
+    l13.extend([514; 7]);
+    l13.push(105);
     for (level, widths, height) in [
-        (0, &[1024, 1024, 1024, 1024, 104][..], 300),
-        (1, &[1024, 1024, 52][..], 150),
+        (13, &l13[..], 300),
+        (12, &[513, 514, 514, 514, 53][..], 150),
+        (0, &[1][..], 1),
     ] {
         for (col, &tw) in widths.iter().enumerate() {
-            for what in ["albedo", "normals"] {
-                let p = folder.join(rgbn::ops::publish::tile_path(level, col, 0, what));
+            for layer in ["albedo", "normals"] {
+                let p = folder.join(rgbn::ops::publish::pyramid::tile_path(layer, level, col, 0));
                 let dims =
                     image::image_dimensions(&p).unwrap_or_else(|e| panic!("{}: {e}", p.display()));
                 assert_eq!(dims, (tw, height), "{}", p.display());
             }
         }
+        let next = rgbn::ops::publish::pyramid::tile_path("albedo", level, widths.len(), 0);
+        assert!(!folder.join(next).exists());
     }
-    assert!(!folder.join("tiles/2").exists());
-    assert!(!folder
-        .join(rgbn::ops::publish::tile_path(0, 5, 0, "albedo"))
-        .exists());
-    let meta = std::fs::read_to_string(folder.join("image.json")).unwrap();
+    assert!(!folder.join("albedo_files/14").exists());
+    let dzi = std::fs::read_to_string(folder.join("normals.dzi")).unwrap();
     assert!(
-        meta.contains("\"width\": 2100, \"height\": 150, \"tile\": 1024, \"cols\": 3"),
-        "{meta}"
+        dzi.contains("TileSize=\"512\"")
+            && dzi.contains("Overlap=\"1\"")
+            && dzi.contains("Width=\"4200\" Height=\"300\""),
+        "{dzi}"
     );
+    let meta = std::fs::read_to_string(folder.join("rgbn.json")).unwrap();
+    assert!(meta.contains("[2100, 150], [4200, 300]]"), "{meta}");
 
     let Some(browser) = chromium() else { return };
     let light = LIGHTS[1];
@@ -303,7 +319,7 @@ fn large_images_get_a_tile_pyramid_that_the_viewer_loads() {
         light,
         dir.path(),
     );
-    // Level 0 at 1:1 from x = 900: the window spans the boundary of tiles 0 and 1.
+    // Level 13 at 1:1 from x = 900: the window spans the boundary of tiles 1 and 2.
     let (w, h) = (400u32, 300u32);
     let query = format!(
         "bare&light={}&view=relit&zoom=1&pan=900,0",
@@ -311,7 +327,7 @@ fn large_images_get_a_tile_pyramid_that_the_viewer_loads() {
     );
     let shot = screenshot(&browser, &folder, &query, w as usize, h as usize);
     let (mean, max) = compare(&shot, (0, 0), &want, (900, 0), w, h);
-    eprintln!("publish: 4200×300 pyramid, level-0 tiles 0–1 at 1:1: mean |Δ| = {mean:.3} levels (max {max})");
+    eprintln!("publish: 4200×300 pyramid, full-resolution tiles 1–2 at 1:1: mean |Δ| = {mean:.3} levels (max {max})");
     assert!(
         mean <= MAX_MEAN_LEVELS,
         "tiled level 0 differs from rgbn render: mean |Δ| {mean:.3}"
@@ -365,20 +381,25 @@ fn publish_refuses_to_lose_data_and_replaces_only_its_own_folders() {
     std::fs::write(dir.path().join("web/stale.txt"), "old").unwrap();
     run_ok(&["publish", &input_arg, "--view", "curvature", "-o", &web]);
     assert!(!dir.path().join("web/stale.txt").exists());
-    let meta = std::fs::read_to_string(dir.path().join("web/image.json")).unwrap();
+    let meta = std::fs::read_to_string(dir.path().join("web/rgbn.json")).unwrap();
     assert!(
         meta.contains("\"width\": 24") && meta.contains("\"view\": \"curvature\""),
         "{meta}"
     );
+    // 24² (the sphere): Deep Zoom levels 0..=5, each one tile; all small enough for the
+    // fallback scripts.
     for f in [
         "index.html",
         "viewer.js",
-        "image.json",
+        "rgbn.json",
+        "albedo.dzi",
+        "normals.dzi",
         ".rgbn-publish",
-        "tiles/0/0_0.albedo.png",
-        "tiles/0/0_0.normals.png",
-        "tiles/0/0_0.albedo.js",
-        "tiles/0/0_0.normals.js",
+        "albedo_files/5/0_0.png",
+        "normals_files/5/0_0.png",
+        "albedo_files/0/0_0.png",
+        "fallback/5.js",
+        "fallback/0.js",
     ] {
         assert!(dir.path().join("web").join(f).is_file(), "{f}");
     }
@@ -408,10 +429,575 @@ fn publish_node_writes_the_folder() {
     let dir = tempfile::tempdir().unwrap();
     let lg = rgbn::graph::LoadedGraph::load(&graph_path("publish.ron")).unwrap();
     eval_all(&rgbn::eval::Evaluator::default(), &lg, dir.path());
-    let meta = std::fs::read_to_string(dir.path().join("sphere_web/image.json")).unwrap();
+    let meta = std::fs::read_to_string(dir.path().join("sphere_web/rgbn.json")).unwrap();
     assert!(meta.contains("\"width\": 32"), "{meta}");
-    assert!(dir
-        .path()
-        .join("sphere_web/tiles/0/0_0.normals.png")
-        .is_file());
+    // 32²: Deep Zoom level 5 is the image.
+    assert_eq!(
+        image::image_dimensions(dir.path().join("sphere_web/normals_files/5/0_0.png")).unwrap(),
+        (32, 32)
+    );
+}
+
+/// A `w × h` input with smooth normals, a colour ramp and a mask with soft edges (so coverage
+/// weighting matters), as PNGs: normal, colour, mask.
+fn write_masked_input(dir: &Path, w: u32, h: u32) -> (PathBuf, PathBuf, PathBuf) {
+    let normal = image::RgbImage::from_fn(w, h, |x, y| {
+        let (u, v) = (x as f32 / w as f32, y as f32 / h as f32);
+        let a = 0.6 * (9.0 * u + 2.0 * v).sin();
+        let b = 0.5 * (7.0 * v - 3.0 * u).cos();
+        let len = (a * a + b * b + 1.0).sqrt();
+        let enc = |c: f32| ((c / len + 1.0) * 127.5).round() as u8;
+        image::Rgb([enc(a), enc(b), enc(1.0)])
+    });
+    let color = image::RgbImage::from_fn(w, h, |x, y| {
+        image::Rgb([
+            (x * 255 / w) as u8,
+            (y * 255 / h) as u8,
+            (((x + y) * 3) % 256) as u8,
+        ])
+    });
+    let mask = image::GrayImage::from_fn(w, h, |x, y| {
+        let (dx, dy) = (x as f32 - w as f32 * 0.45, y as f32 - h as f32 * 0.5);
+        let r = (dx * dx + dy * dy).sqrt() / (w.min(h) as f32 * 0.45);
+        image::Luma([((1.2 - r) * 5.0)
+            .clamp(0.0, 1.0)
+            .mul_add(255.0, 0.0)
+            .round() as u8])
+    });
+    let p = (
+        dir.join("m_n.png"),
+        dir.join("m_c.png"),
+        dir.join("m_m.png"),
+    );
+    normal.save(&p.0).unwrap();
+    color.save(&p.1).unwrap();
+    mask.save(&p.2).unwrap();
+    p
+}
+
+/// Every file under `dir`, relative, with its bytes.
+fn files_of(dir: &Path) -> std::collections::BTreeMap<PathBuf, Vec<u8>> {
+    let mut out = std::collections::BTreeMap::new();
+    let mut stack = vec![dir.to_path_buf()];
+    while let Some(d) = stack.pop() {
+        for e in std::fs::read_dir(&d).unwrap().flatten() {
+            let p = e.path();
+            if p.is_dir() {
+                stack.push(p);
+            } else {
+                out.insert(
+                    p.strip_prefix(dir).unwrap().to_path_buf(),
+                    std::fs::read(&p).unwrap(),
+                );
+            }
+        }
+    }
+    out
+}
+
+#[test]
+fn streamed_publish_equals_the_whole_image_one_and_levels_are_block_means() {
+    use rgbn::ops::publish::{publish, publish_stream, PublishOptions};
+    use rgbn::raster::io::{InputSpec, LoadOptions};
+    use rgbn::raster::strips::{Opened, StreamInput};
+    let dir = tempfile::tempdir().unwrap();
+    // Odd sides: levels with a lone last row and column; two tile columns and rows.
+    let (w, h) = (1061u32, 535u32);
+    let (n, c, m) = write_masked_input(dir.path(), w, h);
+    let spec = InputSpec {
+        rgbn: None,
+        normal: Some(n.clone()),
+        color: Some(c.clone()),
+        mask: Some(m.clone()),
+    };
+    let lopts = LoadOptions::default();
+    let img = rgbn::raster::io::load(&spec, &lopts).unwrap().image;
+    let opts = PublishOptions::default();
+    let whole = dir.path().join("whole");
+    let p_whole = publish(&img, &whole, &opts, &[]).unwrap();
+    // Strips of 37 rows: many strips, odd, not aligned with the tiles.
+    let Opened::Stream(mut input) = StreamInput::open(&spec, &lopts).unwrap() else {
+        panic!("PNGs stream");
+    };
+    let streamed = dir.path().join("streamed");
+    let (p_stream, _) = publish_stream(&mut input, &streamed, &opts, &[], Some(37), || {
+        Ok::<(), rgbn::error::RgbnError>(())
+    })
+    .unwrap();
+    assert_eq!(p_whole, p_stream);
+    assert_eq!(
+        p_whole.curvature_scale,
+        rgbn::render::curvature_scale(&img, 0.0)
+    );
+    let (a, b) = (files_of(&whole), files_of(&streamed));
+    assert_eq!(a.keys().collect::<Vec<_>>(), b.keys().collect::<Vec<_>>());
+    for (k, v) in &a {
+        assert!(v == &b[k], "{} differs", k.display());
+    }
+    assert_eq!(
+        p_whole.tiles.tiles,
+        a.keys()
+            .filter(|k| k.extension().is_some_and(|e| e == "png"))
+            .count()
+    );
+
+    // Level 10 (the image) is the input; level 9 the 2×2 coverage-weighted means, normals
+    // renormalised (computed here directly from the loaded image).
+    let decode = |p: &Path| image::open(p).unwrap().to_rgba8();
+    let tile = |layer: &str, level: usize, col: usize, row: usize| {
+        decode(&whole.join(rgbn::ops::publish::pyramid::tile_path(
+            layer, level, col, row,
+        )))
+    };
+    let (nx, ny, nz) = (&img.normal()[0], &img.normal()[1], &img.normal()[2]);
+    let cov = img.mask().unwrap();
+    let unit8 = |v: f32| ((v + 1.0) * 127.5).round() as i32;
+    // Level 10, tile (1, 1): its first pixel is image pixel (511, 511) (the overlap); 512 + 2
+    // wide, 535 − 511 high.
+    let t = tile("normals", 10, 1, 1);
+    assert_eq!(t.dimensions(), (514, 535 - 511));
+    for (tx, ty) in [(0u32, 0u32), (5, 7), (513, 23), (300, 11)] {
+        let i = (511 + ty as usize) * w as usize + 511 + tx as usize;
+        let px = t.get_pixel(tx, ty).0;
+        for (k, v) in [nx[i], ny[i], nz[i]].into_iter().enumerate() {
+            assert!(
+                (i32::from(px[k]) - unit8(v)).abs() <= 1,
+                "level 10 ({tx}, {ty})"
+            );
+        }
+    }
+    // Level 9 (531×268), tile (1, 0): first pixel (511, 0); and the albedo's alpha.
+    let t = tile("normals", 9, 1, 0);
+    let ta = tile("albedo", 9, 1, 0);
+    assert_eq!(t.dimensions(), (531 - 511, 268));
+    for (tx, ty) in [(0u32, 0u32), (19, 267), (7, 100), (12, 200)] {
+        let (x, y) = (511 + tx as usize, ty as usize);
+        let mut sum = [0.0f32; 3];
+        let (mut c_sum, mut k) = (0.0f32, 0);
+        for yy in 2 * y..(2 * y + 2).min(h as usize) {
+            for xx in 2 * x..(2 * x + 2).min(w as usize) {
+                let i = yy * w as usize + xx;
+                sum[0] += cov[i] * nx[i];
+                sum[1] += cov[i] * ny[i];
+                sum[2] += cov[i] * nz[i];
+                c_sum += cov[i];
+                k += 1;
+            }
+        }
+        let alpha = ta.get_pixel(tx, ty).0[3];
+        assert!(
+            (i32::from(alpha) - (c_sum / k as f32 * 255.0).round() as i32).abs() <= 1,
+            "coverage ({tx}, {ty})"
+        );
+        if c_sum > 0.0 {
+            let len = (sum[0] * sum[0] + sum[1] * sum[1] + sum[2] * sum[2]).sqrt();
+            let px = t.get_pixel(tx, ty).0;
+            for k in 0..3 {
+                assert!(
+                    (i32::from(px[k]) - unit8(sum[k] / len)).abs() <= 1,
+                    "level 9 ({tx}, {ty}) channel {k}: {} vs {}",
+                    px[k],
+                    unit8(sum[k] / len)
+                );
+            }
+        }
+    }
+}
+
+/// `rgbn serve DIR --port 0 --log` running: its address, the child, and its log lines.
+struct Server {
+    child: std::process::Child,
+    url: String,
+    log: std::sync::Arc<std::sync::Mutex<Vec<String>>>,
+}
+
+impl Server {
+    fn start(dir: &Path) -> Self {
+        use std::io::BufRead;
+        let mut child = Command::new(env!("CARGO_BIN_EXE_rgbn"))
+            .args(["serve", &dir.display().to_string(), "--port", "0", "--log"])
+            .stdout(std::process::Stdio::piped())
+            .stderr(std::process::Stdio::piped())
+            .spawn()
+            .expect("rgbn serve starts");
+        let mut line = String::new();
+        std::io::BufReader::new(child.stdout.take().unwrap())
+            .read_line(&mut line)
+            .unwrap();
+        let url = line
+            .split_whitespace()
+            .find(|w| w.starts_with("http://127.0.0.1:"))
+            .unwrap_or_else(|| panic!("no address in {line:?}"))
+            .to_string();
+        let log = std::sync::Arc::new(std::sync::Mutex::new(Vec::new()));
+        let sink = log.clone();
+        let err = child.stderr.take().unwrap();
+        std::thread::spawn(move || {
+            for l in std::io::BufReader::new(err).lines().map_while(Result::ok) {
+                sink.lock().unwrap().push(l);
+            }
+        });
+        Self { child, url, log }
+    }
+
+    /// Tile images requested so far (`GET …_files/…`).
+    fn tiles_requested(&self) -> Vec<String> {
+        self.log
+            .lock()
+            .unwrap()
+            .iter()
+            .filter(|l| l.contains(" GET ") && l.contains("_files/"))
+            .cloned()
+            .collect()
+    }
+}
+
+impl Drop for Server {
+    fn drop(&mut self) {
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+    }
+}
+
+#[test]
+fn rgbn_serve_serves_the_folder_on_loopback_only() {
+    use std::io::{Read, Write};
+    let dir = tempfile::tempdir().unwrap();
+    let web = dir.path().join("web");
+    run_ok(&[
+        "publish",
+        "--demo",
+        "--demo-size",
+        "64",
+        "-o",
+        &web.display().to_string(),
+    ]);
+    std::fs::write(dir.path().join("secret.txt"), "outside").unwrap();
+    let server = Server::start(&web);
+    let addr = server
+        .url
+        .trim_start_matches("http://")
+        .trim_end_matches('/');
+    let get = |req: &str| {
+        let mut s = std::net::TcpStream::connect(addr).unwrap();
+        s.write_all(req.as_bytes()).unwrap();
+        let mut out = Vec::new();
+        s.read_to_end(&mut out).unwrap();
+        out
+    };
+    let head_of = |r: &[u8]| String::from_utf8_lossy(&r[..r.len().min(200)]).into_owned();
+    let r = get("GET /albedo_files/6/0_0.png HTTP/1.0\r\n\r\n");
+    let body_at = r.windows(4).position(|w| w == b"\r\n\r\n").unwrap() + 4;
+    assert!(head_of(&r).starts_with("HTTP/1.1 200"), "{}", head_of(&r));
+    assert!(head_of(&r).contains("image/png"));
+    assert_eq!(
+        &r[body_at..],
+        std::fs::read(web.join("albedo_files/6/0_0.png")).unwrap()
+    );
+    let r = get("GET / HTTP/1.0\r\n\r\n");
+    assert!(String::from_utf8_lossy(&r).contains("rgbn-meta"));
+    for bad in ["/../secret.txt", "/%2e%2e/secret.txt", "/nothing.png"] {
+        let r = get(&format!("GET {bad} HTTP/1.0\r\n\r\n"));
+        assert!(
+            head_of(&r).starts_with("HTTP/1.1 404"),
+            "{bad}: {}",
+            head_of(&r)
+        );
+    }
+    let r = get("DELETE /index.html HTTP/1.0\r\n\r\n");
+    assert!(head_of(&r).starts_with("HTTP/1.1 405"));
+    // Keep-alive: two requests on one connection.
+    let mut s = std::net::TcpStream::connect(addr).unwrap();
+    s.write_all(
+        b"HEAD /rgbn.json HTTP/1.1\r\n\r\nGET /rgbn.json HTTP/1.1\r\nConnection: close\r\n\r\n",
+    )
+    .unwrap();
+    let mut out = String::new();
+    s.read_to_string(&mut out).unwrap();
+    assert_eq!(out.matches("HTTP/1.1 200 OK").count(), 2, "{out}");
+    assert!(server.url.starts_with("http://127.0.0.1:"));
+}
+
+/// The fitted first view of the viewer (`?bare&fit`), as the page computes it: zoom 95 % of the
+/// window, centred; the Deep Zoom level drawn; the tiles of that level covering the window.
+struct Fitted {
+    zoom: f64,
+    pan: (f64, f64),
+    level: usize,
+    /// Level-0 pixels per pixel of the level drawn.
+    s: usize,
+    covering: usize,
+}
+
+fn fitted(size: (usize, usize), window: (usize, usize)) -> Fitted {
+    use rgbn::ops::publish::pyramid::{levels, TILE};
+    let lv = levels(size.0, size.1);
+    let max = lv.len() - 1;
+    let zoom = 0.95 * (window.0 as f64 / size.0 as f64).min(window.1 as f64 / size.1 as f64);
+    let pan = (
+        (size.0 as f64 - window.0 as f64 / zoom) / 2.0,
+        (size.1 as f64 - window.1 as f64 / zoom) / 2.0,
+    );
+    let base = lv
+        .iter()
+        .rposition(|l| l.width <= TILE && l.height <= TILE)
+        .unwrap();
+    let l = (1.0 / zoom).log2().floor() as usize;
+    let level = max.saturating_sub(l).max(base);
+    let s = 1usize << (max - level);
+    // The whole image is in view: every tile of the level.
+    let covering = lv[level].cols * lv[level].rows;
+    Fitted {
+        zoom,
+        pan,
+        level,
+        s,
+        covering,
+    }
+}
+
+/// The image of `spec` reduced `s` times (block means, [`rgbn::raster::pyramid::reduce_rgbn`]),
+/// read in strips of a multiple of `s` rows: the reference for a view at that level, without
+/// holding a large image whole.
+fn reduced_reference(spec: &rgbn::raster::io::InputSpec, s: usize) -> rgbn::raster::RgbnImage {
+    use rgbn::raster::strips::{for_each_strip_image, Opened, StreamInput};
+    let Opened::Stream(mut input) = StreamInput::open(spec, &Default::default()).unwrap() else {
+        panic!("PNGs stream");
+    };
+    let (w, _) = input.size();
+    let strip = (((4 << 20) / w).max(1)).div_ceil(s) * s;
+    let mut parts: Vec<rgbn::raster::RgbnImage> = Vec::new();
+    for_each_strip_image(&mut input, 0, strip, |img, _, _| {
+        parts.push(rgbn::raster::pyramid::reduce_rgbn(img, s));
+        Ok::<(), rgbn::error::RgbnError>(())
+    })
+    .unwrap();
+    let rw = parts[0].width();
+    let rh: usize = parts.iter().map(|p| p.height()).sum();
+    let cat = |f: &dyn Fn(&rgbn::raster::RgbnImage) -> &[f32]| -> Vec<f32> {
+        parts.iter().flat_map(|p| f(p).iter().copied()).collect()
+    };
+    let color = [
+        cat(&|p| &p.color()[0]),
+        cat(&|p| &p.color()[1]),
+        cat(&|p| &p.color()[2]),
+    ];
+    let normal = [
+        cat(&|p| &p.normal()[0]),
+        cat(&|p| &p.normal()[1]),
+        cat(&|p| &p.normal()[2]),
+    ];
+    let mask = parts[0]
+        .mask()
+        .is_some()
+        .then(|| cat(&|p| p.mask().unwrap()));
+    rgbn::raster::RgbnImage::new(rw, rh, color, normal, mask).unwrap()
+}
+
+/// The share of pixels (over the window) whose RGB all differ by at most `tol` from the
+/// reference picture (level pixels, RGBA over black) sampled as the viewer samples it.
+fn share_within(shot: &RgbaImage, reference: &RgbaImage, f: &Fitted, tol: u8) -> f64 {
+    let (mut ok, mut n) = (0u64, 0u64);
+    for sy in 0..shot.height() {
+        for sx in 0..shot.width() {
+            let ix = f.pan.0 + (f64::from(sx) + 0.5) / f.zoom;
+            let iy = f.pan.1 + (f64::from(sy) + 0.5) / f.zoom;
+            let (lx, ly) = ((ix / f.s as f64).floor(), (iy / f.s as f64).floor());
+            let want = if lx < 0.0
+                || ly < 0.0
+                || lx >= f64::from(reference.width())
+                || ly >= f64::from(reference.height())
+            {
+                [0u8; 4]
+            } else {
+                let r = reference.get_pixel(lx as u32, ly as u32).0;
+                let a = f64::from(r[3]) / 255.0;
+                [
+                    (f64::from(r[0]) * a).round() as u8,
+                    (f64::from(r[1]) * a).round() as u8,
+                    (f64::from(r[2]) * a).round() as u8,
+                    255,
+                ]
+            };
+            let s = shot.get_pixel(sx, sy).0;
+            n += 1;
+            if (0..3).all(|c| s[c].abs_diff(want[c]) <= tol) {
+                ok += 1;
+            }
+        }
+    }
+    ok as f64 / n as f64
+}
+
+/// Publishes (unless `RGBN_PUBLISH_VIEW_DIR` names a published folder of
+/// `RGBN_PUBLISH_VIEW_INPUT`, e.g. the 16K measurement of BENCHMARKS.md), serves it and opens
+/// the fitted first view in Chromium: the tiles fetched, and the picture against `rgbn render`
+/// of the level's block-mean image.
+#[test]
+fn served_viewer_fetches_only_the_tiles_of_its_view_and_matches_render() {
+    let Some(browser) = chromium() else { return };
+    let dir = tempfile::tempdir().unwrap();
+    let (normal, folder) = match (
+        std::env::var_os("RGBN_PUBLISH_VIEW_INPUT"),
+        std::env::var_os("RGBN_PUBLISH_VIEW_DIR"),
+    ) {
+        (Some(i), Some(d)) => (PathBuf::from(i), PathBuf::from(d)),
+        _ => {
+            let (n, _, _) = write_masked_input(dir.path(), 3000, 2000);
+            let folder = dir.path().join("web");
+            run_ok(&[
+                "publish",
+                &n.display().to_string(),
+                "-o",
+                &folder.display().to_string(),
+            ]);
+            (n, folder)
+        }
+    };
+    let spec = rgbn::raster::io::InputSpec {
+        rgbn: None,
+        normal: Some(normal.clone()),
+        color: None,
+        mask: None,
+    };
+    let size = match rgbn::raster::strips::StreamInput::open(&spec, &Default::default()).unwrap() {
+        rgbn::raster::strips::Opened::Stream(i) => i.size(),
+        rgbn::raster::strips::Opened::Whole(why) => panic!("{why}"),
+    };
+    let window = (1024usize, 768usize);
+    let f = fitted(size, window);
+    let light = LIGHTS[0];
+    let server = Server::start(&folder);
+    let url = format!(
+        "{}index.html?bare&fit&light={}",
+        server.url,
+        light_arg(light)
+    );
+    let shot = shoot(&browser, &url, window, false);
+    let fetched = server.tiles_requested();
+    let covering = 2 * f.covering; // albedo and normals
+    eprintln!(
+        "publish: {}×{} fitted in {}×{}: level {} (1/{}), {} tile images cover the window, {} fetched",
+        size.0,
+        size.1,
+        window.0,
+        window.1,
+        f.level,
+        f.s,
+        covering,
+        fetched.len()
+    );
+    assert!(
+        fetched.len() <= 2 * covering,
+        "fetched {} tile images for a view covered by {covering}: {fetched:?}",
+        fetched.len()
+    );
+    let reduced = reduced_reference(&spec, f.s);
+    let ref_exr = dir.path().join("level.exr");
+    rgbn::raster::io::save(&reduced, &ref_exr, &Default::default()).unwrap();
+    let want = reference(
+        &["render", &ref_exr.display().to_string()],
+        "relit",
+        light,
+        dir.path(),
+    );
+    let share = share_within(&shot, &want, &f, 3);
+    eprintln!(
+        "publish: fitted view vs rgbn render of level {}: {:.2} % of pixels within 3 levels",
+        f.level,
+        share * 100.0
+    );
+    assert!(share >= 0.95, "only {:.2} % within 3 levels", share * 100.0);
+}
+
+/// OpenSeadragon's script: `RGBN_OPENSEADRAGON`, else the npm package in `target/osd` (as
+/// `.ci/run` installs it); `None` after a skip note (a panic under `RGBN_REQUIRE_BROWSER=1`).
+fn openseadragon() -> Option<PathBuf> {
+    let p = std::env::var_os("RGBN_OPENSEADRAGON").map_or_else(
+        || {
+            root().join(
+                "target/osd/node_modules/openseadragon/build/openseadragon/openseadragon.min.js",
+            )
+        },
+        PathBuf::from,
+    );
+    if p.is_file() {
+        return Some(p);
+    }
+    let required = std::env::var_os("RGBN_REQUIRE_BROWSER").is_some_and(|v| v == "1");
+    assert!(
+        !required,
+        "OpenSeadragon not found at {} (npm install --prefix target/osd openseadragon) and RGBN_REQUIRE_BROWSER=1",
+        p.display()
+    );
+    eprintln!(
+        "skipped: OpenSeadragon not found at {} (npm install --prefix target/osd openseadragon)",
+        p.display()
+    );
+    None
+}
+
+#[test]
+fn openseadragon_shows_the_published_albedo_layer() {
+    let Some(browser) = chromium() else { return };
+    let Some(osd) = openseadragon() else { return };
+    let dir = tempfile::tempdir().unwrap();
+    // Two tile columns at full resolution; shown 1:1 (the viewer's box is the image's size).
+    let (w, h) = (700u32, 460u32);
+    let (n, c, _) = write_masked_input(dir.path(), w, h);
+    let folder = dir.path().join("web");
+    let (n, c) = (n.display().to_string(), c.display().to_string());
+    run_ok(&[
+        "publish",
+        &n,
+        "--color",
+        &c,
+        "-o",
+        &folder.display().to_string(),
+    ]);
+    std::fs::copy(&osd, folder.join("openseadragon.min.js")).unwrap();
+    std::fs::write(
+        folder.join("osd.html"),
+        format!(
+            r#"<!doctype html><html><head><style>html,body{{margin:0;background:#000;overflow:hidden}}
+#v{{width:{w}px;height:{h}px}}</style></head><body><div id="v"></div>
+<script src="openseadragon.min.js"></script>
+<script>OpenSeadragon({{id: "v", tileSources: "albedo.dzi", showNavigationControl: false,
+animationTime: 0, blendTime: 0, immediateRender: true, imageSmoothingEnabled: false,
+drawer: "canvas", visibilityRatio: 1, minZoomImageRatio: 0.1}});</script></body></html>"#
+        ),
+    )
+    .unwrap();
+    let server = Server::start(&folder);
+    let shot = shoot(
+        &browser,
+        &format!("{}osd.html", server.url),
+        (w as usize + 40, h as usize + 40),
+        false,
+    );
+    let want = reference(
+        &["render", &n, "--color", &c],
+        "albedo",
+        LIGHTS[0],
+        dir.path(),
+    );
+    let fetched = server.tiles_requested();
+    assert!(
+        fetched.iter().any(|l| l.contains("albedo_files/10/")),
+        "OpenSeadragon fetched no full-resolution tile: {fetched:?}"
+    );
+    let f = Fitted {
+        zoom: 1.0,
+        pan: (0.0, 0.0),
+        level: 10,
+        s: 1,
+        covering: 2,
+    };
+    let crop = image::imageops::crop_imm(&shot, 0, 0, w, h).to_image();
+    let share = share_within(&crop, &want, &f, 3);
+    eprintln!(
+        "publish: OpenSeadragon on albedo.dzi vs rgbn render --view albedo: {:.2} % of pixels within 3 levels",
+        share * 100.0
+    );
+    assert!(share >= 0.95, "only {:.2} % within 3 levels", share * 100.0);
 }
