@@ -299,8 +299,11 @@ void main() {
     if (fallbackMode) return;
     fallbackMode = true;
     for (const key of Array.from(tiles.keys())) dropTile(key);
-    note('opened from disk: showing up to ' + fallbackSide() + ' px; for every level run ' +
-      '`rgbn serve` on this folder (or put it on any web server)');
+    // Only when the finest levels are missing from the fallback scripts.
+    if (!fallbackLevels.has(maxLevel)) {
+      note('opened from disk: showing up to ' + fallbackSide() + ' px; for every level run ' +
+        '`rgbn serve` on this folder (or put it on any web server)');
+    }
     requestDraw();
   }
   function fallbackSide() {
