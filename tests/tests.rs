@@ -56,6 +56,9 @@ mod ptm;
 #[path = "it/publish.rs"]
 mod publish;
 
+#[path = "it/publish_web.rs"]
+mod publish_web;
+
 #[path = "it/views.rs"]
 mod views;
 

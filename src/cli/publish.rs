@@ -4,10 +4,10 @@
 use super::error::CliError;
 use super::image::{InputArgs, ShadingArgs};
 use super::out::Out;
-use crate::params::Choice;
 use crate::ops::publish::{
     publish, publish_stream, PublishOptions, Published, WebView, MAX_LIGHTS,
 };
+use crate::params::Choice;
 use crate::raster::strips::{Opened, StreamInput};
 use clap::Args;
 use std::path::PathBuf;

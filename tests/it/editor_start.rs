@@ -7,8 +7,8 @@ use egui_kittest::Harness;
 use rgbn::app::start::{ImageStart, Start};
 use rgbn::app::state::Document;
 use rgbn::app::EditorApp;
-use rgbn::params::ParamValue;
 use rgbn::ops::Value;
+use rgbn::params::ParamValue;
 use std::path::Path;
 use std::time::{Duration, Instant};
 
