@@ -7,7 +7,7 @@ use egui_kittest::Harness;
 use rgbn::app::start::{ImageStart, Start};
 use rgbn::app::state::Document;
 use rgbn::app::EditorApp;
-use rgbn::ops::Value;
+use rgbn::nodes::Value;
 use rgbn::params::ParamValue;
 use std::path::Path;
 use std::time::{Duration, Instant};
