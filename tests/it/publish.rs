@@ -546,7 +546,7 @@ fn streamed_publish_equals_the_whole_image_one_and_levels_are_block_means() {
             .count()
     );
 
-    // Level 10 (the image) is the input; level 9 the 2×2 coverage-weighted means, normals
+    // Level 11 (the image: 2^11 ≥ 1061) is the input; level 10 the 2×2 coverage-weighted means, normals
     // renormalised (computed here directly from the loaded image).
     let decode = |p: &Path| image::open(p).unwrap().to_rgba8();
     let tile = |layer: &str, level: usize, col: usize, row: usize| {
@@ -557,9 +557,9 @@ fn streamed_publish_equals_the_whole_image_one_and_levels_are_block_means() {
     let (nx, ny, nz) = (&img.normal()[0], &img.normal()[1], &img.normal()[2]);
     let cov = img.mask().unwrap();
     let unit8 = |v: f32| ((v + 1.0) * 127.5).round() as i32;
-    // Level 10, tile (1, 1): its first pixel is image pixel (511, 511) (the overlap); 512 + 2
+    // Level 11, tile (1, 1): its first pixel is image pixel (511, 511) (the overlap); 512 + 2
     // wide, 535 − 511 high.
-    let t = tile("normals", 10, 1, 1);
+    let t = tile("normals", 11, 1, 1);
     assert_eq!(t.dimensions(), (514, 535 - 511));
     for (tx, ty) in [(0u32, 0u32), (5, 7), (513, 23), (300, 11)] {
         let i = (511 + ty as usize) * w as usize + 511 + tx as usize;
@@ -567,13 +567,13 @@ fn streamed_publish_equals_the_whole_image_one_and_levels_are_block_means() {
         for (k, v) in [nx[i], ny[i], nz[i]].into_iter().enumerate() {
             assert!(
                 (i32::from(px[k]) - unit8(v)).abs() <= 1,
-                "level 10 ({tx}, {ty})"
+                "level 11 ({tx}, {ty})"
             );
         }
     }
-    // Level 9 (531×268), tile (1, 0): first pixel (511, 0); and the albedo's alpha.
-    let t = tile("normals", 9, 1, 0);
-    let ta = tile("albedo", 9, 1, 0);
+    // Level 10 (531×268), tile (1, 0): first pixel (511, 0); and the albedo's alpha.
+    let t = tile("normals", 10, 1, 0);
+    let ta = tile("albedo", 10, 1, 0);
     assert_eq!(t.dimensions(), (531 - 511, 268));
     for (tx, ty) in [(0u32, 0u32), (19, 267), (7, 100), (12, 200)] {
         let (x, y) = (511 + tx as usize, ty as usize);
@@ -600,7 +600,7 @@ fn streamed_publish_equals_the_whole_image_one_and_levels_are_block_means() {
             for k in 0..3 {
                 assert!(
                     (i32::from(px[k]) - unit8(sum[k] / len)).abs() <= 1,
-                    "level 9 ({tx}, {ty}) channel {k}: {} vs {}",
+                    "level 10 ({tx}, {ty}) channel {k}: {} vs {}",
                     px[k],
                     unit8(sum[k] / len)
                 );
