@@ -597,12 +597,11 @@ fn streamed_publish_equals_the_whole_image_one_and_levels_are_block_means() {
         if c_sum > 0.0 {
             let len = (sum[0] * sum[0] + sum[1] * sum[1] + sum[2] * sum[2]).sqrt();
             let px = t.get_pixel(tx, ty).0;
-            for k in 0..3 {
+            for (k, (&got, v)) in px.iter().zip(sum).enumerate() {
+                let want = unit8(v / len);
                 assert!(
-                    (i32::from(px[k]) - unit8(sum[k] / len)).abs() <= 1,
-                    "level 10 ({tx}, {ty}) channel {k}: {} vs {}",
-                    px[k],
-                    unit8(sum[k] / len)
+                    (i32::from(got) - want).abs() <= 1,
+                    "level 10 ({tx}, {ty}) channel {k}: {got} vs {want}"
                 );
             }
         }

@@ -188,8 +188,8 @@ fn reduce_row<S: Source>(src: &S, width: usize, o: usize, alone: bool, out: &mut
         let weighted = cov > 0.0;
         let wsum = if weighted { cov } else { n as f32 };
         let weight = |p: &[f32; PX]| if weighted { p[6] } else { 1.0 };
-        for j in 0..3 {
-            o_px[j] = block.iter().map(|p| weight(p) * p[j]).sum::<f32>() / wsum;
+        for (j, o) in o_px[..3].iter_mut().enumerate() {
+            *o = block.iter().map(|p| weight(p) * p[j]).sum::<f32>() / wsum;
         }
         let v: [f32; 3] = std::array::from_fn(|j| block.iter().map(|p| weight(p) * p[3 + j]).sum());
         let len = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
