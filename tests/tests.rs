@@ -37,6 +37,10 @@ mod editor;
 #[path = "it/editor_images.rs"]
 mod editor_images;
 
+#[cfg(feature = "gui")]
+#[path = "it/editor_start.rs"]
+mod editor_start;
+
 #[path = "it/nodes.rs"]
 mod nodes;
 
@@ -51,6 +55,9 @@ mod ptm;
 
 #[path = "it/publish.rs"]
 mod publish;
+
+#[path = "it/publish_web.rs"]
+mod publish_web;
 
 #[path = "it/views.rs"]
 mod views;

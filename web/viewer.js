@@ -1,11 +1,16 @@
 // The rgbn web viewer (written by `rgbn publish`): WebGL2, plain JavaScript, no build step,
-// no network access. It relights an RGBN image (colour + unit normal per pixel) from its
-// textures: tiles/L/C_R.albedo.png (sRGB RGBA8, coverage in alpha) and
-// tiles/L/C_R.normals.png (RGB8, (n+1)/2, OpenGL frame: +x right, +y up, +z to the viewer).
+// no network access. It relights an RGBN image (colour + unit normal per pixel) from two Deep
+// Zoom tile pyramids: albedo_files/K/C_R.png (sRGB, RGB or RGBA with the coverage in alpha)
+// and normals_files/K/C_R.png (RGB8, (n+1)/2, OpenGL frame: +x right, +y up, +z to the
+// viewer). It fetches only the tiles visible at the level matching the zoom, showing the
+// level that fits one tile (always loaded) and finer levels already loaded until they arrive.
+// Opened from disk (file://), where browsers refuse image files as textures, it takes the
+// small levels from fallback/K.js (data: URLs) instead; `rgbn serve DIR` shows every level.
 //
 // URL parameters: light=X,Y,Z (one white light), view=relit|normals|specular_enhancement|
 // curvature, exposure=EV, zoom=Z (screen pixels per image pixel), pan=X,Y (the image pixel at
-// the top-left corner), bare (canvas only, image 1:1 at the top-left, no controls).
+// the top-left corner), bare (canvas only, image 1:1 at the top-left, no controls), fit (with
+// bare: the image fitted to the window as without bare: 95 % of it, centred).
 //
 // The shaders implement rgbn's formulas (src/render/mod.rs `relight`, the issue-16 views):
 //   relit:  2^ev · (albedo · (ambient + Σ cᵢ max(0, n·lᵢ)) + ks · Σ cᵢ max(0, n·hᵢ)^shininess),
@@ -26,12 +31,22 @@
   const statusEl = $('status');
   const messages = [];
 
+  const notes = [];
+
   function fail(msg) {
     if (messages.includes(msg)) return;
     messages.push(msg);
-    statusEl.textContent = messages.join('\n');
+    statusEl.textContent = messages.concat(notes).join('\n');
     document.title = 'rgbn viewer: error: ' + msg;
     console.error('rgbn viewer: ' + msg);
+  }
+
+  // A message that is not an error (the page still becomes ready).
+  function note(msg) {
+    if (notes.includes(msg)) return;
+    notes.push(msg);
+    statusEl.textContent = messages.concat(notes).join('\n');
+    console.warn('rgbn viewer: ' + msg);
   }
 
   let meta;
@@ -41,7 +56,6 @@
     fail('this page holds no image metadata (was it written by rgbn publish?)');
     return;
   }
-  const levels = meta.levels;
 
   // ---- state, from the metadata and the URL ----
   const q = new URLSearchParams(location.search);
@@ -73,9 +87,9 @@
     if (Number.isFinite(e)) state.exposure = e;
     else fail('exposure=' + q.get('exposure') + ': not a number');
   }
-  let fitPending = !bare;
+  let fitPending = !bare || q.has('fit');
   // Fit again when the window changes size, until the user zooms or pans.
-  let autoFit = !bare;
+  let autoFit = fitPending;
   if (q.has('zoom')) {
     const z = Number(q.get('zoom'));
     if (Number.isFinite(z) && z > 0) {
@@ -233,7 +247,26 @@ void main() {
   gl.bindVertexArray(gl.createVertexArray());
 
   // ---- tiles ----
-  const tiles = new Map(); // "L/C/R" → { ready, albedo, normals, w, h }
+  // Deep Zoom levels (rgbn.json "tiles"): level K is ceil(size / 2^(max−K)); tiles of T² pixels,
+  // each grown by O pixels into its neighbours; files LAYER_files/K/C_R.png.
+  const T = meta.tiles.tile_size;
+  const O = meta.tiles.overlap;
+  const levelSize = meta.tiles.levels; // [[w, h]], level 0 (one pixel) first
+  const maxLevel = levelSize.length - 1;
+  // The finest level that fits in one tile: always loaded, shown while finer tiles arrive.
+  let baseLevel = 0;
+  for (let k = 0; k <= maxLevel; k++) {
+    if (levelSize[k][0] <= T && levelSize[k][1] <= T) baseLevel = k;
+  }
+  const fallbackLevels = new Set(meta.tiles.fallback_levels);
+  // From file:// the browser refuses image files as textures: only the levels with a
+  // fallback script (data: URLs) can be shown.
+  let fallbackMode = false;
+  const MAX_TILES = 192; // tiles kept on the GPU (least recently drawn go first)
+  const tiles = new Map(); // "K/C/R" → { ready, albedo, normals, w, h, used }
+  let frame = 0;
+  const stats = { requested: 0 }; // tile images requested (albedo and normals count one each)
+  window.rgbnStats = stats;
 
   function upload(img, internalFormat) {
     const tex = gl.createTexture();
@@ -241,7 +274,12 @@ void main() {
     gl.pixelStorei(gl.UNPACK_FLIP_Y_WEBGL, false);
     gl.pixelStorei(gl.UNPACK_PREMULTIPLY_ALPHA_WEBGL, false);
     gl.pixelStorei(gl.UNPACK_COLORSPACE_CONVERSION_WEBGL, gl.NONE);
-    gl.texImage2D(gl.TEXTURE_2D, 0, internalFormat, gl.RGBA, gl.UNSIGNED_BYTE, img);
+    try {
+      gl.texImage2D(gl.TEXTURE_2D, 0, internalFormat, gl.RGBA, gl.UNSIGNED_BYTE, img);
+    } catch (e) {
+      gl.deleteTexture(tex);
+      throw e;
+    }
     gl.texParameteri(gl.TEXTURE_2D, gl.TEXTURE_MIN_FILTER, gl.NEAREST);
     gl.texParameteri(gl.TEXTURE_2D, gl.TEXTURE_MAG_FILTER, gl.NEAREST);
     gl.texParameteri(gl.TEXTURE_2D, gl.TEXTURE_WRAP_S, gl.CLAMP_TO_EDGE);
@@ -249,71 +287,115 @@ void main() {
     return tex;
   }
 
-  function loadTile(L, c, r) {
-    const key = L + '/' + c + '/' + r;
+  function dropTile(key) {
+    const t = tiles.get(key);
+    if (t && t.albedo) gl.deleteTexture(t.albedo);
+    if (t && t.normals) gl.deleteTexture(t.normals);
+    tiles.delete(key);
+  }
+
+  // Switches to the fallback scripts: every tile is requested again from them.
+  function enterFallback() {
+    if (fallbackMode) return;
+    fallbackMode = true;
+    for (const key of Array.from(tiles.keys())) dropTile(key);
+    // Only when the finest levels are missing from the fallback scripts.
+    if (!fallbackLevels.has(maxLevel)) {
+      note('opened from disk: showing up to ' + fallbackSide() + ' px; for every level run ' +
+        '`rgbn serve` on this folder (or put it on any web server)');
+    }
+    requestDraw();
+  }
+  function fallbackSide() {
+    let side = 0;
+    for (const k of fallbackLevels) side = Math.max(side, levelSize[k][0], levelSize[k][1]);
+    return side;
+  }
+
+  function loadTile(K, c, r) {
+    const key = K + '/' + c + '/' + r;
     if (tiles.has(key)) return;
-    const t = { ready: false, albedo: null, normals: null, w: 0, h: 0 };
+    const t = { ready: false, albedo: null, normals: null, w: 0, h: 0, used: frame };
     tiles.set(key, t);
     let pending = 2;
-    const base = levels[L].path + '/' + c + '_' + r;
     for (const [what, format] of [['albedo', gl.SRGB8_ALPHA8], ['normals', gl.RGBA8]]) {
-      const done = (img) => {
+      const img = new Image();
+      img.onload = () => {
+        if (tiles.get(key) !== t) return; // dropped meanwhile
+        try {
+          t[what] = upload(img, format);
+        } catch (e) {
+          if (!fallbackMode && fallbackLevels.size) {
+            enterFallback();
+          } else {
+            fail('the browser refused ' + img.src + ' as a texture (' + e.message + '); ' +
+              'run `rgbn serve` on this folder and open the address it prints');
+          }
+          return;
+        }
         t.w = img.naturalWidth;
         t.h = img.naturalHeight;
         if (--pending === 0) {
           t.ready = true;
-          draw();
+          requestDraw();
         }
-      };
-      const img = new Image();
-      img.onload = () => {
-        try {
-          t[what] = upload(img, format);
-        } catch (e) {
-          // Pages opened from file:// may not put their images into WebGL (a security
-          // error): the same PNG, as a data: URL inside a script, is allowed.
-          loadEmbedded(base + '.' + what, (dataImg) => {
-            try {
-              t[what] = upload(dataImg, format);
-            } catch (e2) {
-              fail('the browser refused ' + img.src + ' as a texture (' + e2.message + '); ' +
-                'serve this folder over HTTP (e.g. python3 -m http.server in it)');
-              return;
-            }
-            done(dataImg);
-          });
-          return;
-        }
-        done(img);
       };
       img.onerror = () => fail('cannot load ' + img.src);
-      img.src = base + '.' + what + '.png';
+      stats.requested++;
+      if (fallbackMode) {
+        fallbackUrl(K, what + '/' + c + '_' + r, (url) => { img.src = url; });
+      } else {
+        img.src = what + '_files/' + K + '/' + c + '_' + r + '.png';
+      }
     }
   }
 
-  // tiles/L/C_R.WHAT.js call rgbnTexture("tiles/L/C_R.WHAT", "data:image/png;base64,…").
-  const embedded = new Map();
-  window.rgbnTexture = (name, url) => {
-    const k = embedded.get(name);
-    if (!k) return;
-    embedded.delete(name);
-    const img = new Image();
-    img.onload = () => k(img);
-    img.onerror = () => fail('cannot decode ' + name + '.js');
-    img.src = url;
+  // fallback/K.js calls rgbnFallback(K, {"albedo/C_R": "data:image/png;base64,…", …}).
+  const fallbackData = new Map(); // K → { urls, waiting: [[name, k]] }
+  window.rgbnFallback = (K, urls) => {
+    const f = fallbackData.get(K);
+    if (!f) return;
+    f.urls = urls;
+    for (const [name, k] of f.waiting) give(K, f, name, k);
+    f.waiting = [];
   };
-  function loadEmbedded(name, k) {
-    embedded.set(name, k);
-    const s = document.createElement('script');
-    s.src = name + '.js';
-    s.onerror = () => fail('cannot load ' + s.src);
-    document.head.appendChild(s);
+  function give(K, f, name, k) {
+    if (name in f.urls) k(f.urls[name]);
+    else fail('fallback/' + K + '.js has no tile ' + name);
+  }
+  function fallbackUrl(K, name, k) {
+    let f = fallbackData.get(K);
+    if (!f) {
+      f = { urls: null, waiting: [] };
+      fallbackData.set(K, f);
+      const s = document.createElement('script');
+      s.src = 'fallback/' + K + '.js';
+      s.onerror = () => fail('cannot load ' + s.src);
+      document.head.appendChild(s);
+    }
+    if (f.urls) give(K, f, name, k);
+    else f.waiting.push([name, k]);
+  }
+
+  // Keeps at most MAX_TILES tiles: the least recently drawn go (never the base level's).
+  function evict() {
+    if (tiles.size <= MAX_TILES) return;
+    const old = Array.from(tiles.entries())
+      .filter(([key, t]) => t.used < frame && !key.startsWith(baseLevel + '/'))
+      .sort((a, b) => a[1].used - b[1].used);
+    for (let i = 0; i < old.length && tiles.size > MAX_TILES; i++) dropTile(old[i][0]);
   }
 
   // ---- drawing ----
+  // The level whose pixels are at least as small as the screen's: level-0 pixels per screen
+  // pixel 2^L ≤ 1/zoom, so a level pixel never covers more than one screen pixel.
   function levelFor(zoom) {
     const L = Math.floor(Math.log2(1 / zoom) + 1e-9);
-    return Math.max(0, Math.min(levels.length - 1, L));
+    let K = Math.max(baseLevel, Math.min(maxLevel, maxLevel - L));
+    if (fallbackMode) {
+      while (K > baseLevel && !fallbackLevels.has(K)) K--;
+    }
+    return K;
   }
 
   function resize() {
@@ -369,12 +451,57 @@ void main() {
     gl.uniform3f(U.u_se, se.kd, se.ks, se.alpha);
   }
 
+  // Draws the tiles of level K that overlap the canvas; `request`: load the missing ones.
+  // Returns how many were missing.
+  function drawLevel(K, W, H, request) {
+    const [lw, lh] = levelSize[K];
+    const f = Math.pow(2, maxLevel - K); // level-0 pixels per level-K pixel
+    const s = state.zoom * f; // canvas pixels per level-K pixel
+    gl.uniform1f(U.u_scale, s);
+    gl.uniform1f(U.u_curv, meta.curvature_scale / f);
+    // The tiles the canvas overlaps.
+    const c0 = Math.max(0, Math.floor(state.panX / f / T));
+    const r0 = Math.max(0, Math.floor(state.panY / f / T));
+    const c1 = Math.min(Math.ceil(lw / T), Math.ceil((state.panX + W / state.zoom) / f / T));
+    const r1 = Math.min(Math.ceil(lh / T), Math.ceil((state.panY + H / state.zoom) / f / T));
+    let missing = 0;
+    for (let r = r0; r < r1; r++) {
+      for (let c = c0; c < c1; c++) {
+        const t = tiles.get(K + '/' + c + '/' + r);
+        if (!t || !t.ready) {
+          missing++;
+          if (request) loadTile(K, c, r);
+          continue;
+        }
+        t.used = frame;
+        // The tile's own pixels (its overlap is drawn by its neighbours) …
+        const x0 = (c * T * f - state.panX) * state.zoom;
+        const y0 = (r * T * f - state.panY) * state.zoom;
+        const x1 = x0 + Math.min(T, lw - c * T) * s;
+        const y1 = y0 + Math.min(T, lh - r * T) * s;
+        // … and where its texture starts (O pixels earlier inside the level).
+        const ox = c > 0 ? O : 0;
+        const oy = r > 0 ? O : 0;
+        gl.activeTexture(gl.TEXTURE0);
+        gl.bindTexture(gl.TEXTURE_2D, t.albedo);
+        gl.activeTexture(gl.TEXTURE1);
+        gl.bindTexture(gl.TEXTURE_2D, t.normals);
+        gl.uniform2f(U.u_origin, x0 - ox * s, y0 - oy * s);
+        gl.uniform2i(U.u_size, t.w, t.h);
+        gl.uniform4f(U.u_rect, x0, y0, x1, y1);
+        gl.drawArrays(gl.TRIANGLE_STRIP, 0, 4);
+      }
+    }
+    return missing;
+  }
+
   function draw() {
     if (fitPending) {
       fit();
       fitPending = false;
     }
     resize();
+    frame++;
     const W = canvas.width;
     const H = canvas.height;
     gl.viewport(0, 0, W, H);
@@ -383,40 +510,12 @@ void main() {
     gl.useProgram(prog);
     setUniforms();
     const target = levelFor(state.zoom);
-    let missing = 0;
-    // Coarse levels first (always loaded), finer ones over them as their tiles arrive.
-    for (let L = levels.length - 1; L >= target; L--) {
-      const lv = levels[L];
-      const f = Math.pow(2, L); // level-0 pixels per level-L pixel
-      const s = state.zoom * f; // canvas pixels per level-L pixel
-      gl.uniform1f(U.u_scale, s);
-      gl.uniform1f(U.u_curv, meta.curvature_scale * f === 0 ? 0 : meta.curvature_scale / f);
-      for (let r = 0; r < lv.rows; r++) {
-        for (let c = 0; c < lv.cols; c++) {
-          const tw = Math.min(lv.tile, lv.width - c * lv.tile);
-          const th = Math.min(lv.tile, lv.height - r * lv.tile);
-          const x0 = (c * lv.tile * f - state.panX) * state.zoom;
-          const y0 = (r * lv.tile * f - state.panY) * state.zoom;
-          const x1 = x0 + tw * s;
-          const y1 = y0 + th * s;
-          if (x1 <= 0 || y1 <= 0 || x0 >= W || y0 >= H) continue;
-          const t = tiles.get(L + '/' + c + '/' + r);
-          if (!t || !t.ready) {
-            if (L === target) missing++;
-            loadTile(L, c, r);
-            continue;
-          }
-          gl.activeTexture(gl.TEXTURE0);
-          gl.bindTexture(gl.TEXTURE_2D, t.albedo);
-          gl.activeTexture(gl.TEXTURE1);
-          gl.bindTexture(gl.TEXTURE_2D, t.normals);
-          gl.uniform2f(U.u_origin, x0, y0);
-          gl.uniform2i(U.u_size, t.w, t.h);
-          gl.uniform4f(U.u_rect, x0, y0, x1, y1);
-          gl.drawArrays(gl.TRIANGLE_STRIP, 0, 4);
-        }
-      }
-    }
+    // The base level (always loaded), then finer levels already loaded, then the target level,
+    // whose missing visible tiles are requested: the coarser picture shows until they arrive.
+    drawLevel(baseLevel, W, H, true);
+    for (let K = baseLevel + 1; K < target; K++) drawLevel(K, W, H, false);
+    const missing = target > baseLevel ? drawLevel(target, W, H, true) : 0;
+    evict();
     if (missing === 0 && messages.length === 0) document.title = 'rgbn viewer: ready';
     updateUi();
   }
@@ -429,14 +528,6 @@ void main() {
       frameRequested = false;
       draw();
     });
-  }
-
-  // The coarsest level is loaded whole: something to show at every zoom.
-  {
-    const L = levels.length - 1;
-    for (let r = 0; r < levels[L].rows; r++) {
-      for (let c = 0; c < levels[L].cols; c++) loadTile(L, c, r);
-    }
   }
 
   // ---- controls ----

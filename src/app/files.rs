@@ -80,7 +80,13 @@ impl EditorApp {
                     .path
                     .as_deref()
                     .and_then(Path::file_name)
-                    .map_or_else(|| "graph.ron".to_string(), |n| n.to_string_lossy().into());
+                    .map(|n| n.to_string_lossy().into_owned())
+                    .or_else(|| {
+                        let name = self.session.doc.name.as_deref()?;
+                        let stem = Path::new(name).file_stem()?.to_string_lossy();
+                        Some(format!("{stem}.ron"))
+                    })
+                    .unwrap_or_else(|| "graph.ron".to_string());
                 d.title("Save graph as").default_file_name(&name)
             }
             FilePurpose::Export(id, port) => {
@@ -143,6 +149,7 @@ impl EditorApp {
         self.cancel();
         self.session.doc_epoch += 1;
         self.session.doc = doc;
+        self.session.autosaved = None;
         self.session.viewed = default_view(&self.session.doc.graph);
         self.session.selected = self.session.viewed.as_ref().map(|v| v.0);
         self.preview.clear();
@@ -181,6 +188,7 @@ impl EditorApp {
             Ok(()) => {
                 let _ = std::fs::remove_file(old_recovery);
                 let _ = std::fs::remove_file(self.recovery_path());
+                self.session.autosaved = None;
                 self.say(format!("saved {}", path.display()));
                 if let Err(e) = self.prefs.recent.push(path) {
                     tracing::warn!("recent files not saved: {e}");
@@ -248,16 +256,29 @@ impl EditorApp {
         recent::recovery_path(self.session.doc.path.as_deref())
     }
 
-    /// Every 30 s with unsaved changes, writes the graph to the recovery file.
-    pub(super) fn autosave(&mut self) {
-        if self.session.last_autosave.elapsed() < Duration::from_secs(30) {
+    /// Writes unsaved changes to the recovery file at most every [`AUTOSAVE_INTERVAL`], and
+    /// within that interval of any edit whatever the input: while the graph differs from the
+    /// file and from what was last autosaved, each frame asks egui to wake the editor at the
+    /// next autosave time (`request_repaint_after`), so the write does not wait for a mouse
+    /// move or a key.
+    pub(super) fn autosave(&mut self, ctx: &egui::Context) {
+        let s = &self.session;
+        if !s.doc.is_dirty() || s.autosaved.as_ref() == Some(&s.doc.graph) {
             return;
         }
-        self.session.last_autosave = Instant::now();
-        if self.session.doc.is_dirty() {
-            if let Err(e) = self.session.doc.graph.save(&self.recovery_path()) {
-                self.fail(format!("autosave failed: {e}"));
-            }
+        let due = s.last_autosave + AUTOSAVE_INTERVAL;
+        let now = Instant::now();
+        if now < due {
+            ctx.request_repaint_after(due - now);
+            return;
+        }
+        self.session.last_autosave = now;
+        self.session.autosaved = Some(self.session.doc.graph.clone());
+        if let Err(e) = self.session.doc.graph.save(&self.recovery_path()) {
+            self.fail(format!("autosave failed: {e}"));
         }
     }
 }
+
+/// How often unsaved work is written to the recovery file.
+pub const AUTOSAVE_INTERVAL: Duration = Duration::from_secs(30);

@@ -32,6 +32,7 @@ pub mod preview;
 pub mod recent;
 pub mod runtime;
 pub mod session;
+pub mod start;
 pub mod state;
 pub mod tools;
 pub mod tools_ui;
@@ -62,34 +63,23 @@ use runtime::Runtime;
 use session::Session;
 use state::Document;
 use std::collections::BTreeMap;
-use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
-/// Opens the editor window on `graph` (default: `graphs/demo.ron`, else the built-in demo).
-pub fn run(graph: Option<PathBuf>) -> Result<(), String> {
-    let doc = match &graph {
-        Some(p) => Document::open(p).map_err(|e| e.to_string())?,
-        None => {
-            let p = Path::new("graphs/demo.ron");
-            if p.is_file() {
-                Document::open(p).unwrap_or_else(|_| Document::demo())
-            } else {
-                Document::demo()
-            }
-        }
-    };
+/// Opens the editor window on `start` (see [`start::Start`]).
+pub fn run(start: &start::Start) -> Result<(), String> {
+    let app = start.app()?;
     let options = eframe::NativeOptions {
         viewport: egui::ViewportBuilder::default()
             .with_inner_size([1560.0, 940.0])
             .with_min_inner_size([800.0, 500.0])
-            .with_title(format!("rgbn — {}", doc.title())),
+            .with_title(format!("rgbn — {}", app.session.doc.title())),
         ..Default::default()
     };
     eframe::run_native(
         "rgbn",
         options,
         Box::new(move |_cc| {
-            let mut app = EditorApp::new(doc);
+            let mut app = app;
             app.prefs.recent = RecentFiles::user();
             if let Some(p) = app.session.doc.path.clone() {
                 let _ = app.prefs.recent.push(&p);
@@ -490,7 +480,7 @@ impl EditorApp {
         }
         // An edit made in this frame is evaluated now, not when the next frame starts.
         self.send_if_changed();
-        self.autosave();
+        self.autosave(&ctx);
         let ms = t0.elapsed().as_secs_f64() * 1e3;
         self.runtime.frame_ms = 0.9 * self.runtime.frame_ms + 0.1 * ms;
         if self.runtime.in_flight.is_some() {

@@ -18,6 +18,8 @@ pub struct Session {
     /// Copied nodes and the document epoch they were copied in.
     pub(super) clipboard: Option<(u64, Vec<NodeDef>)>,
     pub(super) last_autosave: Instant,
+    /// The graph last written to the recovery file (not written again until it changes).
+    pub(super) autosaved: Option<Graph>,
 }
 
 impl Session {
@@ -31,6 +33,7 @@ impl Session {
             doc_epoch: 0,
             clipboard: None,
             last_autosave: Instant::now(),
+            autosaved: None,
         }
     }
 }

@@ -132,6 +132,9 @@ pub struct Document {
     saved: Graph,
     /// Undo/redo.
     pub history: History,
+    /// The title of a document without a file (e.g. the image `rgbn edit IMAGE` opened on a
+    /// new graph); `None`: "untitled".
+    pub name: Option<String>,
 }
 
 impl Default for Document {
@@ -153,6 +156,7 @@ impl Document {
             graph,
             path,
             history: History::default(),
+            name: None,
         }
     }
 
@@ -206,7 +210,9 @@ impl Document {
             .path
             .as_deref()
             .and_then(Path::file_name)
-            .map_or_else(|| "untitled".to_string(), |n| n.to_string_lossy().into());
+            .map(|n| n.to_string_lossy().into_owned())
+            .or_else(|| self.name.clone())
+            .unwrap_or_else(|| "untitled".to_string());
         format!("{name}{}", if self.is_dirty() { " *" } else { "" })
     }
 

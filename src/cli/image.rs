@@ -236,7 +236,7 @@ fn parse_bits(s: &str) -> Result<u8, String> {
 }
 
 impl InputArgs {
-    fn spec(&self) -> InputSpec {
+    pub(super) fn spec(&self) -> InputSpec {
         InputSpec {
             rgbn: self.file.clone(),
             color: self.color.clone(),
@@ -245,7 +245,7 @@ impl InputArgs {
         }
     }
 
-    fn load_options(&self) -> LoadOptions {
+    pub(super) fn load_options(&self) -> LoadOptions {
         LoadOptions::of_flags(self.dx, self.exr_rgb_is_normal, self.strict)
     }
 
@@ -616,7 +616,7 @@ fn filter_stream(
 }
 
 /// The note `InputArgs::load` prints when normals were repaired.
-fn note_repairs(r: &Validation, name: &Option<PathBuf>) {
+pub(super) fn note_repairs(r: &Validation, name: &Option<PathBuf>) {
     let name = name
         .as_deref()
         .unwrap_or(Path::new(""))

@@ -5,7 +5,7 @@
 //!   2 bad usage or input); errors are printed once, as one line on stderr:
 //!   `rgbn: <what is wrong>: <file>`;
 //! - [`out`]: the one writer for stdout (a closed pipe is not an error);
-//! - `image`: `info`, `render`, `filter`; `publish`: `publish`; `graph`: `eval`, `batch`, `check`, `ops`;
+//! - `image`: `info`, `render`, `filter`; `publish`: `publish`; `serve`: `serve`; `graph`: `eval`, `batch`, `check`, `ops`;
 //!   `capture`: `capture`; `docs`: `completions`, `man`.
 
 use clap::{Parser, Subcommand};
@@ -21,6 +21,7 @@ mod image;
 pub mod interrupt;
 pub mod out;
 mod publish;
+mod serve;
 
 pub use capture::CaptureArgs;
 pub use docs::{CompletionsArgs, ManArgs};
@@ -30,16 +31,23 @@ pub use graph::{apply_sets, parse_inputs, BatchArgs, CheckArgs, EvalArgs};
 pub use image::{FilterArgs, InfoArgs, InputArgs, RenderArgs};
 use out::Out;
 pub use publish::PublishArgs;
+pub use serve::ServeArgs;
 
 /// Edit RGBN images (colour + normals) without breaking integrability.
 ///
-/// With no command, the editor opens on the demo graph (when built with the `gui` feature).
+/// With no command, the editor opens (when built with the `gui` feature): on the demo graph,
+/// or on FILE as `rgbn edit FILE` does.
 #[derive(Parser, Debug)]
 #[command(name = "rgbn", version, about, long_about = None)]
 #[cfg_attr(not(feature = "gui"), command(arg_required_else_help = true))]
+#[cfg_attr(feature = "gui", command(args_conflicts_with_subcommands = true))]
 pub struct Cli {
     #[command(subcommand)]
     pub command: Option<Command>,
+    /// `rgbn FILE`: the editor on a graph or an image.
+    #[cfg(feature = "gui")]
+    #[command(flatten)]
+    pub open: EditArgs,
 }
 
 #[derive(Subcommand, Debug)]
@@ -50,8 +58,10 @@ pub enum Command {
     Render(RenderArgs),
     /// Filter the normals through their gradients with linear kernels.
     Filter(FilterArgs),
-    /// Write a self-contained web folder that relights the image in any WebGL2 browser.
+    /// Write a web folder (Deep Zoom tiles + a WebGL2 viewer) that relights the image.
     Publish(PublishArgs),
+    /// Serve a folder (e.g. one `rgbn publish` wrote) on 127.0.0.1 only.
+    Serve(ServeArgs),
     /// Evaluate a graph file: bind inputs, set parameters, write outputs.
     Eval(EvalArgs),
     /// Run a graph over many files (a glob), continuing past failures.
@@ -66,7 +76,8 @@ pub enum Command {
     Completions(CompletionsArgs),
     /// Print the man page (roff), or write one page per command into a folder with -o.
     Man(ManArgs),
-    /// Open the editor on a graph file (the demo graph when none is given).
+    /// Open the editor on a graph file, or on an image in a new graph (the demo graph when no
+    /// file is given).
     #[cfg(feature = "gui")]
     Edit(EditArgs),
 }
@@ -75,8 +86,40 @@ pub enum Command {
 #[cfg(feature = "gui")]
 #[derive(clap::Args, Debug)]
 pub struct EditArgs {
-    /// The graph file to open (default: `graphs/demo.ron`, or the built-in demo graph).
-    pub graph: Option<PathBuf>,
+    /// A graph file (.ron), or an image to open on a new, unsaved graph: a normal map (PNG,
+    /// JPEG, TIFF, EXR), an RGBN EXR or a PTM. Default: `graphs/demo.ron`, or the built-in
+    /// demo graph.
+    pub file: Option<PathBuf>,
+    /// Colour image of the opened image (PNG/JPEG/TIFF in sRGB, or linear EXR).
+    #[arg(long)]
+    pub color: Option<PathBuf>,
+    /// Coverage mask of the opened image (greyscale image).
+    #[arg(long)]
+    pub mask: Option<PathBuf>,
+    /// The opened normal map uses the DirectX convention (green = −y).
+    #[arg(long)]
+    pub dx: bool,
+    /// Read the opened EXR's R,G,B as the normal (Blender-style normal pass).
+    #[arg(long)]
+    pub exr_rgb_is_normal: bool,
+}
+
+#[cfg(feature = "gui")]
+impl EditArgs {
+    /// What the editor opens on, or a one-line error.
+    pub fn start(&self) -> Result<crate::app::start::Start, CliError> {
+        crate::app::start::Start::of(
+            self.file.as_deref(),
+            crate::app::start::ImageStart {
+                path: PathBuf::new(),
+                color: self.color.clone(),
+                mask: self.mask.clone(),
+                dx: self.dx,
+                exr_rgb_is_normal: self.exr_rgb_is_normal,
+            },
+        )
+        .map_err(error::usage)
+    }
 }
 
 /// Parses `args` and runs; returns the process exit code. Prints errors on stderr.
@@ -90,9 +133,9 @@ where
         .and_then(|cli| match cli.command {
             // The editor prints nothing through `out` (and its threads may print): no lock.
             #[cfg(feature = "gui")]
-            None => edit(None),
+            None => edit(&cli.open),
             #[cfg(feature = "gui")]
-            Some(Command::Edit(a)) => edit(a.graph),
+            Some(Command::Edit(a)) => edit(&a),
             #[cfg(not(feature = "gui"))]
             None => {
                 // `arg_required_else_help` prints help; reached only with global flags.
@@ -128,6 +171,7 @@ pub fn run_command(command: Command, out: &mut Out<'_>) -> Result<(), CliError> 
         Command::Render(a) => image::render_cmd(&a, out),
         Command::Filter(a) => image::filter_cmd(&a, out),
         Command::Publish(a) => publish::publish_cmd(&a, out),
+        Command::Serve(a) => serve::serve_cmd(&a, out),
         Command::Eval(a) => graph::eval_cmd(&a, out),
         Command::Batch(a) => graph::batch_cmd(&a, out),
         Command::Check(a) => graph::check_cmd(&a, out),
@@ -136,12 +180,13 @@ pub fn run_command(command: Command, out: &mut Out<'_>) -> Result<(), CliError> 
         Command::Completions(a) => docs::completions_cmd(&a, out),
         Command::Man(a) => docs::man_cmd(&a, out),
         #[cfg(feature = "gui")]
-        Command::Edit(a) => edit(a.graph),
+        Command::Edit(a) => edit(&a),
     }
 }
 
-/// Runs the editor.
+/// Runs the editor on what `a` names (a bad file is refused before a window opens).
 #[cfg(feature = "gui")]
-fn edit(graph: Option<PathBuf>) -> Result<(), CliError> {
-    crate::app::run(graph).map_err(CliError::Editor)
+fn edit(a: &EditArgs) -> Result<(), CliError> {
+    let start = a.start()?;
+    crate::app::run(&start).map_err(CliError::Editor)
 }

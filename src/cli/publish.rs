@@ -4,8 +4,11 @@
 use super::error::CliError;
 use super::image::{InputArgs, ShadingArgs};
 use super::out::Out;
-use crate::ops::publish::{publish, PublishOptions, WebView, MAX_LIGHTS};
+use crate::ops::publish::{
+    publish, publish_stream, PublishOptions, Published, WebView, MAX_LIGHTS,
+};
 use crate::params::Choice;
+use crate::raster::strips::{Opened, StreamInput};
 use clap::Args;
 use std::path::PathBuf;
 
@@ -20,7 +23,8 @@ pub struct PublishArgs {
     #[arg(long, default_value = "relit", value_parser = parse_web_view)]
     pub view: WebView,
     /// Output folder: created, or replaced when it holds an earlier publish (never a folder
-    /// with other files). Open its index.html in a browser (from disk or any web server).
+    /// with other files). Show it with `rgbn serve DIR` (every level), or open its index.html
+    /// from disk (up to 2048 px); docs/publishing.md: OpenSeadragon, OpenLIME.
     #[arg(short, long)]
     pub output: PathBuf,
 }
@@ -44,24 +48,50 @@ pub(super) fn publish_cmd(a: &PublishArgs, out: &mut Out<'_>) -> Result<(), CliE
             shading.lights.len()
         )));
     }
-    let (img, _) = a.input.load()?;
     let opts = PublishOptions {
         shading,
         view: a.view,
     };
-    super::interrupt::check()?;
-    let p = publish(&img, &a.output, &opts, &a.input.paths())?;
-    let tiles: usize = p.levels.iter().map(|l| l.cols * l.rows).sum();
+    let inputs = a.input.paths();
+    // Read in strips whenever the files allow (PNG, TIFF in strips, scan-line EXR): memory is
+    // then bounded by the strip, not the image; else whole.
+    let streamed = if a.input.demo {
+        None
+    } else {
+        match StreamInput::open(&a.input.spec(), &a.input.load_options())? {
+            Opened::Stream(input) => Some(input),
+            Opened::Whole(_) => None,
+        }
+    };
+    let (p, how) = match streamed {
+        Some(mut input) => {
+            let (p, repaired) =
+                publish_stream(&mut input, &a.output, &opts, &inputs, None, || {
+                    super::interrupt::check()
+                })?;
+            super::image::note_repairs(&repaired, &a.input.spec().normal.or(a.input.file.clone()));
+            (p, ", streamed")
+        }
+        None => {
+            let (img, _) = a.input.load()?;
+            super::interrupt::check()?;
+            (publish(&img, &a.output, &opts, &inputs)?, "")
+        }
+    };
+    summary(&p, how, a, out)
+}
+
+fn summary(p: &Published, how: &str, a: &PublishArgs, out: &mut Out<'_>) -> Result<(), CliError> {
     out.line(format_args!(
-        "published {}×{} ({} level{}, {} tile{}, curvature scale {:.4}/px): {}",
-        img.width(),
-        img.height(),
+        "published {}×{} ({} Deep Zoom levels, {} tile files, {:.1} MB{how}, curvature scale {:.4}/px): {} (rgbn serve {} shows every level)",
+        p.size.0,
+        p.size.1,
         p.levels.len(),
-        if p.levels.len() == 1 { "" } else { "s" },
-        tiles,
-        if tiles == 1 { "" } else { "s" },
+        p.tiles.tiles,
+        p.bytes as f64 / 1e6,
         p.curvature_scale,
-        a.output.join("index.html").display()
+        a.output.join("index.html").display(),
+        a.output.display()
     ))?;
     Ok(())
 }

@@ -34,7 +34,7 @@ impl Operator for PublishNode {
             "publish",
             "Publish to the web",
             "output",
-            "Writes a self-contained folder (index.html, viewer.js, image.json, PNG textures; a tile pyramid over 4096²) that relights the image in any WebGL2 browser with no network access: drag the light, zoom, pan, switch relit / normals / specular_enhancement / curvature, exposure. Replaces only an earlier publish; passes the image through.",
+            "Writes a web folder (index.html, viewer.js, rgbn.json; albedo and normals as Deep Zoom tile pyramids that OpenSeadragon and OpenLIME also read) that relights the image in any WebGL2 browser with no network access (rgbn serve DIR shows it): drag the light, zoom, pan, switch relit / normals / specular_enhancement / curvature, exposure. Replaces only an earlier publish; passes the image through.",
         )
         .side_effect()
     }

@@ -84,6 +84,75 @@ pub(super) fn scale_of(hv: &[f32], mask: Option<&[f32]>, param: f32) -> f32 {
     }
 }
 
+/// [`curvature_scale`]'s automatic scale of an image seen in horizontal strips (exactly the
+/// same number): the 99th percentile of `|H|` is among the largest 1 % of values, so only the
+/// largest `pixels / 100 + 2` are kept (pruned when twice that many are held).
+pub struct ScaleOfStrips {
+    keep: usize,
+    top: Vec<f32>,
+    count: usize,
+}
+
+impl ScaleOfStrips {
+    /// For an image of `pixels` pixels.
+    #[must_use]
+    pub fn new(pixels: usize) -> Self {
+        Self {
+            keep: pixels / 100 + 2,
+            top: Vec::new(),
+            count: 0,
+        }
+    }
+
+    /// Adds the `H` of some rows (their values from [`mean_curvature`] over a window with one
+    /// row of context each way) with their coverage.
+    pub fn add(&mut self, hv: &[f32], mask: Option<&[f32]>) {
+        for (i, v) in hv.iter().enumerate() {
+            if inside(mask, i) && v.is_finite() {
+                self.count += 1;
+                self.top.push(v.abs());
+            }
+        }
+        if self.top.len() > 2 * self.keep {
+            self.prune(self.keep);
+        }
+    }
+
+    /// Keeps the `m` largest values.
+    fn prune(&mut self, m: usize) {
+        if self.top.len() > m {
+            let cut = self.top.len() - m;
+            self.top.select_nth_unstable_by(cut, f32::total_cmp);
+            self.top.drain(..cut);
+        }
+    }
+
+    /// The scale (as [`curvature_scale`] with an automatic parameter).
+    #[must_use]
+    pub fn scale(mut self) -> f32 {
+        let n = self.count;
+        if n == 0 {
+            return 1.0;
+        }
+        let k = ((0.99 * n as f64).ceil() as usize).clamp(1, n) - 1;
+        // The value at ascending rank k is the (n − k)-th largest.
+        let m = n - k;
+        self.prune(m);
+        debug_assert_eq!(self.top.len(), m);
+        let p99 = self
+            .top
+            .iter()
+            .copied()
+            .min_by(f32::total_cmp)
+            .unwrap_or(0.0);
+        if p99 > 0.0 {
+            1.0 / p99
+        } else {
+            1.0
+        }
+    }
+}
+
 /// The diverging colour of `t ∈ [−1, 1]`: (255, f, f) for t ≥ 0, (f, f, 255) below, with
 /// `f = round((1 − |t|)·255)`.
 #[inline]
@@ -111,4 +180,50 @@ pub(super) fn curvature_into(img: &RgbnImage, p: &InspectParams, out: &mut [u8])
         [r, g, b, alpha8(coverage(img, i))]
     });
     s
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_scale_of_strips_is_the_scale_of_the_whole() {
+        let mut state = 0x9e37_79b9_7f4a_7c15u64;
+        let mut rnd = move || {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            (state >> 40) as f32 / (1u64 << 24) as f32
+        };
+        for n in [1usize, 7, 100, 1234, 20_000] {
+            let hv: Vec<f32> = (0..n)
+                .map(|i| {
+                    if i % 97 == 5 {
+                        f32::NAN
+                    } else {
+                        rnd() * 2.0 - 1.0
+                    }
+                })
+                .collect();
+            let mask: Vec<f32> = (0..n).map(|_| rnd()).collect();
+            for m in [None, Some(&mask[..])] {
+                let whole = scale_of(&hv, m, 0.0);
+                for strip in [1, 3, 64, 5000] {
+                    let mut acc = ScaleOfStrips::new(n);
+                    let mut y = 0;
+                    while y < n {
+                        let e = (y + strip).min(n);
+                        acc.add(&hv[y..e], m.map(|m| &m[y..e]));
+                        y = e;
+                    }
+                    assert_eq!(
+                        acc.scale().to_bits(),
+                        whole.to_bits(),
+                        "n {n} strip {strip}"
+                    );
+                }
+            }
+        }
+        assert_eq!(ScaleOfStrips::new(10).scale(), 1.0);
+    }
 }
