@@ -702,7 +702,7 @@ def integrate(image: Image, *, method: Literal['poisson_dct', 'frankot_chellappa
     The graph node 'integrate', run by rgbn.run_op.
     """
 
-def save(image: Image, *, path: str | os.PathLike[str] = '', bits: Literal['8', '16'] = '16', dx: bool = False, half: bool = False) -> Image:
+def save(image: Image, *, path: str | os.PathLike[str] = '', bits: Literal['8', '16'] = '16', dx: bool = False, half: bool = False, exr_compression: Literal['none', 'rle', 'zips', 'zip', 'piz'] = 'zip') -> Image:
     """Save image.
     
     Writes the image to a file (atomically; never over a file the graph reads) and passes it through; runs whenever its output is requested.
@@ -714,7 +714,8 @@ def save(image: Image, *, path: str | os.PathLike[str] = '', bits: Literal['8', 
         path (path; default ''): Output: .exr (colour + normals + mask) or .png/.tif (normal map).
         bits (choice; default '16'): Bits per channel of PNG/TIFF normal maps.
         dx (bool; default False): Write normal maps in the DirectX convention (green = −y).
-        half (bool; default False): Write EXR as 16-bit half floats.
+        half (bool; default False): Write EXR as 16-bit half floats (f16) instead of 32-bit floats.
+        exr_compression (choice; default 'zip'): Compression of an EXR (lossless): zip (default: zlib over 16 lines, about OpenEXR's size for little more time than none), zips, rle, piz or none.
     
     Returns the output 'image' (rgbn): The same image.
     

@@ -22,7 +22,9 @@ use pyo3::types::PyDict;
 use rayon::prelude::*;
 use rgbn::error::RgbnError;
 use rgbn::nodes::{Picture, Value};
-use rgbn::raster::io::{self, ExrPrecision, InputSpec, LoadOptions, NormalConvention, SaveOptions};
+use rgbn::raster::io::{
+    self, ExrCompression, ExrPrecision, InputSpec, LoadOptions, NormalConvention, SaveOptions,
+};
 use rgbn::raster::{check_size, Plane, RgbnImage, Validation, MIN_NORMAL_LENGTH};
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicU64, Ordering};
@@ -709,14 +711,15 @@ fn value_of(py: Python<'_>, obj: &Bound<'_, PyAny>, as_mask: bool) -> PyResult<V
 /// Writes atomically (a temporary file, then a rename; never over an existing file's data
 /// half-way), by extension, with the command line's formats and options:
 ///
-/// - an ``Image``: ``.exr`` holds colour, normals and mask (``half``: 16-bit floats);
+/// - an ``Image``: ``.exr`` holds colour, normals and mask (``half``: 16-bit floats;
+///   ``exr_compression``: zip (default), zips, rle, piz or none);
 ///   ``.png``/``.tif`` the normal map (``bits`` 8 or 16, ``dx``: DirectX green); with
 ///   ``color=True`` the colour instead (PNG/TIFF sRGB, EXR linear) — ``rgbn filter --color-out``;
 /// - an H×W float32 array: a scalar field (``.exr``), or with ``mask=True`` a mask
 ///   (``.png``/``.tif`` 16-bit, or ``.exr``);
 /// - an H×W×4 uint8 array: a picture (``.png``/``.tif``).
 #[pyfunction]
-#[pyo3(signature = (obj, path, *, bits=16, dx=false, half=false, color=false, mask=false))]
+#[pyo3(signature = (obj, path, *, bits=16, dx=false, half=false, exr_compression="zip", color=false, mask=false))]
 #[allow(clippy::too_many_arguments)]
 pub fn write(
     py: Python<'_>,
@@ -725,12 +728,23 @@ pub fn write(
     bits: u8,
     dx: bool,
     half: bool,
+    exr_compression: &str,
     color: bool,
     mask: bool,
 ) -> PyResult<()> {
     if bits != 8 && bits != 16 {
         return Err(input(format!("\"{bits}\": bits must be 8 or 16")));
     }
+    let Some(compression) = ExrCompression::ALL
+        .into_iter()
+        .find(|c| c.name() == exr_compression)
+    else {
+        let names: Vec<&str> = ExrCompression::ALL.iter().map(|c| c.name()).collect();
+        return Err(input(format!(
+            "\"{exr_compression}\": exr_compression must be one of {}",
+            names.join(", ")
+        )));
+    };
     let value = value_of(py, obj, mask)?;
     let opts = SaveOptions {
         bits,
@@ -744,6 +758,7 @@ pub fn write(
         } else {
             ExrPrecision::Full
         },
+        compression,
     };
     py.detach(|| {
         io::check_output(&path, &[])?;
