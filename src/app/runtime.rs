@@ -146,6 +146,13 @@ impl EditorApp {
                         );
                     }
                 }
+                WorkerMsg::Readouts(r) => {
+                    let o = &mut self.runtime.outcome;
+                    if r.generation == o.generation {
+                        o.curl.extend(r.curl);
+                        o.fraction.extend(r.fraction);
+                    }
+                }
                 WorkerMsg::Done(out) => {
                     if self.runtime.gens.accept(out.generation) {
                         self.runtime.in_flight = None;

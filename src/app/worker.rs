@@ -173,6 +173,19 @@ pub enum WorkerMsg {
     Region(Box<RegionOutcome>),
     /// The evaluation finished (or failed, or was cancelled).
     Done(Box<EvalOutcome>),
+    /// The integrability readouts of the evaluation of the same generation.
+    Readouts(Box<Readouts>),
+}
+
+/// The integrability readouts of an evaluation, sent after its values.
+#[derive(Clone, Debug, Default)]
+pub struct Readouts {
+    /// The request's generation.
+    pub generation: u64,
+    /// Relative RMS curl of each node's RGBN output.
+    pub curl: BTreeMap<NodeId, f64>,
+    /// Non-integrable fraction F of each node's RGBN output.
+    pub fraction: BTreeMap<NodeId, f64>,
 }
 
 /// Tracks request generations: only the newest request's results are accepted.
@@ -283,24 +296,37 @@ impl Worker {
                             });
                             pwake();
                         });
-                        let out = evaluate(&ev, &req, Some(progress));
+                        let (out, plan) = evaluate_with_plan(&ev, &req, Some(progress));
                         for ((id, port), v) in &out.values {
                             if let Some(z) = v.value.size() {
                                 sizes.insert((*id, port.clone()), z);
                             }
                         }
-                        out
+                        (out, plan)
                     } else {
-                        EvalOutcome {
+                        let out = EvalOutcome {
                             generation: req.generation,
                             viewport_only: true,
                             ..EvalOutcome::default()
-                        }
+                        };
+                        (out, None)
                     };
+                    let (out, plan) = out;
                     if msg_tx.send(WorkerMsg::Done(Box::new(out))).is_err() {
                         break;
                     }
                     wake();
+                    // The readouts, unless an edit came meanwhile.
+                    if let Ok(newer) = req_rx.try_recv() {
+                        next = Some(newer);
+                        continue;
+                    }
+                    if let Some(r) = plan.and_then(|p| readouts(&ev, &req, &p)) {
+                        if msg_tx.send(WorkerMsg::Readouts(Box::new(r))).is_err() {
+                            break;
+                        }
+                        wake();
+                    }
                 }
             })
             .expect("spawn the evaluation thread");
@@ -528,6 +554,42 @@ pub fn evaluate(
     req: &EvalRequest,
     progress: Option<crate::eval::ProgressFn>,
 ) -> EvalOutcome {
+    evaluate_with_plan(ev, req, progress).0
+}
+
+/// The integrability readouts (relative RMS curl, non-integrable fraction F) of every node
+/// of `plan`, taken after an evaluation was shown ([`WorkerMsg::Readouts`]): the values come
+/// from the cache, the readouts run on all cores, and an edit meanwhile cancels them.
+pub fn readouts(ev: &Evaluator, req: &EvalRequest, plan: &Plan) -> Option<Readouts> {
+    let opts = EvalOptions {
+        cancel: Some(req.cancel.clone()),
+        progress: None,
+        curl_stats: true,
+    };
+    let r = ev.eval(plan, &[], &opts).ok()?;
+    let mut out = Readouts {
+        generation: req.generation,
+        ..Readouts::default()
+    };
+    for st in &r.stats {
+        if let (Some(node), true) = (st.at.node, st.at.file == TOP_LABEL) {
+            if let Some(c) = st.curl {
+                out.curl.insert(node, c);
+            }
+            if let Some(f) = st.fraction {
+                out.fraction.insert(node, f);
+            }
+        }
+    }
+    Some(out)
+}
+
+/// [`evaluate`], and the plan it evaluated (without the nodes that failed).
+pub fn evaluate_with_plan(
+    ev: &Evaluator,
+    req: &EvalRequest,
+    progress: Option<crate::eval::ProgressFn>,
+) -> (EvalOutcome, Option<Plan>) {
     let t0 = Instant::now();
     let mut out = EvalOutcome {
         generation: req.generation,
@@ -539,10 +601,11 @@ pub fn evaluate(
     }
     // One graph output per node output: "ID:PORT".
     let mut ports: BTreeMap<NodeId, Vec<String>> = BTreeMap::new();
+    let mut plan = None;
     for _attempt in 0..=req.graph.nodes.len() {
         if req.cancel.load(Ordering::Relaxed) {
             out.cancelled = true;
-            return out;
+            return (out, None);
         }
         g.outputs.clear();
         g.exposed.clear();
@@ -575,21 +638,23 @@ pub fn evaluate(
             None => match LoadedGraph::from_graph(g.clone(), None, req.base_dir.clone())
                 .and_then(|lg| Plan::new(&lg, &BTreeMap::new(), &req.base_dir))
             {
-                Ok(plan) => {
+                Ok(p) => {
+                    // The readouts come after, apart ([`readouts`]): they never delay values.
                     let opts = EvalOptions {
                         cancel: Some(req.cancel.clone()),
                         progress: progress.clone(),
-                        curl_stats: true,
+                        curl_stats: false,
                     };
-                    match ev.eval(&plan, &[], &opts) {
+                    match ev.eval(&p, &[], &opts) {
                         Ok(r) => {
                             out.computed += r.misses();
-                            collect(&mut out, &r, &plan);
+                            collect(&mut out, &r, &p);
+                            plan = Some(p);
                             None
                         }
                         Err(GraphError::Cancelled) => {
                             out.cancelled = true;
-                            return out;
+                            return (out, None);
                         }
                         Err(e) => match error_node(&e, TOP_LABEL) {
                             Some(id) => Some((id, e.to_string())),
@@ -629,7 +694,7 @@ pub fn evaluate(
     }
     out.elapsed = t0.elapsed();
     out.cache = ev.mem_usage();
-    out
+    (out, plan)
 }
 
 fn collect(out: &mut EvalOutcome, r: &crate::eval::EvalResult, plan: &Plan) {

@@ -43,7 +43,8 @@ fn evaluates_every_node_and_reports_errors_on_their_nodes() {
     let below = d.add_node("curl", [0.0, 0.0]);
     d.connect(lonely, "image", below, "image").unwrap();
     let ev = Evaluator::default();
-    let out = evaluate(&ev, &request(&d.graph, 7), None);
+    let req = request(&d.graph, 7);
+    let (out, plan) = evaluate_with_plan(&ev, &req, None);
     assert_eq!(out.generation, 7);
     assert!(out.error.is_none(), "{:?}", out.error);
     assert_eq!(
@@ -60,7 +61,10 @@ fn evaluates_every_node_and_reports_errors_on_their_nodes() {
     assert!(out.thumbs.contains_key(&3));
     let t = &out.thumbs[&3];
     assert!(t.width <= THUMB_SIZE && t.height <= THUMB_SIZE);
-    assert!(out.curl.contains_key(&3));
+    // The readouts come after the values, for the same generation.
+    let r = readouts(&ev, &req, &plan.expect("a plan")).expect("readouts");
+    assert_eq!(r.generation, 7);
+    assert!(r.curl.contains_key(&3) && r.fraction.contains_key(&3));
     // Same graph again: all from the cache, same keys.
     let again = evaluate(&ev, &request(&d.graph, 8), None);
     assert_eq!(again.computed, 0);

@@ -36,7 +36,7 @@ pub struct EvalArgs {
     #[arg(short = 'o', long = "output", value_name = "NAME=PATH")]
     pub outputs: Vec<String>,
     /// Print per-node statistics (time, cache hit/miss, bytes, relative curl, non-integrable
-    /// fraction F).
+    /// fraction F, and the time of those readouts, taken after the nodes and apart from them).
     #[arg(long)]
     pub stats: bool,
     #[command(flatten)]
@@ -264,8 +264,8 @@ fn describe_value(v: &Value) -> String {
 
 fn print_stats(out: &mut Out<'_>, r: &EvalResult, top: &str) -> Result<(), CliError> {
     out.line(format_args!(
-        "{:<28} {:<18} {:<8} {:>10} {:>10} {:>11} {:>9}",
-        "node", "op", "cache", "time ms", "MB", "curl rel.", "F"
+        "{:<28} {:<18} {:<8} {:>10} {:>10} {:>11} {:>9} {:>11}",
+        "node", "op", "cache", "time ms", "MB", "curl rel.", "F", "readout ms"
     ))?;
     for s in &r.stats {
         let mut node = match (s.at.node, &s.at.name) {
@@ -287,7 +287,7 @@ fn print_stats(out: &mut Out<'_>, r: &EvalResult, top: &str) -> Result<(), CliEr
             Status::Effect => "effect",
         };
         out.line(format_args!(
-            "{:<28} {:<18} {:<8} {:>10.1} {:>10.2} {:>11} {:>9}",
+            "{:<28} {:<18} {:<8} {:>10.1} {:>10.2} {:>11} {:>9} {:>11.1}",
             node,
             s.op,
             status,
@@ -295,7 +295,8 @@ fn print_stats(out: &mut Out<'_>, r: &EvalResult, top: &str) -> Result<(), CliEr
             s.bytes as f64 / 1e6,
             s.curl.map_or_else(|| "-".into(), |c| format!("{c:.3e}")),
             s.fraction
-                .map_or_else(|| "-".into(), |f| format!("{f:.2e}"))
+                .map_or_else(|| "-".into(), |f| format!("{f:.2e}")),
+            s.readout.as_secs_f64() * 1e3
         ))?;
     }
     out.line(format_args!(

@@ -286,7 +286,9 @@ pub struct EvalOptions {
     pub progress: Option<ProgressFn>,
     /// Measure the integrability of each node's RGBN output: its relative RMS curl and its
     /// non-integrable fraction F (one least-squares integration per node: a DCT, or the
-    /// masked solver where there is a mask).
+    /// masked solver where there is a mask). The readouts are taken after every node has run,
+    /// on all cores, and timed apart from the nodes ([`NodeStats::readout`]); a value keeps
+    /// its readouts in the cache.
     pub curl_stats: bool,
 }
 
@@ -322,8 +324,11 @@ pub struct NodeStats {
     pub op: &'static str,
     /// Hit, miss, …
     pub status: Status,
-    /// Time spent computing (zero for hits).
+    /// Time spent computing (zero for hits). Readouts are not in it.
     pub time: Duration,
+    /// Time spent on the integrability readout ([`EvalOptions::curl_stats`]), apart from
+    /// the node's computation (zero when not measured or measured earlier).
+    pub readout: Duration,
     /// Bytes of output.
     pub bytes: usize,
     /// Relative RMS curl of the RGBN output, when measured.
@@ -609,7 +614,6 @@ impl Evaluator {
             self.pull(
                 plan,
                 i,
-                opts,
                 &mut keys,
                 &mut visited,
                 &mut results,
@@ -654,7 +658,7 @@ impl Evaluator {
                     if opts.cancelled() {
                         return Err(GraphError::Cancelled);
                     }
-                    let r = self.run_one(plan, i, keys[&i], &results, &ctx, opts)?;
+                    let r = self.run_one(plan, i, keys[&i], &results, &ctx)?;
                     if let Some(p) = &opts.progress {
                         p(&Progress {
                             done: done.fetch_add(1, Ordering::Relaxed) + 1,
@@ -672,6 +676,9 @@ impl Evaluator {
                 stats.insert(i, st);
             }
         }
+        if opts.curl_stats {
+            self.readouts(&keys, &mut results, &mut stats, plan, opts)?;
+        }
         let mut order: Vec<usize> = stats.keys().copied().collect();
         order.sort_unstable();
         Ok(Whole {
@@ -687,7 +694,6 @@ impl Evaluator {
         &self,
         plan: &Plan,
         i: usize,
-        opts: &EvalOptions,
         keys: &mut HashMap<usize, CacheKey>,
         visited: &mut HashSet<usize>,
         results: &mut HashMap<usize, Arc<CacheEntry>>,
@@ -711,16 +717,7 @@ impl Evaluator {
                 entry = Some(e);
                 status = Some(Status::DiskHit);
             }
-            if let (Some(mut e), Some(status)) = (entry, status) {
-                if opts.curl_stats && e.curl.is_none() {
-                    let (curl, fraction) = integrability_of(&e.values);
-                    if curl.is_some() {
-                        let mut c = (*e).clone();
-                        (c.curl, c.fraction) = (curl, fraction);
-                        e = Arc::new(c);
-                        lock(&self.mem).insert(key, e.clone());
-                    }
-                }
+            if let (Some(e), Some(status)) = (entry, status) {
                 stats.insert(
                     i,
                     NodeStats {
@@ -728,6 +725,7 @@ impl Evaluator {
                         op: spec.id,
                         status,
                         time: Duration::ZERO,
+                        readout: Duration::ZERO,
                         bytes: e.byte_size(),
                         curl: e.curl,
                         fraction: e.fraction,
@@ -741,7 +739,7 @@ impl Evaluator {
         for c in &inst.inputs {
             match c {
                 Conn::Slot(j, _) => {
-                    self.pull(plan, *j, opts, keys, visited, results, to_run, stats)?;
+                    self.pull(plan, *j, keys, visited, results, to_run, stats)?;
                 }
                 Conn::Unbound { name, at } => {
                     return Err(GraphError::UnboundInput {
@@ -756,6 +754,52 @@ impl Evaluator {
         Ok(())
     }
 
+    /// The integrability readouts of every considered node's RGBN output that has none yet,
+    /// taken on all cores after the nodes ran (so they never delay a node), each timed into
+    /// its node's [`NodeStats::readout`] and kept with the value in the memory cache.
+    fn readouts(
+        &self,
+        keys: &HashMap<usize, CacheKey>,
+        results: &mut HashMap<usize, Arc<CacheEntry>>,
+        stats: &mut HashMap<usize, NodeStats>,
+        plan: &Plan,
+        opts: &EvalOptions,
+    ) -> Result<(), GraphError> {
+        let todo: Vec<(usize, Arc<CacheEntry>)> = results
+            .iter()
+            .filter(|(i, e)| stats.contains_key(i) && e.curl.is_none())
+            .filter(|(_, e)| e.values.iter().any(|v| matches!(v, Value::Rgbn(_))))
+            .map(|(i, e)| (*i, e.clone()))
+            .collect();
+        type Read = Result<(usize, Arc<CacheEntry>, Duration), GraphError>;
+        let done: Vec<Read> = todo
+            .into_par_iter()
+            .map(|(i, e)| {
+                if opts.cancelled() {
+                    return Err(GraphError::Cancelled);
+                }
+                let t0 = Instant::now();
+                let (curl, fraction) = integrability_of(&e.values);
+                let mut c = (*e).clone();
+                (c.curl, c.fraction) = (curl, fraction);
+                Ok((i, Arc::new(c), t0.elapsed()))
+            })
+            .collect();
+        for d in done {
+            let (i, e, t) = d?;
+            if !plan.instances[i].op.spec().side_effect {
+                if let Some(k) = keys.get(&i) {
+                    lock(&self.mem).insert(*k, e.clone());
+                }
+            }
+            if let Some(st) = stats.get_mut(&i) {
+                (st.curl, st.fraction, st.readout) = (e.curl, e.fraction, t);
+            }
+            results.insert(i, e);
+        }
+        Ok(())
+    }
+
     fn run_one(
         &self,
         plan: &Plan,
@@ -763,7 +807,6 @@ impl Evaluator {
         key: CacheKey,
         results: &HashMap<usize, Arc<CacheEntry>>,
         ctx: &RunContext,
-        opts: &EvalOptions,
     ) -> Result<(Arc<CacheEntry>, NodeStats), GraphError> {
         let inst = &plan.instances[i];
         let spec = inst.op.spec();
@@ -784,16 +827,11 @@ impl Evaluator {
                 source,
                 at: inst.at.clone(),
             })?;
-        let (curl, fraction) = if opts.curl_stats {
-            integrability_of(&values)
-        } else {
-            (None, None)
-        };
         let time = t0.elapsed();
         let entry = Arc::new(CacheEntry {
             values,
-            curl,
-            fraction,
+            curl: None,
+            fraction: None,
         });
         if !spec.side_effect {
             lock(&self.mem).insert(key, entry.clone());
@@ -812,9 +850,10 @@ impl Evaluator {
                 Status::Miss
             },
             time,
+            readout: Duration::ZERO,
             bytes: entry.byte_size(),
-            curl,
-            fraction,
+            curl: None,
+            fraction: None,
             key,
         };
         Ok((entry, st))
