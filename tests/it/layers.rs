@@ -58,6 +58,8 @@ fn upward_paths(root: &Path, order: &[String]) -> Vec<(String, usize, String, St
         let first = rel.components().next().expect("a component");
         let module = first.as_os_str().to_string_lossy();
         let module = module.trim_end_matches(".rs");
+        // A sibling test file (`params_tests.rs`, included by `#[path]`) belongs to its module.
+        let module = module.strip_suffix("_tests").unwrap_or(module);
         if module == "lib" || module == "main" {
             continue;
         }
