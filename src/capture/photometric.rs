@@ -6,7 +6,7 @@
 //!
 //! Lambertian image formation with distant lights: for photo `j`, colour channel `c`,
 //! `I_cj = ρ_c · e_cj · max(0, n · l_j)`, with unit light direction `l_j` (frame: `x` right,
-//! `y` up, `z` towards the camera — the normal frame of `ARCHITECTURE.md`), per-channel light
+//! `y` up, `z` towards the camera — the normal frame of `docs/ARCHITECTURE.md`), per-channel light
 //! intensity `e_cj` (1 if not given) and albedo `ρ_c`. Photos must be **linear**:
 //! [`Transfer::Srgb`](super::inputs::Transfer::Srgb) undoes the sRGB curve of 8/16-bit files
 //! on load.

@@ -3,8 +3,8 @@
 //! Storage is planar `f32` (one `Vec` per channel, row-major, row 0 at the top) so that kernels
 //! can run over rows with rayon and let the compiler vectorise the inner loops.
 //!
-//! Conventions (see `ARCHITECTURE.md`): colour is linear light; normals are unit vectors in the
-//! OpenGL frame (`+x` right, `+y` up, `+z` towards the viewer).
+//! Conventions (see `docs/ARCHITECTURE.md`): colour is linear light; normals are unit vectors
+//! in the OpenGL frame (`+x` right, `+y` up, `+z` towards the viewer).
 
 pub mod bilateral;
 pub mod buf;

@@ -173,8 +173,8 @@ fn a_disk_cache_warning_reaches_stderr_with_rust_log_unset() {
     assert_eq!(stderr(&quiet), "");
 }
 
-/// `batch --out-dir` creates a missing folder (as `mkdir -p`) and says so; the README's batch
-/// example as written.
+/// `batch --out-dir` creates a missing folder (as `mkdir -p`) and says so; the batch
+/// example of docs/graphs.md as written.
 #[test]
 fn batch_creates_a_missing_out_dir_and_says_so() {
     let d = tempfile::tempdir().unwrap();

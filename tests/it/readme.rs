@@ -1,14 +1,16 @@
-//! The README's examples, run as written.
+//! The examples of the README and of the user guide, run as written.
 //!
-//! Every line of a fenced `sh` block in README.md that starts with `rgbn ` or `mkdir `
-//! (continuation lines ending in `\` joined, comments left to the shell) runs through `sh -c`, in
-//! order, in one temporary folder holding a fresh copy of `graphs/`, with the built `rgbn` first
-//! on `PATH`, `HOME` a temporary folder too (examples that install completions or man pages write
-//! there, never into the user's home) and `RGBN_DATA` pointing at the third-party data. A command
-//! must exit 0 and every file it names with `-o`/`--output` (or `NAME=FILE`) or redirects to with
-//! `>` must exist and be non-empty afterwards; `--out-dir` folders must be non-empty. (`cargo`
-//! lines are the newcomer's build and test commands, run by CI itself.) Commands that use `$RGBN_DATA` are skipped (with a note) when the data is absent;
-//! under `RGBN_REQUIRE_DATA=1` (CI) the absence fails the test instead.
+//! Every line of a fenced `sh` block in README.md and in each `docs/*.md` that starts with
+//! `rgbn ` or `mkdir ` (continuation lines ending in `\` joined, comments left to the shell) runs
+//! through `sh -c`, in order; each file's commands run in a temporary folder of their own holding
+//! a fresh copy of `graphs/`, with the built `rgbn` first on `PATH`, `HOME` a temporary folder
+//! too (examples that install completions or man pages write there, never into the user's home)
+//! and `RGBN_DATA` pointing at the third-party data. A command must exit 0 and every file it
+//! names with `-o`/`--output` (or `NAME=FILE`) or redirects to with `>` must exist and be
+//! non-empty afterwards; `--out-dir` folders must be non-empty. Failures name the file and line.
+//! (`cargo` lines are the newcomer's build and test commands, run by CI itself.) Commands that
+//! use `$RGBN_DATA` are skipped (with a note) when the data is absent; under
+//! `RGBN_REQUIRE_DATA=1` (CI) the absence fails the test instead.
 
 use crate::common::*;
 use std::path::{Path, PathBuf};
@@ -120,33 +122,43 @@ fn the_extractor_finds_commands_continuations_and_outputs() {
     );
 }
 
-#[test]
-fn readme_examples_run_as_written() {
-    let readme = std::fs::read_to_string(root().join("README.md")).unwrap();
-    let examples = examples(&readme);
-    assert!(
-        examples.len() >= 20,
-        "only {} rgbn commands found in README.md's sh blocks",
-        examples.len()
-    );
+/// README.md and every `docs/*.md`, as paths relative to the repository root, sorted.
+fn documents() -> Vec<String> {
+    let mut docs: Vec<String> = std::fs::read_dir(root().join("docs"))
+        .expect("docs/ folder")
+        .flatten()
+        .map(|e| e.file_name().to_string_lossy().into_owned())
+        .filter(|n| n.ends_with(".md"))
+        .map(|n| format!("docs/{n}"))
+        .collect();
+    docs.sort();
+    docs.insert(0, "README.md".into());
+    docs
+}
+
+/// What running one document's examples found.
+struct Run {
+    found: usize,
+    ran: usize,
+    failures: Vec<String>,
+}
+
+/// Runs the examples of `doc` (a path relative to the repository root) in a fresh folder.
+fn run_document(doc: &str, bin_dir: &Path, data: Option<&Path>) -> Run {
+    let text = std::fs::read_to_string(root().join(doc)).unwrap();
+    let examples = examples(&text);
     let tmp = tempfile::tempdir().unwrap();
     copy_dir(&root().join("graphs"), &tmp.path().join("graphs"));
     let home = tempfile::tempdir().unwrap();
-    let bin = PathBuf::from(env!("CARGO_BIN_EXE_rgbn"));
-    let path = std::env::join_paths(std::iter::once(bin.parent().unwrap().to_path_buf()).chain(
+    let path = std::env::join_paths(std::iter::once(bin_dir.to_path_buf()).chain(
         std::env::split_paths(&std::env::var_os("PATH").unwrap_or_default()),
     ))
     .unwrap();
-    // The data folder itself (skips with a note when absent; fails under RGBN_REQUIRE_DATA=1).
-    let data = rgbn::test_data::real_data(".");
     let mut failures = Vec::new();
     let mut ran = 0;
     for ex in &examples {
         if ex.command.contains("$RGBN_DATA") && data.is_none() {
-            eprintln!(
-                "SKIPPED README.md line {} (no data): {}",
-                ex.line, ex.command
-            );
+            eprintln!("SKIPPED {doc} line {} (no data): {}", ex.line, ex.command);
             continue;
         }
         let mut cmd = Command::new("sh");
@@ -156,14 +168,14 @@ fn readme_examples_run_as_written() {
             .env("PATH", &path)
             .env("HOME", home.path())
             .env_remove("RGBN_CACHE_DIR");
-        if let Some(d) = &data {
+        if let Some(d) = data {
             cmd.env("RGBN_DATA", d);
         }
         let o = cmd.output().expect("sh runs");
         ran += 1;
         if !o.status.success() {
             failures.push(format!(
-                "README.md line {}: `{}` exited {:?}: {}",
+                "{doc} line {}: `{}` exited {:?}: {}",
                 ex.line,
                 ex.command,
                 o.status.code(),
@@ -183,12 +195,68 @@ fn readme_examples_run_as_written() {
             };
             if !ok {
                 failures.push(format!(
-                    "README.md line {}: `{}` did not write {f}",
+                    "{doc} line {}: `{}` did not write {f}",
                     ex.line, ex.command
                 ));
             }
         }
     }
-    eprintln!("ran {ran} of {} README examples", examples.len());
+    Run {
+        found: examples.len(),
+        ran,
+        failures,
+    }
+}
+
+#[test]
+fn the_user_guide_is_in_docs() {
+    let docs = documents();
+    let readme = std::fs::read_to_string(root().join("README.md")).unwrap();
+    for page in [
+        "docs/editor.md",
+        "docs/cli.md",
+        "docs/graphs.md",
+        "docs/integration.md",
+        "docs/capture.md",
+        "docs/publishing.md",
+        "docs/reliability.md",
+        "docs/ARCHITECTURE.md",
+    ] {
+        assert!(docs.iter().any(|d| d == page), "{page} is missing");
+        // The README points to every page of the guide.
+        let link = page.trim_start_matches("docs/");
+        assert!(
+            readme.contains(&format!("(docs/{link})")),
+            "README.md does not link {page}"
+        );
+    }
+}
+
+#[test]
+fn readme_and_docs_examples_run_as_written() {
+    let bin = PathBuf::from(env!("CARGO_BIN_EXE_rgbn"));
+    let bin_dir = bin.parent().unwrap();
+    // The data folder itself (skips with a note when absent; fails under RGBN_REQUIRE_DATA=1).
+    let data = rgbn::test_data::real_data(".");
+    let mut failures = Vec::new();
+    let mut total = 0;
+    let mut readme = 0;
+    for doc in documents() {
+        let run = run_document(&doc, bin_dir, data.as_deref());
+        eprintln!("{doc}: ran {} of {} examples", run.ran, run.found);
+        total += run.found;
+        if doc == "README.md" {
+            readme = run.found;
+        }
+        failures.extend(run.failures);
+    }
+    assert!(
+        readme >= 5,
+        "only {readme} rgbn commands found in README.md's sh blocks"
+    );
+    assert!(
+        total >= 60,
+        "only {total} rgbn commands found in the sh blocks of README.md and docs/"
+    );
     assert!(failures.is_empty(), "{}", failures.join("\n"));
 }
