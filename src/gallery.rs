@@ -317,7 +317,8 @@ pub fn generate(root: &Path) -> Result<Gallery, GalleryError> {
         };
         let mut rms = Vec::new();
         for d in fig.rms {
-            rms.push((d.label, rms_difference(&picture(d.a)?, &picture(d.b)?)));
+            let (a, b) = (picture(d.a)?, picture(d.b)?);
+            rms.push((d.label, rms_difference(&a, &b)));
         }
         g.rms.insert(fig.stem, rms);
         for (name, v) in &outputs {
