@@ -31,7 +31,7 @@
 //! listed before it (`tests/it/layers.rs` checks every `crate::` path in `src/` against it):
 //!
 //! ```text
-//! layers: error test_data recycle params raster capture render ops nodes graph eval app cli
+//! layers: error test_data recycle params raster capture render ops nodes graph eval gallery app cli
 //! ```
 
 #[cfg(feature = "gui")]

@@ -405,11 +405,6 @@ impl Multigrid {
         }
     }
 
-    /// The finest level's `x`: what [`Multigrid::apply`] left there.
-    pub(super) fn solution(&self) -> &[f32] {
-        &self.levels[0].x
-    }
-
     /// `levels[0].x ≈ A⁻¹ r` by one V-cycle (symmetric: module docs).
     pub(super) fn apply(&mut self, r: &[f64]) {
         if self.levels.len() == 1 {

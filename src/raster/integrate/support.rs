@@ -287,7 +287,7 @@ fn dirichlet_height(
     let precondition = |mg: &mut Multigrid, r: &[f64], out: &mut Vec<f64>| {
         mg.apply(r);
         out.par_iter_mut()
-            .zip(mg.solution().par_iter().zip(support.par_iter()))
+            .zip(mg.levels[0].x.par_iter().zip(support.par_iter()))
             .for_each(|(o, (&v, &s))| *o = if s { f64::from(v) } else { 0.0 });
     };
     let mut r = b.clone();
