@@ -5,40 +5,38 @@
 //! # The problem
 //!
 //! An edit changes the samples of an image's gradient field by `δ` on a support `S` (0
-//! elsewhere). Outside `S` the image must stay as it was, so the nearest field of the form
-//! "the image's own gradients plus the gradient of a height change `ζ` that is 0 outside `S`"
-//! is wanted. In the averaged edge model of [`super`] (module docs) that is two steps:
+//! elsewhere). Outside `S` the image must stay as it was, so the nearest change of the form
+//! "the gradient of a height change `ζ` that is 0 outside `S`" is wanted: added to the image's
+//! own gradients it leaves the image exactly as integrable as it was, and the border of `S` at
+//! the unedited image's height.
 //!
-//! 1. **Height.** `ζ` minimises `Σ (D ζ − e)²` over the edges with at least one end in `S`
-//!    (`e` the averaged edge values of `δ`), with `ζ = 0` on every pixel outside `S`: the
-//!    Poisson equation on `S` with a Dirichlet boundary (the base's height, unchanged) on its
-//!    border and the natural Neumann boundary where `S` meets the image's edge. When `S` is the
-//!    whole image there is no border to hold: the plain least squares of the module docs (DCT
-//!    solver), whose free constant changes no gradient.
-//! 2. **Samples.** Along each row (for `p`) and column (for `q`), on each run of `S`, the
-//!    samples `s` whose averaged edges are the differences of `ζ`, the samples just outside the
-//!    run held at 0: `½(s_k + s_{k+1}) = ζ_{k+1} − ζ_k` on every edge that touches the run. A
-//!    run held at one end or both has as many or one more equations than samples: `s` is their
-//!    least-squares solution (tridiagonal normal equations). A run from image edge to image edge
-//!    has one equation fewer: `s` is the solution closest to `δ` (as the unmasked projection
-//!    of [`super::gradients_of_height`]).
-//!
-//! With the whole image as support the result's edge values are exactly `D ζ` added to the
-//! image's own: the image plus the change is then as integrable as the image was. A run held
-//! at both ends has one equation more than samples: `s` meets the edges exactly when the
-//! alternating sum of `D ζ` along the run vanishes (the averaged model cannot make a sample
-//! pattern whose edge values alternate), and otherwise leaves that alternating part as the
-//! residual, which is small where the change fades out towards the border (a weight that
-//! falls to 0 there).
+//! - **Without a border** (`S` is the whole image): the least squares of the module docs of
+//!   [`super`] in the averaged edge model (DCT solver, Neumann at the image's edge), and the
+//!   samples closest to `δ` whose averaged edges are `ζ`'s differences
+//!   ([`super::gradients_of_height`]). Exactly integrable; the free constant changes nothing.
+//! - **With a border**, in the averaged model a held border cannot be met by pixel samples:
+//!   along a row, samples whose neighbours outside are fixed have one equation more than
+//!   unknowns, and the leftover is an alternating pattern along the whole row (a visible
+//!   streak). So `ζ` lives at the **pixel corners**, as the pen's integrable mode and the
+//!   analytic surfaces make their relief ([`GradientField::from_corner_heights`]): a pixel's
+//!   change is the 2 × 2 difference of its corners, `p = ½(ζ_tr − ζ_tl + ζ_br − ζ_bl)`,
+//!   `q = ½(ζ_tl − ζ_bl + ζ_tr − ζ_br)` (y up), exactly integrable in the averaged model
+//!   whatever the corners. A corner is free when every pixel around it is in `S`, else held
+//!   at 0, so every pixel outside `S` keeps its samples exactly. The corners minimise
+//!   `Σ_{i ∈ S} |G ζ(i) − δ_i|²`, the distance in the samples themselves. With
+//!   `u = p + q`, `v = p − q` a pixel's term is `½[(ζ_tr − ζ_bl − u)² + (ζ_br − ζ_tl − v)²]`:
+//!   differences along the two diagonals. The corners of even and of odd `X + R` never meet,
+//!   so these are two independent Poisson problems, each a 5-point Laplacian on a grid turned
+//!   by 45° (corner `(X, R)` ↦ column `(X + R)/2`, row `(X − R)/2` shifted), with a Dirichlet
+//!   boundary at the held corners and Neumann at the image's edge. (Their null space — the
+//!   corners' checkerboard — gives no samples, so it does not matter.)
 //!
 //! # The solver
 //!
-//! Conjugate gradients on the Dirichlet Laplacian of `S`, preconditioned by one V-cycle of the
-//! multigrid of [`super::edges`] built on the edges that touch `S`, with the pixels outside `S`
-//! inert on the finest level (held at 0 by its Gauss–Seidel sweeps, as the boundary is), and
-//! `f64` Krylov vectors.
+//! Conjugate gradients on each Dirichlet Laplacian, preconditioned by one V-cycle of the
+//! multigrid of [`super::edges`] built on its edges, with the held nodes inert on the finest
+//! level (kept at 0 by its Gauss–Seidel sweeps, as the boundary is), and `f64` Krylov vectors.
 
-use super::edges::par_rows;
 use super::multigrid::Multigrid;
 use super::{gradients_of_height, integrate_gradients, IntegrateParams, IntegrationMethod};
 use crate::error::RgbnError;
@@ -119,11 +117,12 @@ pub fn project_in_support(
             relative_residual: 0.0,
         });
     }
-    let (z, iterations, relative_residual) = dirichlet_height(delta, support, params)?;
-    let change = held_samples(&z, support, delta);
+    let (zc, iterations, relative_residual) = held_corners(delta, support, params)?;
+    let (mut change, height) = GradientField::from_corner_heights(w, h, &zc);
+    change.clamped = 0;
     Ok(SupportProjection {
         change,
-        height: Plane::from_vec(w, h, z.iter().map(|&v| v as f32).collect())?,
+        height,
         held: true,
         iterations,
         relative_residual,
@@ -187,60 +186,129 @@ pub fn integrable_edit(
     Ok((edited.with_normals(normal)?, proj))
 }
 
-/// Step 1 with a border: `ζ` on the support, 0 outside (module docs).
-fn dirichlet_height(
+/// The held case (module docs): the corner heights, `(W + 1) × (H + 1)` row-major (0 at the
+/// held corners), the larger iteration count of the two sublattices and the larger relative
+/// residual.
+fn held_corners(
     delta: &GradientField,
     support: &[bool],
     params: &IntegrateParams,
 ) -> Result<(Vec<f64>, u32, f64), RgbnError> {
     let (w, h) = (delta.width, delta.height);
-    let n = w * h;
-    let e = delta.edge_values(Differences::Averaged);
-    // Edges with at least one end in the support, weight 1.
-    let wx: Vec<f32> = par_rows(w, h, |r, out: &mut [f32]| {
-        for (x, o) in out.iter_mut().enumerate() {
-            let i = r * w + x;
-            *o = f32::from(u8::from(x + 1 < w && (support[i] || support[i + 1])));
-        }
-    });
-    let wy: Vec<f32> = par_rows(w, h, |r, out: &mut [f32]| {
-        if r + 1 < h {
-            for (x, o) in out.iter_mut().enumerate() {
+    let cw = w + 1;
+    let mut zc = vec![0.0f64; cw * (h + 1)];
+    let ins = |x: usize, r: usize| support[r * w + x];
+    // A corner is free when every pixel around it (those that exist) is in the support.
+    let free_corner = |cx: usize, cr: usize| {
+        let (x0, x1) = (cx.saturating_sub(1), cx.min(w - 1));
+        let (r0, r1) = (cr.saturating_sub(1), cr.min(h - 1));
+        (r0..=r1).all(|r| (x0..=x1).all(|x| ins(x, r)))
+    };
+    // The turned grid of one parity: corner (X, R) with X + R ≡ parity ↦ column (X + R)/2,
+    // row (X − R + H + 1 − shift)/2; both diagonal neighbours are one step along an axis.
+    let (gw, gh) = ((w + h) / 2 + 2, (w + h) / 2 + 2);
+    let (mut iterations, mut residual) = (0u32, 0.0f64);
+    for parity in 0..2 {
+        let shift = (parity + h + 1) % 2;
+        let map = |cx: usize, cr: usize| -> usize {
+            let a = (cx + cr - parity) / 2;
+            let b = (cx + h + 1 - cr - shift) / 2;
+            b * gw + a
+        };
+        let n = gw * gh;
+        let (mut wx, mut ex) = (vec![0.0f32; n], vec![0.0f64; n]);
+        let (mut wy, mut ey) = (vec![0.0f32; n], vec![0.0f64; n]);
+        let mut corner_of = vec![usize::MAX; n];
+        let mut free = vec![false; n];
+        for r in 0..h {
+            for x in 0..w {
+                if !ins(x, r) {
+                    continue;
+                }
                 let i = r * w + x;
-                *o = f32::from(u8::from(support[i] || support[i + w]));
+                let (p, q) = (f64::from(delta.p[i]), f64::from(delta.q[i]));
+                let mut touch = |cx: usize, cr: usize| {
+                    let m = map(cx, cr);
+                    corner_of[m] = cr * cw + cx;
+                    free[m] = free_corner(cx, cr);
+                    m
+                };
+                if (x + r) % 2 == parity {
+                    // tl → br: one step along the turned grid's columns, target v = p − q.
+                    let m = touch(x, r);
+                    touch(x + 1, r + 1);
+                    wx[m] = 1.0;
+                    ex[m] = p - q;
+                } else {
+                    // bl → tr: one step along its rows, target u = p + q.
+                    let m = touch(x, r + 1);
+                    touch(x + 1, r);
+                    wy[m] = 1.0;
+                    ey[m] = p + q;
+                }
             }
         }
-    });
-    // Targets: z[i+1] − z[i] = e_p(i); z[i+w] − z[i] = −e_q(i+w) (module docs of `super`).
-    let ex = |i: usize| f64::from(e.p[i]);
-    let ey = |i: usize| -f64::from(e.q[i + w]);
+        let (z, it, res) = solve_held(gw, gh, wx, &ex, wy, &ey, &free, params)?;
+        iterations = iterations.max(it);
+        residual = residual.max(res);
+        for (m, &c) in corner_of.iter().enumerate() {
+            if c != usize::MAX && free[m] {
+                zc[c] = z[m];
+            }
+        }
+    }
+    Ok((zc, iterations, residual))
+}
+
+/// Minimises `Σ wx_i (z_{i+1} − z_i − ex_i)² + Σ wy_i (z_{i+w} − z_i − ey_i)²` (weights 0 or 1,
+/// row-major `w × h`, as [`super::edges`]) over the `free` nodes, every other node held at 0:
+/// conjugate gradients preconditioned by the multigrid with the held nodes inert (module
+/// docs). Returns `z` (0 at held nodes), the iterations and the final relative residual.
+#[allow(clippy::too_many_arguments)]
+fn solve_held(
+    w: usize,
+    h: usize,
+    wx: Vec<f32>,
+    ex: &[f64],
+    wy: Vec<f32>,
+    ey: &[f64],
+    free: &[bool],
+    params: &IntegrateParams,
+) -> Result<(Vec<f64>, u32, f64), RgbnError> {
+    let n = w * h;
     let b: Vec<f64> = (0..n)
         .into_par_iter()
         .map(|i| {
-            if !support[i] {
+            if !free[i] {
                 return 0.0;
             }
             let (x, r) = (i % w, i / w);
             let mut s = 0.0;
             if x >= 1 && wx[i - 1] > 0.0 {
-                s += ex(i - 1);
+                s += ex[i - 1];
             }
             if x + 1 < w && wx[i] > 0.0 {
-                s -= ex(i);
+                s -= ex[i];
             }
             if r >= 1 && wy[i - w] > 0.0 {
-                s += ey(i - w);
+                s += ey[i - w];
             }
             if r + 1 < h && wy[i] > 0.0 {
-                s -= ey(i);
+                s -= ey[i];
             }
             s
         })
         .collect();
-    // (L z)_i = Σ over the edges touching i of (z_i − z_j), z_j = 0 outside the support.
+    if let Some(i) = b.iter().position(|v| !v.is_finite()) {
+        return Err(RgbnError::param(
+            "support",
+            format!("the change near turned-grid node {i} is not finite"),
+        ));
+    }
+    // (L z)_i = Σ over the edges at i of (z_i − z_j), z_j = 0 at held nodes.
     let apply = |z: &[f64], out: &mut [f64]| {
         out.par_iter_mut().enumerate().for_each(|(i, o)| {
-            if !support[i] {
+            if !free[i] {
                 *o = 0.0;
                 return;
             }
@@ -249,7 +317,7 @@ fn dirichlet_height(
             let mut s = 0.0;
             let mut edge = |wt: f32, j: usize| {
                 if wt > 0.0 {
-                    s += zi - if support[j] { z[j] } else { 0.0 };
+                    s += zi - if free[j] { z[j] } else { 0.0 };
                 }
             };
             if x >= 1 {
@@ -267,28 +335,28 @@ fn dirichlet_height(
             *o = s;
         });
     };
-    let mut mg = Multigrid::new(w, h, wx.clone(), wy.clone());
-    // The pixels outside the support are the boundary: inert (kept at 0) on the finest level.
-    mg.levels[0]
-        .inv_diag
-        .par_iter_mut()
-        .zip(support.par_iter())
-        .for_each(|(d, &s)| {
-            if !s {
-                *d = 0.0;
-            }
-        });
     let dot = |a: &[f64], b: &[f64]| a.par_iter().zip(b).map(|(x, y)| x * y).sum::<f64>();
     let b_norm = dot(&b, &b).sqrt();
     let mut z = vec![0.0f64; n];
     if b_norm == 0.0 {
         return Ok((z, 0, 0.0));
     }
+    let mut mg = Multigrid::new(w, h, wx.clone(), wy.clone());
+    // The held nodes are the boundary: inert (kept at 0) on the finest level.
+    mg.levels[0]
+        .inv_diag
+        .par_iter_mut()
+        .zip(free.par_iter())
+        .for_each(|(d, &f)| {
+            if !f {
+                *d = 0.0;
+            }
+        });
     let precondition = |mg: &mut Multigrid, r: &[f64], out: &mut Vec<f64>| {
         mg.apply(r);
         out.par_iter_mut()
-            .zip(mg.levels[0].x.par_iter().zip(support.par_iter()))
-            .for_each(|(o, (&v, &s))| *o = if s { f64::from(v) } else { 0.0 });
+            .zip(mg.levels[0].x.par_iter().zip(free.par_iter()))
+            .for_each(|(o, (&v, &f))| *o = if f { f64::from(v) } else { 0.0 });
     };
     let mut r = b.clone();
     let mut y = vec![0.0f64; n];
@@ -324,129 +392,6 @@ fn dirichlet_height(
     Ok((z, iterations, res.sqrt() / b_norm))
 }
 
-/// Step 2 with a border: per run of the support, the samples whose averaged edges are the
-/// differences of `z`, held at 0 just outside the run (module docs); `fallback` (the change)
-/// where a run spans the whole line.
-fn held_samples(z: &[f64], support: &[bool], fallback: &GradientField) -> GradientField {
-    let (w, h) = (fallback.width, fallback.height);
-    let mut out = GradientField::zeros(w, h);
-    out.p.par_chunks_mut(w.max(1)).enumerate().for_each(|(r, pr)| {
-        let o = r * w;
-        held_line(
-            w,
-            |k| support[o + k],
-            |k| z[o + k + 1] - z[o + k],
-            |k| f64::from(fallback.p[o + k]),
-            |k, v| pr[k] = v,
-        );
-    });
-    // Columns top to bottom: edge k → k+1 is z(k) − z(k+1) = ½(q(k) + q(k+1)).
-    let cols: Vec<Vec<f32>> = (0..w)
-        .into_par_iter()
-        .map(|x| {
-            let mut col = vec![0.0f32; h];
-            held_line(
-                h,
-                |k| support[k * w + x],
-                |k| z[k * w + x] - z[(k + 1) * w + x],
-                |k| f64::from(fallback.q[k * w + x]),
-                |k, v| col[k] = v,
-            );
-            col
-        })
-        .collect();
-    out.q.par_chunks_mut(w.max(1)).enumerate().for_each(|(r, qr)| {
-        for (o, col) in qr.iter_mut().zip(&cols) {
-            *o = col[r];
-        }
-    });
-    out
-}
-
-/// One line of [`held_samples`]: `len` samples, membership `ins`, edge targets `dz(k)` for the
-/// edge `k → k+1`, fallback samples `f`; writes the support's samples through `out` (0
-/// elsewhere).
-fn held_line(
-    len: usize,
-    ins: impl Fn(usize) -> bool,
-    dz: impl Fn(usize) -> f64,
-    f: impl Fn(usize) -> f64,
-    mut out: impl FnMut(usize, f32),
-) {
-    let mut k = 0;
-    let (mut diag, mut rhs) = (Vec::new(), Vec::new());
-    while k < len {
-        if !ins(k) {
-            out(k, 0.0);
-            k += 1;
-            continue;
-        }
-        let a = k;
-        while k < len && ins(k) {
-            k += 1;
-        }
-        let b = k - 1;
-        let n = b - a + 1;
-        if a == 0 && b == len - 1 {
-            // From image edge to image edge: n − 1 equations, the solution closest to f
-            // (s = f + Aᵀ y, A Aᵀ y = d − A f with A Aᵀ = tridiag(¼, ½, ¼)).
-            if n == 1 {
-                out(a, f(a) as f32);
-                continue;
-            }
-            let m = n - 1;
-            diag.clear();
-            rhs.clear();
-            diag.resize(m, 2.0);
-            rhs.extend((0..m).map(|j| 4.0 * (dz(a + j) - 0.5 * (f(a + j) + f(a + j + 1)))));
-            let y = solve_tridiagonal(&mut diag, &mut rhs);
-            for j in 0..n {
-                let left = if j >= 1 { y[j - 1] } else { 0.0 };
-                let right = if j < m { y[j] } else { 0.0 };
-                out(a + j, (f(a + j) + 0.5 * (left + right)) as f32);
-            }
-            continue;
-        }
-        // Held at one end or both: the least-squares samples, (AᵀA) s = Aᵀ d, scaled by 4:
-        // diagonal = the number of edges touching the sample, off-diagonal 1, right-hand side
-        // 2 × the sum of those edges' targets.
-        diag.clear();
-        rhs.clear();
-        for j in a..=b {
-            let (left, right) = (j >= 1, j + 1 < len);
-            diag.push(f64::from(u8::from(left)) + f64::from(u8::from(right)));
-            let mut s = 0.0;
-            if left {
-                s += dz(j - 1);
-            }
-            if right {
-                s += dz(j);
-            }
-            rhs.push(2.0 * s);
-        }
-        let s = solve_tridiagonal(&mut diag, &mut rhs);
-        for (j, v) in s.iter().enumerate() {
-            out(a + j, *v as f32);
-        }
-    }
-}
-
-/// Solves the symmetric tridiagonal system with diagonal `diag` and every off-diagonal 1
-/// (positive definite) for `rhs` in place (Thomas); returns the solution (in `rhs`).
-fn solve_tridiagonal<'a>(diag: &mut [f64], rhs: &'a mut [f64]) -> &'a [f64] {
-    let m = diag.len();
-    for j in 1..m {
-        let c = 1.0 / diag[j - 1];
-        diag[j] -= c;
-        rhs[j] -= c * rhs[j - 1];
-    }
-    for j in (0..m).rev() {
-        let next = if j + 1 < m { rhs[j + 1] } else { 0.0 };
-        rhs[j] = (rhs[j] - next) / diag[j];
-    }
-    rhs
-}
-
 #[cfg(test)]
 mod tests {
     use super::super::non_integrable_fraction;
@@ -480,39 +425,19 @@ mod tests {
             .collect()
     }
 
-    /// The tridiagonal solve against a dense elimination.
-    #[test]
-    fn the_tridiagonal_solve_solves() {
-        let diag0 = [2.0, 2.0, 1.0, 2.0, 1.0];
-        let rhs0 = [1.0, -2.0, 0.5, 3.0, -1.0];
-        let (mut d, mut r) = (diag0, rhs0);
-        let s = solve_tridiagonal(&mut d, &mut r).to_vec();
-        for j in 0..5 {
-            let mut v = diag0[j] * s[j];
-            if j >= 1 {
-                v += s[j - 1];
-            }
-            if j + 1 < 5 {
-                v += s[j + 1];
-            }
-            assert!((v - rhs0[j]).abs() < 1e-12, "{j}: {v} vs {}", rhs0[j]);
-        }
-    }
-
-    /// A change that is already the gradient of a height vanishing outside the support comes
-    /// back unchanged (to rounding), with its height: the projection keeps what is already a
-    /// held surface.
+    /// A change that is already the gradient of a corner height vanishing outside the support
+    /// comes back unchanged (to rounding), with its height: the projection keeps what is
+    /// already a held surface.
     #[test]
     fn a_held_surface_change_is_kept() {
         let (w, h) = (72, 64);
         let support = disc(w, h, 34.0, 30.0, 24.0);
-        // A bump that is 0 (to 1e-9) well inside the disc's border: its samples vanish on the
-        // border runs' held ends.
-        let z = Plane::from_fn(w, h, |x, r| {
-            let (u, v) = (x as f64 - 34.0, r as f64 - 30.0);
-            (2.0 * (-(u * u + v * v) / 30.0).exp()) as f32
+        // A bump at the pixel corners, 0 (to 1e-8) well inside the disc's border.
+        let zc = crate::raster::gradient::corner_samples(w, h, |x, r| {
+            let (u, v) = (x as f64 - 0.5 - 34.0, r as f64 - 0.5 - 30.0);
+            2.0 * (-(u * u + v * v) / 30.0).exp()
         });
-        let g = gradients_of_height(&z, None, None, Differences::Averaged);
+        let (g, z) = GradientField::from_corner_heights(w, h, &zc);
         let delta = GradientField {
             p: g.p.iter().zip(&support).map(|(v, &s)| if s { *v } else { 0.0 }).collect(),
             q: g.q.iter().zip(&support).map(|(v, &s)| if s { *v } else { 0.0 }).collect(),
@@ -520,16 +445,19 @@ mod tests {
         };
         let out = project_in_support(&delta, &support, &IntegrateParams::default()).unwrap();
         assert!(out.held);
-        eprintln!("held surface: {} iterations, residual {:.1e}", out.iterations, out.relative_residual);
+        eprintln!(
+            "held surface: {} iterations, residual {:.1e}",
+            out.iterations, out.relative_residual
+        );
         assert!(out.relative_residual <= 1e-6);
         let worst = (0..w * h)
             .map(|i| (out.change.p[i] - delta.p[i]).abs().max((out.change.q[i] - delta.q[i]).abs()))
             .fold(0.0f32, f32::max);
-        assert!(worst < 1e-4, "{worst}");
+        assert!(worst < 1e-5, "{worst}");
         let dz = (0..w * h)
             .map(|i| (out.height.data()[i] - if support[i] { z.data()[i] } else { 0.0 }).abs())
             .fold(0.0f32, f32::max);
-        assert!(dz < 1e-4, "{dz}");
+        assert!(dz < 1e-5, "{dz}");
     }
 
     /// A vortex (no height at all) added to a held surface change inside a disc: the projection
@@ -573,7 +501,7 @@ mod tests {
             out.iterations
         );
         assert!(f_before > 0.05, "{f_before}");
-        assert!(f_after < 2e-3 && f_after < f_before / 50.0, "{f_after}");
+        assert!(f_after < 1e-4, "{f_after}");
         // The surface part survives: the result is close to it, not to zero.
         let rms = |a: &GradientField, b: &GradientField| {
             let s: f64 = (0..w * h)
@@ -585,6 +513,37 @@ mod tests {
         let (to_clean, size) = (rms(&out.change, &clean), rms(&clean, &zero));
         eprintln!("RMS from the surface part {to_clean:.3e} (its size {size:.3e})");
         assert!(to_clean < 0.2 * size, "{to_clean} vs {size}");
+    }
+
+    /// A change that does not fade out at the border (a constant tilt inside a disc) becomes
+    /// a smooth held cap: no alternating pattern along rows or columns, which a per-row
+    /// reconstruction in the averaged model would leave (module docs). Second differences
+    /// of the change inside the disc stay far below its size.
+    #[test]
+    fn a_held_change_has_no_streaks() {
+        let (w, h) = (72, 64);
+        let support = disc(w, h, 36.0, 32.0, 24.0);
+        let delta = GradientField {
+            p: support.iter().map(|&s| if s { 0.3 } else { 0.0 }).collect(),
+            q: vec![0.0; w * h],
+            ..GradientField::zeros(w, h)
+        };
+        let out = project_in_support(&delta, &support, &IntegrateParams::default()).unwrap();
+        let inner = disc(w, h, 36.0, 32.0, 21.0);
+        let mut worst = 0.0f32;
+        for r in 0..h {
+            for x in 0..w - 2 {
+                let i = r * w + x;
+                if inner[i] && inner[i + 1] && inner[i + 2] {
+                    for c in [&out.change.p, &out.change.q] {
+                        worst = worst.max((c[i] - 2.0 * c[i + 1] + c[i + 2]).abs());
+                    }
+                }
+            }
+        }
+        eprintln!("held tilt: largest second difference along rows {worst:.2e} (change 0.3)");
+        assert!(worst < 0.03, "{worst}");
+        assert!(non_integrable_fraction(&out.change, None).unwrap() < 1e-5);
     }
 
     /// Without a border (the whole image as support) the projection is the plain least
