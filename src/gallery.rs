@@ -80,8 +80,8 @@ pub const FIGURES: &[Figure] = &[
         number: 2,
         stem: "fig02_highpass",
         rows: &[Row {
-            label: "the demo → high-passed",
-            before: 1,
+            label: "the demo's relief on grey → high-passed",
+            before: 6,
             after: 2,
         }],
         rms: &[],
@@ -661,6 +661,16 @@ fn stored_pictures(dir: &Path) -> Vec<String> {
 /// # Errors
 /// A page without a block that `g` has, or a file that cannot be written.
 pub fn write(root: &Path, g: &Gallery) -> Result<Vec<String>, GalleryError> {
+    // The page first: a page without a block the gallery fills changes nothing.
+    let path = page_path(root);
+    let text = std::fs::read_to_string(&path).map_err(|e| GalleryError::Page {
+        detail: format!("cannot read the gallery page ({e})"),
+        path: path.clone(),
+    })?;
+    let new = updated_page(&text, g).map_err(|detail| GalleryError::Page {
+        detail,
+        path: path.clone(),
+    })?;
     let dir = pictures_dir(root);
     std::fs::create_dir_all(&dir).map_err(|e| GalleryError::Page {
         detail: format!("cannot create the folder ({e})"),
@@ -681,15 +691,6 @@ pub fn write(root: &Path, g: &Gallery) -> Result<Vec<String>, GalleryError> {
             done.push(format!("removed docs/gallery/{file}"));
         }
     }
-    let path = page_path(root);
-    let text = std::fs::read_to_string(&path).map_err(|e| GalleryError::Page {
-        detail: format!("cannot read the gallery page ({e})"),
-        path: path.clone(),
-    })?;
-    let new = updated_page(&text, g).map_err(|detail| GalleryError::Page {
-        detail,
-        path: path.clone(),
-    })?;
     if new != text {
         crate::raster::io::write_atomic(&path, |out| {
             use std::io::Write as _;
