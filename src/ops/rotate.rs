@@ -60,9 +60,9 @@
 //! lets the detail act, plus any pixel the combine changed: the change of the slopes is
 //! projected onto the gradients of height changes that are 0 outside the support (a Poisson
 //! equation on the support with the border held at the unedited image's height, see
-//! [`crate::raster::integrate::project_in_support`]). Outside the support nothing changes;
-//! the result is then as integrable as the unedited image (exactly when the support is the
-//! whole image; up to a small residual on rows and columns cut by the support at both ends).
+//! [`crate::raster::integrate::project_in_support`]; with a border, the height change lives
+//! at the pixel corners, so the held border is met exactly). Outside the support nothing
+//! changes, and the result is exactly as integrable as the unedited image.
 //!
 //! # References
 //! - T. Pereira, L. Velho, "RGBN image editing", SIBGRAPI 2011, §VII.
