@@ -18,6 +18,7 @@
 //! - [`graph`]: graphs of nodes, the versioned RON file format, validation.
 //! - [`eval`]: the lazy, content-keyed, cached evaluator.
 //! - [`render`]: relighting and the diagnostic views.
+//! - [`gallery`]: the paper's figures as graphs, their pictures and numbers (`docs/gallery.md`).
 //! - [`cli`]: the command line (used by the `rgbn` binary).
 //! - [`recycle`]: the global allocator the binary installs (reuses image-sized blocks).
 //! - `app` (feature `gui`): the egui editor, the only module that uses egui.
@@ -30,7 +31,7 @@
 //! listed before it (`tests/it/layers.rs` checks every `crate::` path in `src/` against it):
 //!
 //! ```text
-//! layers: error test_data recycle params raster capture render ops nodes graph eval app cli
+//! layers: error test_data recycle params raster capture render ops nodes graph eval gallery app cli
 //! ```
 
 #[cfg(feature = "gui")]
@@ -39,6 +40,7 @@ pub mod capture;
 pub mod cli;
 pub mod error;
 pub mod eval;
+pub mod gallery;
 pub mod graph;
 pub mod nodes;
 pub mod ops;

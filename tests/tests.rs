@@ -11,6 +11,9 @@ mod real_data;
 #[path = "it/graphs.rs"]
 mod graphs;
 
+#[path = "it/gallery.rs"]
+mod gallery;
+
 #[path = "it/golden.rs"]
 mod golden;
 

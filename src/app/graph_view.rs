@@ -485,7 +485,7 @@ impl SnarlViewer<NodeId> for Viewer<'_, '_> {
             }
             if let Some(f) = self.data.fraction.get(&id) {
                 ui.label(RichText::new(format!("F {f:.2e}")).small().weak())
-                    .on_hover_text("Non-integrable fraction of this node's normals: 0 for a surface, ≈ 0.8 for noise");
+                    .on_hover_text("Non-integrable fraction of this node's normals: 0 for a surface, √(2/π) ≈ 0.80 for noise");
             }
             if let Some(e) = self.data.errors.get(&id) {
                 ui.set_min_width(170.0);

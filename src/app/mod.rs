@@ -532,7 +532,7 @@ impl EditorApp {
                 )),
                 None => ui.label("F —"),
             }
-            .on_hover_text("Integrability of the viewed node's normals. F: the non-integrable fraction ‖e − ∇z*‖/‖e‖ of its edge slopes (z* the least-squares height): 0 for a surface, ≈ 0.8 for noise. curl: RMS(curl)/RMS(|gradient|).");
+            .on_hover_text("Integrability of the viewed node's normals. F: the non-integrable fraction ‖e − ∇z*‖/‖e‖ of its edge slopes (z* the least-squares height): 0 for a surface, √(2/π) ≈ 0.80 for noise. curl: RMS(curl)/RMS(|gradient|).");
             ui.separator();
             if let Some((_, Some((_, level)))) =
                 self.preview.overlay_request().map(|r| (r, r.region))

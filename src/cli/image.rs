@@ -345,7 +345,7 @@ pub(super) fn info(a: &InfoArgs, out: &mut Out<'_>) -> Result<(), CliError> {
     ))?;
     let [as_read, flipped] = green_convention_fractions(&img)?;
     out.line(format_args!(
-        "integrability: non-integrable fraction F = {as_read:.3e} (0: the normals of a surface; ≈ 0.8: noise)"
+        "integrability: non-integrable fraction F = {as_read:.3e} (0: the normals of a surface; √(2/π) ≈ 0.80: noise)"
     ))?;
     let (this, other) = if a.input.dx {
         ("DirectX (-y)", "OpenGL (+y)")

@@ -333,7 +333,7 @@ pub struct NodeStats {
     pub bytes: usize,
     /// Relative RMS curl of the RGBN output, when measured.
     pub curl: Option<f64>,
-    /// Non-integrable fraction F of the RGBN output (0: a surface; ≈ 0.8: noise), when
+    /// Non-integrable fraction F of the RGBN output (0: a surface; √(2/π) ≈ 0.80: noise), when
     /// measured.
     pub fraction: Option<f64>,
     /// The node's content key.

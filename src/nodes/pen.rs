@@ -49,7 +49,8 @@ impl Operator for PenNode {
     }
     fn kind(p: &PenParams) -> Kind {
         let halo = match p.mode {
-            // Heights differentiated forward, gradients at staggered points: one pixel.
+            // Heights at the pixel corners around each pixel (integrable), gradients at the
+            // pixel centres (analytic): one pixel.
             PenMode::Integrable | PenMode::Analytic => 1,
             // Distances from the rasterised path matter up to the stroke's half width and taper.
             PenMode::DistanceTransform => (p.width_px / 2.0 + p.taper_px).ceil() as usize + 2,

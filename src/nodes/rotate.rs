@@ -43,13 +43,20 @@ impl Operator for RotationCombineNode {
             "combine.rotation",
             "Rotation combine",
             "combine",
-            "Expresses a detail normal in the tangent frame of a base normal (Pereira & Velho §VII), so the detail keeps its look on a tilted base; industry blends (RNM, UDN, whiteout, partial derivative) as modes. Nonlinear: the curl of the result is reported.",
+            "Expresses a detail normal in the tangent frame of a base normal (Pereira & Velho §VII), so the detail keeps its look on a tilted base; industry blends (RNM, UDN, whiteout, partial derivative) as modes. Nonlinear: the curl of the result is reported; integrable: true returns the nearest integrable result, changed only inside the edit's support.",
         )
+        // 2: the `integrable` option.
+        .version(2)
     }
     fn check(p: &RotateParams) -> Result<(), RgbnError> {
         p.validate()
     }
-    fn kind(_: &RotateParams) -> Kind {
+    fn kind(p: &RotateParams) -> Kind {
+        if p.integrable {
+            // The projection solves a Poisson equation over the edit's support: the inputs are
+            // needed whole, and (nonlinear) there is no coarse form.
+            return Kind::GLOBAL;
+        }
         // Per pixel, but nonlinear in the normals: the rotation of reduced normals is not the
         // reduced rotation, so no coarse form.
         Kind::Point {

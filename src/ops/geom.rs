@@ -675,6 +675,115 @@ pub fn paths_bounds(paths: &[&[[f64; 2]]], reach_px: f64) -> Option<[f64; 4]> {
     })
 }
 
+/// Where a closed path meets itself: segment `first` and segment `second` (segment `k` joins
+/// points `k` and `k + 1` of the path as given, the last one the last point and point 0;
+/// `first < second`) share the point `at`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SelfCrossing {
+    /// The lower-numbered segment.
+    pub first: usize,
+    /// The other segment.
+    pub second: usize,
+    /// A point both segments contain (pixels, `(x, row)`).
+    pub at: [f64; 2],
+}
+
+/// `(b − a) × (c − a)`: > 0 when `c` is to the left of `a → b` in `(x, row)` coordinates.
+fn orient(a: [f64; 2], b: [f64; 2], c: [f64; 2]) -> f64 {
+    (b[0] - a[0]) * (c[1] - a[1]) - (b[1] - a[1]) * (c[0] - a[0])
+}
+
+/// Whether `p`, collinear with `a → b`, lies within the segment's bounding box.
+fn within(a: [f64; 2], b: [f64; 2], p: [f64; 2]) -> bool {
+    p[0] >= a[0].min(b[0]) && p[0] <= a[0].max(b[0]) && p[1] >= a[1].min(b[1]) && p[1] <= a[1].max(b[1])
+}
+
+/// A point shared by segments `a → b` and `c → d`, if any (crossing, touching or overlapping).
+fn segments_meet(a: [f64; 2], b: [f64; 2], c: [f64; 2], d: [f64; 2]) -> Option<[f64; 2]> {
+    let (o1, o2) = (orient(a, b, c), orient(a, b, d));
+    let (o3, o4) = (orient(c, d, a), orient(c, d, b));
+    if ((o1 > 0.0 && o2 < 0.0) || (o1 < 0.0 && o2 > 0.0))
+        && ((o3 > 0.0 && o4 < 0.0) || (o3 < 0.0 && o4 > 0.0))
+    {
+        let t = o3 / (o3 - o4);
+        return Some([a[0] + t * (b[0] - a[0]), a[1] + t * (b[1] - a[1])]);
+    }
+    // Touching or collinear: an end of one segment on the other.
+    [
+        (o1, a, b, c),
+        (o2, a, b, d),
+        (o3, c, d, a),
+        (o4, c, d, b),
+    ]
+    .into_iter()
+    .find(|&(o, s, e, p)| o == 0.0 && within(s, e, p))
+    .map(|(_, _, _, p)| p)
+}
+
+/// The first place (lowest pair of segment numbers) where the closed path through `points`
+/// meets itself, or `None` for a simple closed path. Two segments that follow each other
+/// (zero-length segments of repeated points skipped) meet only if the second turns back along
+/// the first; any other two meet if they share any point — crossing, touching at a vertex, or
+/// overlapping. Paths with fewer than three distinct points are not checked (`None`).
+///
+/// Segments are swept in order of their leftmost `x`, so only pairs whose `x` ranges overlap
+/// are compared (about linear in the number of points for paths drawn by hand).
+#[must_use]
+pub fn closed_path_crossing(points: &[[f64; 2]]) -> Option<SelfCrossing> {
+    let n = points.len();
+    // Non-degenerate segments, in path order: (segment number, start, end).
+    let segs: Vec<(usize, [f64; 2], [f64; 2])> = (0..n)
+        .map(|k| (k, points[k], points[(k + 1) % n]))
+        .filter(|(_, a, b)| a != b)
+        .collect();
+    let m = segs.len();
+    if m < 3 {
+        return None;
+    }
+    let mut best: Option<SelfCrossing> = None;
+    let mut found = |i: usize, j: usize, at: [f64; 2]| {
+        let (first, second) = (segs[i.min(j)].0, segs[i.max(j)].0);
+        if best.is_none_or(|b| (first, second) < (b.first, b.second)) {
+            best = Some(SelfCrossing { first, second, at });
+        }
+    };
+    // Consecutive segments share the vertex between them: they meet elsewhere only when the
+    // second goes back along the first (collinear, opposite directions).
+    for i in 0..m {
+        let j = (i + 1) % m;
+        let (_, a, b) = segs[i];
+        let (_, _, d) = segs[j];
+        let (u, v) = ([b[0] - a[0], b[1] - a[1]], [d[0] - b[0], d[1] - b[1]]);
+        if u[0] * v[1] - u[1] * v[0] == 0.0 && u[0] * v[0] + u[1] * v[1] < 0.0 {
+            // The shorter of the two, measured from the shared vertex, lies on the other.
+            let short = if u[0].hypot(u[1]) < v[0].hypot(v[1]) { a } else { d };
+            found(i, j, short);
+        }
+    }
+    let lo = |s: &(usize, [f64; 2], [f64; 2])| s.1[0].min(s.2[0]);
+    let mut order: Vec<usize> = (0..m).collect();
+    order.sort_by(|&i, &j| lo(&segs[i]).total_cmp(&lo(&segs[j])));
+    for (k, &i) in order.iter().enumerate() {
+        let (_, a, b) = segs[i];
+        let (x_hi, y_lo, y_hi) = (a[0].max(b[0]), a[1].min(b[1]), a[1].max(b[1]));
+        for &j in &order[k + 1..] {
+            let (_, c, d) = segs[j];
+            if c[0].min(d[0]) > x_hi {
+                break;
+            }
+            let adjacent = (i + 1) % m == j || (j + 1) % m == i;
+            if adjacent || c[1].max(d[1]) < y_lo || c[1].min(d[1]) > y_hi {
+                continue;
+            }
+            if let Some(at) = segments_meet(a, b, c, d) {
+                found(i, j, at);
+            }
+        }
+    }
+    best
+}
+
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -731,5 +840,100 @@ mod tests {
             .map(|(a, b)| (a - mean - b).abs())
             .fold(0.0f32, f32::max);
         assert!(err < 1e-3, "{err}");
+    }
+
+    /// Brute force over every pair of segments: the reference for the sweep.
+    fn crossing_brute(points: &[[f64; 2]]) -> Option<(usize, usize)> {
+        let n = points.len();
+        let segs: Vec<(usize, [f64; 2], [f64; 2])> = (0..n)
+            .map(|k| (k, points[k], points[(k + 1) % n]))
+            .filter(|(_, a, b)| a != b)
+            .collect();
+        let m = segs.len();
+        if m < 3 {
+            return None;
+        }
+        for i in 0..m {
+            for j in i + 1..m {
+                let adjacent = j == i + 1 || (i == 0 && j == m - 1);
+                let (_, a, b) = segs[i];
+                let (_, c, d) = segs[j];
+                let meet = if adjacent {
+                    // Shared vertex; anything more is a turn back along the first.
+                    let (p, q, r) = if j == i + 1 { (a, b, d) } else { (c, d, b) };
+                    let (u, v) = ([q[0] - p[0], q[1] - p[1]], [r[0] - q[0], r[1] - q[1]]);
+                    u[0] * v[1] - u[1] * v[0] == 0.0 && u[0] * v[0] + u[1] * v[1] < 0.0
+                } else {
+                    segments_meet(a, b, c, d).is_some()
+                };
+                if meet {
+                    return Some((segs[i].0, segs[j].0));
+                }
+            }
+        }
+        None
+    }
+
+    #[test]
+    fn closed_path_crossings_are_found_with_their_segments() {
+        // A square: simple, in either direction, with a repeated point or the start repeated.
+        let square = [[10.0, 10.0], [50.0, 10.0], [50.0, 50.0], [10.0, 50.0]];
+        assert_eq!(closed_path_crossing(&square), None);
+        let mut rev = square;
+        rev.reverse();
+        assert_eq!(closed_path_crossing(&rev), None);
+        let dup = [square[0], square[1], square[1], square[2], square[3], square[0]];
+        assert_eq!(closed_path_crossing(&dup), None);
+        // A bow tie: segment 1 (points 1 → 2) crosses segment 3 (points 3 → 0) at (30, 30).
+        let bow = [[10.0, 10.0], [50.0, 10.0], [10.0, 50.0], [50.0, 50.0]];
+        let c = closed_path_crossing(&bow).unwrap();
+        assert_eq!((c.first, c.second), (1, 3));
+        assert!((c.at[0] - 30.0).abs() < 1e-12 && (c.at[1] - 30.0).abs() < 1e-12, "{c:?}");
+        // A vertex touching another segment (a figure eight pinched at a point).
+        let pinch = [[0.0, 0.0], [20.0, 0.0], [10.0, 10.0], [20.0, 20.0], [0.0, 20.0], [10.0, 10.0]];
+        let c = closed_path_crossing(&pinch).unwrap();
+        assert_eq!(c.at, [10.0, 10.0]);
+        // A spike: the path goes out and comes back along the same line.
+        let spike = [[0.0, 0.0], [20.0, 0.0], [20.0, 20.0], [20.0, 40.0], [20.0, 30.0], [0.0, 20.0]];
+        let c = closed_path_crossing(&spike).unwrap();
+        assert_eq!((c.first, c.second), (2, 3));
+        // Fewer than three distinct points: not a closed path, not checked here.
+        assert_eq!(closed_path_crossing(&[[0.0, 0.0], [5.0, 5.0], [0.0, 0.0]]), None);
+    }
+
+    #[test]
+    fn the_sweep_finds_a_crossing_exactly_when_brute_force_does() {
+        // Random polygons on a small integer grid (many touching and collinear cases).
+        let mut state = 12345u64;
+        let mut next = |k: u64| {
+            state = state
+                .wrapping_mul(6_364_136_223_846_793_005)
+                .wrapping_add(1_442_695_040_888_963_407);
+            ((state >> 33) % k) as f64
+        };
+        let (mut simple, mut crossing) = (0, 0);
+        for _ in 0..4000 {
+            let n = 3 + next(6) as usize;
+            let pts: Vec<[f64; 2]> = (0..n).map(|_| [next(6), next(6)]).collect();
+            let got = closed_path_crossing(&pts);
+            let want = crossing_brute(&pts);
+            assert_eq!(got.map(|c| (c.first, c.second)), want, "{pts:?}");
+            if let Some(c) = got {
+                crossing += 1;
+                // The reported point lies on both segments.
+                for k in [c.first, c.second] {
+                    let (a, b) = (pts[k], pts[(k + 1) % n]);
+                    assert!(orient(a, b, c.at).abs() < 1e-9 * 100.0, "{pts:?} {c:?}");
+                    let eps = 1e-9;
+                    assert!(
+                        c.at[0] >= a[0].min(b[0]) - eps && c.at[0] <= a[0].max(b[0]) + eps,
+                        "{pts:?} {c:?}"
+                    );
+                }
+            } else {
+                simple += 1;
+            }
+        }
+        assert!(simple > 100 && crossing > 100, "{simple} {crossing}");
     }
 }

@@ -6,7 +6,9 @@
 //!
 //! - `u = σ·|P − C| / (W/2) ∈ [−1, 1]` across the stroke, with `σ = +1` on the left of the
 //!   direction of travel (as seen on screen) for open paths, and `σ = +1` **inside** for closed
-//!   paths (even–odd rule);
+//!   paths (even–odd test; a closed path that crosses or touches itself is refused, naming the
+//!   two segments, since §VI's closed-curve argument holds for curves without
+//!   self-intersections);
 //! - `v` = arclength of `C` along the path (pixels).
 //!
 //! The height is `h(P) = f₀ + t(v)·(f(u) − f₀)` where `f₀ = f(−1)` is the level outside the
@@ -94,7 +96,7 @@
 //!   Computing 8 (2012).
 
 use super::geom::{
-    check_points, distance_transform, sample_gradient_centres, smoothstep, smoothstep_deriv,
+    check_points, closed_path_crossing, distance_transform, sample_gradient_centres, smoothstep, smoothstep_deriv,
     Polyline, SegmentGrid,
 };
 use crate::error::RgbnError;
@@ -231,10 +233,11 @@ impl Profile {
 crate::choice_enum! {
     /// How the stroke coordinates and the gradient are computed.
     pub enum PenMode {
-        /// Exact projections; the analytic height `h` is sampled at pixel centres and
-        /// differentiated with forward differences: integrable everywhere by construction (curl 0
-        /// to rounding, also on medial axes), gradient = `h′(u)∇u` up to the `O(h²)` midpoint
-        /// error of a forward difference.
+        /// Exact projections; the height `h` is evaluated at the pixel corners and each pixel's
+        /// gradient is the 2 × 2 (averaged) difference of its four corners
+        /// ([`GradientField::from_corner_heights`]): exactly a surface in the averaged edge
+        /// model (curl 0 to rounding everywhere, medial axes included), its height the corner
+        /// mean; the gradient equals `h′(u)∇u` up to the `O(h²)` error of that cell average.
         Integrable = "integrable",
         /// Exact projections, the analytic gradient `h′(u)∇u + …` sampled at the staggered points
         /// (curl `O(h²)` where `φ` is smooth, `O(1)` on medial-axis lines — which for a polyline
@@ -283,7 +286,7 @@ crate::params! {
     /// Parameters of [`pen_field`].
     #[derive(Clone, Debug, PartialEq)]
     pub struct PenParams {
-        /// Path vertices in pixels (x, row): ≥ 2 for an open path, ≥ 3 distinct for a closed one.
+        /// Path vertices in pixels (x, row): ≥ 2 for an open path, ≥ 3 distinct for a closed one, which must not cross or touch itself.
         pub points: Vec<[f64; 2]> = vec![[16.0, 16.0], [112.0, 112.0]] => points.unit("px"),
         /// Join the last point back to the first; the profile's inside is then the enclosed region.
         pub closed: bool = false => bool,
@@ -297,7 +300,7 @@ crate::params! {
         pub samples_px: Vec<f64> = vec![0.0, 1.0, 0.0] => profile.unit("px"),
         /// Length over which an open path's relief fades in and out at its ends.
         pub taper_px: f64 = 16.0 => float.unit("px").range(0.0, 10_000.0),
-        /// integrable: forward differences of the analytic height (curl 0); analytic: the analytic gradient (curl on medial axes); distance_transform: EDT of the rasterised path (integrable, no taper, no along-path variation).
+        /// integrable: the height at the pixel corners, each pixel's slope the averaged 2 × 2 difference of its corners (exactly a surface, curl 0); analytic: the analytic gradient at pixel centres (curl on medial axes); distance_transform: EDT of the rasterised path (integrable, no taper, no along-path variation).
         pub mode: PenMode = PenMode::Integrable => choice,
         /// Relief along the path (§VI normal textures: a stitched seam, beads, a knotted cord): factors at equally spaced points over one period, repeated along the path (periodic, linearly interpolated), multiplying the profile's relief; one value = the same relief all along.
         pub along: Vec<f64> = vec![1.0] => profile,
@@ -380,6 +383,29 @@ impl PenParams {
                 "points",
                 "a closed path needs at least 3 distinct points",
             ));
+        }
+        if self.closed {
+            let pts: Vec<[f64; 2]> = points.iter().map(|p| p.map(f64::from)).collect();
+            if let Some(c) = closed_path_crossing(&pts) {
+                let n = pts.len();
+                return Err(RgbnError::param(
+                    "points",
+                    format!(
+                        "the closed path crosses itself: segment {} (points {} → {}) meets \
+                         segment {} (points {} → {}) at ({:.1}, {:.1}); the inside of a closed \
+                         path is defined only when it does not cross itself (§VI): move the \
+                         points apart, or draw two paths",
+                        c.first,
+                        c.first,
+                        (c.first + 1) % n,
+                        c.second,
+                        c.second,
+                        (c.second + 1) % n,
+                        c.at[0],
+                        c.at[1]
+                    ),
+                ));
+            }
         }
         if !(width_px.is_finite() && width_px > 0.0 && width_px <= MAX_PEN_PX) {
             return Err(RgbnError::param(

@@ -554,7 +554,7 @@ fn curved_open_strokes_with_taper_are_integrable() {
             rel_a <= if smooth { 5e-2 } else { 0.5 },
             "{profile:?}: {rel_a:e}"
         );
-        // The two modes agree (the midpoint error of a forward difference).
+        // The two modes agree (the O(h²) error of the corner cell average).
         let n = size * size;
         let e: f64 = (0..n)
             .filter(|i| i % size < size - 1 && i / size > 0)
@@ -712,6 +712,50 @@ fn bad_params_are_refused_with_a_clear_message() {
         .unwrap_err()
         .to_string();
     assert!(e.contains("only valid on closed paths"), "{e}");
+}
+
+/// §VI's closed-curve argument holds for closed curves without self-intersections: a
+/// closed path that crosses itself is refused in every mode with one line naming the
+/// parameter and both segments; the same points as an open path, and a simple closed
+/// path, are accepted.
+#[test]
+fn closed_paths_that_cross_themselves_are_refused_naming_both_segments() {
+    let bow = vec![[10.0, 10.0], [50.0, 10.0], [10.0, 50.0], [50.0, 50.0]];
+    for mode in [
+        PenMode::Integrable,
+        PenMode::Analytic,
+        PenMode::DistanceTransform,
+    ] {
+        let p = PenParams {
+            points: bow.clone(),
+            closed: true,
+            mode,
+            ..PenParams::default()
+        }
+        .with_profile(&Profile::Step { height_px: 2.0 });
+        let e = pen_field(64, 64, &p).unwrap_err().to_string();
+        assert!(!e.contains('\n'), "{e}");
+        assert!(
+            e.contains("invalid parameter points")
+                && e.contains("segment 1 (points 1 → 2)")
+                && e.contains("segment 3 (points 3 → 0)")
+                && e.contains("(30.0, 30.0)"),
+            "{mode:?}: {e}"
+        );
+    }
+    let open = PenParams {
+        points: bow.clone(),
+        closed: false,
+        ..PenParams::default()
+    };
+    assert!(open.validate().is_ok());
+    let square = PenParams {
+        points: vec![[10.0, 10.0], [50.0, 10.0], [50.0, 50.0], [10.0, 50.0]],
+        closed: true,
+        ..PenParams::default()
+    }
+    .with_profile(&Profile::Step { height_px: 2.0 });
+    assert!(square.validate().is_ok());
 }
 
 proptest::proptest! {

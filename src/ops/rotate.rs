@@ -50,6 +50,20 @@
 //! (a rotated `a` already near the horizon), the result (arc from `a`); the industry blends
 //! saturate their result (arc from `n`).
 //!
+//! # Integrable
+//!
+//! None of these modes gives the normals of a surface in general (§VII controls the nonlinear
+//! combine's integrability with a two-band split only: the smooth band is left alone and the
+//! detail is small). With `integrable` on, the result is replaced by the nearest integrable
+//! field that differs from the unedited image (the `existing` input for the §VII modes, the
+//! base for the industry blends) only inside the edit's *support* — the pixels whose weight
+//! lets the detail act, plus any pixel the combine changed: the change of the slopes is
+//! projected onto the gradients of height changes that are 0 outside the support (a Poisson
+//! equation on the support with the border held at the unedited image's height, see
+//! [`crate::raster::integrate::project_in_support`]; with a border, the height change lives
+//! at the pixel corners, so the held border is met exactly). Outside the support nothing
+//! changes, and the result is exactly as integrable as the unedited image.
+//!
 //! # References
 //! - T. Pereira, L. Velho, "RGBN image editing", SIBGRAPI 2011, §VII.
 //! - C. Barré-Brisebois, S. Hill, "Blending in Detail", 2012
@@ -60,6 +74,7 @@
 use crate::error::RgbnError;
 use crate::raster::buf;
 use crate::raster::gradient::{CurlStats, GradientField};
+use crate::raster::integrate::{integrable_edit, IntegrateParams};
 use crate::raster::{Plane, RgbnImage};
 use rayon::prelude::*;
 
@@ -305,6 +320,8 @@ crate::params! {
         pub saturate: bool = true => bool,
         /// Saturation threshold on n_z.
         pub min_z: f64 = f64::from(0.05f32) => float.range(0.0, 0.999),
+        /// Return the nearest integrable result instead (§VII: a nonlinear combine is not a surface's normals): the change of the slopes is made the gradient of a height change that is 0 outside the edit's support (pixels of weight > 0, or changed), the support's border held at the unedited image's height (module docs, "Integrable").
+        pub integrable: bool = false => bool,
     }
 }
 
@@ -543,6 +560,9 @@ pub struct RotateReport {
     pub saturated: usize,
     /// Curl of the result's gradients (a nonlinear op: reported, not guaranteed small).
     pub curl_after: CurlStats,
+    /// With `integrable`: the pixels of the edit's support, whether its border was held
+    /// (the support is not the whole image), and the conjugate-gradient iterations.
+    pub integrable: Option<(usize, bool, u32)>,
 }
 
 fn check_size(
@@ -611,15 +631,56 @@ pub fn rotation_combine(
             usize::from(s)
         })
         .sum();
-    let img = base.with_normals(out)?;
+    let mut img = base.with_normals(out)?;
+    let mut integrable = None;
+    if params.integrable {
+        // The edit's reference: the existing normals for the §VII modes, the base for the
+        // industry blends (which give the base where the weight is 0).
+        let reference = match params.mode {
+            CombineMode::Replace | CombineMode::Blend | CombineMode::Rotate => ex,
+            _ => base,
+        };
+        let support = edit_support(reference, &img, weight, params);
+        let (held, proj) = integrable_edit(reference, &img, &support, &IntegrateParams::default())?;
+        img = held;
+        let pixels = support.iter().filter(|&&s| s).count();
+        integrable = Some((pixels, proj.held, proj.iterations));
+    }
     let curl_after = GradientField::from_normals(&img).curl_stats(img.mask());
     Ok((
         img,
         RotateReport {
             saturated,
             curl_after,
+            integrable,
         },
     ))
+}
+
+/// The support of a combine (module docs, "Integrable"): the pixels whose weight lets the
+/// detail act (`w·strength ≥ ½` for Replace, `> 0` otherwise), and any pixel whose normal the
+/// combine changed (saturation).
+fn edit_support(
+    reference: &RgbnImage,
+    result: &RgbnImage,
+    weight: Option<&Plane>,
+    params: &RotateParams,
+) -> Vec<bool> {
+    let (rn, on) = (reference.normal(), result.normal());
+    (0..result.len())
+        .into_par_iter()
+        .map(|i| {
+            let wt = weight.map_or(1.0, |m| m.data()[i]);
+            let wt = if wt.is_finite() { wt } else { 0.0 };
+            let w = (wt * params.strength as f32).clamp(0.0, 1.0);
+            let acts = if params.mode == CombineMode::Replace {
+                w >= 0.5
+            } else {
+                w > 0.0
+            };
+            acts || (0..3).any(|k| rn[k][i] != on[k][i])
+        })
+        .collect()
 }
 
 #[cfg(test)]

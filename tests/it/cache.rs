@@ -337,7 +337,7 @@ fn curl_stats_are_measured_per_node() {
     .unwrap();
     // The readout sums in parallel (on all cores): equal up to the order of the sum.
     assert!((f1 - want).abs() <= 1e-12 * want.abs(), "{f1} vs {want}");
-    // Noise reads ≈ √(2/π) ≈ 0.8 on the same scale (the number is scale-free).
+    // Noise reads √(2/π) ≈ 0.80 on the same scale (the number is scale-free).
     let mut noisy = src.clone();
     let mut seed = 1u32;
     let [nx, ny, nz] = noisy.normal_mut();

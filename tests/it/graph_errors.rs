@@ -167,6 +167,22 @@ fn node_level_errors() {
             "(version: 1, next_id: 3, outputs: { \"out\": (node: 1, port: \"picture\") }, nodes: [(id: 1, op: \"demo\")])".to_string(),
             &["no output port \"picture\"", "node 1"],
         ),
+        (
+            // A closed path that crosses itself (a bow tie): §VI's inside is not defined.
+            "crossing.ron",
+            graph(&format!(
+                "{SRC}(id: 2, op: \"pen\", name: Some(\"bow tie\"), params: {{ \"closed\": Bool(true), \"profile\": Choice(\"step\"), \"points\": Points([(2.0, 2.0), (12.0, 2.0), (2.0, 12.0), (12.0, 12.0)]) }}, inputs: {{ \"image\": Node(1, \"image\") }}),"
+            )),
+            &[
+                "node 2",
+                "bow tie",
+                "points",
+                "crosses itself",
+                "segment 1 (points 1 → 2)",
+                "segment 3 (points 3 → 0)",
+                "(7.0, 7.0)",
+            ],
+        ),
     ];
     for (name, text, words) in cases {
         let (_, m) = load_err(d.path(), name, text);

@@ -52,6 +52,31 @@ fn op_node(k: usize, border: &str, w: usize, h: usize, a: f64, b: f64) -> (Strin
             .collect::<Vec<_>>()
             .join(", ")
     };
+    // The same points in the order of their angle around their centroid: a closed path through
+    // them does not cross itself (the pen refuses one that does).
+    let simple_pts = |n: usize| {
+        let p: Vec<[f64; 2]> = (0..n)
+            .map(|i| {
+                let t = i as f64 / n as f64;
+                [
+                    fw * (0.1 + 0.8 * ((t * 7.0 + a).sin() * 0.5 + 0.5)),
+                    fh * (0.1 + 0.8 * ((t * 5.0 + b).cos() * 0.5 + 0.5)),
+                ]
+            })
+            .collect();
+        let c = p.iter().fold([0.0, 0.0], |s, q| [s[0] + q[0], s[1] + q[1]]);
+        let c = [c[0] / n as f64, c[1] / n as f64];
+        let mut p = p;
+        p.sort_by(|u, v| {
+            (u[1] - c[1])
+                .atan2(u[0] - c[0])
+                .total_cmp(&(v[1] - c[1]).atan2(v[0] - c[0]))
+        });
+        p.iter()
+            .map(|q| format!("({:.3}, {:.3})", q[0], q[1]))
+            .collect::<Vec<_>>()
+            .join(", ")
+    };
     let s1 = 0.6 + 3.4 * a; // FIR below 3, recursive above
     let (op, params, port) = match k {
         0 => (
@@ -155,7 +180,7 @@ fn op_node(k: usize, border: &str, w: usize, h: usize, a: f64, b: f64) -> (Strin
             "pen",
             format!(
                 r#""points": Points([{}]), "closed": Bool({}), "width_px": Float({}), "taper_px": Float(4.0), "mode": Choice("{}")"#,
-                pts(4),
+                if b > 0.5 { simple_pts(4) } else { pts(4) },
                 b > 0.5,
                 3.0 + 6.0 * a,
                 ["integrable", "analytic", "distance_transform"][(b * 2.99) as usize]
