@@ -8,44 +8,14 @@
 use super::{Kind, OpSpec, Operator, Picture, RunContext};
 use crate::error::RgbnError;
 use crate::params::{visit_choice, Meta, ParamVisitor, Params};
+use crate::render::InspectParams;
 use crate::render::{self, View};
-use crate::render::{InspectParams, Light, Shading};
 use crate::RgbnImage;
 use std::sync::Arc;
 
-crate::params! {
-    /// Parameters of relighting with one directional white light.
-    #[derive(Clone, Debug, PartialEq)]
-    pub struct RelightParams {
-        /// Direction towards the light (+x right, +y up, +z to the viewer).
-        pub light: [f64; 3] = Shading::default().lights[0].direction.map(f64::from)
-            => vec3.range(-1e3, 1e3),
-        /// Ambient light added to the diffuse term.
-        pub ambient: f64 = f64::from(Shading::default().ambient) => float.range(0.0, 10.0),
-        /// Blinn-Phong specular strength (0 = Lambert only).
-        pub specular: f64 = f64::from(Shading::default().specular) => float.range(0.0, 10.0),
-        /// Blinn-Phong exponent.
-        pub shininess: f64 = f64::from(Shading::default().shininess)
-            => float.range(0.0, 10000.0),
-        /// Exposure.
-        pub exposure_ev: f64 = f64::from(Shading::default().exposure_ev)
-            => float.unit("EV").range(-32.0, 32.0),
-    }
-}
-
-impl RelightParams {
-    /// The shading these parameters describe.
-    #[must_use]
-    pub fn shading(&self) -> Shading {
-        Shading {
-            lights: vec![Light::white(self.light.map(|c| c as f32))],
-            ambient: self.ambient as f32,
-            specular: self.specular as f32,
-            shininess: self.shininess as f32,
-            exposure_ev: self.exposure_ev as f32,
-        }
-    }
-}
+/// Parameters of the relight node: one directional white light and its shading (declared
+/// once in [`crate::render::LightSettings`], shared with the publisher's viewer settings).
+pub use crate::render::LightSettings as RelightParams;
 
 /// Parameters of the view node: which view, the shading of the views that light the image
 /// (the relight node's parameters) and every view's own parameters ([`InspectParams`]).

@@ -695,7 +695,10 @@ fn orient(a: [f64; 2], b: [f64; 2], c: [f64; 2]) -> f64 {
 
 /// Whether `p`, collinear with `a → b`, lies within the segment's bounding box.
 fn within(a: [f64; 2], b: [f64; 2], p: [f64; 2]) -> bool {
-    p[0] >= a[0].min(b[0]) && p[0] <= a[0].max(b[0]) && p[1] >= a[1].min(b[1]) && p[1] <= a[1].max(b[1])
+    p[0] >= a[0].min(b[0])
+        && p[0] <= a[0].max(b[0])
+        && p[1] >= a[1].min(b[1])
+        && p[1] <= a[1].max(b[1])
 }
 
 /// A point shared by segments `a → b` and `c → d`, if any (crossing, touching or overlapping).
@@ -709,15 +712,10 @@ fn segments_meet(a: [f64; 2], b: [f64; 2], c: [f64; 2], d: [f64; 2]) -> Option<[
         return Some([a[0] + t * (b[0] - a[0]), a[1] + t * (b[1] - a[1])]);
     }
     // Touching or collinear: an end of one segment on the other.
-    [
-        (o1, a, b, c),
-        (o2, a, b, d),
-        (o3, c, d, a),
-        (o4, c, d, b),
-    ]
-    .into_iter()
-    .find(|&(o, s, e, p)| o == 0.0 && within(s, e, p))
-    .map(|(_, _, _, p)| p)
+    [(o1, a, b, c), (o2, a, b, d), (o3, c, d, a), (o4, c, d, b)]
+        .into_iter()
+        .find(|&(o, s, e, p)| o == 0.0 && within(s, e, p))
+        .map(|(_, _, _, p)| p)
 }
 
 /// The first place (lowest pair of segment numbers) where the closed path through `points`
@@ -756,7 +754,11 @@ pub fn closed_path_crossing(points: &[[f64; 2]]) -> Option<SelfCrossing> {
         let (u, v) = ([b[0] - a[0], b[1] - a[1]], [d[0] - b[0], d[1] - b[1]]);
         if u[0] * v[1] - u[1] * v[0] == 0.0 && u[0] * v[0] + u[1] * v[1] < 0.0 {
             // The shorter of the two, measured from the shared vertex, lies on the other.
-            let short = if u[0].hypot(u[1]) < v[0].hypot(v[1]) { a } else { d };
+            let short = if u[0].hypot(u[1]) < v[0].hypot(v[1]) {
+                a
+            } else {
+                d
+            };
             found(i, j, short);
         }
     }
@@ -782,7 +784,6 @@ pub fn closed_path_crossing(points: &[[f64; 2]]) -> Option<SelfCrossing> {
     }
     best
 }
-
 
 #[cfg(test)]
 mod tests {
@@ -882,23 +883,45 @@ mod tests {
         let mut rev = square;
         rev.reverse();
         assert_eq!(closed_path_crossing(&rev), None);
-        let dup = [square[0], square[1], square[1], square[2], square[3], square[0]];
+        let dup = [
+            square[0], square[1], square[1], square[2], square[3], square[0],
+        ];
         assert_eq!(closed_path_crossing(&dup), None);
         // A bow tie: segment 1 (points 1 → 2) crosses segment 3 (points 3 → 0) at (30, 30).
         let bow = [[10.0, 10.0], [50.0, 10.0], [10.0, 50.0], [50.0, 50.0]];
         let c = closed_path_crossing(&bow).unwrap();
         assert_eq!((c.first, c.second), (1, 3));
-        assert!((c.at[0] - 30.0).abs() < 1e-12 && (c.at[1] - 30.0).abs() < 1e-12, "{c:?}");
+        assert!(
+            (c.at[0] - 30.0).abs() < 1e-12 && (c.at[1] - 30.0).abs() < 1e-12,
+            "{c:?}"
+        );
         // A vertex touching another segment (a figure eight pinched at a point).
-        let pinch = [[0.0, 0.0], [20.0, 0.0], [10.0, 10.0], [20.0, 20.0], [0.0, 20.0], [10.0, 10.0]];
+        let pinch = [
+            [0.0, 0.0],
+            [20.0, 0.0],
+            [10.0, 10.0],
+            [20.0, 20.0],
+            [0.0, 20.0],
+            [10.0, 10.0],
+        ];
         let c = closed_path_crossing(&pinch).unwrap();
         assert_eq!(c.at, [10.0, 10.0]);
         // A spike: the path goes out and comes back along the same line.
-        let spike = [[0.0, 0.0], [20.0, 0.0], [20.0, 20.0], [20.0, 40.0], [20.0, 30.0], [0.0, 20.0]];
+        let spike = [
+            [0.0, 0.0],
+            [20.0, 0.0],
+            [20.0, 20.0],
+            [20.0, 40.0],
+            [20.0, 30.0],
+            [0.0, 20.0],
+        ];
         let c = closed_path_crossing(&spike).unwrap();
         assert_eq!((c.first, c.second), (2, 3));
         // Fewer than three distinct points: not a closed path, not checked here.
-        assert_eq!(closed_path_crossing(&[[0.0, 0.0], [5.0, 5.0], [0.0, 0.0]]), None);
+        assert_eq!(
+            closed_path_crossing(&[[0.0, 0.0], [5.0, 5.0], [0.0, 0.0]]),
+            None
+        );
     }
 
     #[test]

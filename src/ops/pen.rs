@@ -96,8 +96,8 @@
 //!   Computing 8 (2012).
 
 use super::geom::{
-    check_points, closed_path_crossing, distance_transform, sample_gradient_centres, smoothstep, smoothstep_deriv,
-    Polyline, SegmentGrid,
+    check_points, closed_path_crossing, distance_transform, sample_gradient_centres, smoothstep,
+    smoothstep_deriv, Polyline, SegmentGrid,
 };
 use crate::error::RgbnError;
 use crate::raster::gradient::{corner_samples, CurlStats, GradientField};

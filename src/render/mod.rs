@@ -8,9 +8,11 @@ pub mod inspect;
 pub mod npr;
 pub mod occlusion;
 pub mod rti;
+mod settings;
 
 pub use curvature::{curvature_scale, mean_curvature};
 pub use inspect::InspectParams;
+pub use settings::LightSettings;
 
 use crate::error::RgbnError;
 use crate::params::Choice;

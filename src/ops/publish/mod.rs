@@ -36,7 +36,7 @@ use crate::raster::io::temp;
 use crate::raster::strips::{self, StreamInput};
 use crate::raster::{RgbnImage, Validation};
 use crate::render::curvature::ScaleOfStrips;
-use crate::render::{Light, Shading};
+use crate::render::{LightSettings, Shading};
 use pyramid::{PlaneRows, Pyramid};
 use std::path::Path;
 
@@ -74,19 +74,8 @@ crate::params! {
     pub struct PublishParams {
         /// Output folder (created; replaced only when it is an earlier publish).
         pub path: String = String::new() => path.output(),
-        /// Initial direction towards the light (+x right, +y up, +z to the viewer).
-        pub light: [f64; 3] = Shading::default().lights[0].direction.map(f64::from)
-            => vec3.range(-1e3, 1e3),
-        /// Ambient light added to the diffuse term.
-        pub ambient: f64 = f64::from(Shading::default().ambient) => float.range(0.0, 10.0),
-        /// Blinn-Phong specular strength (0 = Lambert only).
-        pub specular: f64 = f64::from(Shading::default().specular) => float.range(0.0, 10.0),
-        /// Blinn-Phong exponent.
-        pub shininess: f64 = f64::from(Shading::default().shininess)
-            => float.range(0.0, 10000.0),
-        /// Initial exposure.
-        pub exposure_ev: f64 = f64::from(Shading::default().exposure_ev)
-            => float.unit("EV").range(-32.0, 32.0),
+        /// The viewer's initial light and shading (the relight node's parameters).
+        pub shading: LightSettings = LightSettings::default() => flatten,
         /// The view the page opens with.
         pub view: WebView = WebView::Relit => choice,
     }
@@ -97,13 +86,7 @@ impl PublishParams {
     #[must_use]
     pub fn options(&self) -> PublishOptions {
         PublishOptions {
-            shading: Shading {
-                lights: vec![Light::white(self.light.map(|c| c as f32))],
-                ambient: self.ambient as f32,
-                specular: self.specular as f32,
-                shininess: self.shininess as f32,
-                exposure_ev: self.exposure_ev as f32,
-            },
+            shading: self.shading.shading(),
             view: self.view,
         }
     }
