@@ -96,7 +96,11 @@ fn the_edits_the_paper_proves_integrable_keep_a_surface() {
 fn a_high_pass_of_a_surface_is_a_surface_away_from_the_border() {
     let (_, whole) = f("fig02_highpass", 0);
     let lg = rgbn::graph::LoadedGraph::load(&graph_path("paper/fig02_highpass.ron")).unwrap();
-    let r = eval_all(&rgbn::eval::Evaluator::default(), &lg, std::env::temp_dir().as_path());
+    let r = eval_all(
+        &rgbn::eval::Evaluator::default(),
+        &lg,
+        std::env::temp_dir().as_path(),
+    );
     let rgbn::nodes::Value::Rgbn(img) = &r.outputs["image"] else {
         panic!("an image")
     };
@@ -154,7 +158,10 @@ fn the_integrable_rotation_combine_is_a_surface_where_the_rotation_is_not() {
     }
     for &(sigma, amp, rot, held) in &computed().sweep {
         eprintln!("§VII sweep σ {sigma} px, ripples {amp} px: F {rot:.3e} -> {held:.3e}");
-        assert!(held <= 1e-3 && held < rot, "σ {sigma}, amplitude {amp}: {rot} {held}");
+        assert!(
+            held <= 1e-3 && held < rot,
+            "σ {sigma}, amplitude {amp}: {rot} {held}"
+        );
     }
 }
 
