@@ -487,8 +487,7 @@ impl Evaluator {
                 return Ok(s.hash);
             }
         }
-        let bytes = std::fs::read(path).map_err(|e| err(e.to_string()))?;
-        let hash = xxhash_rust::xxh3::xxh3_128(&bytes);
+        let hash = hash_file(path).map_err(|e| err(e.to_string()))?;
         lock(&self.files).insert(path.to_path_buf(), FileStamp { mtime, len, hash });
         Ok(hash)
     }
@@ -875,4 +874,50 @@ fn integrability_of(values: &[Value]) -> (Option<f64>, Option<f64>) {
             _ => None,
         })
         .unwrap_or((None, None))
+}
+
+/// The XXH3-128 of a file's bytes, read through a 1 MiB buffer (the same value as hashing the
+/// whole file at once, without holding it: a 4K input is not copied into a fresh buffer).
+fn hash_file(path: &Path) -> std::io::Result<u128> {
+    use std::io::Read;
+    let mut f = std::fs::File::open(path)?;
+    let mut h = xxhash_rust::xxh3::Xxh3::new();
+    let mut buf = vec![0u8; 1 << 20];
+    loop {
+        match f.read(&mut buf) {
+            Ok(0) => return Ok(h.digest128()),
+            Ok(n) => h.update(&buf[..n]),
+            Err(e) if e.kind() == std::io::ErrorKind::Interrupted => {}
+            Err(e) => return Err(e),
+        }
+    }
+}
+
+#[cfg(test)]
+mod hash_tests {
+    /// Hashed in 1 MiB reads, a file gives the hash of its bytes taken at once (sizes on both
+    /// sides of the buffer's edge, and empty).
+    #[test]
+    fn a_file_hashed_in_pieces_equals_its_bytes_hashed_whole() {
+        let dir = std::env::temp_dir().join(format!("rgbn-hash-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        for len in [
+            0usize,
+            1,
+            (1 << 20) - 1,
+            1 << 20,
+            (1 << 20) + 1,
+            3 << 20 | 12345,
+        ] {
+            let bytes: Vec<u8> = (0..len).map(|i| ((i * 2_654_435_761) >> 13) as u8).collect();
+            let p = dir.join(format!("f{len}"));
+            std::fs::write(&p, &bytes).unwrap();
+            assert_eq!(
+                super::hash_file(&p).unwrap(),
+                xxhash_rust::xxh3::xxh3_128(&bytes),
+                "{len} bytes"
+            );
+        }
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
 }

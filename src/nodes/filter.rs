@@ -7,7 +7,7 @@ use super::kit::kernel_kind;
 use super::{Coarse, Kind, OpSpec, Operator, RunContext};
 use crate::error::RgbnError;
 use crate::ops::filter::{
-    filter_normals, BoxParams, DenseParams, DogParams, EdgeParams, FilterOptions, GaussianParams,
+    filter_image, BoxParams, DenseParams, DogParams, EdgeParams, FilterOptions, GaussianParams,
     HighPassParams, KernelParams, LogParams, ScaleParams, SeparableParams, SharpenParams,
 };
 use crate::params::{ParamVisitor, Params};
@@ -80,7 +80,7 @@ impl<K: KernelNode> Operator for FilterOp<K> {
         kernel_kind(p.options.border, p.kernel.kernel().support_px(), coarse)
     }
     fn run(p: &FilterParams<K>, i: FilterIn, _: &RunContext) -> Result<FilterOut, RgbnError> {
-        let (image, _) = filter_normals(&i.image, &[p.kernel.kernel()], &p.options)?;
+        let image = filter_image(&i.image, &[p.kernel.kernel()], &p.options)?;
         Ok(FilterOut { image })
     }
 }

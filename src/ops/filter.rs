@@ -552,12 +552,38 @@ pub fn filter_gradients(
 /// Filters the normals of `img` (colour and mask are shared, unchanged).
 ///
 /// A single Gaussian or box kernel without mask-aware filtering runs fused (two sweeps over
-/// the image, see [`crate::raster::smooth`]); everything else runs
-/// [`filter_normals_general`]. Both give the same normals.
+/// the image, see [`crate::raster::smooth`]), a single sharpen, high-pass, edge-enhance or
+/// difference of Gaussians as fused smoothings and one pointwise combination
+/// (`filter_fused.rs`); everything else runs [`filter_normals_general`]. All give the same
+/// normals (to rounding).
 pub fn filter_normals(
     img: &RgbnImage,
     kernels: &[Kernel],
     opts: &FilterOptions,
+) -> Result<(RgbnImage, FilterReport), RgbnError> {
+    filter_with(img, kernels, opts, true)
+}
+
+/// [`filter_normals`] without the report's curl statistics where they would cost a pass of
+/// their own (the graph's node: its readouts are taken apart from it, `Evaluator::readouts`).
+///
+/// # Errors
+/// As [`filter_normals`].
+pub fn filter_image(
+    img: &RgbnImage,
+    kernels: &[Kernel],
+    opts: &FilterOptions,
+) -> Result<RgbnImage, RgbnError> {
+    Ok(filter_with(img, kernels, opts, false)?.0)
+}
+
+/// [`filter_normals`]; with `report` false the curl statistics that need a pass of their own
+/// are left at their defaults.
+fn filter_with(
+    img: &RgbnImage,
+    kernels: &[Kernel],
+    opts: &FilterOptions,
+    report: bool,
 ) -> Result<(RgbnImage, FilterReport), RgbnError> {
     let masked = opts.mask_aware && img.mask().is_some();
     match kernels {
@@ -574,7 +600,27 @@ pub fn filter_normals(
             let radius = *radius_px as usize;
             filter_normals_fused(img, &convolve::BoxFilter { radius }, opts.border)
         }
-        _ => filter_normals_general(img, kernels, opts),
+        [k] if !masked => {
+            k.validate()?;
+            let Some((normal, clamped, before)) = fused::combination(img, k, opts.border) else {
+                return general(img, kernels, opts, report);
+            };
+            let out = img.with_normals(normal)?;
+            let curl_after = if report {
+                GradientField::from_normals(&out).curl_stats(img.mask())
+            } else {
+                CurlStats::default()
+            };
+            Ok((
+                out,
+                FilterReport {
+                    clamped,
+                    curl_before: before.stats(),
+                    curl_after,
+                },
+            ))
+        }
+        _ => general(img, kernels, opts, report),
     }
 }
 
@@ -610,10 +656,27 @@ pub fn filter_normals_general(
     kernels: &[Kernel],
     opts: &FilterOptions,
 ) -> Result<(RgbnImage, FilterReport), RgbnError> {
+    general(img, kernels, opts, true)
+}
+
+/// [`filter_normals_general`], its curl statistics taken only when `report` is set.
+fn general(
+    img: &RgbnImage,
+    kernels: &[Kernel],
+    opts: &FilterOptions,
+    report: bool,
+) -> Result<(RgbnImage, FilterReport), RgbnError> {
     let mut g = GradientField::from_normals(img);
-    let curl_before = g.curl_stats(img.mask());
+    let stats = |g: &GradientField| {
+        if report {
+            g.curl_stats(img.mask())
+        } else {
+            CurlStats::default()
+        }
+    };
+    let curl_before = stats(&g);
     filter_gradients(&mut g, kernels, opts, img.mask())?;
-    let curl_after = g.curl_stats(img.mask());
+    let curl_after = stats(&g);
     // New normal planes; colour and mask stay shared with `img` (no copy of planes that are
     // about to be overwritten).
     let out = img.with_normals(g.to_normals())?;
@@ -931,6 +994,9 @@ impl KernelParams for DenseParams {
         }
     }
 }
+
+#[path = "filter_fused.rs"]
+mod fused;
 
 #[cfg(test)]
 #[path = "filter_tests.rs"]
