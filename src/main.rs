@@ -15,6 +15,11 @@ use tracing_subscriber::registry::LookupSpan;
 static ALLOC: rgbn::recycle::Recycler = rgbn::recycle::Recycler;
 
 fn main() -> ExitCode {
+    // `RGBN_HUGE_PAGES=0`: no transparent-huge-page advice on image buffers (a measuring
+    // switch: BENCHMARKS.md, "Huge pages").
+    if std::env::var_os("RGBN_HUGE_PAGES").is_some_and(|v| v == "0") {
+        rgbn::recycle::set_huge_pages(false);
+    }
     init_logging();
     rgbn::cli::run(std::env::args_os()).into()
 }

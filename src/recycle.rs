@@ -26,6 +26,24 @@
 use std::alloc::{GlobalAlloc, Layout, System};
 use std::sync::Mutex;
 
+/// Whether big blocks and image buffers ask for transparent huge pages (the default; see
+/// [`set_huge_pages`]).
+static HUGE_PAGES: std::sync::atomic::AtomicBool = std::sync::atomic::AtomicBool::new(true);
+
+/// Turns the `MADV_HUGEPAGE` advice on big blocks ([`Recycler`]) and image buffers
+/// (`raster::buf`) on or off for the rest of the process. The `rgbn` binary turns it off when
+/// `RGBN_HUGE_PAGES=0` (for measuring what the advice is worth: BENCHMARKS.md); it changes
+/// speed only, never contents.
+pub fn set_huge_pages(on: bool) {
+    HUGE_PAGES.store(on, std::sync::atomic::Ordering::Relaxed);
+}
+
+/// Whether the huge-page advice is on ([`set_huge_pages`]).
+#[must_use]
+pub fn huge_pages() -> bool {
+    HUGE_PAGES.load(std::sync::atomic::Ordering::Relaxed)
+}
+
 /// Blocks of at least this many bytes are recycled (smaller ones are the system's business).
 pub const BIG: usize = 4 << 20;
 /// Freed blocks kept at most.
@@ -116,7 +134,7 @@ fn advise_huge(p: *mut u8, size: usize) {
     #[cfg(target_os = "linux")]
     {
         const HUGE: usize = 2 << 20;
-        if p.is_null() {
+        if p.is_null() || !huge_pages() {
             return;
         }
         let start = (p as usize).next_multiple_of(HUGE);

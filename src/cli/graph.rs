@@ -403,13 +403,13 @@ pub fn eval_cmd(a: &EvalArgs, out: &mut Out<'_>) -> Result<(), CliError> {
     let r = ev.eval(&plan, &names, &opts);
     pb.finish_and_clear();
     let r = r?;
-    for (name, path) in &requested {
-        let v = &r.outputs[name];
-        super::interrupt::check()?;
-        write_value(v, path, &a.exr.save_options())?;
+    super::interrupt::check()?;
+    let written = write_all(&r.outputs, &requested, &a.exr.save_options());
+    for ((name, path), done) in requested.iter().zip(written) {
+        done?;
         out.line(format_args!(
             "wrote {name} ({}): {}",
-            describe_value(v),
+            describe_value(&r.outputs[name]),
             path.display()
         ))?;
     }
@@ -422,6 +422,30 @@ pub fn eval_cmd(a: &EvalArgs, out: &mut Out<'_>) -> Result<(), CliError> {
         print_stats(out, &r, &plan.at.file)?;
     }
     Ok(())
+}
+
+/// Writes each requested output to its file, all at once (a PNG's single-threaded encoding
+/// beside an EXR's compression, one file's flush to disk beside the next one's writing); the
+/// result of each write in the order of `requested`. Every write is atomic on its own, so an
+/// output that fails leaves its target untouched whatever the others do.
+fn write_all(
+    outputs: &BTreeMap<String, Value>,
+    requested: &[(String, PathBuf)],
+    save: &SaveOptions,
+) -> Vec<Result<(), RgbnError>> {
+    std::thread::scope(|s| {
+        let writes: Vec<_> = requested
+            .iter()
+            .map(|(name, path)| {
+                let v = &outputs[name];
+                s.spawn(move || write_value(v, path, save))
+            })
+            .collect();
+        writes
+            .into_iter()
+            .map(|w| w.join().unwrap_or_else(|p| std::panic::resume_unwind(p)))
+            .collect()
+    })
 }
 
 /// The plan that writes the requested outputs strip by strip, or why they cannot be.

@@ -65,7 +65,7 @@ pub fn zeroed_planes(n: usize) -> [Vec<f32>; 3] {
 /// before the buffer is first written; buffers under 4 MiB are left alone).
 pub fn advise_huge_pages<T>(buf: &[T]) {
     let bytes = std::mem::size_of_val(buf);
-    if bytes < MIN_ADVISED_BYTES {
+    if bytes < MIN_ADVISED_BYTES || !crate::recycle::huge_pages() {
         return;
     }
     #[cfg(target_os = "linux")]
