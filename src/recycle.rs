@@ -10,14 +10,17 @@
 //!
 //! - Only plain allocations reuse a block. Zeroed ones (`vec![0.0; n]`) still get fresh
 //!   mappings, which the kernel zero-fills lazily: zeroing a reused block would cost as much.
+//!   On Unix a big block is an anonymous mapping of its own, so a zeroed one is never
+//!   `memset` (the system allocator's aligned `alloc_zeroed` writes every byte, touching each
+//!   page before the huge-page advice could apply).
 //!   Kernels that write every value ask for a plain block ([`crate::raster::buf::reserved_f32`]).
 //! - At most [`SLOTS`] blocks and [`KEEP_BYTES`] bytes are kept; a block that does not fit is
 //!   freed at once. A big request that finds no block of its size frees every kept block
 //!   first (the program has moved on to other sizes), so kept blocks never pile up beside new
 //!   ones: the peak memory stays what the program itself needed (`RGBN_MEMORY_LIMIT`'s
 //!   estimates hold).
-//! - Blocks of [`BIG`] bytes or more are aligned to 64 bytes (a cache line), whatever the
-//!   request; smaller requests go to the system allocator unchanged.
+//! - Blocks of [`BIG`] bytes or more are aligned to at least 64 bytes (a cache line; a page
+//!   when mapped), whatever the request; smaller requests go to the system allocator unchanged.
 //!
 //! The `rgbn` binary and the benchmarks install it with
 //! `#[global_allocator] static A: rgbn::recycle::Recycler = rgbn::recycle::Recycler;`. The
@@ -36,6 +39,23 @@ static HUGE_PAGES: std::sync::atomic::AtomicBool = std::sync::atomic::AtomicBool
 /// speed only, never contents.
 pub fn set_huge_pages(on: bool) {
     HUGE_PAGES.store(on, std::sync::atomic::Ordering::Relaxed);
+}
+
+/// Keeps the system allocator's freed memory for reuse instead of handing it back to the
+/// kernel (glibc on Linux; elsewhere nothing): blocks under 32 MiB come from the heap rather
+/// than from a fresh `mmap` each (`M_MMAP_THRESHOLD`), and the heap is not trimmed below
+/// 1 GiB of free memory (`M_TRIM_THRESHOLD`). Without it, each 1–4 MB scratch buffer (an EXR
+/// block being compressed, a PNG row band) was a new mapping, page-faulted and zero-filled by
+/// the kernel on first touch — most of the system time of a 4K `rgbn eval` (BENCHMARKS.md,
+/// "Where the time goes"). Blocks of [`BIG`] bytes and more are [`Recycler`]'s. Call it once,
+/// first thing in `main`.
+pub fn keep_freed_memory() {
+    #[cfg(all(target_os = "linux", target_env = "gnu"))]
+    // SAFETY: mallopt only sets allocator parameters; called before other threads exist.
+    unsafe {
+        libc::mallopt(libc::M_MMAP_THRESHOLD, 32 << 20);
+        libc::mallopt(libc::M_TRIM_THRESHOLD, 1 << 30);
+    }
 }
 
 /// Whether the huge-page advice is on ([`set_huge_pages`]).
@@ -75,6 +95,68 @@ fn big_layout(l: Layout) -> Layout {
     l.align_to(BIG_ALIGN).unwrap_or(l)
 }
 
+/// Whether a big block of layout `l` is an anonymous mapping of its own (on Unix, alignments up
+/// to a page): a fresh mapping is zero and untouched, so a zeroed request costs no `memset` —
+/// the system allocator's `alloc_zeroed` with a 64-byte alignment writes every byte, faulting
+/// each page in at 4 KiB before the huge-page advice could apply — and the advice is given
+/// before the first touch.
+fn mapped(l: Layout) -> bool {
+    cfg!(unix) && l.align() <= 4096
+}
+
+/// A new big block for `l` (zero-filled when `zeroed`, or always when [`mapped`]); null on
+/// failure.
+///
+/// # Safety
+/// `l` has a non-zero size.
+unsafe fn big_alloc(l: Layout, zeroed: bool) -> *mut u8 {
+    #[cfg(unix)]
+    if mapped(l) {
+        // SAFETY: an anonymous private mapping of a non-zero length; no memory is aliased.
+        let p = unsafe {
+            libc::mmap(
+                std::ptr::null_mut(),
+                l.size(),
+                libc::PROT_READ | libc::PROT_WRITE,
+                libc::MAP_PRIVATE | libc::MAP_ANONYMOUS,
+                -1,
+                0,
+            )
+        };
+        if p == libc::MAP_FAILED {
+            return std::ptr::null_mut();
+        }
+        let p = p.cast::<u8>();
+        advise_huge(p, l.size());
+        return p;
+    }
+    // SAFETY: a valid layout of non-zero size (the caller's contract).
+    let p = unsafe {
+        if zeroed {
+            System.alloc_zeroed(big_layout(l))
+        } else {
+            System.alloc(big_layout(l))
+        }
+    };
+    advise_huge(p, l.size());
+    p
+}
+
+/// Frees a block [`big_alloc`] returned for a layout of the same size and alignment.
+///
+/// # Safety
+/// `p` came from `big_alloc` with such a layout and is not used afterwards.
+unsafe fn big_free(p: *mut u8, l: Layout) {
+    #[cfg(unix)]
+    if mapped(l) {
+        // SAFETY: `p` is the start of a mapping of `l.size()` bytes (the caller's contract).
+        unsafe { libc::munmap(p.cast(), l.size()) };
+        return;
+    }
+    // SAFETY: non-mapped big blocks come from System with `big_layout(l)`.
+    unsafe { System.dealloc(p, big_layout(l)) }
+}
+
 impl Recycler {
     /// A kept block of exactly `size` bytes, if there is one.
     fn take(size: usize) -> Option<*mut u8> {
@@ -96,10 +178,11 @@ impl Recycler {
         };
         for (addr, size) in blocks {
             if addr != 0 {
-                // SAFETY: kept blocks are big blocks, allocated by System with
-                // `big_layout` of their size (align ≤ 64, padded to 64: the layout below).
+                // SAFETY: kept blocks are big blocks of alignment ≤ 64 allocated by
+                // `big_alloc` with their size; `big_free` with any such layout frees them as
+                // they were allocated (64 is a valid power-of-two alignment).
                 unsafe {
-                    System.dealloc(
+                    big_free(
                         addr as *mut u8,
                         Layout::from_size_align_unchecked(size, BIG_ALIGN),
                     );
@@ -152,12 +235,13 @@ fn advise_huge(p: *mut u8, size: usize) {
     let _ = (p, size);
 }
 
-// SAFETY: every block comes from `System` with the layout it is later returned with: big
-// requests (size ≥ BIG) always with `big_layout(l)` — both when allocated and when freed, as a
-// block keeps its size — and small ones with `l`. A kept block is owned by `KEPT` alone until
-// `take` hands it to exactly one caller, with the same size and an alignment (64) at least the
-// request's whenever that request's alignment is at most 64; other requests are never served
-// from `KEPT`.
+// SAFETY: every block is freed as it was allocated: big requests (size ≥ BIG) by `big_alloc` /
+// `big_free` with the request's layout (an anonymous mapping of that size on Unix for
+// alignments up to a page, else System with `big_layout(l)`) — a block keeps its size and its
+// alignment class — and small ones by System with `l`. A kept block is owned by `KEPT` alone
+// until `take` hands it to exactly one caller, with the same size and an alignment (a page, or
+// 64) at least the request's whenever that request's alignment is at most 64; other requests
+// are never served from `KEPT`.
 unsafe impl GlobalAlloc for Recycler {
     unsafe fn alloc(&self, l: Layout) -> *mut u8 {
         if l.size() < BIG {
@@ -171,9 +255,7 @@ unsafe impl GlobalAlloc for Recycler {
         }
         Self::release_all();
         // SAFETY: a valid layout of non-zero size.
-        let p = unsafe { System.alloc(big_layout(l)) };
-        advise_huge(p, l.size());
-        p
+        unsafe { big_alloc(l, false) }
     }
 
     unsafe fn alloc_zeroed(&self, l: Layout) -> *mut u8 {
@@ -183,9 +265,7 @@ unsafe impl GlobalAlloc for Recycler {
         }
         Self::release_all();
         // SAFETY: a valid layout of non-zero size.
-        let p = unsafe { System.alloc_zeroed(big_layout(l)) };
-        advise_huge(p, l.size());
-        p
+        unsafe { big_alloc(l, true) }
     }
 
     unsafe fn dealloc(&self, ptr: *mut u8, l: Layout) {
@@ -196,8 +276,8 @@ unsafe impl GlobalAlloc for Recycler {
         if l.align() <= BIG_ALIGN && Self::keep(ptr, l.size()) {
             return;
         }
-        // SAFETY: big blocks were allocated by System with `big_layout(l)`.
-        unsafe { System.dealloc(ptr, big_layout(l)) }
+        // SAFETY: big blocks were allocated by `big_alloc` with `l`.
+        unsafe { big_free(ptr, l) }
     }
 
     unsafe fn realloc(&self, ptr: *mut u8, l: Layout, new_size: usize) -> *mut u8 {

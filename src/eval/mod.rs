@@ -909,7 +909,9 @@ mod hash_tests {
             (1 << 20) + 1,
             3 << 20 | 12345,
         ] {
-            let bytes: Vec<u8> = (0..len).map(|i| ((i * 2_654_435_761) >> 13) as u8).collect();
+            let bytes: Vec<u8> = (0..len)
+                .map(|i| ((i * 2_654_435_761) >> 13) as u8)
+                .collect();
             let p = dir.join(format!("f{len}"));
             std::fs::write(&p, &bytes).unwrap();
             assert_eq!(
