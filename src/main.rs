@@ -15,10 +15,6 @@ use tracing_subscriber::registry::LookupSpan;
 static ALLOC: rgbn::recycle::Recycler = rgbn::recycle::Recycler;
 
 fn main() -> ExitCode {
-    // `RGBN_KEEP_FREED=0` leaves the system allocator as it is (a measuring switch).
-    if std::env::var_os("RGBN_KEEP_FREED").is_none_or(|v| v != "0") {
-        rgbn::recycle::keep_freed_memory();
-    }
     // `RGBN_HUGE_PAGES=0`: no transparent-huge-page advice on image buffers (a measuring
     // switch: BENCHMARKS.md, "Huge pages").
     if std::env::var_os("RGBN_HUGE_PAGES").is_some_and(|v| v == "0") {

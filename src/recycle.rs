@@ -47,8 +47,9 @@ pub fn set_huge_pages(on: bool) {
 /// 1 GiB of free memory (`M_TRIM_THRESHOLD`). Without it, each 1–4 MB scratch buffer (an EXR
 /// block being compressed, a PNG row band) was a new mapping, page-faulted and zero-filled by
 /// the kernel on first touch — most of the system time of a 4K `rgbn eval` (BENCHMARKS.md,
-/// "Where the time goes"). Blocks of [`BIG`] bytes and more are [`Recycler`]'s. Call it once,
-/// first thing in `main`.
+/// "Where the time goes"). Blocks of [`BIG`] bytes and more are [`Recycler`]'s. The command
+/// line calls it before running a command (not the editor, whose memory should follow what it
+/// holds).
 pub fn keep_freed_memory() {
     #[cfg(all(target_os = "linux", target_env = "gnu"))]
     // SAFETY: mallopt only sets allocator parameters; called before other threads exist.

@@ -143,6 +143,12 @@ where
                 Err(error::usage("no command given"))
             }
             Some(command) => {
+                // A command runs once and exits: freed scratch memory is kept for reuse (the
+                // editor, which runs for hours, leaves the allocator as it is).
+                // `RGBN_KEEP_FREED=0` turns this off, for measuring it.
+                if std::env::var_os("RGBN_KEEP_FREED").is_none_or(|v| v != "0") {
+                    crate::recycle::keep_freed_memory();
+                }
                 interrupt::install();
                 let stdout = std::io::stdout();
                 let mut lock = stdout.lock();
