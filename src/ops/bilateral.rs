@@ -246,33 +246,98 @@ pub fn split(
     let frame = params.detail_frame();
     let (bn, on) = (base.normal(), img.normal());
     let n = img.len();
+    let w = img.width().max(1);
     let mut d = [buf::zeroed_f32(n), buf::zeroed_f32(n), buf::zeroed_f32(n)];
     let [dx, dy, dz] = &mut d;
-    dx.par_iter_mut()
-        .zip(dy.par_iter_mut())
-        .zip(dz.par_iter_mut())
+    let minimal = matches!(frame, Frame::MinimalRotation);
+    dx.par_chunks_mut(w)
+        .zip(dy.par_chunks_mut(w))
+        .zip(dz.par_chunks_mut(w))
         .enumerate()
-        .for_each(|(i, ((x, y), z))| {
-            let b = normalize3([
-                f64::from(bn[0][i]),
-                f64::from(bn[1][i]),
-                f64::from(bn[2][i]),
-            ]);
-            let o = normalize3([
-                f64::from(on[0][i]),
-                f64::from(on[1][i]),
-                f64::from(on[2][i]),
-            ]);
-            let t = frame.to_tangent(b, o);
-            (*x, *y, *z) = (t[0] as f32, t[1] as f32, t[2] as f32);
+        .for_each(|(row, ((x, y), z))| {
+            let o0 = row * w;
+            for k in 0..x.len() {
+                let i = o0 + k;
+                let b = [bn[0][i], bn[1][i], bn[2][i]];
+                let o = [on[0][i], on[1][i], on[2][i]];
+                let t = if minimal {
+                    tangent_minimal(b, o)
+                } else {
+                    tangent_f64(&frame, b, o)
+                };
+                (x[k], y[k], z[k]) = (t[0], t[1], t[2]);
+            }
         });
     let detail = img.with_normals(d)?;
     Ok((base, detail, report))
 }
 
+/// `o` in the tangent frame of base normal `b` (both normalised first), in `f64`.
+fn tangent_f64(frame: &Frame, b: [f32; 3], o: [f32; 3]) -> [f32; 3] {
+    let b = normalize3(b.map(f64::from));
+    let o = normalize3(o.map(f64::from));
+    frame.to_tangent(b, o).map(|v| v as f32)
+}
+
+/// [`tangent_f64`] for the minimal-rotation frame, in `f32` (the detail is stored in `f32`; the
+/// two agree to 1e-5): the rotation taking `b` to `e_z` applied to `o`. Near the antipode
+/// (`1 + b_z` under 0.05, base normals facing away, where `f32` loses the quotient) and for inputs that do not normalise,
+/// the `f64` path.
+#[inline]
+fn tangent_minimal(b: [f32; 3], o: [f32; 3]) -> [f32; 3] {
+    let unit = |a: [f32; 3]| {
+        let l = (a[0] * a[0] + a[1] * a[1] + a[2] * a[2]).sqrt();
+        (l.is_finite() && l > 1e-12).then(|| a.map(|v| v / l))
+    };
+    let (Some(b), Some(o)) = (unit(b), unit(o)) else {
+        return tangent_f64(&Frame::MinimalRotation, b, o);
+    };
+    let c = b[2];
+    if 1.0 + c < 0.05 {
+        return tangent_f64(&Frame::MinimalRotation, b, o);
+    }
+    // v = (−b_y, b_x, 0); result = c·o + o × v + v·(v·o)/(1 + c).
+    let v = [-b[1], b[0]];
+    let s = (v[0] * o[0] + v[1] * o[1]) / (1.0 + c);
+    [
+        c * o[0] - o[2] * v[1] + v[0] * s,
+        c * o[1] + o[2] * v[0] + v[1] * s,
+        c * o[2] + o[0] * v[1] - o[1] * v[0],
+    ]
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The `f32` minimal-rotation tangent equals the `f64` one over normals of every direction
+    /// (the antipode, unnormalised and zero vectors included).
+    #[test]
+    fn the_f32_minimal_tangent_equals_the_f64_one() {
+        let mut seed = 7u32;
+        let mut r = || {
+            seed = seed.wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
+            (seed >> 8) as f32 / (1u32 << 24) as f32 * 2.0 - 1.0
+        };
+        let mut cases: Vec<([f32; 3], [f32; 3])> = (0..20_000)
+            .map(|_| ([r(), r(), r()], [r(), r(), r() * 2.0]))
+            .collect();
+        cases.extend([
+            ([0.0, 0.0, -1.0], [0.3, -0.2, 0.9]),
+            ([1e-4, 0.0, -1.0], [0.3, -0.2, 0.9]),
+            ([0.0, 0.0, 0.0], [0.3, -0.2, 0.9]),
+            ([0.0, 0.0, 3.0], [0.0, 0.0, 0.0]),
+            ([f32::NAN, 0.0, 1.0], [0.1, 0.1, 1.0]),
+        ]);
+        for (b, o) in cases {
+            let fast = tangent_minimal(b, o);
+            let slow = tangent_f64(&Frame::MinimalRotation, b, o);
+            let err = (0..3)
+                .map(|k| (fast[k] - slow[k]).abs())
+                .fold(0.0, f32::max);
+            assert!(err <= 1e-5, "{b:?} {o:?}: {fast:?} vs {slow:?}");
+        }
+    }
     use crate::ops::rotate::{rotation_combine, CombineMode, RotateParams};
     use crate::raster::gradient::GradientField;
     use crate::raster::sample::Surface;
