@@ -741,9 +741,17 @@ pub fn filter_streamed<E: From<RgbnError>>(
             }
             _ => {
                 let img = win.image()?;
-                let (f, _) = filter_normals_general(&img, kernels, opts)?;
-                let [x, y, z] = f.normal();
-                [x.clone(), y.clone(), z.clone()]
+                let fused = match kernels {
+                    [k] if !masked => fused::combination(&img, k, opts.border),
+                    _ => None,
+                };
+                if let Some((normal, _, _)) = fused {
+                    normal
+                } else {
+                    let (f, _) = filter_normals_general(&img, kernels, opts)?;
+                    let [x, y, z] = f.normal();
+                    [x.clone(), y.clone(), z.clone()]
+                }
             }
         };
         let core = win.core.clone();
