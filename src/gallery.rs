@@ -494,6 +494,13 @@ fn printed(token: &str) -> Option<(f64, f64)> {
     Some((v, 0.5 * 10f64.powi(exp - digits as i32)))
 }
 
+/// Values below this are at the rounding floor of `f32` normals (F of a surface: about 1e-6):
+/// their last digits follow the order of the parallel sums, which varies from run to run, so
+/// they agree within [`FLOOR_RELATIVE`] of their size rather than half their last digit.
+const ROUNDING_FLOOR: f64 = 1e-4;
+/// How far two values under [`ROUNDING_FLOOR`] may differ, relative to the written one.
+const FLOOR_RELATIVE: f64 = 0.05;
+
 /// The disagreements between a block as written and as recomputed, one line each.
 fn compare_block(name: &str, written: &str, computed: &str) -> Vec<String> {
     let split = |s: &str| -> Vec<(usize, String)> {
@@ -511,10 +518,21 @@ fn compare_block(name: &str, written: &str, computed: &str) -> Vec<String> {
     for ((line, a), (_, b)) in w.iter().zip(&c) {
         match (printed(a), printed(b)) {
             (Some((va, half)), Some((vb, _))) => {
-                if (va - vb).abs().is_nan() || (va - vb).abs() > half * (1.0 + 1e-9) {
+                let floor = va.abs() < ROUNDING_FLOOR && vb.abs() < ROUNDING_FLOOR;
+                let allowed = if floor {
+                    half.max(FLOOR_RELATIVE * va.abs())
+                } else {
+                    half
+                };
+                if (va - vb).abs().is_nan() || (va - vb).abs() > allowed * (1.0 + 1e-9) {
                     out.push(format!(
                         "block {name}, line {line}: {a} written, {b} recomputed (more than ± \
-                         {half:.0e}, half its last digit)"
+                         {allowed:.0e}{})",
+                        if floor {
+                            ", 5 % at the rounding floor"
+                        } else {
+                            ", half its last digit"
+                        }
                     ));
                 }
             }
@@ -741,6 +759,12 @@ mod tests {
         assert!(compare_block("x", computed, computed).is_empty());
         // Within printed precision: 0.30049 prints as 3.00e-1.
         assert!(compare_block("x", computed, &computed.replace("3.00e-1", "3.0049e-1")).is_empty());
+        // At the rounding floor the last digits follow the summation order: 5 % apart is
+        // agreement, 10 % is not.
+        let tiny = computed.replace("1.04e-6", "1.08e-6");
+        assert!(compare_block("x", &tiny, computed).is_empty());
+        let off = computed.replace("1.04e-6", "1.15e-6");
+        assert_eq!(compare_block("x", &off, computed).len(), 1);
         let changed = computed.replace("3.00e-1", "3.01e-1");
         let d = compare_block("x", &changed, computed);
         assert_eq!(d.len(), 1, "{d:?}");

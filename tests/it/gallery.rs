@@ -20,7 +20,8 @@ fn f(stem: &str, row: usize) -> (f64, f64) {
 }
 
 /// The page is true: every table number within half its last printed digit of the recomputed
-/// one, every picture within a level or two of the recomputed one, nothing missing or stale.
+/// one (values at the rounding floor, under 1e-4, within 5 %: their last digits follow the
+/// order of parallel sums), every picture within a level or two of the recomputed one, nothing missing or stale.
 /// Regenerate with `cargo run --release --example gallery`.
 #[test]
 fn the_gallery_page_and_pictures_agree_with_the_figure_graphs() {
