@@ -141,13 +141,13 @@ fn a_crop_sees_exactly_the_whole_images_relief() {
         let whole = pen_paths_field(w, h, &p, None).unwrap();
         // The distance transform reads up to half the width and the taper beyond a crop's
         // edge (its halo); the others are exact to the edge.
-        let halo = if mode == PenMode::DistanceTransform {
+        let halo: usize = if mode == PenMode::DistanceTransform {
             16
         } else {
             0
         };
         for (x0, y0, cw, ch) in [
-            (0, 0, 96, 80),
+            (0usize, 0usize, 96usize, 80usize),
             (33, 17, 30, 25),
             (70, 60, 26, 20),
             (0, 50, 20, 30),
