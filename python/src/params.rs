@@ -95,7 +95,7 @@ fn paths_text_of(v: &Bound<'_, PyAny>) -> PyResult<String> {
     let mut paths = Vec::new();
     for item in v.try_iter()? {
         let item = item?;
-        let Ok(d) = item.downcast::<PyDict>() else {
+        let Ok(d) = item.cast::<PyDict>() else {
             paths.push(text_of(&item)?);
             continue;
         };
@@ -109,7 +109,7 @@ fn paths_text_of(v: &Bound<'_, PyAny>) -> PyResult<String> {
             }
         }
         if let Some(own) = d.get_item("params")? {
-            for (k, v) in own.downcast::<PyDict>()?.iter() {
+            for (k, v) in own.cast::<PyDict>()?.iter() {
                 // A list (custom samples) as a/b/c.
                 let text = text_of(&v)?.replace(',', "/");
                 parts.push(format!("{}={text}", k.str()?));
