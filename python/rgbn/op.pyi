@@ -777,11 +777,11 @@ def publish(image: Image, *, path: str | os.PathLike[str] = '', light: tuple[flo
     
     Parameters:
         path (path; default ''): Output folder (created; replaced only when it is an earlier publish).
-        light (vec3; in [-1000, 1000], default (-0.5, 0.6000000238418579, 0.800000011920929)): Initial direction towards the light (+x right, +y up, +z to the viewer).
+        light (vec3; in [-1000, 1000], default (-0.5, 0.6000000238418579, 0.800000011920929)): Direction towards the light (+x right, +y up, +z to the viewer).
         ambient (float; in [0, 10], default 0.07999999821186066): Ambient light added to the diffuse term.
         specular (float; in [0, 10], default 0.25): Blinn-Phong specular strength (0 = Lambert only).
         shininess (float; in [0, 10000], default 40.0): Blinn-Phong exponent.
-        exposure_ev (float; EV, in [-32, 32], default 0.0): Initial exposure.
+        exposure_ev (float; EV, in [-32, 32], default 0.0): Exposure.
         view (choice; default 'relit'): The view the page opens with.
     
     Returns the output 'image' (rgbn): The same image.
