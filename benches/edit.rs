@@ -129,13 +129,13 @@ fn pen_segment_on(c: &mut Criterion, id: &str, size: (usize, usize), start: [f64
         b.iter_custom(|iters| {
             let mut total = Duration::ZERO;
             let mut path = base.clone();
-            lg.set_param("pen", "points", &points_text(&path))
+            lg.set_param("pen", "paths", &points_text(&path))
                 .expect("points");
             eval(&lg);
             for i in 0..iters {
                 if i % 20 == 19 {
                     path = base.clone();
-                    lg.set_param("pen", "points", &points_text(&path))
+                    lg.set_param("pen", "paths", &points_text(&path))
                         .expect("points");
                     eval(&lg);
                 }
@@ -145,7 +145,7 @@ fn pen_segment_on(c: &mut Criterion, id: &str, size: (usize, usize), start: [f64
                 let last = path[path.len() - 1];
                 path.push([last[0] + 10.0 * a.cos(), last[1] + 10.0 * a.sin()]);
                 let t0 = Instant::now();
-                lg.set_param("pen", "points", &points_text(&path))
+                lg.set_param("pen", "paths", &points_text(&path))
                     .expect("points");
                 eval(&lg);
                 total += t0.elapsed();

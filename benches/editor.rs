@@ -38,7 +38,7 @@ use rgbn::app::state::Document;
 use rgbn::app::worker::{evaluate, evaluate_view, EvalRequest, Sizes, ViewRequest};
 use rgbn::eval::Evaluator;
 use rgbn::nodes::Value;
-use rgbn::params::ParamValue;
+use rgbn::params::{ParamValue, PathValue};
 use std::hint::black_box;
 use std::path::PathBuf;
 use std::sync::atomic::AtomicBool;
@@ -123,7 +123,11 @@ fn viewport(c: &mut Criterion) {
     };
     let ev = Evaluator::new(8 << 30);
     let mut sizes = Sizes::new();
-    d.set_param(pen, "points", ParamValue::Points(base.clone()));
+    d.set_param(
+        pen,
+        "paths",
+        ParamValue::Paths(vec![PathValue::new(base.clone(), false)]),
+    );
     // The editor's whole evaluation, once edits paused.
     let _ = evaluate(&ev, &request(&d, 0, view.clone()), None);
     let mut generation = 1;
@@ -141,7 +145,11 @@ fn viewport(c: &mut Criterion) {
             for i in 0..iters {
                 if i % 20 == 19 {
                     path = base.clone();
-                    d.set_param(pen, "points", ParamValue::Points(path.clone()));
+                    d.set_param(
+                        pen,
+                        "paths",
+                        ParamValue::Paths(vec![PathValue::new(path.clone(), false)]),
+                    );
                     let _ = evaluate_view(
                         &ev,
                         &request(&d, generation, view.clone()),
@@ -154,7 +162,11 @@ fn viewport(c: &mut Criterion) {
                 let a = direction();
                 path.push([last[0] + 10.0 * a.cos(), last[1] + 10.0 * a.sin()]);
                 let t0 = Instant::now();
-                d.set_param(pen, "points", ParamValue::Points(path.clone()));
+                d.set_param(
+                    pen,
+                    "paths",
+                    ParamValue::Paths(vec![PathValue::new(path.clone(), false)]),
+                );
                 let r = evaluate_view(
                     &ev,
                     &request(&d, generation, view.clone()),
@@ -197,7 +209,11 @@ fn viewport(c: &mut Criterion) {
                     let a = direction();
                     path.push([last[0] + 10.0 * a.cos(), last[1] + 10.0 * a.sin()]);
                     let t0 = Instant::now();
-                    d.set_param(pen, "points", ParamValue::Points(path.clone()));
+                    d.set_param(
+                        pen,
+                        "paths",
+                        ParamValue::Paths(vec![PathValue::new(path.clone(), false)]),
+                    );
                     let req = request(&d, generation, pview.clone());
                     let r = evaluate_view(&ev, &req, &mut sizes, interacting).expect("viewport");
                     total += t0.elapsed();

@@ -29,6 +29,11 @@ use std::cell::Cell;
 use std::collections::BTreeMap;
 use std::fmt;
 
+mod nearest;
+mod paths;
+pub use nearest::{edit_distance, nearest};
+pub use paths::{apply_own, parse_paths, paths_text, visit_except, PathValue};
+
 /// A parameter value as stored in graph files. This is the file schema, independent of the
 /// runtime params structs; floats are `f64` and compared/hashed by bits.
 #[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
@@ -53,6 +58,8 @@ pub enum ParamValue {
     Profile(Vec<f64>),
     /// A list of 2-D points in pixels (pen paths, brush strokes).
     Points(Vec<[f64; 2]>),
+    /// A list of paths, each with parameters of its own (a pen's strokes; [`PathValue`]).
+    Paths(Vec<PathValue>),
 }
 
 impl ParamValue {
@@ -70,6 +77,7 @@ impl ParamValue {
             ParamValue::Floats(_) => "floats",
             ParamValue::Profile(_) => "profile",
             ParamValue::Points(_) => "points",
+            ParamValue::Paths(_) => "paths",
         }
     }
 
@@ -96,6 +104,7 @@ impl ParamValue {
                 let flat: Vec<f64> = p.iter().flatten().copied().collect();
                 floats(h, &flat);
             }
+            ParamValue::Paths(p) => paths::hash_paths(h, p),
         }
     }
 }
@@ -119,6 +128,7 @@ impl fmt::Display for ParamValue {
                 let s: Vec<String> = p.iter().map(|[x, y]| format!("{x}:{y}")).collect();
                 write!(f, "{}", s.join(","))
             }
+            ParamValue::Paths(p) => write!(f, "{}", paths_text(p)),
         }
     }
 }
@@ -199,6 +209,8 @@ pub enum ParamKind {
     Profile,
     /// A list of 2-D points.
     Points,
+    /// A list of paths ([`PathValue`]).
+    Paths,
 }
 
 /// Everything known about one parameter (from [`describe`]).
@@ -260,6 +272,7 @@ impl ParamInfo {
                 }
                 ParamValue::Points(pts)
             }
+            ParamKind::Paths => ParamValue::Paths(parse_paths(s)?),
         })
     }
 }
@@ -293,6 +306,8 @@ pub trait ParamVisitor {
     fn profile(&mut self, name: &'static str, value: &mut Vec<f64>, meta: &Meta);
     /// A list of 2-D points in pixels (paths, strokes).
     fn points(&mut self, name: &'static str, value: &mut Vec<[f64; 2]>, meta: &Meta);
+    /// A list of paths in pixels, each with parameters of its own.
+    fn paths(&mut self, name: &'static str, value: &mut Vec<PathValue>, meta: &Meta);
 }
 
 /// A params struct: default values from [`Default`], fields declared in [`Params::visit`].
@@ -391,7 +406,7 @@ macro_rules! choice_enum {
 /// each field's doc comment is its documentation (inspector tooltip, `rgbn ops`), then
 /// `name: type = default => kind` with the [`Meta`] builder calls (`unit`, `range`, `output`,
 /// `optional`). `kind` is a [`ParamVisitor`] method (`float`, `int`, `bool`, `text`, `path`,
-/// `vec3`, `floats`, `profile`, `points`), `choice` for a [`Choice`] enum, or `flatten` for a
+/// `vec3`, `floats`, `profile`, `points`, `paths`), `choice` for a [`Choice`] enum, or `flatten` for a
 /// field that is itself a params struct (its parameters appear as the parent's, unprefixed:
 /// one declaration shared by several operators).
 ///
@@ -514,6 +529,10 @@ impl<F: FnMut(&'static str, ParamKind, &Meta, ParamValue)> ParamVisitor for Coll
             meta,
             ParamValue::Points(value.clone()),
         );
+    }
+    fn paths(&mut self, name: &'static str, value: &mut Vec<PathValue>, meta: &Meta) {
+        let v = ParamValue::Paths(value.clone());
+        (self.0)(name, ParamKind::Paths, meta, v);
     }
 }
 
@@ -787,6 +806,17 @@ impl ParamVisitor for Apply<'_> {
             Some(v) => self.kind_err(name, "points", &v),
         }
     }
+    fn paths(&mut self, name: &'static str, value: &mut Vec<PathValue>, meta: &Meta) {
+        match self.get(name).cloned() {
+            None => {}
+            Some(ParamValue::Paths(v)) => {
+                let flat: Vec<f64> = v.iter().flat_map(PathValue::numbers).collect();
+                let ok = self.check_range(name, &flat, meta);
+                set_if(ok, value, v);
+            }
+            Some(v) => self.kind_err(name, "paths", &v),
+        }
+    }
 }
 
 /// Builds `P` from defaults overridden by `values`. Unknown names, wrong kinds and values out of
@@ -802,6 +832,19 @@ pub fn check_ranges<P: Params>(p: &P) -> Result<(), ParamError> {
     apply::<P>(&to_values(p)).map(|_| ())
 }
 
+/// Applies `values` onto `p` as [`from_values`] does onto the defaults (names not checked).
+fn apply_onto<P: Params>(
+    p: &mut P,
+    values: &BTreeMap<String, ParamValue>,
+) -> Result<(), ParamError> {
+    let mut apply = Apply {
+        values,
+        errors: Vec::new(),
+    };
+    p.visit(&mut apply);
+    apply.errors.into_iter().next().map_or(Ok(()), Err)
+}
+
 fn apply<P: Params>(values: &BTreeMap<String, ParamValue>) -> Result<P, ParamError> {
     let known: Vec<&'static str> = describe::<P>().iter().map(|i| i.name).collect();
     if let Some(name) = values.keys().find(|k| !known.contains(&k.as_str())) {
@@ -811,15 +854,7 @@ fn apply<P: Params>(values: &BTreeMap<String, ParamValue>) -> Result<P, ParamErr
         });
     }
     let mut p = P::default();
-    let mut apply = Apply {
-        values,
-        errors: Vec::new(),
-    };
-    p.visit(&mut apply);
-    match apply.errors.into_iter().next() {
-        Some(e) => Err(e),
-        None => Ok(p),
-    }
+    apply_onto(&mut p, values).map(|()| p)
 }
 
 thread_local! {
@@ -847,6 +882,8 @@ struct Rescale {
     scale: Option<f64>,
     /// Maps each point.
     point: Box<dyn Fn([f64; 2]) -> [f64; 2]>,
+    /// The declarations of the struct rescaled: a path's own parameters are its node's.
+    own: Vec<ParamInfo>,
 }
 
 impl Rescale {
@@ -887,24 +924,36 @@ impl ParamVisitor for Rescale {
             *p = (self.point)(*p);
         }
     }
+    fn paths(&mut self, _: &'static str, value: &mut Vec<PathValue>, _: &Meta) {
+        for path in value {
+            for p in &mut path.points {
+                *p = (self.point)(*p);
+            }
+            if let Some(s) = self.scale {
+                paths::scale_own(&mut path.params, &self.own, s);
+            }
+        }
+    }
 }
 
 /// `p` on a grid `s` times coarser, from its declarations: every `float`, `floats` and
 /// `profile` with unit `px` divided by `s` and kept within its declared range, every `points`
-/// list mapped with [`scale_point`]. Integers (kernel radii and sizes in whole pixels) are left
-/// as they are: an operator with such lengths has no coarse form from its declarations.
+/// list and path mapped with [`scale_point`] (a path's own parameters scaled by the same
+/// declarations). Integers (kernel radii and sizes in whole pixels) are left as they are: an
+/// operator with such lengths has no coarse form from its declarations.
 #[must_use]
 pub fn scaled<P: Params>(p: &P, s: f64) -> P {
     let mut out = p.clone();
     out.visit(&mut Rescale {
         scale: Some(s),
         point: Box::new(move |q| scale_point(q, s)),
+        own: describe::<P>(),
     });
     out
 }
 
-/// `p` on the crop of the image whose top-left pixel is `(dx, dy)`: every `points` list moved
-/// by `(−dx, −dy)`. Operators use their points as `f32`; the shift is applied to those values,
+/// `p` on the crop of the image whose top-left pixel is `(dx, dy)`: every `points` list and
+/// path moved by `(−dx, −dy)`. Operators use their points as `f32`; the shift is applied to those values,
 /// where moving by whole pixels is exact, so a crop sees a path exactly where the whole image
 /// does.
 #[must_use]
@@ -913,6 +962,7 @@ pub fn shifted<P: Params>(p: &P, dx: f64, dy: f64) -> P {
     out.visit(&mut Rescale {
         scale: None,
         point: Box::new(move |q| [f64::from(q[0] as f32) - dx, f64::from(q[1] as f32) - dy]),
+        own: Vec::new(),
     });
     out
 }
@@ -933,41 +983,9 @@ pub fn map_paths<P: Params>(p: &mut P, f: &mut dyn FnMut(&'static str, &Meta, &m
         fn floats(&mut self, _: &'static str, _: &mut Vec<f64>, _: &Meta) {}
         fn profile(&mut self, _: &'static str, _: &mut Vec<f64>, _: &Meta) {}
         fn points(&mut self, _: &'static str, _: &mut Vec<[f64; 2]>, _: &Meta) {}
+        fn paths(&mut self, _: &'static str, _: &mut Vec<PathValue>, _: &Meta) {}
     }
     p.visit(&mut Paths(f));
-}
-
-/// Levenshtein distance (for "did you mean" suggestions).
-#[must_use]
-pub fn edit_distance(a: &str, b: &str) -> usize {
-    let a: Vec<char> = a.chars().collect();
-    let b: Vec<char> = b.chars().collect();
-    let mut prev: Vec<usize> = (0..=b.len()).collect();
-    for (i, ca) in a.iter().enumerate() {
-        let mut cur = vec![i + 1; b.len() + 1];
-        for (j, cb) in b.iter().enumerate() {
-            cur[j + 1] = (prev[j] + usize::from(ca != cb))
-                .min(prev[j + 1] + 1)
-                .min(cur[j] + 1);
-        }
-        prev = cur;
-    }
-    prev[b.len()]
-}
-
-/// The candidate nearest to `word` by edit distance, if it is close enough to be a likely typo
-/// (distance ≤ max(2, len/3)) or contains / is contained in `word`.
-pub fn nearest<'a>(word: &str, candidates: impl IntoIterator<Item = &'a str>) -> Option<String> {
-    let w = word.to_lowercase();
-    candidates
-        .into_iter()
-        .map(|c| (edit_distance(&w, &c.to_lowercase()), c))
-        .filter(|(d, c)| {
-            *d <= (w.chars().count() / 3).max(2)
-                || (!w.is_empty() && (c.contains(w.as_str()) || w.contains(*c)))
-        })
-        .min_by_key(|(d, _)| *d)
-        .map(|(_, c)| c.to_string())
 }
 
 #[cfg(test)]

@@ -83,6 +83,9 @@ mod extract;
 #[path = "it/pen_patterns.rs"]
 mod pen_patterns;
 
+#[path = "it/pen_paths.rs"]
+mod pen_paths;
+
 #[path = "it/region.rs"]
 mod region;
 

@@ -84,6 +84,19 @@ fn value(
                     .collect::<AResult<Vec<_>>>()?,
             )
         }
+        ParamKind::Paths => {
+            let n = u.int_in_range(0usize..=3)?;
+            let r = Some((-16.0, 80.0));
+            let mut paths = Vec::new();
+            for _ in 0..n {
+                let k = u.int_in_range(0usize..=6)?;
+                let points = (0..k)
+                    .map(|_| Ok([number(u, r)?, number(u, r)?]))
+                    .collect::<AResult<Vec<_>>>()?;
+                paths.push(rgbn::params::PathValue::new(points, u.arbitrary()?));
+            }
+            ParamValue::Paths(paths)
+        }
         ParamKind::Path => return Ok(None),
     }))
 }

@@ -37,6 +37,7 @@ def param_type(p):
         "floats": "Sequence[float]",
         "profile": "Sequence[float]",
         "points": "Sequence[tuple[float, float]]",
+        "paths": "Sequence[Sequence[tuple[float, float]] | dict[str, Any]]",
     }[kind]
 
 

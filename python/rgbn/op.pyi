@@ -478,10 +478,10 @@ def combine_linear(base: Image, detail: Image | None = None, detail_height: nump
     The graph node 'combine.linear', run by rgbn.run_op.
     """
 
-def combine_rotation(base: Image, detail: Image, existing: Image | None = None, weight: numpy.ndarray | None = None, *, mode: Literal['replace', 'blend', 'rotate', 'rnm', 'udn', 'whiteout', 'partial_derivative'] = 'blend', frame: Literal['minimal', 'oriented'] = 'minimal', orientation: tuple[float, float, float] = (1.0, 0.0, 0.0), strength: float = 1.0, saturate: bool = True, min_z: float = 0.05000000074505806) -> dict[str, Any]:
+def combine_rotation(base: Image, detail: Image, existing: Image | None = None, weight: numpy.ndarray | None = None, *, mode: Literal['replace', 'blend', 'rotate', 'rnm', 'udn', 'whiteout', 'partial_derivative'] = 'blend', frame: Literal['minimal', 'oriented'] = 'minimal', orientation: tuple[float, float, float] = (1.0, 0.0, 0.0), strength: float = 1.0, saturate: bool = True, min_z: float = 0.05000000074505806, integrable: bool = False) -> dict[str, Any]:
     """Rotation combine.
     
-    Expresses a detail normal in the tangent frame of a base normal (Pereira & Velho §VII), so the detail keeps its look on a tilted base; industry blends (RNM, UDN, whiteout, partial derivative) as modes. Nonlinear: the curl of the result is reported.
+    Expresses a detail normal in the tangent frame of a base normal (Pereira & Velho §VII), so the detail keeps its look on a tilted base; industry blends (RNM, UDN, whiteout, partial derivative) as modes. Nonlinear: the curl of the result is reported; integrable: true returns the nearest integrable result, changed only inside the edit's support.
     
     Inputs:
         base (rgbn): Base image (colour and mask are kept).
@@ -496,6 +496,7 @@ def combine_rotation(base: Image, detail: Image, existing: Image | None = None, 
         strength (float; in [0, 1], default 1.0): Global weight multiplying the per-pixel weight.
         saturate (bool; default True): Move vectors with n_z < min_z back along the great arc to n_z = min_z (§VII's saturated vector k).
         min_z (float; in [0, 0.999], default 0.05000000074505806): Saturation threshold on n_z.
+        integrable (bool; default False): Return the nearest integrable result instead (§VII: a nonlinear combine is not a surface's normals): the change of the slopes is made the gradient of a height change that is 0 outside the edit's support (pixels of weight > 0, or changed), the support's border held at the unedited image's height (module docs, "Integrable").
     
     Returns a dict of the outputs:
         image (rgbn): Combined image.
@@ -554,24 +555,23 @@ def stamp(image: Image, stamp: Image, region: numpy.ndarray | None = None, *, po
     The graph node 'stamp', run by rgbn.run_op.
     """
 
-def pen(image: Image, texture: numpy.ndarray | None = None, *, points: Sequence[tuple[float, float]] = [(16.0, 16.0), (112.0, 112.0)], closed: bool = False, width_px: float = 8.0, profile: Literal['bump', 'ridge', 'crease', 'scratch', 'step', 'custom'] = 'bump', height_px: float = 2.0, samples_px: Sequence[float] = [0.0, 1.0, 0.0], taper_px: float = 16.0, mode: Literal['integrable', 'analytic', 'distance_transform'] = 'integrable', along: Sequence[float] = [1.0], along_period_px: float = 16.0, pattern: Literal['none', 'rope', 'texture'] = 'none', pattern_height_px: float = 0.5, pattern_strands: int = 3) -> dict[str, Any]:
+def pen(image: Image, texture: numpy.ndarray | None = None, *, paths: Sequence[Sequence[tuple[float, float]] | dict[str, Any]] = [{'points': [(16.0, 16.0), (112.0, 112.0)], 'closed': False, 'params': {}}], width_px: float = 8.0, profile: Literal['bump', 'ridge', 'crease', 'scratch', 'step', 'custom'] = 'bump', height_px: float = 2.0, samples_px: Sequence[float] = [0.0, 1.0, 0.0], taper_px: float = 16.0, mode: Literal['integrable', 'analytic', 'distance_transform'] = 'integrable', along: Sequence[float] = [1.0], along_period_px: float = 16.0, pattern: Literal['none', 'rope', 'texture'] = 'none', pattern_height_px: float = 0.5, pattern_strands: int = 3) -> dict[str, Any]:
     """Pen.
     
-    Sculpts a relief along a path (Pereira & Velho §V–VI): a profile across an open or closed polyline, added to the image's gradients. Open paths must end at the level they start (bump, ridge, crease, scratch); a step raises the inside of a closed path.
+    Sculpts a relief along paths (Pereira & Velho §V–VI): a profile across each open or closed polyline, added to the image's gradients; the strokes of one node add. Open paths must end at the level they start (bump, ridge, crease, scratch); a step raises the inside of a closed path.
     
     Inputs:
         image (rgbn): Image to draw on.
         texture (scalar, optional): Optional height image for pattern: texture (at most 1024 px a side): columns across the stroke, rows along one period (along_period_px); its edge columns are pinned to the surface.
     
     Parameters:
-        points (points; px, default [(16.0, 16.0), (112.0, 112.0)]): Path vertices in pixels (x, row): ≥ 2 for an open path, ≥ 3 distinct for a closed one.
-        closed (bool; default False): Join the last point back to the first; the profile's inside is then the enclosed region.
+        paths (paths; px, default [{'points': [(16.0, 16.0), (112.0, 112.0)], 'closed': False, 'params': {}}]): The strokes: each path's vertices in pixels (x, row), open or closed (≥ 2 points open, ≥ 3 distinct closed), with the node's stroke parameters or its own width_px, profile, height_px, samples_px and taper_px. Their reliefs add.
         width_px (float; px, in [0.01, 10000], default 8.0): Full stroke width (u = ±1 at ±width/2).
         profile (choice; default 'bump'): Height across the stroke, u ∈ [−1, 1]: bump A(1+cos πu)/2, ridge A(1−|u|), crease −D(1−|u|), scratch (groove with lips), step A·S((u+1)/2) (closed paths only: raises the inside), custom (samples_px).
         height_px (float; px, in [-10000, 10000], default 2.0): Amplitude: the height A of bump, ridge and step, the depth D of crease and scratch (negative inverts).
         samples_px (profile; px, default [0.0, 1.0, 0.0]): Custom profile: heights at equally spaced u from −1 to 1 (≥ 2 samples, linearly interpolated); an open path needs equal first and last samples.
         taper_px (float; px, in [0, 10000], default 16.0): Length over which an open path's relief fades in and out at its ends.
-        mode (choice; default 'integrable'): integrable: forward differences of the analytic height (curl 0); analytic: the analytic gradient (curl on medial axes); distance_transform: EDT of the rasterised path (integrable, no taper, no along-path variation).
+        mode (choice; default 'integrable'): integrable: the height at the pixel corners, each pixel's slope the averaged 2 × 2 difference of its corners (exactly a surface, curl 0); analytic: the analytic gradient at pixel centres (curl on medial axes); distance_transform: EDT of the rasterised path (integrable, no taper, no along-path variation).
         along (profile; default [1.0]): Relief along the path (§VI normal textures: a stitched seam, beads, a knotted cord): factors at equally spaced points over one period, repeated along the path (periodic, linearly interpolated), multiplying the profile's relief; one value = the same relief all along.
         along_period_px (float; px, in [0.5, 10000], default 16.0): Length of one period of along in pixels (on a closed path adjusted so that a whole number of periods fits).
         pattern (choice; default 'none'): A relief varying across and along the path, added to the profile (§VI normal textures): none, rope (twisted strands, one twist per along_period_px), texture (the texture input: columns across the stroke, rows over one period). Not in distance_transform mode.
@@ -770,18 +770,18 @@ def save_mesh(height: numpy.ndarray, image: Image, *, path: str | os.PathLike[st
 def publish(image: Image, *, path: str | os.PathLike[str] = '', light: tuple[float, float, float] = (-0.5, 0.6000000238418579, 0.800000011920929), ambient: float = 0.07999999821186066, specular: float = 0.25, shininess: float = 40.0, exposure_ev: float = 0.0, view: Literal['relit', 'normals', 'specular_enhancement', 'curvature'] = 'relit') -> Image:
     """Publish to the web.
     
-    Writes a self-contained folder (index.html, viewer.js, image.json, PNG textures; a tile pyramid over 4096²) that relights the image in any WebGL2 browser with no network access: drag the light, zoom, pan, switch relit / normals / specular_enhancement / curvature, exposure. Replaces only an earlier publish; passes the image through.
+    Writes a web folder (index.html, viewer.js, rgbn.json; albedo and normals as Deep Zoom tile pyramids that OpenSeadragon and OpenLIME also read) that relights the image in any WebGL2 browser with no network access (rgbn serve DIR shows it): drag the light, zoom, pan, switch relit / normals / specular_enhancement / curvature, exposure. Replaces only an earlier publish; passes the image through.
     
     Inputs:
         image (rgbn): Image to publish.
     
     Parameters:
         path (path; default ''): Output folder (created; replaced only when it is an earlier publish).
-        light (vec3; in [-1000, 1000], default (-0.5, 0.6000000238418579, 0.800000011920929)): Initial direction towards the light (+x right, +y up, +z to the viewer).
+        light (vec3; in [-1000, 1000], default (-0.5, 0.6000000238418579, 0.800000011920929)): Direction towards the light (+x right, +y up, +z to the viewer).
         ambient (float; in [0, 10], default 0.07999999821186066): Ambient light added to the diffuse term.
         specular (float; in [0, 10], default 0.25): Blinn-Phong specular strength (0 = Lambert only).
         shininess (float; in [0, 10000], default 40.0): Blinn-Phong exponent.
-        exposure_ev (float; EV, in [-32, 32], default 0.0): Initial exposure.
+        exposure_ev (float; EV, in [-32, 32], default 0.0): Exposure.
         view (choice; default 'relit'): The view the page opens with.
     
     Returns the output 'image' (rgbn): The same image.

@@ -36,6 +36,7 @@ fn kind_name(k: &ParamKind) -> &'static str {
         ParamKind::Floats => "floats",
         ParamKind::Profile => "profile",
         ParamKind::Points => "points",
+        ParamKind::Paths => "paths",
     }
 }
 

@@ -5,8 +5,8 @@
 
 use crate::error::input;
 use pyo3::prelude::*;
-use pyo3::types::{PyBool, PyFloat, PyInt, PyList, PyString, PyTuple};
-use rgbn::params::{nearest, ParamInfo, ParamValue};
+use pyo3::types::{PyBool, PyDict, PyFloat, PyInt, PyList, PyString, PyTuple};
+use rgbn::params::{nearest, ParamInfo, ParamKind, ParamValue};
 use std::collections::BTreeMap;
 
 /// The `--set` text of a Python value: `True`/`False`, numbers by `repr`, strings and paths
@@ -68,7 +68,56 @@ pub fn py_of<'py>(py: Python<'py>, v: &ParamValue) -> PyResult<Bound<'py, PyAny>
         ParamValue::Points(p) => {
             PyList::new(py, p.iter().map(|[x, y]| (*x, *y)).collect::<Vec<_>>())?.into_any()
         }
+        ParamValue::Paths(paths) => {
+            let list = PyList::empty(py);
+            for p in paths {
+                let d = PyDict::new(py);
+                d.set_item("points", py_of(py, &ParamValue::Points(p.points.clone()))?)?;
+                d.set_item("closed", p.closed)?;
+                let own = PyDict::new(py);
+                for (k, v) in &p.params {
+                    own.set_item(k, py_of(py, v)?)?;
+                }
+                d.set_item("params", own)?;
+                list.append(d)?;
+            }
+            list.into_any()
+        }
     })
+}
+
+/// The `--set` text of a list of paths: each a sequence of `(x, y)` or a dict with `points`,
+/// optionally `closed` and `params` (the path's own parameters); a string as it is.
+fn paths_text_of(v: &Bound<'_, PyAny>) -> PyResult<String> {
+    if v.is_instance_of::<PyString>() {
+        return v.extract::<String>();
+    }
+    let mut paths = Vec::new();
+    for item in v.try_iter()? {
+        let item = item?;
+        let Ok(d) = item.cast::<PyDict>() else {
+            paths.push(text_of(&item)?);
+            continue;
+        };
+        let points = d
+            .get_item("points")?
+            .ok_or_else(|| input("a path dict needs \"points\""))?;
+        let mut parts = vec![text_of(&points)?];
+        if let Some(c) = d.get_item("closed")? {
+            if c.extract::<bool>()? {
+                parts.push("closed".into());
+            }
+        }
+        if let Some(own) = d.get_item("params")? {
+            for (k, v) in own.cast::<PyDict>()?.iter() {
+                // A list (custom samples) as a/b/c.
+                let text = text_of(&v)?.replace(',', "/");
+                parts.push(format!("{}={text}", k.str()?));
+            }
+        }
+        paths.push(parts.join(","));
+    }
+    Ok(paths.join(";"))
 }
 
 /// Parses `kwargs` for an operator with parameters `infos` (unknown names refused with the
@@ -88,7 +137,11 @@ pub fn values_of(
                     .unwrap_or_default()
             )));
         };
-        let text = text_of(v)?;
+        let text = if info.kind == ParamKind::Paths {
+            paths_text_of(v)?
+        } else {
+            text_of(v)?
+        };
         let value = info
             .parse_str(&text)
             .map_err(|detail| input(format!("cannot set {name:?} to {text:?}: {detail}: {op}")))?;

@@ -173,3 +173,20 @@ def test_capture_recovers_the_normals_of_a_lambertian_sphere():
         rgbn.capture(photos[:2], lights[:2])
     with pytest.raises(rgbn.InputError, match=r'unknown method "lsq"'):
         rgbn.capture(photos, lights, method="lsq")
+
+
+def test_a_pen_takes_many_paths_as_lists_or_dicts_and_their_heights_add():
+    n = np.zeros((96, 96, 3), np.float32)
+    n[..., 2] = 1.0
+    img = rgbn.Image(n)
+    closed = {"points": [(20, 50), (60, 50), (40, 90)], "closed": True, "params": {"profile": "step", "height_px": -2.0}}
+    two = rgbn.op.pen(img, paths=[[(10, 10), (50, 20)], closed])
+    a = rgbn.op.pen(img, paths=[[(10, 10), (50, 20)]])
+    # The closed path alone, in the command line's text form, its own parameters the node's.
+    b = rgbn.op.pen(a["image"], paths="20:50,60:50,40:90,closed", profile="step", height_px=-2.0)
+    h2, ha, hb = (np.asarray(x["height"]) for x in (two, a, b))
+    assert np.abs(h2 - (ha + hb)).max() < 1e-5
+    assert h2.min() < -1.9, "the step lowers the inside"
+    assert two["image"].normals.tolist() != img.normals.tolist()
+    with pytest.raises(rgbn.InputError, match="did you mean \"width_px\""):
+        rgbn.op.pen(img, paths=[{"points": [(1, 1), (5, 5)], "params": {"widht_px": 3}}])

@@ -121,38 +121,78 @@ pub fn param_ui(
             changed |= list_ui(ui, v, meta.range);
         }
         (ParamKind::Points, ParamValue::Points(pts)) => {
+            ui.vertical(|ui| changed |= points_ui(ui, pts));
+        }
+        (ParamKind::Paths, ParamValue::Paths(paths)) => {
             ui.vertical(|ui| {
                 let mut remove = None;
-                for (k, p) in pts.iter_mut().enumerate() {
+                for (k, path) in paths.iter_mut().enumerate() {
+                    let own = crate::params::paths_text(&[crate::params::PathValue {
+                        points: Vec::new(),
+                        ..path.clone()
+                    }]);
+                    let title = format!("path {} ({} points{})", k + 1, path.points.len(), {
+                        if own.is_empty() {
+                            String::new()
+                        } else {
+                            format!(", {own}")
+                        }
+                    });
                     ui.horizontal(|ui| {
-                        ui.label(format!("{k}"));
-                        changed |= ui
-                            .add(egui::DragValue::new(&mut p[0]).prefix("x "))
-                            .changed();
-                        changed |= ui
-                            .add(egui::DragValue::new(&mut p[1]).prefix("y "))
-                            .changed();
-                        if ui.small_button("✖").clicked() {
+                        ui.collapsing(title, |ui| changed |= points_ui(ui, &mut path.points));
+                        changed |= ui.checkbox(&mut path.closed, "closed").changed();
+                        if ui
+                            .small_button("✖")
+                            .on_hover_text("Remove this path")
+                            .clicked()
+                        {
                             remove = Some(k);
                         }
                     });
                 }
                 if let Some(k) = remove {
-                    pts.remove(k);
+                    paths.remove(k);
                     changed = true;
                 }
-                if ui.small_button("+ point").clicked() {
-                    let last = pts.last().copied().unwrap_or([0.0, 0.0]);
-                    pts.push([last[0] + 10.0, last[1]]);
-                    changed = true;
-                }
-            });
+            })
+            .response
+            .on_hover_text(meta.doc);
         }
         (_, v) => {
             ui.label(format!("{v} ({})", v.kind_name()));
         }
     }
     ui.end_row();
+    changed
+}
+
+/// A list of points as rows of x and y, each removable, and a button that adds one.
+fn points_ui(ui: &mut Ui, pts: &mut Vec<[f64; 2]>) -> bool {
+    let mut changed = false;
+    let mut remove = None;
+    for (k, p) in pts.iter_mut().enumerate() {
+        ui.horizontal(|ui| {
+            ui.label(format!("{k}"));
+            changed |= ui
+                .add(egui::DragValue::new(&mut p[0]).prefix("x "))
+                .changed();
+            changed |= ui
+                .add(egui::DragValue::new(&mut p[1]).prefix("y "))
+                .changed();
+            if ui.small_button("✖").clicked() {
+                remove = Some(k);
+            }
+        });
+    }
+    if let Some(k) = remove {
+        pts.remove(k);
+        changed = true;
+    }
+    if ui.small_button("+ point").clicked() {
+        let last = pts.last().copied().unwrap_or([0.0, 0.0]);
+        pts.push([last[0] + 10.0, last[1]]);
+        changed = true;
+    }
     changed
 }
 

@@ -8,11 +8,10 @@
 
 use super::state::Document;
 use super::tools::{
-    self, delete_vertex, node_points, param, param_f64, place_stamp, Gesture, GestureKind, Press,
+    self, delete_vertex, node_points, param_f64, place_stamp, Gesture, GestureKind, Press,
     StampFrame, ToolKind, ToolState, ViewTransform, PICK_RADIUS_PT, ROTATE_HANDLE_GAP_PT,
 };
 use crate::graph::NodeId;
-use crate::params::ParamValue;
 use egui::{Color32, Key, Painter, PointerButton, Pos2, Response, Shape, Stroke, Ui, Vec2};
 use std::time::Instant;
 
@@ -72,7 +71,7 @@ impl Tools {
                 let r = ui.selectable_value(&mut self.state.kind, k, k.name());
                 r.on_hover_text(match k {
                     ToolKind::Pan => "Drag to pan, scroll to zoom, double-click to fit",
-                    ToolKind::Pen => "Drag to draw a pen path; start at an end of the selected pen's path (or hold Shift) to extend it; end where you began to close it",
+                    ToolKind::Pen => "Drag to draw a pen path: a new path of the selected pen node (Ctrl, or \"new node\": a new pen node); start at an end of one of its paths (or hold Shift) to extend it; end where you began to close it",
                     ToolKind::Stamp => "Click to place the stamp; drag a placement to move it, the round handle to rotate, the square one to scale (Shift: keep aspect)",
                     ToolKind::Brush => "Drag to paint the filter brush's region (Shift extends the selected brush's stroke)",
                     ToolKind::Vertices => "Drag a vertex of the selected pen, brush or stamp node; right-click deletes it",
@@ -96,6 +95,8 @@ impl Tools {
                         .suffix(" px"),
                 )
                 .on_hover_text("Relief height of new pen paths (negative engraves)");
+                ui.checkbox(&mut self.state.pen_new_node, "new node")
+                    .on_hover_text("Each stroke makes a new pen node (else it is a new path of the selected pen node; Ctrl does this for one stroke)");
             }
             if self.state.kind == ToolKind::Brush {
                 ui.separator();
@@ -135,9 +136,10 @@ impl Tools {
         if !self.active() {
             return;
         }
-        let (shift, space, escape, press_origin) = ui.input(|i| {
+        let (shift, ctrl, space, escape, press_origin) = ui.input(|i| {
             (
                 i.modifiers.shift,
+                i.modifiers.command,
                 i.key_down(Key::Space),
                 i.key_pressed(Key::Escape),
                 i.pointer.press_origin(),
@@ -148,6 +150,7 @@ impl Tools {
             tol_px: xf.px_from_pt(PICK_RADIUS_PT),
             gap_px: xf.px_from_pt(ROTATE_HANDLE_GAP_PT),
             extend: shift,
+            new_node: ctrl,
         };
         let base = cx.doc.base_dir();
         if self.gesture.is_some() {
@@ -344,22 +347,35 @@ impl Tools {
                             Color32::from_rgba_unmultiplied(90, 200, 255, 40),
                         );
                     }
-                    let closed = param(g, id, "closed") == Some(ParamValue::Bool(true));
-                    let mut line = pts.clone();
-                    if closed && pts.len() > 2 {
-                        line.push(pts[0]);
-                    }
-                    painter.line(
-                        line.clone(),
-                        Stroke::new(2.5, Color32::from_black_alpha(90)),
-                    );
-                    painter.line(line, Stroke::new(1.0, PATH.gamma_multiply(0.7)));
-                    let hover = resp.hover_pos();
-                    let handles: Vec<Pos2> = if self.state.kind == ToolKind::Vertices {
-                        pts.clone()
-                    } else {
-                        pts.first().into_iter().chain(pts.last()).copied().collect()
+                    // A pen's paths each as its own line (closed ones joined), a brush's one.
+                    let lines: Vec<Vec<Pos2>> = match tools::pen_paths(g, id) {
+                        Some(paths) if op == "pen" => paths
+                            .into_iter()
+                            .map(|p| {
+                                let mut l: Vec<Pos2> = p.points.into_iter().map(scr).collect();
+                                if p.closed && l.len() > 2 {
+                                    l.push(l[0]);
+                                }
+                                l
+                            })
+                            .collect(),
+                        _ => vec![pts.clone()],
                     };
+                    let mut handles: Vec<Pos2> = Vec::new();
+                    for line in lines {
+                        if self.state.kind != ToolKind::Vertices {
+                            handles.extend(line.first().into_iter().chain(line.last()));
+                        }
+                        painter.line(
+                            line.clone(),
+                            Stroke::new(2.5, Color32::from_black_alpha(90)),
+                        );
+                        painter.line(line, Stroke::new(1.0, PATH.gamma_multiply(0.7)));
+                    }
+                    let hover = resp.hover_pos();
+                    if self.state.kind == ToolKind::Vertices {
+                        handles = pts.clone();
+                    }
                     for p in &handles {
                         let hot = hover.is_some_and(|h| h.distance(*p) <= PICK_RADIUS_PT);
                         painter.circle(

@@ -831,6 +831,7 @@ fn kind_name(k: &ParamKind) -> String {
         ParamKind::Floats => "numbers a,b,…".into(),
         ParamKind::Profile => "profile a,b,…".into(),
         ParamKind::Points => "points x:y,…".into(),
+        ParamKind::Paths => "paths x:y,…[,closed][,name=value];…".into(),
     }
 }
 

@@ -2,7 +2,7 @@
 //!
 //! ```ron
 //! (
-//!     version: 1,
+//!     version: 2,
 //!     next_id: 4,                        // ids are never reused
 //!     inputs: { "image": (ty: Rgbn, doc: "Image to edit.") },
 //!     outputs: { "relit": (node: 3, port: "picture") },
@@ -21,7 +21,11 @@
 //!
 //! **Versions.** [`CURRENT_VERSION`] is written. A newer version is refused with
 //! [`GraphError::UnsupportedVersion`]; older versions are read with their own schema and
-//! migrated one version at a time by functions ([`migrate_v0`]).
+//! migrated one version at a time by functions ([`migrate_v0`], [`migrate_v1`]).
+//!
+//! - 0 → 1: node positions `x`, `y` became `pos`; `next_id` and `exposed` were added.
+//! - 1 → 2: a pen node holds a list of paths (`paths`) instead of one path (`points` and
+//!   `closed`).
 
 // Graph errors carry their location (file, node, names) by value; they are cold paths.
 #![allow(clippy::result_large_err)]
@@ -33,7 +37,7 @@ use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 
 /// The version this rgbn writes.
-pub const CURRENT_VERSION: u32 = 1;
+pub const CURRENT_VERSION: u32 = 2;
 
 /// A graph file, current version.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -194,6 +198,45 @@ pub fn migrate_v0(old: v0::GraphFile) -> GraphFile {
     }
 }
 
+/// Migrates a version-1 file to version 2: each pen node's `points` and `closed` become the
+/// one path of its `paths` (the pen's old default path where `points` was not given). The
+/// schema is otherwise the same.
+#[must_use]
+pub fn migrate_v1(mut f: GraphFile) -> GraphFile {
+    use crate::params::PathValue;
+    f.version = 2;
+    for n in f.nodes.iter_mut().filter(|n| n.op == "pen") {
+        let points = n.params.remove("points");
+        let closed = n.params.remove("closed");
+        if points.is_none() && closed.is_none() {
+            continue;
+        }
+        let points = match points {
+            Some(ParamValue::Points(p)) => p,
+            // Not a list of points: kept for the parameter check to refuse by name.
+            Some(other) => {
+                n.params.insert("points".into(), other);
+                continue;
+            }
+            None => crate::ops::pen::PenParams::default().points,
+        };
+        let closed = match closed {
+            Some(ParamValue::Bool(b)) => b,
+            None => false,
+            Some(other) => {
+                n.params.insert("points".into(), ParamValue::Points(points));
+                n.params.insert("closed".into(), other);
+                continue;
+            }
+        };
+        n.params.insert(
+            "paths".into(),
+            ParamValue::Paths(vec![PathValue::new(points, closed)]),
+        );
+    }
+    f
+}
+
 fn syntax(file: &str, e: &ron::error::SpannedError) -> GraphError {
     GraphError::Syntax {
         file: file.to_string(),
@@ -211,11 +254,14 @@ pub fn parse(text: &str, file: &str) -> Result<GraphFile, GraphError> {
         version: u32,
     }
     let probe: Probe = ron::from_str(text).map_err(|e| syntax(file, &e))?;
+    let read =
+        || -> Result<GraphFile, GraphError> { ron::from_str(text).map_err(|e| syntax(file, &e)) };
     match probe.version {
-        0 => Ok(migrate_v0(
+        0 => Ok(migrate_v1(migrate_v0(
             ron::from_str(text).map_err(|e| syntax(file, &e))?,
-        )),
-        CURRENT_VERSION => ron::from_str(text).map_err(|e| syntax(file, &e)),
+        ))),
+        1 => Ok(migrate_v1(read()?)),
+        CURRENT_VERSION => read(),
         found => Err(GraphError::UnsupportedVersion {
             file: file.to_string(),
             found,
@@ -271,6 +317,35 @@ mod tests {
             (id: 2, op: "normalize", name: Some("n"), x: 10.0, y: 5.0, inputs: { "image": Node(1, "image") }),
         ])"#;
         assert_eq!(parse(v0, "old.ron").unwrap(), parse(V1, "new.ron").unwrap());
+    }
+
+    #[test]
+    fn v1_pen_points_become_one_path() {
+        use crate::params::PathValue;
+        let v1 = r#"(version: 1, next_id: 4, nodes: [
+            (id: 1, op: "pen", params: { "points": Points([(1.0, 2.0), (3.0, 4.0), (5.0, 1.0)]), "closed": Bool(true), "width_px": Float(6.0) }),
+            (id: 2, op: "pen", params: { "width_px": Float(6.0) }),
+            (id: 3, op: "brush", params: { "points": Points([(1.0, 2.0)]) }),
+        ])"#;
+        let f = parse(v1, "old.ron").unwrap();
+        assert_eq!(f.version, CURRENT_VERSION);
+        let p = &f.nodes[0].params;
+        assert_eq!(
+            p["paths"],
+            ParamValue::Paths(vec![PathValue::new(
+                vec![[1.0, 2.0], [3.0, 4.0], [5.0, 1.0]],
+                true
+            )])
+        );
+        assert!(!p.contains_key("points") && !p.contains_key("closed"));
+        assert_eq!(p["width_px"], ParamValue::Float(6.0));
+        // A pen at its default path keeps it by default; other operators' points stay.
+        assert!(!f.nodes[1].params.contains_key("paths"));
+        assert!(f.nodes[2].params.contains_key("points"));
+        // The migrated file is written in the current schema and reads back the same.
+        let t = to_text(&f);
+        assert!(t.contains("version: 2") && t.contains("paths"), "{t}");
+        assert_eq!(parse(&t, "new.ron").unwrap(), f);
     }
 
     #[test]

@@ -1,10 +1,12 @@
-//! The pen of [`crate::ops::pen`] as a node: sculpt a relief along an open or closed path with a
-//! profile and an optional pattern along it ([`crate::ops::pen::apply_pen_with`]).
+//! The pen of [`crate::ops::pen`] as a node: sculpt a relief along open or closed paths with a
+//! profile and an optional pattern along them, every stroke of the node in one list of paths
+//! ([`crate::ops::pen_paths::apply_pen_paths`]).
 
 use super::{Coarse, Kind, OpSpec, Operator, RunContext, Scalar};
 use crate::error::RgbnError;
 use crate::ops::geom::{changed_path_bounds, paths_bounds};
-use crate::ops::pen::{apply_pen_with, PenMode, PenParams};
+use crate::ops::pen::{PenMode, PenParams};
+use crate::ops::pen_paths::{apply_pen_paths, reach_px, PenPathsParams};
 use crate::RgbnImage;
 
 crate::inputs! {
@@ -33,7 +35,7 @@ crate::outputs! {
 pub struct PenNode;
 
 impl Operator for PenNode {
-    type Params = PenParams;
+    type Params = PenPathsParams;
     type In = PenIn;
     type Out = PenOut;
     fn spec() -> OpSpec {
@@ -41,19 +43,26 @@ impl Operator for PenNode {
             "pen",
             "Pen",
             "draw",
-            "Sculpts a relief along a path (Pereira & Velho §V–VI): a profile across an open or closed polyline, added to the image's gradients. Open paths must end at the level they start (bump, ridge, crease, scratch); a step raises the inside of a closed path.",
+            "Sculpts a relief along paths (Pereira & Velho §V–VI): a profile across each open or closed polyline, added to the image's gradients; the strokes of one node add. Open paths must end at the level they start (bump, ridge, crease, scratch); a step raises the inside of a closed path.",
         )
     }
-    fn check(p: &PenParams) -> Result<(), RgbnError> {
+    fn check(p: &PenPathsParams) -> Result<(), RgbnError> {
         p.validate()
     }
-    fn kind(p: &PenParams) -> Kind {
-        let halo = match p.mode {
+    fn kind(p: &PenPathsParams) -> Kind {
+        let halo = match p.stroke.mode {
             // Heights at the pixel corners around each pixel (integrable), gradients at the
             // pixel centres (analytic): one pixel.
             PenMode::Integrable | PenMode::Analytic => 1,
             // Distances from the rasterised path matter up to the stroke's half width and taper.
-            PenMode::DistanceTransform => (p.width_px / 2.0 + p.taper_px).ceil() as usize + 2,
+            PenMode::DistanceTransform => p
+                .strokes()
+                .unwrap_or_default()
+                .iter()
+                .chain([&p.stroke])
+                .map(|s| (s.width_px / 2.0 + s.taper_px).ceil() as usize + 2)
+                .max()
+                .unwrap_or(0),
         };
         // Lengths and points are declared in pixels: the level's pen is the declared scaling.
         Kind::Area {
@@ -62,31 +71,14 @@ impl Operator for PenNode {
         }
     }
     fn damage(
-        old: &PenParams,
-        new: &PenParams,
+        old: &PenPathsParams,
+        new: &PenPathsParams,
         _: &[Option<(usize, usize)>],
     ) -> Option<Vec<[f64; 4]>> {
-        // The relief reaches half the width from the path (plus a pixel of differencing and
-        // half a pixel of rasterisation); a closed path also raises its inside, which its
-        // points' bounding box contains.
-        let reach = |p: &PenParams| p.width_px / 2.0 + 3.0;
-        let same_but_points = PenParams {
-            points: new.points.clone(),
-            ..old.clone()
-        } == *new;
-        if same_but_points && !new.closed {
-            // Arclength from the start is kept; the end taper moves with the end.
-            return Some(changed_path_bounds(
-                &old.points,
-                &new.points,
-                new.taper_px,
-                reach(new),
-            ));
-        }
-        paths_bounds(&[&old.points, &new.points], reach(old).max(reach(new))).map(|b| vec![b])
+        damage(old, new)
     }
-    fn run(p: &PenParams, i: PenIn, _: &RunContext) -> Result<PenOut, RgbnError> {
-        let (image, rep) = apply_pen_with(&i.image, p, i.texture.as_deref())?;
+    fn run(p: &PenPathsParams, i: PenIn, _: &RunContext) -> Result<PenOut, RgbnError> {
+        let (image, rep) = apply_pen_paths(&i.image, p, i.texture.as_deref())?;
         let relative_rms_curl = rep.curl_after.relative;
         Ok(PenOut {
             image,
@@ -94,4 +86,53 @@ impl Operator for PenNode {
             relative_rms_curl,
         })
     }
+}
+
+/// Where the pen's outputs can change from `old` to `new` (GEGL's
+/// `get_invalidated_by_change`), path by path: the paths both lists share at their start and
+/// at their end are unchanged, so only those between (added, removed or edited) count — each
+/// within its reach of its points ([`reach_px`]), and for an open path whose points alone
+/// changed, only from where they differ ([`changed_path_bounds`]). A change of the stroke
+/// parameters the paths share changes every path that uses them. `None` (anywhere) when a
+/// changed stroke's outside level is not 0: the pen's height then moves everywhere.
+fn damage(old: &PenPathsParams, new: &PenPathsParams) -> Option<Vec<[f64; 4]>> {
+    let (a, b) = (old.strokes().ok()?, new.strokes().ok()?);
+    let shared = old.stroke == new.stroke;
+    let same = |i: usize, j: usize| shared && old.paths[i] == new.paths[j];
+    let n = a.len().min(b.len());
+    let head = (0..n).take_while(|&i| same(i, i)).count();
+    let tail = (0..n - head)
+        .take_while(|&k| same(a.len() - 1 - k, b.len() - 1 - k))
+        .count();
+    let (a, b) = (&a[head..a.len() - tail], &b[head..b.len() - tail]);
+    let level = |s: &PenParams| s.shape().eval(-1.0).0;
+    if a.iter().chain(b).any(|s| level(s) != 0.0) {
+        return None;
+    }
+    let mut out = Vec::new();
+    for k in 0..a.len().max(b.len()) {
+        match (a.get(k), b.get(k)) {
+            (Some(o), Some(n))
+                if !n.closed
+                    && PenParams {
+                        points: n.points.clone(),
+                        ..o.clone()
+                    } == *n =>
+            {
+                // Arclength from the start is kept; the end taper moves with the end.
+                out.extend(changed_path_bounds(
+                    &o.points,
+                    &n.points,
+                    n.taper_px,
+                    reach_px(n),
+                ));
+            }
+            (o, n) => {
+                for s in o.into_iter().chain(n) {
+                    out.extend(paths_bounds(&[&s.points], reach_px(s)));
+                }
+            }
+        }
+    }
+    Some(out)
 }

@@ -31,6 +31,7 @@ pub mod filter;
 pub mod geom;
 pub mod normalize;
 pub mod pen;
+pub mod pen_paths;
 pub mod publish;
 pub mod rotate;
 pub mod stamp;

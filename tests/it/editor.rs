@@ -341,9 +341,11 @@ fn a_pen_stroke_on_the_preview_adds_a_pen_path_evaluates_and_undoes() {
         g.nodes[&4].inputs["image"],
         Source::Node(pen, "image".into())
     );
-    let ParamValue::Points(got) = &g.nodes[&pen].params["points"] else {
-        panic!("pen points: {:?}", g.nodes[&pen].params)
+    let ParamValue::Paths(paths) = &g.nodes[&pen].params["paths"] else {
+        panic!("pen paths: {:?}", g.nodes[&pen].params)
     };
+    assert_eq!(paths.len(), 1, "one stroke, one path");
+    let got = &paths[0].points;
     assert_eq!(got.len(), path.len(), "{got:?}");
     for (a, b) in got.iter().zip(&path) {
         assert!(

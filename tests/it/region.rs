@@ -245,7 +245,7 @@ fn after_random_pen_stamp_and_brush_edits_the_incremental_result_equals_a_full_r
                     (last[1] + 10.0 * a.sin()).clamp(5.0, h as f64 - 5.0),
                 ];
                 pen.push(p);
-                lg.set_param("pen", "points", &points_text(&pen)).unwrap();
+                lg.set_param("pen", "paths", &points_text(&pen)).unwrap();
             }
             2 => {
                 let k = rng.below(stamps.len());
@@ -298,7 +298,7 @@ fn after_random_pen_stamp_and_brush_edits_the_incremental_result_equals_a_full_r
             (last[0] + 10.0 * a.cos()).clamp(5.0, w as f64 - 5.0),
             (last[1] + 10.0 * a.sin()).clamp(5.0, h as f64 - 5.0),
         ]);
-        lg.set_param("pen", "points", &points_text(&pen)).unwrap();
+        lg.set_param("pen", "paths", &points_text(&pen)).unwrap();
         // Independent expectation: the end taper (8 px) reaches back at most one 10 px
         // segment, the relief half the width (at most 8 px) plus differencing.
         let back = &pen[pen.len() - 3..];
@@ -777,7 +777,7 @@ fn edits_at_a_coarse_level_patch_only_their_damage_and_equal_a_cold_evaluation()
                     (last[0] + 20.0 * a.cos()).clamp(10.0, w as f64 - 10.0),
                     (last[1] + 20.0 * a.sin()).clamp(10.0, h as f64 - 10.0),
                 ]);
-                lg.set_param("pen", "points", &points_text(&pen)).unwrap();
+                lg.set_param("pen", "paths", &points_text(&pen)).unwrap();
             } else {
                 let k = rng.below(2);
                 stamps[k] = [

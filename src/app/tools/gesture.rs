@@ -5,14 +5,12 @@
 #![allow(clippy::result_large_err)]
 
 use super::coords::{dist, push_simplified};
-use super::graph_edit::set;
 use super::stamp::{drag_handle, StampFrame, StampHandle};
 use super::stroke::{Stroke, StrokeMode};
 use super::vertices::drag_vertex;
 use super::MIN_SPACING_PX;
 use crate::app::state::Document;
 use crate::graph::{Graph, GraphError, NodeId};
-use crate::params::ParamValue;
 use std::path::Path;
 
 /// A gesture in progress: everything it changes becomes one undo step when it ends.
@@ -58,6 +56,8 @@ pub struct Press {
     pub gap_px: f64,
     /// Shift held: extend the path from its end whatever the press position.
     pub extend: bool,
+    /// Ctrl held: a pen stroke makes a new pen node, even with a pen node selected.
+    pub new_node: bool,
 }
 
 impl Gesture {
@@ -112,11 +112,9 @@ impl Gesture {
                 && dist(s.points[0], s.points[n - 1]) <= press.tol_px;
             if closes {
                 s.points.pop();
+                s.closed = true;
             }
             s.write(&mut doc.graph, &base)?;
-            if let (true, Some(id)) = (closes, s.node) {
-                set(&mut doc.graph, id, "closed", ParamValue::Bool(true));
-            }
         }
         let changed = doc.graph != self.before;
         if changed {

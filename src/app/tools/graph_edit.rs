@@ -7,26 +7,38 @@
 use super::DEFAULT_STAMP_SIDE;
 use crate::graph::{Graph, GraphError, NodeId, Source};
 use crate::nodes::PortType;
-use crate::params::ParamValue;
+use crate::params::{ParamValue, PathValue};
 use std::path::Path;
 
-/// The parameter holding a node's point list, by operator.
+/// The parameter holding a node's point list, by operator (a pen's: its list of paths).
 #[must_use]
 pub fn points_param(op: &str) -> Option<&'static str> {
     match op {
-        "pen" | "brush" => Some("points"),
+        "pen" => Some("paths"),
+        "brush" => Some("points"),
         "stamp" => Some("positions"),
         _ => None,
     }
 }
 
-/// Fewest points a node's list must keep (a pen path needs two).
+/// Fewest points a node's list must keep (a pen path needs two; a closed one three: see
+/// [`min_path_points`]).
 #[must_use]
 pub fn min_points(op: &str) -> usize {
     if op == "pen" {
         2
     } else {
         1
+    }
+}
+
+/// Fewest points a pen path keeps: two open, three closed.
+#[must_use]
+pub fn min_path_points(path: &PathValue) -> usize {
+    if path.closed {
+        3
+    } else {
+        2
     }
 }
 
@@ -54,14 +66,38 @@ pub fn param_f64(g: &Graph, id: NodeId, name: &str) -> Option<f64> {
     }
 }
 
-/// The point list of a pen, brush or stamp node (see [`points_param`]).
+/// The point list of a pen, brush or stamp node (see [`points_param`]); a pen's is every
+/// vertex of its paths, path after path (a vertex's index in it: [`locate_vertex`]).
 #[must_use]
 pub fn node_points(g: &Graph, id: NodeId) -> Option<Vec<[f64; 2]>> {
     let name = points_param(&g.nodes.get(&id)?.op)?;
     match param(g, id, name)? {
         ParamValue::Points(p) => Some(p),
+        ParamValue::Paths(p) => Some(p.into_iter().flat_map(|p| p.points).collect()),
         _ => None,
     }
+}
+
+/// A pen node's paths (its own list, else the operator's default).
+#[must_use]
+pub fn pen_paths(g: &Graph, id: NodeId) -> Option<Vec<PathValue>> {
+    match param(g, id, "paths")? {
+        ParamValue::Paths(p) => Some(p),
+        _ => None,
+    }
+}
+
+/// Path and index within it of vertex `index` of the paths' points taken path after path
+/// (as [`node_points`] lists a pen's).
+#[must_use]
+pub fn locate_vertex(paths: &[PathValue], mut index: usize) -> Option<(usize, usize)> {
+    for (k, p) in paths.iter().enumerate() {
+        if index < p.points.len() {
+            return Some((k, index));
+        }
+        index -= p.points.len();
+    }
+    None
 }
 
 /// True when the node's point list was set (not the operator's placeholder default).

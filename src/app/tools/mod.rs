@@ -3,9 +3,11 @@
 //! and draws overlays; everything that decides what a gesture does to the graph is here and
 //! unit-tested without a window.
 //!
-//! - **Pen**: a drag draws a path in image pixels (`pen.points`). It extends the selected pen
-//!   node's path when it starts at one of the path's ends (or with Shift), replaces a pen node's
-//!   untouched default path, and otherwise creates a new pen node.
+//! - **Pen**: a drag draws a path in image pixels (one of `pen.paths`). It extends a path of
+//!   the selected pen node when it starts at one of that path's ends (or the newest path with
+//!   Shift), replaces a pen node's untouched default path, and otherwise adds a new path to the
+//!   selected pen node; a new pen node is made when no pen node is selected, or with the
+//!   toolbar's "new node" toggle ([`ToolState::pen_new_node`]) or Ctrl held.
 //! - **Brush**: the same for the filter brush's stroke (`brush.points`, `radius_px`).
 //! - **Stamp**: a click adds a placement (`stamp.positions`); dragging a placement moves it,
 //!   dragging the rotate handle sets `angle_rad`, the scale handle `scale_x`/`scale_y`.
@@ -37,8 +39,8 @@ mod vertices;
 pub use coords::{hit_vertex, push_simplified, ViewTransform};
 pub use gesture::{Gesture, GestureKind, Press};
 pub use graph_edit::{
-    has_own_points, insert_after, min_points, node_points, param, param_f64, points_param, target,
-    Target,
+    has_own_points, insert_after, locate_vertex, min_points, node_points, param, param_f64,
+    pen_paths, points_param, target, Target,
 };
 pub use stamp::{place_stamp, StampFrame, StampHandle};
 pub use stroke::{Stroke, StrokeMode};
@@ -114,6 +116,8 @@ pub struct ToolState {
     pub pen_width_px: f64,
     /// Relief height of new pen paths (negative engraves).
     pub pen_height_px: f64,
+    /// A pen stroke makes a new pen node instead of a new path of the selected one.
+    pub pen_new_node: bool,
     /// Radius of new brush strokes.
     pub brush_radius_px: f64,
     /// Feather of new brush strokes.
@@ -129,6 +133,7 @@ impl Default for ToolState {
             kind: ToolKind::Pan,
             pen_width_px: 12.0,
             pen_height_px: 4.0,
+            pen_new_node: false,
             brush_radius_px: 12.0,
             brush_feather_px: 6.0,
             live: true,

@@ -16,6 +16,7 @@ pub(super) fn press(at: [f64; 2]) -> Press {
         tol_px: 4.0,
         gap_px: 6.0,
         extend: false,
+        new_node: false,
     }
 }
 

@@ -2,7 +2,9 @@
 
 use super::coords::hit_vertex;
 use super::gesture::{Gesture, GestureKind, Press};
-use super::graph_edit::{min_points, node_points, points_param, set};
+use super::graph_edit::{
+    locate_vertex, min_path_points, min_points, node_points, pen_paths, points_param, set,
+};
 use crate::app::state::Document;
 use crate::graph::{Graph, NodeId};
 use crate::params::ParamValue;
@@ -30,6 +32,19 @@ pub fn delete_vertex(doc: &mut Document, node: NodeId, index: usize) -> bool {
     let (op, Some(name)) = (n.op.clone(), points_param(&n.op)) else {
         return false;
     };
+    if op == "pen" {
+        // The vertex of one of the paths; each path keeps what it needs.
+        let mut paths = pen_paths(&doc.graph, node).unwrap_or_default();
+        let Some((k, i)) = locate_vertex(&paths, index) else {
+            return false;
+        };
+        if paths[k].points.len() <= min_path_points(&paths[k]) {
+            return false;
+        }
+        paths[k].points.remove(i);
+        doc.set_param(node, name, ParamValue::Paths(paths));
+        return true;
+    }
     let mut pts = node_points(&doc.graph, node).unwrap_or_default();
     if index >= pts.len() || pts.len() <= min_points(&op) {
         return false;
@@ -40,6 +55,18 @@ pub fn delete_vertex(doc: &mut Document, node: NodeId, index: usize) -> bool {
 }
 /// Moves vertex `index` of `node`'s point list to `p`; true if it moved.
 pub(super) fn drag_vertex(g: &mut Graph, node: NodeId, index: usize, p: [f64; 2]) -> bool {
+    if g.nodes.get(&node).is_some_and(|n| n.op == "pen") {
+        let mut paths = pen_paths(g, node).unwrap_or_default();
+        let Some((k, i)) = locate_vertex(&paths, index) else {
+            return false;
+        };
+        if paths[k].points[i] == p {
+            return false;
+        }
+        paths[k].points[i] = p;
+        set(g, node, "paths", ParamValue::Paths(paths));
+        return true;
+    }
     let mut pts = node_points(g, node).unwrap_or_default();
     match pts.get_mut(index) {
         Some(q) if *q != p => {
