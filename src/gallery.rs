@@ -22,8 +22,8 @@ use crate::error::RgbnError;
 use crate::eval::{EvalOptions, Evaluator, Plan};
 use crate::graph::{GraphError, LoadedGraph};
 use crate::nodes::{Picture, Value};
-use crate::raster::gradient::GradientField;
 use crate::raster::integrate::non_integrable_fraction;
+pub use crate::raster::sample::noise_field;
 use std::collections::BTreeMap;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
@@ -355,27 +355,6 @@ pub fn generate(root: &Path) -> Result<Gallery, GalleryError> {
     );
     g.blocks = blocks(&g);
     Ok(g)
-}
-
-/// i.i.d. uniform samples in [−1, 1] for `p` and `q` (a 64-bit LCG, deterministic).
-#[must_use]
-pub fn noise_field(w: usize, h: usize, seed: u64) -> GradientField {
-    let mut state = seed;
-    let mut next = || {
-        state = state
-            .wrapping_mul(6_364_136_223_846_793_005)
-            .wrapping_add(1_442_695_040_888_963_407);
-        ((state >> 40) as f32 / (1u64 << 24) as f32) * 2.0 - 1.0
-    };
-    let p = (0..w * h).map(|_| next()).collect();
-    let q = (0..w * h).map(|_| next()).collect();
-    GradientField {
-        width: w,
-        height: h,
-        p,
-        q,
-        clamped: 0,
-    }
 }
 
 /// RMS of the difference of two pictures' RGB, full scale 1 (`NaN` when their sizes differ).

@@ -387,6 +387,27 @@ pub fn demo_height(size: usize) -> Plane {
     GradientField::from_corner_heights(size, size, &zc).1
 }
 
+/// i.i.d. uniform samples in [−1, 1] for `p` and `q` (a 64-bit LCG, deterministic).
+#[must_use]
+pub fn noise_field(w: usize, h: usize, seed: u64) -> GradientField {
+    let mut state = seed;
+    let mut next = || {
+        state = state
+            .wrapping_mul(6_364_136_223_846_793_005)
+            .wrapping_add(1_442_695_040_888_963_407);
+        ((state >> 40) as f32 / (1u64 << 24) as f32) * 2.0 - 1.0
+    };
+    let p = (0..w * h).map(|_| next()).collect();
+    let q = (0..w * h).map(|_| next()).collect();
+    GradientField {
+        width: w,
+        height: h,
+        p,
+        q,
+        clamped: 0,
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -6,25 +6,7 @@ use crate::raster::buf;
 use crate::raster::gradient::gradient_of_normal;
 use crate::raster::sample::Surface;
 
-/// A deterministic uniform noise field in [−1, 1] (64-bit LCG).
-fn noise_field(w: usize, h: usize, seed: u64) -> GradientField {
-    let mut state = seed;
-    let mut next = || {
-        state = state
-            .wrapping_mul(6_364_136_223_846_793_005)
-            .wrapping_add(1_442_695_040_888_963_407);
-        ((state >> 40) as f32 / (1u64 << 24) as f32) * 2.0 - 1.0
-    };
-    let p = (0..w * h).map(|_| next()).collect();
-    let q = (0..w * h).map(|_| next()).collect();
-    GradientField {
-        width: w,
-        height: h,
-        p,
-        q,
-        clamped: 0,
-    }
-}
+use crate::raster::sample::noise_field;
 
 fn disc_mask(w: usize, h: usize) -> Vec<f32> {
     (0..w * h)
