@@ -953,6 +953,12 @@ pub fn apply_pen_with(
     texture: Option<&Plane>,
 ) -> Result<(RgbnImage, PenReport), RgbnError> {
     let pen = pen_field_with(img.width(), img.height(), params, texture)?;
+    Ok(add_relief(img, pen))
+}
+
+/// `img` with `pen`'s gradients added to its own (colour and mask kept), and the report: the
+/// curl of the pen's field and of the result, the pen's height.
+pub(super) fn add_relief(img: &RgbnImage, pen: PenOutput) -> (RgbnImage, PenReport) {
     let mut g = GradientField::from_normals(img);
     g.p.par_iter_mut()
         .zip(pen.gradients.p.par_iter())
@@ -962,14 +968,14 @@ pub fn apply_pen_with(
         .for_each(|(a, b)| *a += b);
     let mut out = img.clone();
     g.write_normals(&mut out);
-    Ok((
+    (
         out,
         PenReport {
             curl_pen: pen.gradients.curl_stats(None),
             height: pen.height,
             curl_after: g.curl_stats(img.mask()),
         },
-    ))
+    )
 }
 
 #[cfg(test)]

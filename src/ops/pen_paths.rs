@@ -17,7 +17,7 @@
 //! a path changes only the pixels near it ([`crate::nodes::pen`]'s damage is per path).
 
 use super::geom::paths_bounds;
-use super::pen::{pen_field_with, PenMode, PenOutput, PenParams, PenReport};
+use super::pen::{add_relief, pen_field_with, PenMode, PenOutput, PenParams, PenReport};
 use crate::error::RgbnError;
 use crate::params::{apply_own, visit_except, Meta, ParamVisitor, Params, PathValue};
 use crate::raster::gradient::GradientField;
@@ -235,23 +235,7 @@ pub fn apply_pen_paths(
     texture: Option<&Plane>,
 ) -> Result<(RgbnImage, PenReport), RgbnError> {
     let pen = pen_paths_field(img.width(), img.height(), params, texture)?;
-    let mut g = GradientField::from_normals(img);
-    g.p.par_iter_mut()
-        .zip(pen.gradients.p.par_iter())
-        .for_each(|(a, b)| *a += b);
-    g.q.par_iter_mut()
-        .zip(pen.gradients.q.par_iter())
-        .for_each(|(a, b)| *a += b);
-    let mut out = img.clone();
-    g.write_normals(&mut out);
-    Ok((
-        out,
-        PenReport {
-            curl_pen: pen.gradients.curl_stats(None),
-            height: pen.height,
-            curl_after: g.curl_stats(img.mask()),
-        },
-    ))
+    Ok(add_relief(img, pen))
 }
 
 #[cfg(test)]
