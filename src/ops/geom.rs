@@ -22,6 +22,7 @@
 use crate::error::RgbnError;
 use crate::raster::buf;
 use crate::raster::gradient::GradientField;
+use crate::raster::par::ordered_dot;
 use crate::raster::Plane;
 use rayon::prelude::*;
 
@@ -424,7 +425,7 @@ pub fn integrate_least_squares(g: &GradientField, rel_tol: f64, max_iter: usize)
                 }
             });
     };
-    let pdot = |a: &[f64], b: &[f64]| -> f64 { a.par_iter().zip(b).map(|(x, y)| x * y).sum() };
+    let pdot = ordered_dot;
     let mut b = vec![0.0f64; n];
     for r in 0..h {
         for x in 0..w {

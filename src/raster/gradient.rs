@@ -49,6 +49,7 @@
 
 use super::{Plane, RgbnImage};
 use crate::raster::buf;
+use crate::raster::par::OrderedReduce;
 use rayon::prelude::*;
 
 /// Smallest `n_z` used when dividing; slopes are thus bounded by `1/NZ_EPSILON = 1000`.
@@ -397,7 +398,7 @@ impl GradientField {
                     mask.map(|m| (&m[(r - 1) * w..r * w], &m[r * w..(r + 1) * w])),
                 )
             })
-            .reduce(CurlSums::default, CurlSums::merge)
+            .ordered_reduce(CurlSums::default, CurlSums::merge)
             .stats()
     }
 }
@@ -443,7 +444,7 @@ pub fn curl_sums_of_normal_rows(
                 CurlSums::of_row(pu, qu, pc, qc, m)
             },
         )
-        .reduce(CurlSums::default, CurlSums::merge)
+        .ordered_reduce(CurlSums::default, CurlSums::merge)
 }
 
 /// `f(x, r)` at the `(w + 1) × (h + 1)` pixel corners, row-major: corner `(x, r)` is the

@@ -19,6 +19,7 @@
 
 mod exr_write;
 mod openexr;
+mod png_normals;
 pub mod stream;
 pub mod targets;
 
@@ -160,14 +161,14 @@ pub const DEFAULT_ALBEDO: f32 = 0.75;
 
 /// Loads an image as described by `spec`.
 pub fn load(spec: &InputSpec, opts: &LoadOptions) -> Result<Loaded, RgbnError> {
-    let (mut image, normal_path) = match (&spec.rgbn, &spec.normal) {
+    let (mut image, normal_path, counted) = match (&spec.rgbn, &spec.normal) {
         (Some(p), None) | (None, Some(p)) => {
-            let img = match Format::of(p)? {
-                Format::Exr => load_exr(p, opts)?,
-                Format::Ptm => super::ptm::load_ptm(p)?,
-                _ => load_normal_map(p, opts)?,
+            let (img, counted) = match Format::of(p)? {
+                Format::Exr => (load_exr(p, opts)?, None),
+                Format::Ptm => (super::ptm::load_ptm(p)?, None),
+                _ => load_normal_map_counted(p, opts)?,
             };
-            (img, p.clone())
+            (img, p.clone(), counted)
         }
         (Some(_), Some(n)) => {
             return Err(RgbnError::param(
@@ -214,7 +215,12 @@ pub fn load(spec: &InputSpec, opts: &LoadOptions) -> Result<Loaded, RgbnError> {
         }
         image.set_mask(Some(mask))?;
     }
-    let before = image.validate();
+    // A pipelined PNG decode counted the problems as it went (colour and mask added above
+    // were not counted).
+    let before = match counted {
+        Some(v) if spec.color.is_none() && spec.mask.is_none() => v,
+        _ => image.validate(),
+    };
     if opts.strict {
         if let Some(e) = before.strict_error(&normal_path) {
             return Err(e);
@@ -515,13 +521,34 @@ pub fn load_mask(path: &Path) -> Result<(usize, usize, Vec<f32>), RgbnError> {
 /// default albedo. Normals are decoded `v/(2^bits−1)·2−1` and *not yet* renormalised (that is
 /// [`load`]'s repair step, which also counts problems).
 pub fn load_normal_map(path: &Path, opts: &LoadOptions) -> Result<RgbnImage, RgbnError> {
+    Ok(load_normal_map_counted(path, opts)?.0)
+}
+
+/// [`load_normal_map`], with [`RgbnImage::validate`]'s counts when the decoder took them on
+/// the way (a non-interlaced 8/16-bit RGB(A) PNG: [`png_normals`]).
+fn load_normal_map_counted(
+    path: &Path,
+    opts: &LoadOptions,
+) -> Result<(RgbnImage, Option<Validation>), RgbnError> {
+    if Format::of(path)? == Format::Png {
+        open_check(path)?;
+        let flip_y = opts.convention == NormalConvention::DirectX;
+        if let Some((img, counts)) = png_normals::decode_png_normals(path, flip_y)? {
+            return Ok((img, Some(counts)));
+        }
+    }
     if Format::of(path)? == Format::Exr {
         let o = LoadOptions {
             exr_rgb_is_normal: true,
             ..opts.clone()
         };
-        return load_exr(path, &o);
+        return load_exr(path, &o).map(|i| (i, None));
     }
+    Ok((decode_normal_map(path, opts)?, None))
+}
+
+/// A PNG/TIFF/JPEG normal map decoded whole, then converted.
+fn decode_normal_map(path: &Path, opts: &LoadOptions) -> Result<RgbnImage, RgbnError> {
     let r = decode_raster(path)?;
     if r.channels < 3 {
         return Err(RgbnError::Decode {

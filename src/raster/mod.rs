@@ -193,6 +193,43 @@ impl Validation {
         }
     }
 
+    /// The counts of pixels given as colour, normal and mask slices of one length (a part of
+    /// an image; at most `u32::MAX` pixels).
+    #[must_use]
+    pub fn of_pixels(
+        [cr, cg, cb]: [&[f32]; 3],
+        [nx, ny, nz]: [&[f32]; 3],
+        mask: Option<&[f32]>,
+    ) -> Self {
+        // Branch-free per-pixel flags summed in u32 lanes (the loop vectorises).
+        let mut counts = [0u32; 5];
+        for i in 0..nx.len() {
+            let col_ok = cr[i].is_finite()
+                & cg[i].is_finite()
+                & cb[i].is_finite()
+                & mask.is_none_or(|m| m[i].is_finite());
+            let [x, y, z] = [nx[i], ny[i], nz[i]];
+            let finite = x.is_finite() & y.is_finite() & z.is_finite();
+            let len = (x * x + y * y + z * z).sqrt();
+            let zero = finite & (len < MIN_NORMAL_LENGTH);
+            let ok = finite & !zero;
+            counts[0] += u32::from(!col_ok);
+            counts[1] += u32::from(!finite);
+            counts[2] += u32::from(zero);
+            counts[3] += u32::from(ok & ((len - 1.0).abs() > 1e-3));
+            counts[4] += u32::from(ok & (z <= 0.0));
+        }
+        let [col, nonfin, zero, non_unit, back] = counts.map(|c| c as usize);
+        Validation {
+            pixels: nx.len(),
+            non_finite_color: col,
+            non_finite_normal: nonfin,
+            zero_length_normal: zero,
+            back_facing: back,
+            non_unit,
+        }
+    }
+
     /// True when nothing needs repair (back-facing normals are reported, not repaired).
     #[must_use]
     pub fn is_clean(&self) -> bool {
@@ -398,36 +435,11 @@ impl RgbnImage {
             .into_par_iter()
             .map(|c| {
                 let r = c * chunk..((c + 1) * chunk).min(n);
-                // Branch-free per-pixel flags summed in u32 lanes (the loop vectorises).
-                let mut counts = [0u32; 5];
-                let (cr, cg, cb) = (&cr[r.clone()], &cg[r.clone()], &cb[r.clone()]);
-                let (nx, ny, nz) = (&nx[r.clone()], &ny[r.clone()], &nz[r.clone()]);
-                let m = mask.map(|m| &m[r.clone()]);
-                for i in 0..r.len() {
-                    let col_ok = cr[i].is_finite()
-                        & cg[i].is_finite()
-                        & cb[i].is_finite()
-                        & m.is_none_or(|m| m[i].is_finite());
-                    let [x, y, z] = [nx[i], ny[i], nz[i]];
-                    let finite = x.is_finite() & y.is_finite() & z.is_finite();
-                    let len = (x * x + y * y + z * z).sqrt();
-                    let zero = finite & (len < MIN_NORMAL_LENGTH);
-                    let ok = finite & !zero;
-                    counts[0] += u32::from(!col_ok);
-                    counts[1] += u32::from(!finite);
-                    counts[2] += u32::from(zero);
-                    counts[3] += u32::from(ok & ((len - 1.0).abs() > 1e-3));
-                    counts[4] += u32::from(ok & (z <= 0.0));
-                }
-                let [col, nonfin, zero, non_unit, back] = counts.map(|c| c as usize);
-                Validation {
-                    pixels: r.len(),
-                    non_finite_color: col,
-                    non_finite_normal: nonfin,
-                    zero_length_normal: zero,
-                    back_facing: back,
-                    non_unit,
-                }
+                Validation::of_pixels(
+                    [&cr[r.clone()], &cg[r.clone()], &cb[r.clone()]],
+                    [&nx[r.clone()], &ny[r.clone()], &nz[r.clone()]],
+                    mask.map(|m| &m[r.clone()]),
+                )
             })
             .reduce(Validation::default, Validation::merge)
     }

@@ -1,6 +1,7 @@
 //! Parallel helpers shared by the raster passes: a raw pointer that rayon tasks share to write
 //! disjoint parts of one buffer ([`SharedMut`]), and column groups of a row-major buffer
-//! ([`par_column_groups`]) for column passes without a transpose.
+//! ([`par_column_groups`]) for column passes without a transpose; and reductions in a fixed
+//! order ([`OrderedReduce`], [`ordered_dot`], [`ordered_sum_of`]).
 
 use rayon::prelude::*;
 
@@ -85,4 +86,132 @@ pub(crate) fn par_column_groups<T: Send, S: Send>(
             };
             f(state, &mut cg);
         });
+}
+
+/// Reductions whose result does not depend on how rayon split the work.
+///
+/// Rayon's `sum` and `reduce` add partial results in the order the work happened to be split
+/// and stolen, so a float sum differs in its last bits from one run to the next (an `F` by
+/// 1e-17, a conjugate-gradient solve by 1e-7 after its iterations amplify it). These collect
+/// each item's result in index order and fold them on the calling thread: the same bits on
+/// every run and at every thread count. Items must be coarse (rows, fixed-size chunks): one
+/// value per item is kept until the fold.
+pub trait OrderedReduce: ParallelIterator + Sized {
+    /// `reduce(identity, merge)`, merged left to right in item order.
+    fn ordered_reduce(
+        self,
+        identity: impl FnOnce() -> Self::Item,
+        merge: impl FnMut(Self::Item, Self::Item) -> Self::Item,
+    ) -> Self::Item {
+        let parts: Vec<Self::Item> = self.collect();
+        parts.into_iter().fold(identity(), merge)
+    }
+
+    /// `sum()`, added left to right in item order.
+    fn ordered_sum<S: std::iter::Sum<Self::Item>>(self) -> S {
+        let parts: Vec<Self::Item> = self.collect();
+        parts.into_iter().sum()
+    }
+}
+
+impl<I: ParallelIterator> OrderedReduce for I {}
+
+/// Items per chunk of [`ordered_dot`] and [`ordered_sum_of`]: fixed, so the summation order
+/// does not depend on the thread count.
+const SUM_CHUNK: usize = 1 << 14;
+
+/// `Σ a[i]·b[i]` in parallel, in fixed chunks added in order (see [`OrderedReduce`]).
+#[must_use]
+pub fn ordered_dot(a: &[f64], b: &[f64]) -> f64 {
+    a.par_chunks(SUM_CHUNK)
+        .zip(b.par_chunks(SUM_CHUNK))
+        .map(|(a, b)| a.iter().zip(b).map(|(x, y)| x * y).sum::<f64>())
+        .ordered_sum()
+}
+
+/// `Σ f(i)` over `0..n` (with the count of terms that were `Some`) in parallel, in fixed
+/// chunks added in order (see [`OrderedReduce`]).
+pub fn ordered_sum_of(n: usize, f: impl Fn(usize) -> Option<f64> + Sync) -> (f64, usize) {
+    (0..n.div_ceil(SUM_CHUNK))
+        .into_par_iter()
+        .map(|c| {
+            let (mut s, mut k) = (0.0f64, 0usize);
+            for v in (c * SUM_CHUNK..((c + 1) * SUM_CHUNK).min(n)).filter_map(&f) {
+                s += v;
+                k += 1;
+            }
+            (s, k)
+        })
+        .ordered_reduce(|| (0.0, 0), |a, b| (a.0 + b.0, a.1 + b.1))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::raster::sample::noise_field;
+
+    /// Runs `f` in a pool of `threads` threads.
+    fn in_pool<T: Send>(threads: usize, f: impl FnOnce() -> T + Send) -> T {
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .expect("a thread pool")
+            .install(f)
+    }
+
+    #[test]
+    fn ordered_sums_are_the_same_bits_at_every_thread_count() {
+        // Values of very different magnitudes, so that the order of addition shows in the bits.
+        let a: Vec<f64> = (0..300_001)
+            .map(|i| ((i as f64) * 0.618_033_988_7).fract() * 10f64.powi(i % 17 - 8))
+            .collect();
+        let b: Vec<f64> = a.iter().rev().map(|v| v.sqrt() - 0.3).collect();
+        let sequential: f64 = a
+            .chunks(SUM_CHUNK)
+            .zip(b.chunks(SUM_CHUNK))
+            .map(|(a, b)| a.iter().zip(b).map(|(x, y)| x * y).sum::<f64>())
+            .sum();
+        let (s1, n1) = (0..a.len())
+            .filter(|i| i % 3 != 0)
+            .fold((0.0, 0), |(s, n), i| (s + a[i], n + 1));
+        for threads in [1, 2, 3, 8] {
+            let dot = in_pool(threads, || ordered_dot(&a, &b));
+            assert_eq!(dot.to_bits(), sequential.to_bits(), "{threads} threads");
+            // Chunks of SUM_CHUNK, each summed in order: the same additions as one pass
+            // only where a chunk boundary falls; so compare with the chunked sequential sum.
+            let (s, n) = in_pool(threads, || {
+                ordered_sum_of(a.len(), |i| (i % 3 != 0).then_some(a[i]))
+            });
+            assert_eq!(n, n1);
+            assert!((s - s1).abs() <= 1e-12 * s1.abs(), "{s} vs {s1}");
+            let again = in_pool(9 - threads, || {
+                ordered_sum_of(a.len(), |i| (i % 3 != 0).then_some(a[i]))
+            });
+            assert_eq!(
+                s.to_bits(),
+                again.0.to_bits(),
+                "{threads} vs {} threads",
+                9 - threads
+            );
+        }
+    }
+
+    #[test]
+    fn curl_statistics_are_the_same_bits_at_every_thread_count() {
+        let g = noise_field(301, 257, 7);
+        let one = in_pool(1, || g.curl_stats(None));
+        for threads in [2, 3, 8] {
+            let many = in_pool(threads, || g.curl_stats(None));
+            assert_eq!(
+                one.relative.to_bits(),
+                many.relative.to_bits(),
+                "{threads} threads"
+            );
+            assert_eq!(
+                one.rms_curl.to_bits(),
+                many.rms_curl.to_bits(),
+                "{threads} threads"
+            );
+        }
+    }
 }

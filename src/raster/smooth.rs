@@ -38,6 +38,7 @@ use super::gradient::{
 };
 use super::par::SharedMut;
 use crate::raster::buf;
+use crate::raster::par::OrderedReduce;
 use rayon::prelude::*;
 use std::sync::Mutex;
 
@@ -582,7 +583,7 @@ fn row_sweep<F: LineFilter>(sw: &Sweep<'_, F>, park: &mut [Vec<Lane>; 2]) -> (us
         .map_init(RowScratch::default, |s, band| unsafe {
             sw.band(s, band * LANES, ptr)
         })
-        .reduce(
+        .ordered_reduce(
             || (0, CurlSums::default()),
             |a, b| (a.0 + b.0, a.1.merge(b.1)),
         )
@@ -628,7 +629,7 @@ fn column_sweep<F: LineFilter>(
             }
             CurlSums { c2, g2, n, max }
         })
-        .reduce(CurlSums::default, CurlSums::merge);
+        .ordered_reduce(CurlSums::default, CurlSums::merge);
     per_group
         .into_iter()
         .fold(seams, |acc, (s, _)| acc.merge(s))

@@ -56,6 +56,7 @@ use super::edges::{solve_edges, EdgeSystem};
 use super::inside;
 use super::perspective::{Camera, Pinhole};
 use crate::error::RgbnError;
+use crate::raster::par::{ordered_sum_of, OrderedReduce};
 use rayon::prelude::*;
 
 /// Parameters of [`bilateral`].
@@ -201,7 +202,7 @@ fn reweight(
             }
             e
         })
-        .sum()
+        .ordered_sum()
 }
 
 #[inline(always)]
@@ -235,11 +236,9 @@ pub(super) fn bilateral(
     let mut wu = vec![0.5f32; n];
     let mut wv = vec![0.5f32; n];
     let mut u = vec![0.0f32; n];
-    let mut energy: f64 = (0..n)
-        .into_par_iter()
-        .filter(|&i| dom[i])
-        .map(|i| f64::from(rw.cx[i]).powi(2) + f64::from(rw.cy[i]).powi(2))
-        .sum();
+    let (mut energy, _) = ordered_sum_of(n, |i| {
+        dom[i].then(|| f64::from(rw.cx[i]).powi(2) + f64::from(rw.cy[i]).powi(2))
+    });
     let mut out = BilateralOutcome {
         clamped: rw.clamped,
         ..Default::default()

@@ -58,7 +58,7 @@
 use super::multigrid::{Level, Multigrid};
 use crate::error::RgbnError;
 use crate::raster::buf::advise_huge_pages;
-use crate::raster::par::SharedMut;
+use crate::raster::par::{ordered_dot, OrderedReduce, SharedMut};
 use rayon::prelude::*;
 
 /// Minimise `Σ_i wx[i]·(z[i+1] − z[i] − ex[i])² + Σ_i wy[i]·(z[i+w] − z[i] − ey[i])²`
@@ -394,14 +394,11 @@ fn apply_a(l: &Level, x: &[f64], y: &mut [f64]) -> f64 {
             }
             xy
         })
-        .sum()
+        .ordered_sum()
 }
 
 fn dot(a: &[f64], b: &[f64]) -> f64 {
-    a.par_chunks(1 << 14)
-        .zip(b.par_chunks(1 << 14))
-        .map(|(a, b)| a.iter().zip(b).map(|(x, y)| x * y).sum::<f64>())
-        .sum()
+    ordered_dot(a, b)
 }
 
 #[derive(Clone, Copy, PartialEq, Eq, Debug)]
@@ -504,7 +501,7 @@ fn pcg(
                 }
                 s
             })
-            .sum();
+            .ordered_sum();
         iterations += 1;
         rel = rr.sqrt() / b_norm;
         if let Some(best) = &mut best {
@@ -544,7 +541,7 @@ fn rows_sum(spans: &[(usize, usize)], f: impl Fn(usize, usize, usize) -> f64 + S
         .with_min_len(4)
         .enumerate()
         .map(|(r, &(lo, hi))| f(r, lo, hi))
-        .sum()
+        .ordered_sum()
 }
 
 /// Runs `f(row, lo, hi, out[row·w + lo .. row·w + hi])` on every row's span in parallel and
@@ -560,7 +557,7 @@ where
             let (lo, hi) = spans[r];
             f(r, lo, hi, &mut row[lo..hi])
         })
-        .sum()
+        .ordered_sum()
 }
 
 /// Per connected component, shifts `x` to the mean of `z0` (or 0); pixels without an edge 0.
@@ -595,7 +592,7 @@ fn component_means<T: Copy + Into<f64> + Sync>(v: &[T], label: &[u32], count: us
         v.par_chunks(1 << 16)
             .zip(label.par_chunks(1 << 16))
             .map(|(v, l)| sums(v, l))
-            .reduce(
+            .ordered_reduce(
                 || vec![(0.0, 0); count],
                 |mut a, b| {
                     for (a, b) in a.iter_mut().zip(b) {

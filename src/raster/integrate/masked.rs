@@ -6,6 +6,7 @@ use super::edges::{par_rows, solve_edges_owned};
 use super::{inside, poisson_dct, IntegrateParams};
 use crate::error::RgbnError;
 use crate::raster::gradient::GradientField;
+use crate::raster::par::OrderedReduce;
 use crate::raster::Plane;
 use rayon::prelude::*;
 
@@ -81,7 +82,7 @@ pub(super) fn masked_poisson(
             }
             (sum, count)
         })
-        .reduce(|| (0.0, 0), |a, b| (a.0 + b.0, a.1 + b.1));
+        .ordered_reduce(|| (0.0, 0), |a, b| (a.0 + b.0, a.1 + b.1));
     let mean = if count > 0 { sum / count as f64 } else { 0.0 };
     let warm = warm.data();
     let z = par_rows(w, h, |r, out: &mut [f32]| {

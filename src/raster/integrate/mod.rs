@@ -126,6 +126,7 @@ pub use super::gradient::Differences;
 use super::gradient::GradientField;
 use super::{Plane, RgbnImage};
 use crate::error::RgbnError;
+use crate::raster::par::OrderedReduce;
 use dct::poisson_dct;
 use frankot::frankot_chellappa;
 use masked::masked_poisson;
@@ -851,7 +852,7 @@ fn edge_rms(z: Option<&[f32]>, g: &GradientField, domain: Option<&[f32]>, d: Dif
             }
             (s, n)
         })
-        .reduce(|| (0.0, 0), |a, b| (a.0 + b.0, a.1 + b.1));
+        .ordered_reduce(|| (0.0, 0), |a, b| (a.0 + b.0, a.1 + b.1));
     if n == 0 {
         0.0
     } else {

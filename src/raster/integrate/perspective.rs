@@ -29,6 +29,7 @@
 
 use super::super::gradient::{GradientField, NZ_EPSILON};
 use crate::error::RgbnError;
+use crate::raster::par::ordered_sum_of;
 use rayon::prelude::*;
 use std::path::Path;
 
@@ -216,12 +217,10 @@ const MAX_LOG: f64 = 60.0;
 /// without one); every pixel is converted and finite.
 pub fn height_of_log_depth(ell: &mut [f32], domain: Option<&[f32]>, fx: f64) {
     let ins = |i: usize| domain.is_none_or(|m| m[i] >= 0.5);
-    let (s, n) = ell
-        .par_iter()
-        .enumerate()
-        .filter(|(i, v)| ins(*i) && v.is_finite())
-        .map(|(_, &v)| (f64::from(v), 1usize))
-        .reduce(|| (0.0, 0), |a, b| (a.0 + b.0, a.1 + b.1));
+    let (s, n) = ordered_sum_of(ell.len(), |i| {
+        let v = ell[i];
+        (ins(i) && v.is_finite()).then_some(f64::from(v))
+    });
     let mean = if n > 0 { s / n as f64 } else { 0.0 };
     ell.par_iter_mut().for_each(|v| {
         let l = f64::from(*v) - mean;
