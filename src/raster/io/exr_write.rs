@@ -118,28 +118,33 @@ fn zip_chunk(
     })
 }
 
-/// OpenEXR's ZIP predictor: the bytes split into even and odd halves (`t`), then each byte
-/// but the first replaced by its difference to the one before it plus 128.
+/// OpenEXR's ZIP predictor: the bytes split into even and odd halves, then each byte but the
+/// first replaced by its difference to the one before it (in that order) plus 128. Computed in
+/// one pass from pairs of bytes and the pair before them (no step waits on the previous one).
 fn predict(data: &[u8]) -> Vec<u8> {
     let n = data.len();
+    if n < 2 {
+        return data.to_vec();
+    }
     let half = n.div_ceil(2);
+    let d = |cur: u8, prev: u8| cur.wrapping_sub(prev).wrapping_add(128);
     let mut t = vec![0u8; n];
     let (even, odd) = t.split_at_mut(half);
-    for ((e, o), p) in even
+    let (pairs, last) = data.as_chunks::<2>();
+    for ((e, o), (c, p)) in even[1..]
         .iter_mut()
-        .zip(odd.iter_mut())
-        .zip(data.chunks_exact(2))
+        .zip(odd[1..].iter_mut())
+        .zip(pairs[1..].iter().zip(pairs))
     {
-        (*e, *o) = (p[0], p[1]);
+        (*e, *o) = (d(c[0], p[0]), d(c[1], p[1]));
     }
-    if n % 2 == 1 {
-        even[half - 1] = data[n - 1];
+    even[0] = data[0];
+    if let [x] = last {
+        // An odd length: the even half ends with the last byte.
+        even[half - 1] = d(*x, data[n - 3]);
     }
-    // Last to first, each difference reads a byte not yet replaced: no dependency from one
-    // step to the next, so the loop vectorises.
-    for i in (1..n).rev() {
-        t[i] = t[i].wrapping_sub(t[i - 1]).wrapping_add(128);
-    }
+    // The first odd byte follows the last even one.
+    odd[0] = d(data[1], data[2 * (half - 1)]);
     t
 }
 
