@@ -121,7 +121,9 @@ pub struct GreenEvidence {
 /// [`green_convention`]'s answer.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct GreenConvention {
+    /// What the relief says.
     pub verdict: GreenVerdict,
+    /// The numbers it says it from.
     pub evidence: GreenEvidence,
 }
 
@@ -180,8 +182,8 @@ pub fn green_convention(img: &RgbnImage) -> GreenConvention {
     let blocks = bw * ph.div_ceil(BLOCK).max(1);
     let units: Vec<Vec<(u32, f64, f64)>> = (0..blocks)
         .into_par_iter()
-        .map(|b| {
-            let (bx, by) = ((b % bw) * BLOCK, (b / bw) * BLOCK);
+        .map(|blk| {
+            let (bx, by) = ((blk % bw) * BLOCK, (blk / bw) * BLOCK);
             let mut v: Vec<(u32, f64, f64)> = Vec::new();
             for t in by..(by + BLOCK).min(ph) {
                 for x in bx..(bx + BLOCK).min(pw) {
@@ -208,7 +210,11 @@ pub fn green_convention(img: &RgbnImage) -> GreenConvention {
         .collect();
     let n = (0..pw * ph).filter(|&k| votes(k)).count();
     let (mut s_ab, mut s_e) = (0.0f64, 0.0f64);
-    let n_islands = labels.iter().filter(|&&l| l != NONE).max().map_or(0, |&m| m as usize + 1);
+    let n_islands = labels
+        .iter()
+        .filter(|&&l| l != NONE)
+        .max()
+        .map_or(0, |&m| m as usize + 1);
     let mut isl = vec![(0usize, 0.0f64, 0.0f64); n_islands];
     for u in units.iter().flatten() {
         s_ab += u.1;
@@ -295,9 +301,6 @@ fn plaquette_slopes(img: &RgbnImage) -> Vec<[f32; 2]> {
     out.par_chunks_mut(pw.max(1))
         .enumerate()
         .for_each(|(t, row)| {
-            if pw == 0 {
-                return;
-            }
             for (x, o) in row.iter_mut().enumerate() {
                 let (top, bot) = (t * w + x, (t + 1) * w + x);
                 let (Some(t0), Some(t1), Some(b0), Some(b1)) =
@@ -307,7 +310,8 @@ fn plaquette_slopes(img: &RgbnImage) -> Vec<[f32; 2]> {
                 };
                 let span = |c: usize| {
                     let v = [t0[c], t1[c], b0[c], b1[c]];
-                    v.iter().fold(f32::MIN, |a, &b| a.max(b)) - v.iter().fold(f32::MAX, |a, &b| a.min(b))
+                    v.iter().fold(f32::MIN, |a, &b| a.max(b))
+                        - v.iter().fold(f32::MAX, |a, &b| a.min(b))
                 };
                 if span(0) >= SEAM_JUMP || span(1) >= SEAM_JUMP {
                     continue;

@@ -54,12 +54,23 @@ fn a_surface_reads_as_held_and_its_flipped_twin_the_other_way() {
         (f.evidence.islands_as_read, f.evidence.islands_flipped),
         (g.evidence.islands_flipped, g.evidence.islands_as_read)
     );
-    assert!(g.describe("OpenGL (+y)", "DirectX (-y)").starts_with("OpenGL (+y) most likely"));
-    assert!(f.describe("OpenGL (+y)", "DirectX (-y)").starts_with("DirectX (-y) most likely"));
+    assert!(g
+        .describe("OpenGL (+y)", "DirectX (-y)")
+        .starts_with("OpenGL (+y) most likely"));
+    assert!(f
+        .describe("OpenGL (+y)", "DirectX (-y)")
+        .starts_with("DirectX (-y) most likely"));
 }
 
 /// Copies a `s × s` tile into the canvas at `(x0, r0)`.
-fn paste(canvas: &mut [Vec<f32>; 3], cw: usize, tile: &[Vec<f32>; 3], s: usize, x0: usize, r0: usize) {
+fn paste(
+    canvas: &mut [Vec<f32>; 3],
+    cw: usize,
+    tile: &[Vec<f32>; 3],
+    s: usize,
+    x0: usize,
+    r0: usize,
+) {
     for r in 0..s {
         for x in 0..s {
             for c in 0..3 {
@@ -81,8 +92,22 @@ fn atlas() -> RgbnImage {
     let b3 = bumps(s);
     let b4 = bumps(s);
     paste(&mut n, cw, &normals_of(s, s, b), s, 4, 4);
-    paste(&mut n, cw, &normals_of(s, s, move |u, v| b2(-u, v)), s, 60, 4);
-    paste(&mut n, cw, &normals_of(s, s, move |u, v| b3(v, -u)), s, 4, 68);
+    paste(
+        &mut n,
+        cw,
+        &normals_of(s, s, move |u, v| b2(-u, v)),
+        s,
+        60,
+        4,
+    );
+    paste(
+        &mut n,
+        cw,
+        &normals_of(s, s, move |u, v| b3(v, -u)),
+        s,
+        4,
+        68,
+    );
     paste(
         &mut n,
         cw,
