@@ -9,7 +9,7 @@ use crate::raster::Plane;
 
 /// Normals of a `w × h` height `f(u, v)` (u right, v up, origin at the centre) in the averaged
 /// model: the samples of a surface.
-fn normals_of(w: usize, h: usize, f: impl Fn(f64, f64) -> f64) -> [Vec<f32>; 3] {
+fn normals_of(w: usize, h: usize, f: impl Fn(f64, f64) -> f64 + Sync) -> [Vec<f32>; 3] {
     let (cx, cy) = (w as f64 / 2.0, h as f64 / 2.0);
     let z = Plane::from_fn(w, h, |x, r| f(x as f64 - cx, cy - r as f64) as f32);
     let g = gradients_of_height(&z, None, None, Differences::Averaged);
@@ -33,7 +33,7 @@ fn green_flipped(img: &RgbnImage) -> RgbnImage {
         .unwrap()
 }
 
-fn bumps(size: usize) -> impl Fn(f64, f64) -> f64 {
+fn bumps(size: usize) -> impl Fn(f64, f64) -> f64 + Sync {
     let s = Surface::gaussians_for(size);
     move |u, v| s.height(u, v)
 }
