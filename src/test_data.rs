@@ -51,9 +51,124 @@ fn find(root: &Path, sub: &str, required: bool) -> Result<Option<PathBuf>, Strin
     Ok(None)
 }
 
+/// Published normal maps whose green convention is known (`tests/data/green_convention_maps.tsv`,
+/// `docs/green-convention.md`): the manifest, where the fetched files are, and how a verdict is
+/// judged against it. The maps are third-party data and never committed.
+pub mod green_maps {
+    use crate::raster::integrate::GreenVerdict;
+    use std::path::{Path, PathBuf};
+
+    /// The manifest's text.
+    pub const MANIFEST: &str = include_str!("../tests/data/green_convention_maps.tsv");
+
+    /// What a map is known to be.
+    #[derive(Clone, Copy, Debug, PartialEq, Eq)]
+    pub enum Expected {
+        OpenGl,
+        DirectX,
+        /// Declared OpenGL by its source, but its authoring pipeline is documented to have
+        /// passed DirectX maps through (the reason column says which); not scored.
+        Disputed,
+    }
+
+    /// One line of the manifest.
+    #[derive(Clone, Debug, PartialEq, Eq)]
+    pub struct Entry {
+        /// Local file name under [`dir`].
+        pub file: String,
+        pub expected: Expected,
+        /// `tileable` or `atlas`.
+        pub kind: String,
+        pub repository: String,
+        pub commit: String,
+        pub path: String,
+        pub reason: String,
+    }
+
+    /// How a verdict compares with what is known.
+    #[derive(Clone, Copy, Debug, PartialEq, Eq)]
+    pub enum Outcome {
+        Right,
+        Uncertain,
+        Wrong,
+        /// The map's expectation is disputed: not scored.
+        Disputed,
+    }
+
+    /// The manifest's entries (comment lines start with `#`).
+    ///
+    /// # Panics
+    /// On a malformed line (the manifest is part of the repository).
+    #[must_use]
+    pub fn manifest() -> Vec<Entry> {
+        MANIFEST
+            .lines()
+            .filter(|l| !l.starts_with('#') && !l.trim().is_empty())
+            .map(|l| {
+                let c: Vec<&str> = l.split('\t').collect();
+                assert_eq!(c.len(), 7, "manifest line {l:?}");
+                let expected = match c[1] {
+                    "opengl" => Expected::OpenGl,
+                    "directx" => Expected::DirectX,
+                    "disputed" => Expected::Disputed,
+                    other => panic!("manifest convention {other:?}"),
+                };
+                Entry {
+                    file: c[0].into(),
+                    expected,
+                    kind: c[2].into(),
+                    repository: c[3].into(),
+                    commit: c[4].into(),
+                    path: c[5].into(),
+                    reason: c[6].into(),
+                }
+            })
+            .collect()
+    }
+
+    /// Where the fetched maps are: `$RGBN_GREEN_MAPS`, else `target/green-maps` in the checkout
+    /// (`examples/fetch_green_maps.sh` fills it).
+    #[must_use]
+    pub fn dir() -> PathBuf {
+        std::env::var_os("RGBN_GREEN_MAPS").map_or_else(
+            || Path::new(env!("CARGO_MANIFEST_DIR")).join("target/green-maps"),
+            PathBuf::from,
+        )
+    }
+
+    /// A verdict on a map loaded as OpenGL (without `--dx`) against its expectation.
+    #[must_use]
+    pub fn judge(expected: Expected, verdict: GreenVerdict) -> Outcome {
+        match (expected, verdict) {
+            (Expected::Disputed, _) => Outcome::Disputed,
+            (_, GreenVerdict::Uncertain(_)) => Outcome::Uncertain,
+            (Expected::OpenGl, GreenVerdict::OpenGl)
+            | (Expected::DirectX, GreenVerdict::DirectX) => Outcome::Right,
+            _ => Outcome::Wrong,
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::find;
+
+    #[test]
+    fn the_green_map_manifest_parses_and_names_pinned_sources() {
+        use super::green_maps::{manifest, Expected};
+        let m = manifest();
+        assert!(m.len() >= 20);
+        for e in &m {
+            assert_eq!(e.commit.len(), 40, "{e:?}");
+            assert!(e.repository.contains('/') && !e.path.is_empty() && !e.reason.is_empty());
+        }
+        let count = |x: Expected| m.iter().filter(|e| e.expected == x).count();
+        assert!(count(Expected::OpenGl) > 0 && count(Expected::DirectX) > 0);
+        let mut files: Vec<&str> = m.iter().map(|e| e.file.as_str()).collect();
+        files.sort_unstable();
+        files.dedup();
+        assert_eq!(files.len(), m.len(), "local file names are unique");
+    }
 
     #[test]
     fn absent_data_skips_or_fails_when_required() {

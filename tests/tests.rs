@@ -5,6 +5,8 @@ mod common;
 
 #[path = "it/cli_core.rs"]
 mod cli_core;
+#[path = "it/green_maps.rs"]
+mod green_maps;
 #[path = "it/real_data.rs"]
 mod real_data;
 

@@ -20,7 +20,9 @@ use rgbn::ops::filter::{filter_normals, FilterOptions, Kernel};
 use rgbn::params::{nearest, Choice, ParamKind, ParamValue};
 use rgbn::raster::convolve::BorderMode;
 use rgbn::raster::gradient::{Differences, GradientField};
-use rgbn::raster::integrate::green_convention_fractions;
+use rgbn::raster::integrate::{
+    green_convention, green_convention_fractions, GreenVerdict, Uncertainty,
+};
 use rgbn::render::{InspectParams, Light, Shading, View};
 use std::collections::BTreeMap;
 
@@ -532,7 +534,11 @@ pub fn render<'py>(
 
 /// What ``rgbn info`` prints, as a dict: size, mask, validation counts (as given, before any
 /// repair), clamped pixels, RMS gradient, curl (relative RMS, RMS, max), the non-integrable
-/// fraction ``F`` as read and with green flipped, and the likely green convention.
+/// fraction ``F`` as read and with green flipped, and the green convention from local
+/// integrability: ``green`` is ``"as read"``, ``"flipped"`` or ``"uncertain"``, with
+/// ``green_reason`` (``"too little relief"``, ``"balanced"`` or ``None``), ``green_contrast``,
+/// ``green_z``, ``relief_plaquettes``, ``islands_as_read``, ``islands_flipped`` and the line
+/// ``rgbn info`` prints, ``green_line``.
 #[pyfunction]
 pub fn info<'py>(py: Python<'py>, image: &Bound<'py, PyAny>) -> PyResult<Bound<'py, PyDict>> {
     let (img, repaired) = match image.cast::<Image>() {
@@ -542,11 +548,11 @@ pub fn info<'py>(py: Python<'py>, image: &Bound<'py, PyAny>) -> PyResult<Bound<'
             (i.to_rgbn(py)?, i.repaired_counts())
         }
     };
-    let (g, c, fr) = py
+    let (g, c, fr, gc) = py
         .detach(|| {
             let g = GradientField::from_normals(&img);
             let c = g.curl_stats_of(Differences::Averaged, img.mask());
-            green_convention_fractions(&img).map(|f| (g, c, f))
+            green_convention_fractions(&img).map(|f| (g, c, f, green_convention(&img)))
         })
         .map_err(rgbn_err)?;
     let d = PyDict::new(py);
@@ -561,7 +567,22 @@ pub fn info<'py>(py: Python<'py>, image: &Bound<'py, PyAny>) -> PyResult<Bound<'
     d.set_item("curl_max", c.max_abs_curl)?;
     d.set_item("F", fr[0])?;
     d.set_item("F_green_flipped", fr[1])?;
-    d.set_item("green", if fr[0] <= fr[1] { "as read" } else { "flipped" })?;
+    let (green, reason) = match gc.verdict {
+        GreenVerdict::OpenGl => ("as read", None),
+        GreenVerdict::DirectX => ("flipped", None),
+        GreenVerdict::Uncertain(Uncertainty::TooLittleRelief) => {
+            ("uncertain", Some("too little relief"))
+        }
+        GreenVerdict::Uncertain(Uncertainty::Balanced) => ("uncertain", Some("balanced")),
+    };
+    d.set_item("green", green)?;
+    d.set_item("green_reason", reason)?;
+    d.set_item("green_contrast", gc.evidence.contrast)?;
+    d.set_item("green_z", gc.evidence.z)?;
+    d.set_item("relief_plaquettes", gc.evidence.relief_plaquettes)?;
+    d.set_item("islands_as_read", gc.evidence.islands_as_read)?;
+    d.set_item("islands_flipped", gc.evidence.islands_flipped)?;
+    d.set_item("green_line", gc.describe("OpenGL (+y)", "DirectX (-y)"))?;
     Ok(d)
 }
 

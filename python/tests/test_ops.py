@@ -143,17 +143,27 @@ def test_info_equals_rgbn_info(cli):
     assert f"size:        {d['width']}×{d['height']}" in text
     curl = f"relative RMS {rust_e(d['curl_relative'])} (RMS {rust_e(d['curl_rms'])}, max |c| {rust_e(d['curl_max'])})"
     assert curl in text
-    assert f"F = {rust_e(d['F'])} read as OpenGL (+y), {rust_e(d['F_green_flipped'])} read as DirectX" in text
+    assert f"F = {rust_e(d['F'])} (0:" in text
+    assert f"with green flipped F = {rust_e(d['F_green_flipped'])}" in text
+    assert f"green:       {d['green_line']}" in text
     assert f"RMS |g| = {d['rms_gradient']:.4f}" in text
     assert ("OpenGL (+y) most likely" in text) == (d["green"] == "as read")
 
 
 def test_info_finds_a_flipped_green_channel():
     n, _ = smooth_bump(48, 48)
-    assert rgbn.info(rgbn.Image(n))["green"] == "as read"
+    d = rgbn.info(rgbn.Image(n))
+    assert d["green"] == "as read" and d["green_reason"] is None and d["green_contrast"] > 0.9
     flipped = n * np.array([1, -1, 1], np.float32)
     d = rgbn.info(rgbn.Image(flipped))
     assert d["green"] == "flipped" and d["F"] > 10 * d["F_green_flipped"]
+    assert d["green_contrast"] < -0.9 and d["green_line"].startswith("DirectX (-y) most likely")
+
+
+def test_info_says_uncertain_without_relief():
+    d = rgbn.info(rgbn.Image(np.dstack([np.zeros((32, 32, 2)), np.ones((32, 32))]).astype(np.float32)))
+    assert d["green"] == "uncertain" and d["green_reason"] == "too little relief"
+    assert d["relief_plaquettes"] == 0
 
 
 def test_capture_recovers_the_normals_of_a_lambertian_sphere():

@@ -6,7 +6,7 @@ use crate::error::RgbnError;
 use crate::ops::filter::{filter_normals, filter_streamed, FilterOptions, FilterReport, Kernel};
 use crate::raster::convolve::BorderMode;
 use crate::raster::gradient::GradientField;
-use crate::raster::integrate::green_convention_fractions;
+use crate::raster::integrate::{green_convention, green_convention_fractions, GreenVerdict};
 use crate::raster::io::targets::{PngTarget, RowEncoding};
 use crate::raster::io::{
     self, ExrPrecision, Format, InputSpec, LoadOptions, NormalConvention, SaveOptions,
@@ -345,23 +345,23 @@ pub(super) fn info(a: &InfoArgs, out: &mut Out<'_>) -> Result<(), CliError> {
     ))?;
     let [as_read, flipped] = green_convention_fractions(&img)?;
     out.line(format_args!(
-        "integrability: non-integrable fraction F = {as_read:.3e} (0: the normals of a surface; √(2/π) ≈ 0.80: noise)"
+        "integrability: non-integrable fraction F = {as_read:.3e} (0: the normals of a surface; √(2/π) ≈ 0.80: noise); with green flipped F = {flipped:.3e}"
     ))?;
     let (this, other) = if a.input.dx {
         ("DirectX (-y)", "OpenGL (+y)")
     } else {
         ("OpenGL (+y)", "DirectX (-y)")
     };
-    if as_read <= flipped {
-        out.line(format_args!(
-            "green:       {this} most likely: F = {as_read:.3e} read as {this}, {flipped:.3e} read as {other}"
-        ))?;
-    } else {
-        let hint = if a.input.dx { "without" } else { "with" };
-        out.line(format_args!(
-            "green:       {other} most likely: F = {flipped:.3e} read as {other}, {as_read:.3e} read as {this} — load it {hint} --dx"
-        ))?;
-    }
+    let g = green_convention(&img);
+    let hint = match g.verdict {
+        GreenVerdict::DirectX if a.input.dx => " — load it without --dx",
+        GreenVerdict::DirectX => " — load it with --dx",
+        _ => "",
+    };
+    out.line(format_args!(
+        "green:       {}{hint}",
+        g.describe(this, other)
+    ))?;
     Ok(())
 }
 

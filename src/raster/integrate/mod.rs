@@ -110,6 +110,7 @@ mod dct;
 mod edges;
 mod fft;
 mod frankot;
+mod green;
 mod masked;
 mod multigrid;
 pub mod perspective;
@@ -118,6 +119,7 @@ mod support;
 #[cfg(test)]
 mod test_util;
 
+pub use green::{green_convention, GreenConvention, GreenEvidence, GreenVerdict, Uncertainty};
 pub use perspective::{Camera, Pinhole};
 pub use projection::{project_integrable, ProjectParams, ProjectionReport};
 pub use support::{integrable_edit, project_in_support, SupportProjection};
