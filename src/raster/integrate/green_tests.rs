@@ -1,3 +1,6 @@
+// Index loops mirror the formulas (pixel i, channel c) in these test images.
+#![allow(clippy::needless_range_loop)]
+
 //! Tests of `raster/integrate/green.rs`: analytic surfaces rendered to normals in each
 //! convention, alone and laid out like a UV atlas.
 
