@@ -54,7 +54,7 @@ fn main() {
             Expected::DirectX => "directx",
             Expected::Disputed => "disputed",
         };
-        let outcome = match judge(e.expected, g.verdict) {
+        let outcome = match judge(e.expected, g.verdict.reads_opengl()) {
             Outcome::Right => "right",
             Outcome::Uncertain => "uncertain",
             Outcome::Wrong => "WRONG",

@@ -55,7 +55,6 @@ fn find(root: &Path, sub: &str, required: bool) -> Result<Option<PathBuf>, Strin
 /// `docs/green-convention.md`): the manifest, where the fetched files are, and how a verdict is
 /// judged against it. The maps are third-party data and never committed.
 pub mod green_maps {
-    use crate::raster::integrate::GreenVerdict;
     use std::path::{Path, PathBuf};
 
     /// The manifest's text.
@@ -136,14 +135,15 @@ pub mod green_maps {
         )
     }
 
-    /// A verdict on a map loaded as OpenGL (without `--dx`) against its expectation.
+    /// A verdict on a map loaded as OpenGL (without `--dx`) against its expectation:
+    /// `opengl` is `Some(true)` for OpenGL, `Some(false)` for DirectX, `None` for uncertain
+    /// (`GreenVerdict::reads_opengl`; this module sits below `raster` and does not name it).
     #[must_use]
-    pub fn judge(expected: Expected, verdict: GreenVerdict) -> Outcome {
-        match (expected, verdict) {
+    pub fn judge(expected: Expected, opengl: Option<bool>) -> Outcome {
+        match (expected, opengl) {
             (Expected::Disputed, _) => Outcome::Disputed,
-            (_, GreenVerdict::Uncertain(_)) => Outcome::Uncertain,
-            (Expected::OpenGl, GreenVerdict::OpenGl)
-            | (Expected::DirectX, GreenVerdict::DirectX) => Outcome::Right,
+            (_, None) => Outcome::Uncertain,
+            (Expected::OpenGl, Some(true)) | (Expected::DirectX, Some(false)) => Outcome::Right,
             _ => Outcome::Wrong,
         }
     }

@@ -89,6 +89,18 @@ pub enum GreenVerdict {
     Uncertain(Uncertainty),
 }
 
+impl GreenVerdict {
+    /// `Some(true)` for OpenGL, `Some(false)` for DirectX, `None` when uncertain.
+    #[must_use]
+    pub fn reads_opengl(self) -> Option<bool> {
+        match self {
+            Self::OpenGl => Some(true),
+            Self::DirectX => Some(false),
+            Self::Uncertain(_) => None,
+        }
+    }
+}
+
 /// Why [`green_convention`] does not decide.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Uncertainty {
