@@ -24,14 +24,17 @@ pub mod dialogs;
 pub mod files;
 pub mod graph_view;
 pub mod images;
+pub mod memory;
 mod menu;
 pub mod params_ui;
 pub mod placement;
 pub mod prefs;
 pub mod preview;
 pub mod recent;
+pub mod refresh;
 pub mod runtime;
 pub mod session;
+pub mod soak;
 pub mod start;
 pub mod state;
 pub mod tools;
@@ -520,8 +523,7 @@ impl EditorApp {
                 ));
             }
             ui.separator();
-            let (n, bytes) = self.runtime.outcome.cache;
-            ui.label(format!("cache {n} values, {:.1} MiB", bytes as f64 / (1 << 20) as f64));
+            memory::status_ui(ui, &self.runtime.outcome.memory);
             ui.separator();
             let viewed = self.session.viewed.as_ref().map(|v| v.0);
             let outcome = &self.runtime.outcome;
