@@ -47,7 +47,11 @@ fn main() {
         let above = s.resident.saturating_sub(r.baseline);
         let ratio = s.accounted.total() as f64 / above.max(1) as f64;
         if k >= r.samples.len() / 8 {
-            worst = if (ratio - 1.0).abs() > (worst - 1.0).abs() { ratio } else { worst };
+            worst = if (ratio - 1.0).abs() > (worst - 1.0).abs() {
+                ratio
+            } else {
+                worst
+            };
         }
         if k == 0 || (k + 1) % 10 == 0 || k + 1 == r.samples.len() {
             println!(

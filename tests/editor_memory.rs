@@ -35,7 +35,12 @@ fn eighty_chained_pen_strokes_stay_within_the_budget_and_the_status_bar_follows_
     );
     for (k, s) in r.samples.iter().enumerate() {
         assert_eq!(s.accounted.budget, budget, "stroke {}", k + 1);
-        assert!(s.accounted.total() <= budget + 128 * MIB, "stroke {}: {:?}", k + 1, s.accounted);
+        assert!(
+            s.accounted.total() <= budget + 128 * MIB,
+            "stroke {}: {:?}",
+            k + 1,
+            s.accounted
+        );
         // The status bar's figure follows the resident memory the images take (the process
         // above its baseline) once the budget is in use.
         if k >= 20 {

@@ -42,7 +42,9 @@ pub fn set_budget(bytes: u64) {
 pub fn parse_budget(s: &str) -> Result<u64, String> {
     let b = parse_bytes(s)?;
     if b < 64 << 20 {
-        return Err(format!("{s:?}: the editor needs a memory budget of at least 64M"));
+        return Err(format!(
+            "{s:?}: the editor needs a memory budget of at least 64M"
+        ));
     }
     Ok(b)
 }

@@ -37,11 +37,7 @@ impl Memo {
     /// Bytes of the thumbnails held.
     #[must_use]
     pub fn bytes(&self) -> usize {
-        self.thumbs
-            .values()
-            .flatten()
-            .map(|p| p.rgba.len())
-            .sum()
+        self.thumbs.values().flatten().map(|p| p.rgba.len()).sum()
     }
     /// Forgets every key but `live` (the current graph's).
     fn retain(&mut self, live: &HashSet<CacheKey>) {
@@ -54,7 +50,11 @@ impl Memo {
 /// their content keys (instance key, port), first port first.
 type NodeOutputs = BTreeMap<NodeId, Vec<(String, (CacheKey, usize))>>;
 
-fn node_outputs(ev: &Evaluator, plan: &Plan, ports: &BTreeMap<NodeId, Vec<String>>) -> Result<NodeOutputs, GraphError> {
+fn node_outputs(
+    ev: &Evaluator,
+    plan: &Plan,
+    ports: &BTreeMap<NodeId, Vec<String>>,
+) -> Result<NodeOutputs, GraphError> {
     let keys = ev.output_keys(plan)?;
     let mut out = NodeOutputs::new();
     for (id, names) in ports {
@@ -152,17 +152,25 @@ pub fn whole(
     let made: Arc<Mutex<Vec<(CacheKey, Option<Arc<Picture>>)>>> = Arc::default();
     let on_value: ValueFn = {
         let (made, unseen) = (made.clone(), unseen.clone());
-        Arc::new(move |_i: usize, key: CacheKey, e: &Arc<crate::eval::CacheEntry>| {
-            if unseen.contains(&key) {
-                let t = e.values.first().and_then(thumbnail).map(Arc::new);
-                made.lock().unwrap_or_else(std::sync::PoisonError::into_inner).push((key, t));
-            }
-        })
+        Arc::new(
+            move |_i: usize, key: CacheKey, e: &Arc<crate::eval::CacheEntry>| {
+                if unseen.contains(&key) {
+                    let t = e.values.first().and_then(thumbnail).map(Arc::new);
+                    made.lock()
+                        .unwrap_or_else(std::sync::PoisonError::into_inner)
+                        .push((key, t));
+                }
+            },
+        )
     };
     let keep_refs: Vec<&str> = keep.iter().map(String::as_str).collect();
     let r = ev.eval_kept(plan, &keep_refs, &visit, opts, Some(&on_value))?;
     out.computed += r.misses();
-    for (k, t) in made.lock().unwrap_or_else(std::sync::PoisonError::into_inner).drain(..) {
+    for (k, t) in made
+        .lock()
+        .unwrap_or_else(std::sync::PoisonError::into_inner)
+        .drain(..)
+    {
         memo.thumbs.insert(k, t);
     }
     let live: HashSet<CacheKey> = nodes.values().map(|v| v[0].1 .0).collect();
@@ -200,7 +208,12 @@ pub fn whole(
 /// The integrability readouts of every node of `plan`: those `memo` knows, and the rest
 /// measured a few nodes at a time (each value kept only while measured). `None` when
 /// cancelled (an edit came) or failed.
-pub fn readouts(ev: &Evaluator, memo: &mut Memo, req: &EvalRequest, plan: &Plan) -> Option<Readouts> {
+pub fn readouts(
+    ev: &Evaluator,
+    memo: &mut Memo,
+    req: &EvalRequest,
+    plan: &Plan,
+) -> Option<Readouts> {
     let opts = EvalOptions {
         cancel: Some(req.cancel.clone()),
         progress: None,

@@ -92,25 +92,26 @@ pub fn run(size: usize, strokes: usize, segments: usize) -> Report {
         (None, (3, "image".into()));
     let mut generation = 0u64;
     let base = d.base_dir();
-    let request = |d: &Document, generation: u64, viewed: &(NodeId, String), selected, at: [f64; 2]| {
-        EvalRequest {
-            generation,
-            graph: d.graph.clone(),
-            base_dir: base.clone(),
-            cancel: Arc::new(AtomicBool::new(false)),
-            view: Some(ViewRequest {
-                node: viewed.0,
-                port: viewed.1.clone(),
-                spec: ViewSpec {
-                    panel: [1600.0, 1000.0],
-                    zoom: Some(1.0),
-                    pan: [(0.5 * s - at[0]) as f32, (0.5 * s - at[1]) as f32],
-                },
-            }),
-            settings: Some(PreviewSettings::default()),
-            keep: Some(kept_outputs(&d.graph, Some(viewed), selected, None)),
-        }
-    };
+    let request =
+        |d: &Document, generation: u64, viewed: &(NodeId, String), selected, at: [f64; 2]| {
+            EvalRequest {
+                generation,
+                graph: d.graph.clone(),
+                base_dir: base.clone(),
+                cancel: Arc::new(AtomicBool::new(false)),
+                view: Some(ViewRequest {
+                    node: viewed.0,
+                    port: viewed.1.clone(),
+                    spec: ViewSpec {
+                        panel: [1600.0, 1000.0],
+                        zoom: Some(1.0),
+                        pan: [(0.5 * s - at[0]) as f32, (0.5 * s - at[1]) as f32],
+                    },
+                }),
+                settings: Some(PreviewSettings::default()),
+                keep: Some(kept_outputs(&d.graph, Some(viewed), selected, None)),
+            }
+        };
     // The graph evaluated once before drawing, as the editor does on opening.
     generation += 1;
     w.send(request(&d, generation, &viewed, selected, [0.5 * s; 2]));
@@ -128,7 +129,10 @@ pub fn run(size: usize, strokes: usize, segments: usize) -> Report {
         let mut at = start;
         for j in 0..segments {
             let a = 0.15 * j as f64 + 0.3 * (k % 7) as f64;
-            at = [at[0] + 10.0 * scale * a.cos(), at[1] + 10.0 * scale * a.sin()];
+            at = [
+                at[0] + 10.0 * scale * a.cos(),
+                at[1] + 10.0 * scale * a.sin(),
+            ];
             gest.update(&mut d.graph, at, press(at), false, true, &base)
                 .expect("update");
             if let Some(node) = gest.node() {
@@ -141,7 +145,10 @@ pub fn run(size: usize, strokes: usize, segments: usize) -> Report {
             generation += 1;
             w.send(request(&d, generation, &viewed, selected, at));
         }
-        assert!(gest.finish(&mut d, press(at)).expect("finish"), "stroke {k} drawn");
+        assert!(
+            gest.finish(&mut d, press(at)).expect("finish"),
+            "stroke {k} drawn"
+        );
         generation += 1;
         w.send(request(&d, generation, &viewed, selected, at));
         let out = wait_done(&w, generation, Duration::from_secs(120)).expect("outcome");

@@ -338,7 +338,8 @@ impl Worker {
                         next = Some(newer);
                         continue;
                     }
-                    if let Some(r) = plan.and_then(|p| refresh::readouts(&ev, &mut memo, &req, &p)) {
+                    if let Some(r) = plan.and_then(|p| refresh::readouts(&ev, &mut memo, &req, &p))
+                    {
                         if msg_tx.send(WorkerMsg::Readouts(Box::new(r))).is_err() {
                             break;
                         }

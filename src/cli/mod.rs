@@ -199,7 +199,8 @@ pub fn run_command(command: Command, out: &mut Out<'_>) -> Result<(), CliError> 
 #[cfg(feature = "gui")]
 fn edit(a: &EditArgs) -> Result<(), CliError> {
     if let Some(m) = &a.memory {
-        let b = crate::app::memory::parse_budget(m).map_err(|e| CliError::Usage(format!("--memory {e}")))?;
+        let b = crate::app::memory::parse_budget(m)
+            .map_err(|e| CliError::Usage(format!("--memory {e}")))?;
         crate::app::memory::set_budget(b);
     }
     crate::app::memory::budget().map_err(CliError::Usage)?;

@@ -102,7 +102,10 @@ impl Evaluator {
                 None => Err(GraphError::Unknown {
                     what: "graph output",
                     name: name.to_string(),
-                    suggestion: crate::params::nearest(name, plan.outputs.keys().map(String::as_str)),
+                    suggestion: crate::params::nearest(
+                        name,
+                        plan.outputs.keys().map(String::as_str),
+                    ),
                     at: plan.at.clone(),
                 }),
             }
@@ -126,7 +129,9 @@ impl Evaluator {
         let whole = self.eval_instances(plan, &roots, opts, Some(&k))?;
         let outputs: BTreeMap<String, crate::nodes::Value> = kept
             .into_iter()
-            .filter_map(|(name, (i, p))| Some((name, whole.results.get(&i)?.values.get(p)?.clone())))
+            .filter_map(|(name, (i, p))| {
+                Some((name, whole.results.get(&i)?.values.get(p)?.clone()))
+            })
             .collect();
         Ok(EvalResult {
             outputs,
@@ -140,7 +145,10 @@ impl Evaluator {
     ///
     /// # Errors
     /// An unbound input, or an input file that cannot be read.
-    pub fn output_keys(&self, plan: &Plan) -> Result<BTreeMap<String, (CacheKey, usize)>, GraphError> {
+    pub fn output_keys(
+        &self,
+        plan: &Plan,
+    ) -> Result<BTreeMap<String, (CacheKey, usize)>, GraphError> {
         let mut keys = HashMap::new();
         let mut out = BTreeMap::new();
         for (name, c) in &plan.outputs {
@@ -159,16 +167,25 @@ impl Evaluator {
 
     /// Bytes of `values` the memory cache does not keep alive ([`super::MemCache::outside`]).
     #[must_use]
-    pub fn mem_outside<'a>(&self, values: impl IntoIterator<Item = &'a crate::nodes::Value>) -> usize {
+    pub fn mem_outside<'a>(
+        &self,
+        values: impl IntoIterator<Item = &'a crate::nodes::Value>,
+    ) -> usize {
         super::lock(&self.mem).outside(values)
     }
 
     /// Bytes of `values` and of the last viewport result (kept to patch after an edit) that
     /// the memory cache does not keep alive.
     #[must_use]
-    pub fn held_outside<'a>(&self, values: impl IntoIterator<Item = &'a crate::nodes::Value>) -> usize {
+    pub fn held_outside<'a>(
+        &self,
+        values: impl IntoIterator<Item = &'a crate::nodes::Value>,
+    ) -> usize {
         let seen = super::lock(&self.seen);
-        super::lock(&self.mem).outside(values.into_iter().chain(seen.last_value()))
+        let mut all: Vec<&crate::nodes::Value> = values.into_iter().collect();
+        all.extend(seen.last_value());
+        let bytes = super::lock(&self.mem).outside(all);
+        bytes
     }
 
     /// The memory cache's byte budget.

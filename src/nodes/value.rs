@@ -110,7 +110,9 @@ impl Value {
                 }
                 v
             }
-            Value::Mask(p) | Value::Scalar(p) => vec![(Arc::as_ptr(p) as usize, p.data().len() * f)],
+            Value::Mask(p) | Value::Scalar(p) => {
+                vec![(Arc::as_ptr(p) as usize, p.data().len() * f)]
+            }
             Value::Picture(p) => vec![(Arc::as_ptr(p) as usize, p.rgba.len())],
             Value::Number(_) => vec![(std::ptr::from_ref(self) as usize, 8)],
         }
