@@ -353,20 +353,28 @@ fn png_decode_error(path: &Path, e: png::DecodingError) -> RgbnError {
     }
 }
 
+/// A `png` reader of `path` past its header, with `transformations` and without the crate's
+/// memory limit (the callers check rgbn's own size limit before any image buffer exists).
+fn png_reader(
+    path: &Path,
+    transformations: png::Transformations,
+) -> Result<png::Reader<std::io::BufReader<std::fs::File>>, RgbnError> {
+    let file = std::fs::File::open(path).map_err(|e| RgbnError::Read {
+        path: path.into(),
+        source: e,
+    })?;
+    let limits = png::Limits { bytes: usize::MAX };
+    let mut dec = png::Decoder::new_with_limits(std::io::BufReader::new(file), limits);
+    dec.set_transformations(transformations);
+    dec.read_info().map_err(|e| png_decode_error(path, e))
+}
+
 /// Decodes a PNG with the `png` crate: the size is checked before the pixel buffer is
 /// allocated, palette and sub-byte images are expanded to 8 bits, and 16-bit big-endian
 /// samples are converted to `u16` in parallel.
 fn decode_png(path: &Path) -> Result<Raster, RgbnError> {
     let err = |e: png::DecodingError| png_decode_error(path, e);
-    let file = std::fs::File::open(path).map_err(|e| RgbnError::Read {
-        path: path.into(),
-        source: e,
-    })?;
-    // Our own size limit is checked below, before the image buffer exists.
-    let limits = png::Limits { bytes: usize::MAX };
-    let mut dec = png::Decoder::new_with_limits(std::io::BufReader::new(file), limits);
-    dec.set_transformations(png::Transformations::EXPAND);
-    let mut reader = dec.read_info().map_err(err)?;
+    let mut reader = png_reader(path, png::Transformations::EXPAND)?;
     let (w, h) = {
         let i = reader.info();
         (i.width as usize, i.height as usize)

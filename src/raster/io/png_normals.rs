@@ -14,7 +14,7 @@
 //! Only the common case takes this path: a non-interlaced 8- or 16-bit RGB or RGBA PNG. Others
 //! (palette, greyscale, interlaced) go through the one-shot decoder.
 
-use super::{png_decode_error, DEFAULT_ALBEDO};
+use super::{png_decode_error, png_reader, DEFAULT_ALBEDO};
 use crate::error::RgbnError;
 use crate::raster::{buf, check_size, RgbnImage, Validation};
 use std::path::Path;
@@ -46,13 +46,7 @@ pub(super) fn decode_png_normals(
     flip_y: bool,
 ) -> Result<Option<(RgbnImage, Validation)>, RgbnError> {
     let err = |e: png::DecodingError| png_decode_error(path, e);
-    let file = std::fs::File::open(path).map_err(|e| RgbnError::Read {
-        path: path.into(),
-        source: e,
-    })?;
-    let limits = png::Limits { bytes: usize::MAX };
-    let dec = png::Decoder::new_with_limits(std::io::BufReader::new(file), limits);
-    let mut reader = dec.read_info().map_err(err)?;
+    let mut reader = png_reader(path, png::Transformations::IDENTITY)?;
     let (w, h, channels, depth) = {
         let i = reader.info();
         let channels = match i.color_type {
