@@ -11,8 +11,13 @@ use std::path::{Path, PathBuf};
 /// The data folder: `$RGBN_DATA`, else `../shared/data` beside the checkout.
 #[must_use]
 pub fn root() -> PathBuf {
-    std::env::var_os("RGBN_DATA").map_or_else(
-        || Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/data"),
+    env_or_checkout("RGBN_DATA", "../shared/data")
+}
+
+/// The folder named by environment variable `var`, else `relative` to the checkout.
+fn env_or_checkout(var: &str, relative: &str) -> PathBuf {
+    std::env::var_os(var).map_or_else(
+        || Path::new(env!("CARGO_MANIFEST_DIR")).join(relative),
         PathBuf::from,
     )
 }
@@ -55,7 +60,7 @@ fn find(root: &Path, sub: &str, required: bool) -> Result<Option<PathBuf>, Strin
 /// `docs/green-convention.md`): the manifest, where the fetched files are, and how a verdict is
 /// judged against it. The maps are third-party data and never committed.
 pub mod green_maps {
-    use std::path::{Path, PathBuf};
+    use std::path::PathBuf;
 
     /// The manifest's text.
     pub const MANIFEST: &str = include_str!("../tests/data/green_convention_maps.tsv");
@@ -129,10 +134,7 @@ pub mod green_maps {
     /// (`examples/fetch_green_maps.sh` fills it).
     #[must_use]
     pub fn dir() -> PathBuf {
-        std::env::var_os("RGBN_GREEN_MAPS").map_or_else(
-            || Path::new(env!("CARGO_MANIFEST_DIR")).join("target/green-maps"),
-            PathBuf::from,
-        )
+        super::env_or_checkout("RGBN_GREEN_MAPS", "target/green-maps")
     }
 
     /// A verdict on a map loaded as OpenGL (without `--dx`) against its expectation:
