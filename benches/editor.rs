@@ -99,6 +99,7 @@ fn request(d: &Document, generation: u64, view: ViewRequest) -> EvalRequest {
         cancel: Arc::new(AtomicBool::new(false)),
         view: Some(view),
         settings: Some(PreviewSettings::default()),
+        keep: Some(Vec::new()),
     }
 }
 

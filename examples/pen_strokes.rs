@@ -58,6 +58,7 @@ fn request(d: &Document, generation: u64, view: &(NodeId, String), at: [f64; 2])
             },
         }),
         settings: Some(PreviewSettings::default()),
+        keep: Some(Vec::new()),
     }
 }
 

@@ -73,6 +73,27 @@ pub const BIG: usize = 4 << 20;
 pub const SLOTS: usize = 8;
 /// Bytes kept at most.
 pub const KEEP_BYTES: usize = 512 << 20;
+/// The bytes kept at most now ([`set_keep_limit`]; [`KEEP_BYTES`] unless lowered).
+static KEEP_LIMIT: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicUsize::new(KEEP_BYTES);
+
+/// Keeps at most `bytes` of freed blocks from now on (at most [`KEEP_BYTES`]): the editor
+/// gives the pool its share of the memory budget (`app::memory`).
+pub fn set_keep_limit(bytes: usize) {
+    KEEP_LIMIT.store(bytes.min(KEEP_BYTES), std::sync::atomic::Ordering::Relaxed);
+}
+
+/// The bytes kept at most now ([`set_keep_limit`]).
+#[must_use]
+pub fn keep_limit() -> usize {
+    KEEP_LIMIT.load(std::sync::atomic::Ordering::Relaxed)
+}
+
+/// Bytes of freed blocks kept for reuse now (0 unless [`Recycler`] is the global allocator).
+#[must_use]
+pub fn kept_bytes() -> usize {
+    KEPT.lock().map_or(0, |k| k.bytes)
+}
+
 /// The alignment of big blocks.
 const BIG_ALIGN: usize = 64;
 
@@ -199,7 +220,7 @@ impl Recycler {
         let Ok(mut k) = KEPT.lock() else {
             return false;
         };
-        if k.bytes + size > KEEP_BYTES {
+        if k.bytes + size > KEEP_LIMIT.load(std::sync::atomic::Ordering::Relaxed) {
             return false;
         }
         let Some(slot) = k.blocks.iter().position(|&(a, _)| a == 0) else {

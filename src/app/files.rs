@@ -7,7 +7,6 @@ use super::state::Document;
 use super::worker::EvalOutcome;
 use super::EditorApp;
 use crate::graph::NodeId;
-use crate::nodes::Value;
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
@@ -90,10 +89,14 @@ impl EditorApp {
                 d.title("Save graph as").default_file_name(&name)
             }
             FilePurpose::Export(id, port) => {
-                let ext = match self.runtime.outcome.values.get(&(*id, port.clone())) {
-                    Some(v) if matches!(v.value, Value::Rgbn(_)) => "exr",
-                    _ => "png",
-                };
+                // By the port's declared type: the value may not be kept (only what is shown is).
+                let rgbn = self
+                    .runtime
+                    .ports
+                    .get(id)
+                    .and_then(|p| p.outputs.iter().find(|o| o.name == *port))
+                    .is_some_and(|o| o.ty == crate::nodes::PortType::Rgbn);
+                let ext = if rgbn { "exr" } else { "png" };
                 d.title("Export output")
                     .default_file_name(&format!("node{id}-{port}.{ext}"))
             }
@@ -215,10 +218,22 @@ impl EditorApp {
     /// Writes output `port` of node `id` to `path` (format from the extension; atomic; never
     /// over one of the graph's input files).
     pub fn export(&mut self, path: &Path, id: NodeId, port: &str) {
-        let Some(v) = self.runtime.outcome.values.get(&(id, port.to_string())) else {
-            self.fail(format!(
-                "nothing to export: node #{id} has no value on {port:?} yet (still evaluating, or it failed)"
-            ));
+        let key = (id, port.to_string());
+        let Some(v) = self.runtime.outcome.values.get(&key) else {
+            // The whole-graph refresh keeps only what is shown: an output evaluated but not
+            // kept, or not evaluated yet, is asked for and written when it arrives.
+            let failed = self.runtime.outcome.node_errors.get(&id);
+            if let Some(e) = failed {
+                self.fail(format!("nothing to export: node #{id} failed: {e}"));
+            } else if self.session.doc.graph.nodes.contains_key(&id) {
+                self.pending_export = Some((path.to_path_buf(), id, port.to_string()));
+                self.say(format!(
+                    "exporting node #{id} {port:?} to {} once it is evaluated",
+                    path.display()
+                ));
+            } else {
+                self.fail(format!("nothing to export: there is no node #{id}"));
+            }
             return;
         };
         let v = v.value.clone();
@@ -246,6 +261,23 @@ impl EditorApp {
         {
             Ok(()) => self.say(format!("exported {}", path.display())),
             Err(e) => self.fail(e.to_string()),
+        }
+    }
+
+    /// Writes the export asked for before its value was evaluated, once the outcome carries
+    /// the value (or says why it cannot).
+    pub(super) fn finish_pending_export(&mut self) {
+        let Some((path, id, port)) = self.pending_export.take() else {
+            return;
+        };
+        let out = &self.runtime.outcome;
+        let evaluated = out.values.contains_key(&(id, port.clone()))
+            || out.node_errors.contains_key(&id)
+            || !self.session.doc.graph.nodes.contains_key(&id);
+        if evaluated {
+            self.export(&path, id, &port);
+        } else {
+            self.pending_export = Some((path, id, port));
         }
     }
 

@@ -24,14 +24,17 @@ pub mod dialogs;
 pub mod files;
 pub mod graph_view;
 pub mod images;
+pub mod memory;
 mod menu;
 pub mod params_ui;
 pub mod placement;
 pub mod prefs;
 pub mod preview;
 pub mod recent;
+pub mod refresh;
 pub mod runtime;
 pub mod session;
+pub mod soak;
 pub mod start;
 pub mod state;
 pub mod tools;
@@ -126,6 +129,9 @@ pub struct EditorApp {
     pending_then: Option<Then>,
     /// The open file dialog and what its pick is for.
     files: Option<(egui_file_dialog::FileDialog, FilePurpose)>,
+    /// An export asked for before its value was evaluated (path, node, port): written when
+    /// the value arrives.
+    pending_export: Option<(std::path::PathBuf, NodeId, String)>,
     /// The Help ▸ Operators window is open.
     show_ops: bool,
     /// Nodes the editor placed that it keeps clear of others until they are drawn evaluated
@@ -149,6 +155,7 @@ impl EditorApp {
             dialog: None,
             pending_then: None,
             files: None,
+            pending_export: None,
             show_ops: false,
             placed: BTreeMap::new(),
             last_widget_selection: Vec::new(),
@@ -520,8 +527,7 @@ impl EditorApp {
                 ));
             }
             ui.separator();
-            let (n, bytes) = self.runtime.outcome.cache;
-            ui.label(format!("cache {n} values, {:.1} MiB", bytes as f64 / (1 << 20) as f64));
+            memory::status_ui(ui, &self.runtime.outcome.memory);
             ui.separator();
             let viewed = self.session.viewed.as_ref().map(|v| v.0);
             let outcome = &self.runtime.outcome;

@@ -4,7 +4,7 @@
 
 use super::preview::RegionShown;
 use super::worker::{EvalOutcome, EvalRequest, Generations, ViewRequest, Worker, WorkerMsg};
-use super::{EditorApp, Status};
+use super::{EditorApp, FilePurpose, Status};
 use crate::graph::{Graph, NodeId, NodePorts};
 use egui::{TextureHandle, TextureOptions};
 use std::collections::BTreeMap;
@@ -29,6 +29,8 @@ pub struct Runtime {
     pub(super) last_sent: Option<Graph>,
     /// The view of the last request.
     pub(super) last_view: Option<ViewRequest>,
+    /// The outputs last asked to be kept ([`EvalRequest::keep`]).
+    pub(super) last_keep: Vec<(NodeId, String)>,
     /// Progress of the running evaluation (done, total).
     pub progress: Option<(usize, usize)>,
     /// The latest accepted evaluation.
@@ -67,6 +69,7 @@ impl Runtime {
             in_flight: None,
             last_sent: None,
             last_view: None,
+            last_keep: Vec::new(),
             progress: None,
             outcome: EvalOutcome::default(),
             thumbs: BTreeMap::new(),
@@ -199,7 +202,15 @@ impl EditorApp {
         let view_changed = view.is_some()
             && self.runtime.last_view != view
             && (self.runtime.in_flight.is_some() || self.viewed_value().is_none());
-        if graph_changed || view_changed {
+        // An output to keep whose value the last outcome does not carry (a split's input, a
+        // stamp's source, an output being exported) is asked for once.
+        let keep = self.kept_outputs();
+        let out = &self.runtime.outcome;
+        let keep_changed = self.runtime.last_keep != keep
+            && keep
+                .iter()
+                .any(|k| out.keys.contains_key(k) && !out.values.contains_key(k));
+        if graph_changed || view_changed || keep_changed {
             // A newer request supersedes the running one: while edits keep coming, the worker
             // evaluates only the viewport of each.
             self.cancel();
@@ -211,6 +222,7 @@ impl EditorApp {
                 cancel: cancel.clone(),
                 view: view.clone(),
                 settings: Some(self.prefs.settings.clone()),
+                keep: Some(keep.clone()),
             });
             self.runtime.requests += 1;
             self.tools.request_sent();
@@ -220,7 +232,24 @@ impl EditorApp {
             });
             self.runtime.last_sent = Some(want);
             self.runtime.last_view = view;
+            self.runtime.last_keep = keep;
         }
+    }
+
+    /// The outputs whose whole values the editor needs besides the viewed one.
+    fn kept_outputs(&self) -> Vec<(NodeId, String)> {
+        let export = match (&self.files, &self.pending_export) {
+            (Some((_, FilePurpose::Export(id, port))), _) | (_, Some((_, id, port))) => {
+                Some((*id, port.clone()))
+            }
+            _ => None,
+        };
+        super::refresh::kept_outputs(
+            &self.session.doc.graph,
+            self.session.viewed.as_ref(),
+            self.session.selected,
+            export.as_ref(),
+        )
     }
 
     /// What the preview shows: the viewed output, and where (`None` before the preview's first
@@ -261,6 +290,7 @@ impl EditorApp {
             self.status = Status::default();
         }
         self.runtime.outcome = out;
+        self.finish_pending_export();
     }
 
     pub(super) fn cancel(&mut self) {

@@ -17,7 +17,9 @@
 // Graph errors carry their location by value; they are cold paths.
 #![allow(clippy::result_large_err)]
 
+use super::memory::{self, MemoryUse};
 use super::preview::{PreviewSettings, ViewSpec};
+use super::refresh::{self, Memo};
 use super::state::error_node;
 use crate::eval::region::{RegionOptions, INTERACTIVE_TILE};
 use crate::eval::{CacheKey, EvalOptions, Evaluator, Plan, Progress};
@@ -72,6 +74,11 @@ pub struct EvalRequest {
     /// The preview's display settings: the worker renders the viewport with them, so that it
     /// goes on screen in the frame it arrives.
     pub settings: Option<PreviewSettings>,
+    /// Outputs whose whole values the outcome carries besides the viewed one (the input of a
+    /// before/after split, a stamp's source, an output being exported); the others are
+    /// evaluated for their thumbnails and keys only ([`super::refresh`]). `None`: every value
+    /// is carried (callers without a preview).
+    pub keep: Option<Vec<(NodeId, String)>>,
 }
 
 /// The output the preview shows, and how.
@@ -132,8 +139,10 @@ pub struct PortValue {
 pub struct EvalOutcome {
     /// The request's generation.
     pub generation: u64,
-    /// Output values by (node, port).
+    /// Output values by (node, port): the viewed output's and [`EvalRequest::keep`]'s.
     pub values: BTreeMap<(NodeId, String), PortValue>,
+    /// The content key of every output evaluated (with a value or not), by (node, port).
+    pub keys: BTreeMap<(NodeId, String), CacheKey>,
     /// Thumbnails (sRGB RGBA, at most [`THUMB_SIZE`] a side) of each node's first output.
     pub thumbs: BTreeMap<NodeId, Arc<Picture>>,
     /// Errors by node.
@@ -150,6 +159,8 @@ pub struct EvalOutcome {
     pub elapsed: Duration,
     /// Memory cache: entries and bytes.
     pub cache: (usize, usize),
+    /// What the worker holds against the memory budget (the values kept included).
+    pub memory: MemoryUse,
     /// The evaluation was cancelled.
     pub cancelled: bool,
     /// The viewed output is larger than [`WHOLE_PIXELS`]: only its viewport was evaluated
@@ -237,7 +248,10 @@ impl Worker {
         let thread = std::thread::Builder::new()
             .name("rgbn-eval".into())
             .spawn(move || {
-                let ev = Evaluator::new(cache_budget());
+                let budget = memory::budget().unwrap_or(crate::eval::DEFAULT_BUDGET as u64);
+                crate::recycle::set_keep_limit(memory::pool_share(budget));
+                let ev = Evaluator::new(memory::cache_share(budget));
+                let mut memo = Memo::default();
                 let mut sizes = Sizes::new();
                 let mut next: Option<EvalRequest> = None;
                 loop {
@@ -296,7 +310,7 @@ impl Worker {
                             });
                             pwake();
                         });
-                        let (out, plan) = evaluate_with_plan(&ev, &req, Some(progress));
+                        let (out, plan) = evaluate_memo(&ev, &mut memo, &req, Some(progress));
                         for ((id, port), v) in &out.values {
                             if let Some(z) = v.value.size() {
                                 sizes.insert((*id, port.clone()), z);
@@ -304,11 +318,13 @@ impl Worker {
                         }
                         (out, plan)
                     } else {
-                        let out = EvalOutcome {
+                        let mut out = EvalOutcome {
                             generation: req.generation,
                             viewport_only: true,
+                            cache: ev.mem_usage(),
                             ..EvalOutcome::default()
                         };
+                        out.memory = memory_use(&ev, &memo, &out);
                         (out, None)
                     };
                     let (out, plan) = out;
@@ -316,12 +332,14 @@ impl Worker {
                         break;
                     }
                     wake();
+                    memory::trim();
                     // The readouts, unless an edit came meanwhile.
                     if let Ok(newer) = req_rx.try_recv() {
                         next = Some(newer);
                         continue;
                     }
-                    if let Some(r) = plan.and_then(|p| readouts(&ev, &req, &p)) {
+                    if let Some(r) = plan.and_then(|p| refresh::readouts(&ev, &mut memo, &req, &p))
+                    {
                         if msg_tx.send(WorkerMsg::Readouts(Box::new(r))).is_err() {
                             break;
                         }
@@ -362,16 +380,6 @@ impl Drop for Worker {
             let _ = t.join();
         }
     }
-}
-
-/// The editor's memory cache: a quarter of the physical memory (at least
-/// [`crate::eval::DEFAULT_BUDGET`]), so that a 4K graph's node values and the tiles of its
-/// viewports stay cached together.
-fn cache_budget() -> usize {
-    let quarter = crate::eval::memory::physical_memory().map_or(0, |m| m / 4);
-    usize::try_from(quarter)
-        .unwrap_or(usize::MAX)
-        .max(crate::eval::DEFAULT_BUDGET)
 }
 
 /// Full-resolution sizes of outputs seen, by (node, port).
@@ -561,32 +569,23 @@ pub fn evaluate(
 /// of `plan`, taken after an evaluation was shown ([`WorkerMsg::Readouts`]): the values come
 /// from the cache, the readouts run on all cores, and an edit meanwhile cancels them.
 pub fn readouts(ev: &Evaluator, req: &EvalRequest, plan: &Plan) -> Option<Readouts> {
-    let opts = EvalOptions {
-        cancel: Some(req.cancel.clone()),
-        progress: None,
-        curl_stats: true,
-    };
-    let r = ev.eval(plan, &[], &opts).ok()?;
-    let mut out = Readouts {
-        generation: req.generation,
-        ..Readouts::default()
-    };
-    for st in &r.stats {
-        if let (Some(node), true) = (st.at.node, st.at.file == TOP_LABEL) {
-            if let Some(c) = st.curl {
-                out.curl.insert(node, c);
-            }
-            if let Some(f) = st.fraction {
-                out.fraction.insert(node, f);
-            }
-        }
-    }
-    Some(out)
+    refresh::readouts(ev, &mut Memo::default(), req, plan)
 }
 
 /// [`evaluate`], and the plan it evaluated (without the nodes that failed).
 pub fn evaluate_with_plan(
     ev: &Evaluator,
+    req: &EvalRequest,
+    progress: Option<crate::eval::ProgressFn>,
+) -> (EvalOutcome, Option<Plan>) {
+    evaluate_memo(ev, &mut Memo::default(), req, progress)
+}
+
+/// [`evaluate_with_plan`] remembering thumbnails and readouts in `memo` between evaluations
+/// (as the worker does): a node whose content key `memo` knows is not evaluated for them.
+pub fn evaluate_memo(
+    ev: &Evaluator,
+    memo: &mut Memo,
     req: &EvalRequest,
     progress: Option<crate::eval::ProgressFn>,
 ) -> (EvalOutcome, Option<Plan>) {
@@ -645,10 +644,8 @@ pub fn evaluate_with_plan(
                         progress: progress.clone(),
                         curl_stats: false,
                     };
-                    match ev.eval(&p, &[], &opts) {
-                        Ok(r) => {
-                            out.computed += r.misses();
-                            collect(&mut out, &r, &p);
+                    match refresh::whole(ev, memo, req, &p, &ports, &opts, &mut out) {
+                        Ok(()) => {
                             plan = Some(p);
                             None
                         }
@@ -684,59 +681,24 @@ pub fn evaluate_with_plan(
             None => break,
         }
     }
-    for (id, names) in &ports {
-        let Some(first) = names.first() else { continue };
-        if let Some(v) = out.values.get(&(*id, first.clone())) {
-            if let Some(t) = thumbnail(&v.value) {
-                out.thumbs.insert(*id, Arc::new(t));
-            }
-        }
-    }
     out.elapsed = t0.elapsed();
     out.cache = ev.mem_usage();
+    out.memory = memory_use(ev, memo, &out);
     (out, plan)
 }
 
-fn collect(out: &mut EvalOutcome, r: &crate::eval::EvalResult, plan: &Plan) {
-    // Keys of the instances, by instance index, from the stats (same order as evaluated).
-    let mut key_of: BTreeMap<usize, CacheKey> = BTreeMap::new();
-    for (i, inst) in plan.instances.iter().enumerate() {
-        if let Some(st) = r
-            .stats
-            .iter()
-            .find(|s| s.at == inst.at && s.op == inst.op.spec().id)
-        {
-            key_of.insert(i, st.key);
-            if let (Some(node), true) = (st.at.node, st.at.file == TOP_LABEL) {
-                if let Some(c) = st.curl {
-                    out.curl.insert(node, c);
-                }
-                if let Some(f) = st.fraction {
-                    out.fraction.insert(node, f);
-                }
-            }
-        }
-    }
-    for (name, value) in &r.outputs {
-        let Some((id, port)) = name.split_once(':') else {
-            continue;
-        };
-        let Ok(id) = id.parse::<NodeId>() else {
-            continue;
-        };
-        let key = match plan.outputs.get(name) {
-            Some(crate::eval::Conn::Slot(i, p)) => {
-                key_of.get(i).map_or(0, |k| crate::eval::port_key(*k, *p))
-            }
-            _ => 0,
-        };
-        out.values.insert(
-            (id, port.to_string()),
-            PortValue {
-                value: value.clone(),
-                key,
-            },
-        );
+/// What `ev`, `memo` and the values of `out` hold against the memory budget (the budget being
+/// the cache's and the recycle pool's shares).
+#[must_use]
+pub fn memory_use(ev: &Evaluator, memo: &Memo, out: &EvalOutcome) -> MemoryUse {
+    let (n, bytes) = ev.mem_usage();
+    MemoryUse {
+        budget: (ev.mem_budget() + crate::recycle::keep_limit()) as u64,
+        cache: bytes,
+        cache_values: n,
+        shown: ev.held_outside(out.values.values().map(|v| &v.value)),
+        thumbs: memo.bytes(),
+        pool: crate::recycle::kept_bytes(),
     }
 }
 

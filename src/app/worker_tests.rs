@@ -13,6 +13,7 @@ fn request(g: &Graph, generation: u64) -> EvalRequest {
         cancel: Arc::new(AtomicBool::new(false)),
         view: None,
         settings: None,
+        keep: None,
     }
 }
 

@@ -102,6 +102,11 @@ pub struct EditArgs {
     /// Read the opened EXR's R,G,B as the normal (Blender-style normal pass).
     #[arg(long)]
     pub exr_rgb_is_normal: bool,
+    /// Memory budget for the images the editor keeps (value cache, viewport tiles, thumbnails,
+    /// freed blocks kept for reuse), e.g. `4G`, `1536M`; least recently used values go first.
+    /// Default: `RGBN_EDITOR_MEMORY`, else a quarter of the physical memory.
+    #[arg(long, value_name = "SIZE")]
+    pub memory: Option<String>,
 }
 
 #[cfg(feature = "gui")]
@@ -193,6 +198,12 @@ pub fn run_command(command: Command, out: &mut Out<'_>) -> Result<(), CliError> 
 /// Runs the editor on what `a` names (a bad file is refused before a window opens).
 #[cfg(feature = "gui")]
 fn edit(a: &EditArgs) -> Result<(), CliError> {
+    if let Some(m) = &a.memory {
+        let b = crate::app::memory::parse_budget(m)
+            .map_err(|e| CliError::Usage(format!("--memory {e}")))?;
+        crate::app::memory::set_budget(b);
+    }
+    crate::app::memory::budget().map_err(CliError::Usage)?;
     let start = a.start()?;
     crate::app::run(&start).map_err(CliError::Editor)
 }

@@ -30,15 +30,17 @@ impl CacheEntry {
 }
 
 /// Byte-budgeted LRU map from [`CacheKey`] to [`CacheEntry`]. One entry may be stored under
-/// several keys (a tile an edit did not change, under the old and the new content key): its
-/// bytes count once.
+/// several keys (a tile an edit did not change, under the old and the new content key), and
+/// entries may share pixel planes (a pen's output keeps its input's colour planes): the bytes
+/// are counted by shared block ([`Value::parts`]), each once, so [`MemCache::bytes`] is the
+/// memory the cache really keeps alive.
 #[derive(Debug)]
 pub struct MemCache {
     map: HashMap<CacheKey, (Arc<CacheEntry>, u64)>,
     /// Keys by last use (the LRU order).
     order: std::collections::BTreeMap<u64, CacheKey>,
-    /// Keys per stored entry (by address).
-    refs: HashMap<usize, usize>,
+    /// References per shared block of pixel data (by address), with its bytes.
+    refs: HashMap<usize, (usize, usize)>,
     bytes: usize,
     budget: usize,
     tick: u64,
@@ -75,7 +77,7 @@ impl MemCache {
             return;
         }
         self.tick += 1;
-        self.add_ref(&entry, size);
+        self.add_ref(&entry);
         self.order.insert(self.tick, key);
         if let Some((old, used)) = self.map.insert(key, (entry, self.tick)) {
             self.order.remove(&used);
@@ -90,22 +92,51 @@ impl MemCache {
             }
         }
     }
-    fn add_ref(&mut self, e: &Arc<CacheEntry>, size: usize) {
-        let n = self.refs.entry(Arc::as_ptr(e) as usize).or_insert(0);
-        if *n == 0 {
-            self.bytes += size;
-        }
-        *n += 1;
-    }
-    fn drop_ref(&mut self, e: &Arc<CacheEntry>) {
-        let p = Arc::as_ptr(e) as usize;
-        if let Some(n) = self.refs.get_mut(&p) {
-            *n -= 1;
-            if *n == 0 {
-                self.refs.remove(&p);
-                self.bytes -= e.byte_size();
+    fn add_ref(&mut self, e: &Arc<CacheEntry>) {
+        for v in &e.values {
+            for (addr, bytes) in v.parts() {
+                let n = self.refs.entry(addr).or_insert((0, bytes));
+                if n.0 == 0 {
+                    self.bytes += bytes;
+                }
+                n.0 += 1;
             }
         }
+    }
+    fn drop_ref(&mut self, e: &Arc<CacheEntry>) {
+        for v in &e.values {
+            for (addr, _) in v.parts() {
+                if let Some(n) = self.refs.get_mut(&addr) {
+                    n.0 -= 1;
+                    if n.0 == 0 {
+                        self.bytes -= n.1;
+                        self.refs.remove(&addr);
+                    }
+                }
+            }
+        }
+    }
+    /// Whether `key` is stored (without marking it used).
+    #[must_use]
+    pub fn contains(&self, key: CacheKey) -> bool {
+        self.map.contains_key(&key)
+    }
+    /// Bytes of `values` that the cache does not keep alive itself (blocks shared among
+    /// `values` counted once): what holding them costs on top of [`MemCache::bytes`].
+    #[must_use]
+    pub fn outside<'a>(&self, values: impl IntoIterator<Item = &'a Value>) -> usize {
+        let mut seen = std::collections::HashSet::new();
+        values
+            .into_iter()
+            .flat_map(Value::parts)
+            .filter(|(a, _)| !self.refs.contains_key(a) && seen.insert(*a))
+            .map(|(_, b)| b)
+            .sum()
+    }
+    /// The byte budget.
+    #[must_use]
+    pub fn budget(&self) -> usize {
+        self.budget
     }
     /// Number of entries.
     #[must_use]
@@ -173,5 +204,37 @@ mod tests {
         assert_eq!(c.bytes(), 24);
         assert!(c.get(2).is_none());
         assert_eq!(c.len(), 3);
+    }
+
+    fn rgbn(values: Vec<Value>) -> Arc<CacheEntry> {
+        Arc::new(CacheEntry {
+            values,
+            curl: None,
+            fraction: None,
+        })
+    }
+
+    #[test]
+    fn planes_shared_between_entries_count_once() {
+        // 4×4 pixels: three f32 planes of 16 values each, 192 bytes of colour, 192 of normals.
+        let set = 3 * 16 * 4;
+        let a = crate::raster::RgbnImage::flat(4, 4, [0.5; 3]);
+        let b = a.with_normals(a.normal().clone()).unwrap(); // shares a's colour only
+        let mut c = MemCache::new(1 << 20);
+        c.insert(1, rgbn(vec![Value::Rgbn(a.clone())]));
+        assert_eq!(c.bytes(), 2 * set);
+        c.insert(2, rgbn(vec![Value::Rgbn(b.clone())]));
+        assert_eq!(c.bytes(), 3 * set);
+        // Held outside: a's planes are in the cache; a fresh image is not; b twice counts once.
+        let fresh = crate::raster::RgbnImage::flat(4, 4, [0.5; 3]);
+        let (va, vb, vf) = (Value::Rgbn(a), Value::Rgbn(b), Value::Rgbn(fresh));
+        assert_eq!(c.outside([&va, &vb, &vb]), 0);
+        assert_eq!(c.outside([&vf, &vf, &va]), 2 * set);
+        // Key 1 goes: the shared colour stays counted under key 2.
+        c.insert(3, entry(1.0));
+        c.budget = 2 * set + 16;
+        c.insert(4, entry(2.0));
+        assert!(!c.contains(1) && c.contains(2));
+        assert_eq!(c.bytes(), 2 * set + 16);
     }
 }

@@ -23,12 +23,14 @@
 pub mod bind;
 pub mod cache;
 pub mod disk;
+pub mod kept;
 pub mod memory;
 pub mod region;
 pub mod stream;
 
 pub use cache::{CacheEntry, CacheKey, MemCache};
 pub use disk::DiskCache;
+pub use kept::ValueFn;
 
 use crate::graph::{At, GraphError, LoadedGraph, NodeId, NodeKind, PortRef, Source};
 use crate::nodes::{self, DynOp, Parsed, PortType, RunContext, Value};
@@ -580,7 +582,7 @@ impl Evaluator {
                 Conn::None => {}
             }
         }
-        let whole = self.eval_instances(plan, &slots, opts)?;
+        let whole = self.eval_instances(plan, &slots, opts, None)?;
         let mut out = BTreeMap::new();
         for (name, c) in names.iter().zip(&roots) {
             if let Conn::Slot(i, p) = c {
@@ -597,12 +599,14 @@ impl Evaluator {
     }
 
     /// Evaluates instances `roots` of `plan` whole, with everything they need: their results
-    /// (and those of every instance considered), the stats of each, and the memory estimate.
+    /// (and those of every instance considered, or with `keep` only those it keeps: see
+    /// [`kept`]), the stats of each, and the memory estimate.
     fn eval_instances(
         &self,
         plan: &Plan,
         roots: &[usize],
         opts: &EvalOptions,
+        keep: Option<&kept::Keep>,
     ) -> Result<Whole, GraphError> {
         let mut keys = HashMap::new();
         let mut results: HashMap<usize, Arc<CacheEntry>> = HashMap::new();
@@ -644,6 +648,17 @@ impl Evaluator {
             level.insert(i, l);
         }
         let depth = level.values().max().map_or(0, |m| m + 1);
+        let mut readers = kept::readers(plan, &to_run);
+        if let Some(k) = keep {
+            // Values from the caches: told, then dropped unless a node to run reads them.
+            let hits: Vec<usize> = results.keys().copied().collect();
+            for i in hits {
+                k.tell(i, keys[&i], &results[&i]);
+                if !readers.contains_key(&i) && !k.kept.contains(&i) {
+                    results.remove(&i);
+                }
+            }
+        }
         let total = to_run.len();
         let done = AtomicUsize::new(0);
         let ctx = RunContext {
@@ -669,10 +684,18 @@ impl Evaluator {
                     Ok((i, r.0, r.1))
                 })
                 .collect();
+            let mut ran_ok = Vec::with_capacity(ran.len());
             for r in ran {
                 let (i, entry, st) = r?;
                 results.insert(i, entry);
                 stats.insert(i, st);
+                ran_ok.push(i);
+            }
+            if let Some(k) = keep {
+                for i in ran_ok {
+                    k.tell(i, keys[&i], &results[&i]);
+                    kept::release(plan, i, k, &mut readers, &mut results);
+                }
             }
         }
         if opts.curl_stats {

@@ -93,6 +93,30 @@ impl Value {
             Value::Number(_) => None,
         }
     }
+    /// The separately shared blocks of pixel data this value holds, as (address, bytes): an
+    /// RGBN image's colour planes, normal planes and mask are each shared copy-on-write, so
+    /// two values that share a block name the same address (a pen's output shares its input's
+    /// colour). Memory counted by parts counts such a block once; the bytes add up to
+    /// [`Value::byte_size`].
+    #[must_use]
+    pub fn parts(&self) -> Vec<(usize, usize)> {
+        let f = std::mem::size_of::<f32>();
+        match self {
+            Value::Rgbn(i) => {
+                let planes = |p: &[Vec<f32>; 3]| (p.as_ptr() as usize, 3 * i.len() * f);
+                let mut v = vec![planes(i.color()), planes(i.normal())];
+                if let Some(m) = i.mask() {
+                    v.push((m.as_ptr() as usize, std::mem::size_of_val(m)));
+                }
+                v
+            }
+            Value::Mask(p) | Value::Scalar(p) => {
+                vec![(Arc::as_ptr(p) as usize, std::mem::size_of_val(p.data()))]
+            }
+            Value::Picture(p) => vec![(Arc::as_ptr(p) as usize, p.rgba.len())],
+            Value::Number(_) => vec![(std::ptr::from_ref(self) as usize, 8)],
+        }
+    }
     /// Bytes of pixel data held.
     #[must_use]
     pub fn byte_size(&self) -> usize {

@@ -55,6 +55,13 @@ pub(crate) struct History {
     pub(super) last: Option<LastResult>,
 }
 
+impl History {
+    /// The last region result kept (to patch), if any.
+    pub(crate) fn last_value(&self) -> Option<&Value> {
+        self.last.as_ref().map(|l| &l.value)
+    }
+}
+
 /// A region result as returned, with what it was made from.
 #[derive(Debug)]
 pub(super) struct LastResult {

@@ -240,7 +240,7 @@ impl Evaluator {
                     })
             })
             .collect();
-        let whole = self.eval_instances(plan, &whole_roots, opts)?;
+        let whole = self.eval_instances(plan, &whole_roots, opts, None)?;
         let mut keys = whole.keys;
         // The whole results at the level: reduced (and cached so) at a coarse one.
         let mut wv: HashMap<usize, Arc<CacheEntry>> = whole
