@@ -262,6 +262,9 @@ def frame_votes(P, N, T4, UV, tri, wh):
     gdet_safe = np.where(gdet > 0, gdet, 1.0)
     sign = np.zeros((len(tri), 3))
     turned = np.zeros((len(tri), 3), bool)
+    # UV layout mirrored against the surface: (right, up) in image space is left-handed about N.
+    nmean = N[i0] + N[i1] + N[i2]
+    mirrored = (np.einsum("ij,ij->i", np.cross(dpdu, up), nmean) < 0) & ~degenerate
     for k in range(3):
         ik = tri[:, k]
         t = T4[ik, :3]
@@ -272,7 +275,7 @@ def frame_votes(P, N, T4, UV, tri, wh):
         a = (g22 * r1 - g12 * r2) / gdet_safe
         c = (g11 * r2 - g12 * r1) / gdet_safe
         turned[:, k] = np.abs(a * w) < np.abs(c * h)
-    return area, sign, turned, degenerate
+    return area, sign, turned, degenerate, mirrored
 
 
 class Tally:
@@ -286,6 +289,8 @@ class Tally:
         self.dx = 0.0
         self.undef = 0.0
         self.turned = 0.0
+        self.uv_mirrored = 0.0  # texel area whose UV layout is mirrored about N
+        self.w_neg = 0.0  # texel area (per corner) with tangent w < 0
         self.mixed_tris = 0  # triangles whose corners disagree
         self.bad_w = 0  # tangent w not +-1 (within 0.01) or zero-length T
         self.slots = set()
@@ -299,8 +304,10 @@ class Tally:
         self.world_mirror_area = 0.0
         self.world_area = 0.0
 
-    def add(self, area, sign, turned, degenerate):
+    def add(self, area, sign, turned, degenerate, mirrored, w):
         a3 = area[:, None] / 3.0
+        self.uv_mirrored += float(area[mirrored].sum())
+        self.w_neg += float((a3 * (w < 0)).sum())
         self.gl += float((a3 * (sign > 0)).sum())
         self.dx += float((a3 * (sign < 0)).sum())
         self.undef += float((a3 * (sign == 0)).sum())
@@ -451,10 +458,10 @@ def analyse(path):
                 wv = T4[:, 3]
                 tl.bad_w += int(((np.abs(np.abs(wv) - 1) > 0.01)
                                  | (np.linalg.norm(T4[:, :3], axis=1) == 0)).sum())
-                area, sign, turned, deg = frame_votes(P, N, T4, UV, tri, wh)
+                area, sign, turned, deg, mir = frame_votes(P, N, T4, UV, tri, wh)
                 tl.area_tangent += float(area.sum())
                 tl.degenerate += int(deg.sum())
-                tl.add(area, sign, turned, deg)
+                tl.add(area, sign, turned, deg, mir, wv[tri])
                 for m in mesh_instances.get(mi, []):
                     a3 = m[:3, :3]
                     tl.inst += 1
@@ -462,7 +469,7 @@ def analyse(path):
                     Nw = N @ np.linalg.inv(a3)  # (inv(A)^T N) as rows
                     Tw = np.concatenate([T4[:, :3] @ a3.T, T4[:, 3:4]], 1)
                     # area stays in texels (same UVs): only the signs change.
-                    _, sw, _, _ = frame_votes(Pw, Nw, Tw, UV, tri, wh)
+                    _, sw, _, _, _ = frame_votes(Pw, Nw, Tw, UV, tri, wh)
                     a_c = area[:, None] / 3.0
                     tl.world_gl += float((a_c * (sw > 0)).sum())
                     tl.world_dx += float((a_c * (sw < 0)).sum())
@@ -513,6 +520,8 @@ def report(path):
             print(f"    tangent turned >45 deg from image x: {pct(tl.turned, tl.area_tangent)}; "
                   f"triangles with corners disagreeing: {tl.mixed_tris}; "
                   f"tangents with |w| != 1 or T = 0: {tl.bad_w}")
+            print(f"    UV layout mirrored about N: {pct(tl.uv_mirrored, tl.area_tangent)}; "
+                  f"tangent w < 0: {pct(tl.w_neg, tl.area_tangent)}")
             if tl.inst:
                 ws = tl.world_gl + tl.world_dx
                 print(f"    instances: {tl.inst}, mirrored (det < 0): {tl.mirror_inst}; "
@@ -641,6 +650,12 @@ def self_test():
             ok &= good
             print(f"{'ok  ' if good else 'FAIL'} {label} {kw}: OpenGL-eq {got:.3f} "
                   f"(want {want}), texel area {t.area_tangent:.1f} (want 16), tris {t.tris}")
+    # the right quad's UVs are mirrored about N (u runs along -x); its w = -1 in the standard case
+    _, t = run(case([1, 0, 0], [-1, 0, 0], 1, -1), glb=False)
+    good = abs(t.uv_mirrored - 8.0) < 1e-9 and abs(t.w_neg - 8.0) < 1e-9
+    ok &= good
+    print(f"{'ok  ' if good else 'FAIL'} UV-mirrored texel area {t.uv_mirrored:.1f} (want 8), "
+          f"w < 0 area {t.w_neg:.1f} (want 8)")
     # a tangent along the image's v axis is "turned": T = +y on the left quad
     _, t = run(case([0, 1, 0], [-1, 0, 0], 1, -1), glb=False)
     good = abs(t.turned / t.area_tangent - 0.5) < 1e-9
