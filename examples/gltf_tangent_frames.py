@@ -303,6 +303,9 @@ class Tally:
         self.world_dx = 0.0
         self.world_mirror_area = 0.0
         self.world_area = 0.0
+        self.mikk_gl = 0.0  # no TANGENT: frames generated from the raw TEXCOORD
+        self.mikk_dx = 0.0
+        self.mikk_turned = 0.0
 
     def add(self, area, sign, turned, degenerate, mirrored, w):
         a3 = area[:, None] / 3.0
@@ -314,6 +317,27 @@ class Tally:
         self.turned += float((a3 * turned).sum())
         nd = ~degenerate
         self.mixed_tris += int(((sign[nd] > 0).any(1) & (sign[nd] < 0).any(1)).sum())
+
+
+def face_tangents(P, N, UV, tri):
+    """Per-corner tangents the way MikkTSpace orients them, from one triangle's UV Jacobian
+    (T along dP/du made orthogonal to N, w so that B points along -dP/dv, i.e. image up), with
+    the triangles' vertices unshared. Returns (P, N, UV, T4) per corner."""
+    i0, i1, i2 = tri.T
+    e1, e2 = P[i1] - P[i0], P[i2] - P[i0]
+    du1, dv1 = (UV[i1] - UV[i0]).T
+    du2, dv2 = (UV[i2] - UV[i0]).T
+    det = du1 * dv2 - du2 * dv1
+    safe = np.where(det == 0, 1.0, det)[:, None]
+    dpdu = (dv2[:, None] * e1 - dv1[:, None] * e2) / safe
+    dpdv = (du1[:, None] * e2 - du2[:, None] * e1) / safe
+    flat = tri.reshape(-1)
+    n = N[flat]
+    du = np.repeat(dpdu, 3, 0)
+    up = -np.repeat(dpdv, 3, 0)
+    t = du - n * np.einsum("ij,ij->i", n, du)[:, None]
+    w = np.where(np.einsum("ij,ij->i", np.cross(n, t), up) < 0, -1.0, 1.0)
+    return P[flat], n, UV[flat], np.concatenate([t, w[:, None]], 1)
 
 
 def uv_transform(uv, ext):
@@ -448,12 +472,26 @@ def analyse(path):
                 tl.prims += 1
                 tl.tris += len(tri)
                 if T4 is None or N is None:
-                    # MikkTSpace in the viewer: count the area only.
+                    # The viewer generates tangents (MikkTSpace) from the UVs: OpenGL in image
+                    # space by construction when it uses the sampled UVs. With
+                    # KHR_texture_transform, a viewer that generates them from the raw TEXCOORD
+                    # (as on load) and transforms only at sampling gets the frame checked here.
                     i0, i1, i2 = tri.T
                     d1, d2 = UV[i1] - UV[i0], UV[i2] - UV[i0]
                     ar = 0.5 * np.abs(d1[:, 0] * d2[:, 1] - d2[:, 0] * d1[:, 1]) * wh[0] * wh[1]
                     tl.area_mikk += float(ar.sum())
                     tl.degenerate += int((ar < 1e-6).sum())
+                    if N is not None:
+                        raw = read_accessor(g, bufs, prim["attributes"][uvkey])[:, :2]
+                        pe, ne, uve, te = face_tangents(P, N, raw, tri)
+                        uvt = uv_transform(uve, tt) if tt else uve
+                        tri_e = np.arange(len(pe)).reshape(-1, 3)
+                        area, sign, turned, deg, mir = frame_votes(pe, ne, te, uvt, tri_e, wh)
+                        a3 = area[:, None] / 3.0
+                        tl.uv_mirrored += float(area[mir].sum())
+                        tl.mikk_gl += float((a3 * (sign > 0)).sum())
+                        tl.mikk_dx += float((a3 * (sign < 0)).sum())
+                        tl.mikk_turned += float((a3 * turned).sum())
                     continue
                 wv = T4[:, 3]
                 tl.bad_w += int(((np.abs(np.abs(wv) - 1) > 0.01)
@@ -506,6 +544,13 @@ def report(path):
         tot = tl.area_tangent + tl.area_mikk
         if tl.area_tangent == 0 and tl.prims:
             sup = "no tangents supplied (viewer MikkTSpace: OpenGL in image space by construction)"
+            mk = tl.mikk_gl + tl.mikk_dx
+            if mk > 0:
+                sup += (f"\n    frames generated from the raw TEXCOORD"
+                        f"{' then KHR_texture_transform' if tl.transforms else ''}: "
+                        f"OpenGL-eq {pct(tl.mikk_gl, mk)}, DirectX-eq {pct(tl.mikk_dx, mk)}, "
+                        f"turned >45 deg {pct(tl.mikk_turned, tl.area_mikk)}; UV layout "
+                        f"mirrored about N: {pct(tl.uv_mirrored, tl.area_mikk)}")
         elif tl.area_mikk == 0:
             sup = "yes"
         else:
