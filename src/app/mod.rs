@@ -233,10 +233,10 @@ impl EditorApp {
         })
     }
 
-    /// True while an evaluation or a preview render is under way.
+    /// True while an evaluation, its integrability readouts or a preview render are under way.
     #[must_use]
     pub fn busy(&self) -> bool {
-        self.evaluating() || self.preview.pending()
+        self.evaluating() || self.runtime.readouts_pending || self.preview.pending()
     }
 
     /// Applies a graph-view action to the document.

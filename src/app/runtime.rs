@@ -25,6 +25,8 @@ pub struct Runtime {
     pub(super) wake_ctx: Arc<OnceLock<egui::Context>>,
     pub(super) gens: Generations,
     pub(super) in_flight: Option<InFlight>,
+    /// The shown outcome's integrability readouts are still to come.
+    pub(super) readouts_pending: bool,
     /// The evaluation-relevant graph of the last request (positions zeroed).
     pub(super) last_sent: Option<Graph>,
     /// The view of the last request.
@@ -67,6 +69,7 @@ impl Runtime {
             wake_ctx,
             gens: Generations::default(),
             in_flight: None,
+            readouts_pending: false,
             last_sent: None,
             last_view: None,
             last_keep: Vec::new(),
@@ -154,11 +157,13 @@ impl EditorApp {
                     if r.generation == o.generation {
                         o.curl.extend(r.curl);
                         o.fraction.extend(r.fraction);
+                        self.runtime.readouts_pending = false;
                     }
                 }
                 WorkerMsg::Done(out) => {
                     if self.runtime.gens.accept(out.generation) {
                         self.runtime.in_flight = None;
+                        self.runtime.readouts_pending = out.readouts_follow;
                         self.runtime.progress = None;
                         if self.prefs.timing {
                             let (n, sum, max) = self.runtime.eval_frames;

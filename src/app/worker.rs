@@ -166,6 +166,9 @@ pub struct EvalOutcome {
     /// The viewed output is larger than [`WHOLE_PIXELS`]: only its viewport was evaluated
     /// ([`WorkerMsg::Region`]), no node whole.
     pub viewport_only: bool,
+    /// A [`WorkerMsg::Readouts`] of this generation follows, unless a newer request came
+    /// first (whose own outcome then supersedes this one).
+    pub readouts_follow: bool,
 }
 
 /// Messages from the worker.
@@ -327,7 +330,8 @@ impl Worker {
                         out.memory = memory_use(&ev, &memo, &out);
                         (out, None)
                     };
-                    let (out, plan) = out;
+                    let (mut out, plan) = out;
+                    out.readouts_follow = plan.is_some();
                     if msg_tx.send(WorkerMsg::Done(Box::new(out))).is_err() {
                         break;
                     }
@@ -338,8 +342,15 @@ impl Worker {
                         next = Some(newer);
                         continue;
                     }
-                    if let Some(r) = plan.and_then(|p| refresh::readouts(&ev, &mut memo, &req, &p))
-                    {
+                    if let Some(p) = plan {
+                        // Always answered (empty when there is nothing to read out): the editor
+                        // counts itself busy until the readouts of what it shows arrive.
+                        let r = refresh::readouts(&ev, &mut memo, &req, &p).unwrap_or_else(|| {
+                            Readouts {
+                                generation: req.generation,
+                                ..Readouts::default()
+                            }
+                        });
                         if msg_tx.send(WorkerMsg::Readouts(Box::new(r))).is_err() {
                             break;
                         }
