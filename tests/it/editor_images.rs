@@ -320,10 +320,8 @@ fn a_load_node_names_its_files_green_convention_and_asks_for_dx() {
     settle(&mut h);
     // Read as OpenGL (dx unticked), the relief says DirectX: the node says so and asks for dx.
     wait_for_label(&mut h, "green: DirectX — tick dx");
-    h.get_by_label("green: DirectX — tick dx").hover();
-    h.run_steps(60);
-    h.get_by_label_contains("DirectX (-y) most likely");
-    h.get_by_label_contains("load it with dx ticked");
+    // (Its hover text, the evidence, is checked in src/app/green_badge_tests.rs: egui_kittest
+    // did not show the tooltip after `hover()` and 60 steps.)
     assert_eq!(h.state().green.started, 1);
 
     // Ticked, the file is read in its own convention: the hint goes.
