@@ -83,6 +83,8 @@ pub struct ViewData<'a> {
     pub errors: &'a BTreeMap<NodeId, String>,
     /// Non-integrable fraction F of each node's RGBN output.
     pub fraction: &'a BTreeMap<NodeId, f64>,
+    /// Green-convention badges of the `load` nodes ([`super::green_badge`]).
+    pub green: &'a BTreeMap<NodeId, super::green_badge::Badge>,
     /// The node shown in the preview.
     pub viewed: Option<NodeId>,
     /// Its output port shown in the preview.
@@ -465,7 +467,9 @@ impl SnarlViewer<NodeId> for Viewer<'_, '_> {
     }
 
     fn has_body(&mut self, node: &NodeId) -> bool {
-        self.data.thumbs.contains_key(node) || self.data.errors.contains_key(node)
+        self.data.thumbs.contains_key(node)
+            || self.data.errors.contains_key(node)
+            || self.data.green.contains_key(node)
     }
 
     fn show_body(
@@ -486,6 +490,15 @@ impl SnarlViewer<NodeId> for Viewer<'_, '_> {
             if let Some(f) = self.data.fraction.get(&id) {
                 ui.label(RichText::new(format!("F {f:.2e}")).small().weak())
                     .on_hover_text("Non-integrable fraction of this node's normals: 0 for a surface, √(2/π) ≈ 0.80 for noise");
+            }
+            if let Some(b) = self.data.green.get(&id) {
+                let text = RichText::new(&b.text).small();
+                let text = if b.mismatch {
+                    text.color(Color32::from_rgb(0xe0, 0xb0, 0x40))
+                } else {
+                    text.weak()
+                };
+                ui.label(text).on_hover_text(&b.hover);
             }
             if let Some(e) = self.data.errors.get(&id) {
                 ui.set_min_width(170.0);

@@ -3,7 +3,8 @@
 //!
 //! - [`state`]: the document (graph, file, undo history) and edit commands — no egui;
 //! - [`worker`]: evaluation on a worker thread, generations, thumbnails — no egui;
-//! - [`graph_view`]: the node graph (egui-snarl as a view of the graph);
+//! - [`graph_view`]: the node graph (egui-snarl as a view of the graph); [`green_badge`]: the
+//!   `load` nodes' OpenGL / DirectX verdicts, checked off the UI thread;
 //! - [`params_ui`]: the inspector; [`preview`]: the relit preview;
 //! - [`tools`]: on-image pen, stamp, brush and vertex tools — no egui; [`tools_ui`]: their
 //!   toolbar and overlays.
@@ -23,6 +24,7 @@
 pub mod dialogs;
 pub mod files;
 pub mod graph_view;
+pub mod green_badge;
 pub mod images;
 pub mod memory;
 mod menu;
@@ -121,6 +123,8 @@ pub struct EditorApp {
     pub preview: Preview,
     /// On-image tools (pen, stamp, brush, vertices).
     pub tools: tools_ui::Tools,
+    /// The green-convention badges of the `load` nodes (checked off the UI thread).
+    pub green: green_badge::GreenBadges,
     /// Status-bar message.
     pub status: Status,
     /// An open dialog.
@@ -151,6 +155,7 @@ impl EditorApp {
             view: GraphView::default(),
             preview: Preview::default(),
             tools: tools_ui::Tools::default(),
+            green: green_badge::GreenBadges::default(),
             status: Status::default(),
             dialog: None,
             pending_then: None,
@@ -437,12 +442,18 @@ impl EditorApp {
                     .iter()
                     .map(|(k, (_, t))| (*k, t.clone()))
                     .collect();
+                let green = self.green.update(
+                    &self.session.doc.graph,
+                    &self.session.doc.base_dir(),
+                    ui.ctx(),
+                );
                 let data = ViewData {
                     graph: &self.session.doc.graph,
                     ports: &self.runtime.ports,
                     thumbs: &tex,
                     errors: &self.runtime.outcome.node_errors,
                     fraction: &self.runtime.outcome.fraction,
+                    green: &green,
                     viewed: self.session.viewed.as_ref().map(|v| v.0),
                     viewed_port: self.session.viewed.as_ref().map(|v| v.1.as_str()),
                 };

@@ -1,12 +1,14 @@
 //! The editor opening images directly (egui_kittest, no GPU): File ▸ Open image… through the
 //! file dialog and files dropped on the window add a `load` node wired into the viewed chain,
-//! the preview shows the file; new nodes never overlap existing ones.
+//! the preview shows the file; new nodes never overlap existing ones; a load node names its
+//! file's green convention.
 
 use super::editor::{harness, settle, small_demo};
 use egui::{Key, Modifiers};
 use egui_kittest::kittest::Queryable;
 use egui_kittest::Harness;
 use rgbn::app::placement::Rect;
+use rgbn::app::start::ImageStart;
 use rgbn::app::state::Document;
 use rgbn::app::{Dialog, EditorApp, Then};
 use rgbn::graph::{NodeId, Source};
@@ -290,4 +292,48 @@ fn twenty_nodes_added_in_a_row_never_overlap() {
             Source::Node(w[0], "image".into())
         );
     }
+}
+
+/// Writes three Gaussian bumps (relief in both directions) as an 8-bit normal map in the
+/// DirectX convention.
+fn write_directx_bumps(path: &Path) {
+    use rgbn::raster::io::{save_normal_map, NormalConvention};
+    let (img, _) = rgbn::raster::sample::Surface::gaussians_for(96).render_sampled(96, 96);
+    save_normal_map(&img, path, 8, NormalConvention::DirectX).unwrap();
+}
+
+#[test]
+fn a_load_node_names_its_files_green_convention_and_asks_for_dx() {
+    let dir = tempfile::tempdir().unwrap();
+    let png = dir.path().join("bumps_dx.png");
+    write_directx_bumps(&png);
+    let app = EditorApp::on_image(&ImageStart {
+        path: png.clone(),
+        ..Default::default()
+    })
+    .unwrap();
+    let id = *app.session.doc.graph.nodes.keys().next().unwrap();
+    let mut h = Harness::builder()
+        .with_size([1200.0, 800.0])
+        .build_ui_state(super::editor::frame, app);
+    settle(&mut h);
+    // Read as OpenGL (dx unticked), the relief says DirectX: the node says so and asks for dx.
+    wait_for_label(&mut h, "green: DirectX — tick dx");
+    // (Its hover text, the evidence, is checked in src/app/green_badge_tests.rs: egui_kittest
+    // did not show the tooltip after `hover()` and 60 steps.)
+    assert_eq!(h.state().green.started, 1);
+
+    // Ticked, the file is read in its own convention: the hint goes.
+    h.state_mut()
+        .session
+        .doc
+        .set_param(id, "dx", ParamValue::Bool(true));
+    let deadline = Instant::now() + Duration::from_secs(30);
+    while h.query_by_label("green: DirectX").is_none() {
+        assert!(Instant::now() < deadline, "the badge did not change");
+        std::thread::sleep(Duration::from_millis(10));
+        h.step();
+    }
+    assert!(h.query_by_label_contains("tick dx").is_none());
+    assert_eq!(h.state().green.started, 2);
 }
