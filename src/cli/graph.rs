@@ -433,13 +433,6 @@ fn write_all(
     requested: &[(String, PathBuf)],
     save: &SaveOptions,
 ) -> Vec<Result<(), RgbnError>> {
-    // One thread asked for (`RAYON_NUM_THREADS=1`, `--threads 1`): one write after the other.
-    if rayon::current_num_threads() < 2 {
-        return requested
-            .iter()
-            .map(|(name, path)| write_value(&outputs[name], path, save))
-            .collect();
-    }
     std::thread::scope(|s| {
         let writes: Vec<_> = requested
             .iter()

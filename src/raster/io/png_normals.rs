@@ -36,8 +36,7 @@ enum Depth {
 
 /// Decodes `path` as a normal map in a pipeline (module docs), with `ny` negated when
 /// `flip_y` (DirectX maps). `Ok(None)` when the file is not a non-interlaced 8/16-bit RGB(A)
-/// PNG, or when one thread is asked for (the caller decodes it the one-shot way). The
-/// validation counts are those of
+/// PNG (the caller decodes it the one-shot way). The validation counts are those of
 /// [`RgbnImage::validate`] of the result.
 ///
 /// # Errors
@@ -60,9 +59,7 @@ pub(super) fn decode_png_normals(
             png::BitDepth::Sixteen => Depth::Sixteen,
             _ => return Ok(None),
         };
-        // Interlaced rows come in passes; with one thread asked for (`RAYON_NUM_THREADS=1`,
-        // `--threads 1`) there is no second thread to convert on: the one-shot decoder.
-        if i.interlaced || rayon::current_num_threads() < 2 {
+        if i.interlaced {
             return Ok(None);
         }
         (i.width as usize, i.height as usize, channels, depth)
