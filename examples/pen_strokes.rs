@@ -12,16 +12,13 @@
 //! `cargo run --release --example pen_strokes -- one 80` (run under `/usr/bin/time -f "%e %U %S
 //! %M"` for the peak RSS).
 
-use rgbn::app::preview::{PreviewSettings, ViewSpec};
 use rgbn::app::state::Document;
 use rgbn::app::tools::{pen_paths, Gesture, Press, ToolKind, ToolState};
-use rgbn::app::worker::{evaluate, evaluate_view, EvalRequest, Sizes, ViewRequest};
+use rgbn::app::worker::{evaluate, evaluate_view, EvalRequest, Sizes};
 use rgbn::eval::Evaluator;
 use rgbn::graph::NodeId;
 use rgbn::params::ParamValue;
-use std::path::PathBuf;
-use std::sync::atomic::AtomicBool;
-use std::sync::Arc;
+use std::path::Path;
 use std::time::Instant;
 
 /// The allocator the `rgbn` binary runs with.
@@ -43,23 +40,7 @@ fn press(at: [f64; 2]) -> Press {
 }
 
 fn request(d: &Document, generation: u64, view: &(NodeId, String), at: [f64; 2]) -> EvalRequest {
-    EvalRequest {
-        generation,
-        graph: d.graph.clone(),
-        base_dir: PathBuf::from("."),
-        cancel: Arc::new(AtomicBool::new(false)),
-        view: Some(ViewRequest {
-            node: view.0,
-            port: view.1.clone(),
-            spec: ViewSpec {
-                panel: [1600.0, 1000.0],
-                zoom: Some(1.0),
-                pan: [(0.5 * SIZE - at[0]) as f32, (0.5 * SIZE - at[1]) as f32],
-            },
-        }),
-        settings: Some(PreviewSettings::default()),
-        keep: Some(Vec::new()),
-    }
+    rgbn::app::soak::stroke_request(d, Path::new("."), generation, view, SIZE, at, Vec::new())
 }
 
 fn quantile(v: &[f64], q: f64) -> f64 {

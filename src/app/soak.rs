@@ -20,6 +20,37 @@ use std::sync::atomic::AtomicBool;
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
+/// What the editor asks while a stroke is drawn on a `size`² image: the viewed output in a
+/// 1600 × 1000 panel at 1:1, centred on the pen at `at`, keeping `keep` whole.
+#[must_use]
+pub fn stroke_request(
+    d: &Document,
+    base: &std::path::Path,
+    generation: u64,
+    viewed: &(NodeId, String),
+    size: f64,
+    at: [f64; 2],
+    keep: Vec<(NodeId, String)>,
+) -> EvalRequest {
+    EvalRequest {
+        generation,
+        graph: d.graph.clone(),
+        base_dir: base.to_path_buf(),
+        cancel: Arc::new(AtomicBool::new(false)),
+        view: Some(ViewRequest {
+            node: viewed.0,
+            port: viewed.1.clone(),
+            spec: ViewSpec {
+                panel: [1600.0, 1000.0],
+                zoom: Some(1.0),
+                pan: [(0.5 * size - at[0]) as f32, (0.5 * size - at[1]) as f32],
+            },
+        }),
+        settings: Some(PreviewSettings::default()),
+        keep: Some(keep),
+    }
+}
+
 /// One stroke's figures, taken once its outcome and readouts arrived.
 #[derive(Clone, Copy, Debug)]
 pub struct Sample {
@@ -94,23 +125,8 @@ pub fn run(size: usize, strokes: usize, segments: usize) -> Report {
     let base = d.base_dir();
     let request =
         |d: &Document, generation: u64, viewed: &(NodeId, String), selected, at: [f64; 2]| {
-            EvalRequest {
-                generation,
-                graph: d.graph.clone(),
-                base_dir: base.clone(),
-                cancel: Arc::new(AtomicBool::new(false)),
-                view: Some(ViewRequest {
-                    node: viewed.0,
-                    port: viewed.1.clone(),
-                    spec: ViewSpec {
-                        panel: [1600.0, 1000.0],
-                        zoom: Some(1.0),
-                        pan: [(0.5 * s - at[0]) as f32, (0.5 * s - at[1]) as f32],
-                    },
-                }),
-                settings: Some(PreviewSettings::default()),
-                keep: Some(kept_outputs(&d.graph, Some(viewed), selected, None)),
-            }
+            let keep = kept_outputs(&d.graph, Some(viewed), selected, None);
+            stroke_request(d, &base, generation, viewed, s, at, keep)
         };
     // The graph evaluated once before drawing, as the editor does on opening.
     generation += 1;
