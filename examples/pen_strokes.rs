@@ -29,16 +29,6 @@ const SIZE: f64 = 2048.0;
 /// Live updates per stroke (10 px segments).
 const SEGMENTS: usize = 20;
 
-fn press(at: [f64; 2]) -> Press {
-    Press {
-        at,
-        tol_px: 4.0,
-        gap_px: 6.0,
-        extend: false,
-        new_node: false,
-    }
-}
-
 fn request(d: &Document, generation: u64, view: &(NodeId, String), at: [f64; 2]) -> EvalRequest {
     rgbn::app::soak::stroke_request(d, Path::new("."), generation, view, SIZE, at, Vec::new())
 }
@@ -79,14 +69,14 @@ fn main() {
             224.0 + 180.0 * (k % 10) as f64,
             300.0 + 200.0 * ((k / 10) % 8) as f64,
         ];
-        let mut gest = Gesture::stroke(&d, &tools, selected, Some(&viewed), press(start))
+        let mut gest = Gesture::stroke(&d, &tools, selected, Some(&viewed), Press::plain(start))
             .expect("a stroke starts");
         let mut live = Vec::new();
         let mut at = start;
         for s in 0..SEGMENTS {
             let a = 0.15 * s as f64 + 0.3 * (k % 7) as f64;
             at = [at[0] + 10.0 * a.cos(), at[1] + 10.0 * a.sin()];
-            gest.update(&mut d.graph, at, press(at), false, true, &base)
+            gest.update(&mut d.graph, at, Press::plain(at), false, true, &base)
                 .expect("update");
             let node = gest.node().expect("written live");
             if selected != Some(node) {
@@ -100,7 +90,7 @@ fn main() {
                 .expect("viewport");
             live.push(t.elapsed().as_secs_f64() * 1e3);
         }
-        assert!(gest.finish(&mut d, press(at)).expect("finish"));
+        assert!(gest.finish(&mut d, Press::plain(at)).expect("finish"));
         generation += 1;
         let t = Instant::now();
         let out = evaluate(&ev, &request(&d, generation, &viewed, at), None);

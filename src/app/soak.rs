@@ -77,16 +77,6 @@ pub struct Report {
     pub pens: usize,
 }
 
-fn press(at: [f64; 2]) -> Press {
-    Press {
-        at,
-        tol_px: 4.0,
-        gap_px: 6.0,
-        extend: false,
-        new_node: false,
-    }
-}
-
 /// Waits for the outcome of `generation` and then its readouts (at most `limit` in all).
 fn wait_done(w: &Worker, generation: u64, limit: Duration) -> Option<EvalOutcome> {
     let t0 = Instant::now();
@@ -140,7 +130,7 @@ pub fn run(size: usize, strokes: usize, segments: usize) -> Report {
             scale * (224.0 + 180.0 * (k % 10) as f64),
             scale * (300.0 + 200.0 * ((k / 10) % 8) as f64),
         ];
-        let mut gest = Gesture::stroke(&d, &tools, selected, Some(&viewed), press(start))
+        let mut gest = Gesture::stroke(&d, &tools, selected, Some(&viewed), Press::plain(start))
             .expect("a stroke starts");
         let mut at = start;
         for j in 0..segments {
@@ -149,7 +139,7 @@ pub fn run(size: usize, strokes: usize, segments: usize) -> Report {
                 at[0] + 10.0 * scale * a.cos(),
                 at[1] + 10.0 * scale * a.sin(),
             ];
-            gest.update(&mut d.graph, at, press(at), false, true, &base)
+            gest.update(&mut d.graph, at, Press::plain(at), false, true, &base)
                 .expect("update");
             if let Some(node) = gest.node() {
                 if selected != Some(node) {
@@ -162,7 +152,7 @@ pub fn run(size: usize, strokes: usize, segments: usize) -> Report {
             w.send(request(&d, generation, &viewed, selected, at));
         }
         assert!(
-            gest.finish(&mut d, press(at)).expect("finish"),
+            gest.finish(&mut d, Press::plain(at)).expect("finish"),
             "stroke {k} drawn"
         );
         generation += 1;

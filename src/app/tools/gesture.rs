@@ -60,6 +60,22 @@ pub struct Press {
     pub new_node: bool,
 }
 
+impl Press {
+    /// A plain press at `at` (no modifier held) with the tolerances of a view at 1:1: a
+    /// 4 px pick tolerance and a 6 px rotate-handle gap. Scripted strokes (the memory soak,
+    /// the pen benchmark, the tools' tests) draw with it.
+    #[must_use]
+    pub fn plain(at: [f64; 2]) -> Self {
+        Self {
+            at,
+            tol_px: 4.0,
+            gap_px: 6.0,
+            extend: false,
+            new_node: false,
+        }
+    }
+}
+
 impl Gesture {
     /// The node the gesture edits (for a stroke: once created).
     #[must_use]

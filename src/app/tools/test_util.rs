@@ -11,13 +11,7 @@ pub(super) fn demo() -> Document {
 }
 
 pub(super) fn press(at: [f64; 2]) -> Press {
-    Press {
-        at,
-        tol_px: 4.0,
-        gap_px: 6.0,
-        extend: false,
-        new_node: false,
-    }
+    Press::plain(at)
 }
 
 pub(super) fn base() -> PathBuf {
