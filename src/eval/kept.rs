@@ -159,21 +159,6 @@ impl Evaluator {
         Ok(out)
     }
 
-    /// Whether the memory cache holds `key` (without marking it used).
-    #[must_use]
-    pub fn mem_contains(&self, key: CacheKey) -> bool {
-        super::lock(&self.mem).contains(key)
-    }
-
-    /// Bytes of `values` the memory cache does not keep alive ([`super::MemCache::outside`]).
-    #[must_use]
-    pub fn mem_outside<'a>(
-        &self,
-        values: impl IntoIterator<Item = &'a crate::nodes::Value>,
-    ) -> usize {
-        super::lock(&self.mem).outside(values)
-    }
-
     /// Bytes of `values` and of the last viewport result (kept to patch after an edit) that
     /// the memory cache does not keep alive.
     #[must_use]
