@@ -82,11 +82,6 @@ impl Badge {
     /// The badge of a verdict on normals read with `dx` as set.
     #[must_use]
     pub fn of(g: &GreenConvention, dx: bool) -> Self {
-        let (this, other) = if dx {
-            ("DirectX (-y)", "OpenGL (+y)")
-        } else {
-            ("OpenGL (+y)", "DirectX (-y)")
-        };
         // The file's own convention: the one it was read in when its normals are a surface's
         // as held, the other one when they become one with green flipped.
         let file_dx = match g.verdict {
@@ -114,7 +109,7 @@ impl Badge {
             text,
             hover: format!(
                 "Green convention by integrability (as `rgbn info` says it): {}{hint}",
-                g.describe(this, other)
+                g.describe_loaded(dx)
             ),
             mismatch,
         }

@@ -347,11 +347,6 @@ pub(super) fn info(a: &InfoArgs, out: &mut Out<'_>) -> Result<(), CliError> {
     out.line(format_args!(
         "integrability: non-integrable fraction F = {as_read:.3e} (0: the normals of a surface; √(2/π) ≈ 0.80: noise); with green flipped F = {flipped:.3e}"
     ))?;
-    let (this, other) = if a.input.dx {
-        ("DirectX (-y)", "OpenGL (+y)")
-    } else {
-        ("OpenGL (+y)", "DirectX (-y)")
-    };
     let g = green_convention(&img);
     let hint = match g.verdict {
         GreenVerdict::DirectX if a.input.dx => " — load it without --dx",
@@ -360,7 +355,7 @@ pub(super) fn info(a: &InfoArgs, out: &mut Out<'_>) -> Result<(), CliError> {
     };
     out.line(format_args!(
         "green:       {}{hint}",
-        g.describe(this, other)
+        g.describe_loaded(a.input.dx)
     ))?;
     Ok(())
 }

@@ -140,6 +140,16 @@ pub struct GreenConvention {
 }
 
 impl GreenConvention {
+    /// [`describe`](Self::describe) for normals loaded as DirectX (`dx`) or OpenGL.
+    #[must_use]
+    pub fn describe_loaded(&self, dx: bool) -> String {
+        if dx {
+            self.describe("DirectX (-y)", "OpenGL (+y)")
+        } else {
+            self.describe("OpenGL (+y)", "DirectX (-y)")
+        }
+    }
+
     /// One line for people: the verdict named in the file's terms (`as_read`: the convention
     /// the file was loaded in, e.g. "OpenGL (+y)"; `other`: the other one) and its evidence.
     #[must_use]
