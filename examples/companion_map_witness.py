@@ -21,16 +21,23 @@ that broad tilts not tied to S (flat shards, large bends) do not vote. Only the 
 strongest |grad S| count (top 10 %, and above 1/255 per pixel). Reported: correlations
 cx, cy (and the cross terms nx-dS/dy_up, ny-dS/dx, which isotropy makes small); per 64 x 64
 tile with >= 32 such pixels, a vote: OpenGL if its cx and cy sums have the same sign; the
-exact binomial two-sided p of the tile vote. It uses neither curl (rgbn's rule) nor symmetry
-(round_features.py): a different assumption, so a separate witness.
+exact binomial two-sided p of the tile vote. The witness speaks only where |cx| and |cy| are
+both >= 0.1 and within a factor 2 of each other (isotropy, as round_features.py asks of its
+features), and the tiles agree (majority the same way, p < 0.01); otherwise "uncertain".
+On tiny correlations (|c| ~ 0.01) the tile vote alone can be "significant" either way: the
+tiles are not independent coin flips there, so p is not enough. It uses neither curl (rgbn's
+rule) nor symmetry (round_features.py): a different assumption, so a separate witness. It is
+also symmetric: flipping the green channel flips cy and every tile vote exactly.
 
 Usage:
   python examples/companion_map_witness.py NORMAL SCALAR [--channel R|G|B|A|L] [--raw]
-  python examples/companion_map_witness.py --gltf MODEL.gltf [MODEL.gltf ...] [--raw]
+  python examples/companion_map_witness.py --gltf MODEL.gltf [MODEL.gltf ...] [--extra] [--raw]
 The --gltf form takes every material with a normalTexture and an occlusionTexture (channel R)
 and/or a MASK / BLEND baseColorTexture (channel A) on the same texCoord, skipping textures
 with KHR_texture_transform; each (normal, scalar, channel) pair is reported once.
---raw skips the high-pass. Needs numpy and Pillow.
+--extra adds weaker companions (roughness: G of metallicRoughnessTexture; base colour luma),
+which are not geometry but often co-located with it. --raw skips the high-pass.
+Needs numpy and Pillow.
 """
 import json
 import math
@@ -41,7 +48,7 @@ from urllib.parse import unquote
 import numpy as np
 from PIL import Image
 
-TILE, MIN_PIX, TOP, HP = 64, 32, 0.10, 8
+TILE, MIN_PIX, TOP, HP, MIN_CORR = 64, 32, 0.10, 8, 0.1
 
 
 def box_blur(a, r):
@@ -82,7 +89,7 @@ def binom_p(k, n):
     if n == 0:
         return 1.0
     m = min(k, n - k)
-    tail = sum(math.comb(n, i) for i in range(m + 1)) / 2.0**n
+    tail = sum(math.comb(n, i) for i in range(m + 1)) / (1 << n)  # exact ints, no overflow
     return min(1.0, 2 * tail)
 
 
@@ -130,10 +137,14 @@ def witness(normal_path, scalar_path, channel="R", raw=False):
     res.update(gl=int(gl), dx=int(dx), p=binom_p(int(gl), int(gl + dx)))
     prod = res["cx"] * res["cy"]
     res["verdict"] = "opengl" if prod > 0 else "directx" if prod < 0 else "none"
+    lo, hi = sorted((abs(res["cx"]), abs(res["cy"])))
+    tiles = "opengl" if gl > dx else "directx" if dx > gl else "none"
+    agree = tiles == res["verdict"] and res["p"] < 0.01
+    res["speaks"] = lo >= MIN_CORR and lo >= 0.5 * hi and agree
     return res
 
 
-def gltf_pairs(path):
+def gltf_pairs(path, extra=False):
     d = json.load(open(path))
     base = os.path.dirname(path)
     tex, img = d.get("textures", []), d.get("images", [])
@@ -152,6 +163,9 @@ def gltf_pairs(path):
         bc = mat.get("pbrMetallicRoughness", {}).get("baseColorTexture")
         if mat.get("alphaMode", "OPAQUE") in ("MASK", "BLEND"):
             cands.append((bc, "A", "alpha " + mat["alphaMode"]))
+        if extra:  # weaker companions: not geometry, only co-located with it
+            mr = mat.get("pbrMetallicRoughness", {}).get("metallicRoughnessTexture")
+            cands += [(mr, "G", "roughness"), (bc, "L", "basecolor luma")]
         for t, ch, what in cands:
             if not t or "extensions" in t or t.get("texCoord", 0) != nt.get("texCoord", 0):
                 continue
@@ -167,25 +181,38 @@ def line(label, r):
         return f"{label}: no such channel"
     if r["verdict"] == "none":
         return f"{label}: too few edge pixels ({r['pixels']})"
+    v = r["verdict"] if r["speaks"] else f"uncertain ({r['verdict']})"
     return (
-        f"{label}: {r['verdict']} cx {r['cx']:+.3f} cy {r['cy']:+.3f} "
+        f"{label}: {v} cx {r['cx']:+.3f} cy {r['cy']:+.3f} "
         f"(cross {r['xx']:+.3f} {r['yx']:+.3f}) tiles GL {r['gl']} / DX {r['dx']} p {r['p']:.2g}"
     )
 
 
 def main():
-    args = sys.argv[1:]
-    raw = "--raw" in args
-    args = [a for a in args if a != "--raw"]
+    try:
+        return run(sys.argv[1:])
+    except (OSError, ValueError, KeyError, IndexError, TypeError) as e:
+        print(f"error: {e}", file=sys.stderr)
+        return 1
+
+
+def run(args):
+    raw, extra = "--raw" in args, "--extra" in args
+    args = [a for a in args if a not in ("--raw", "--extra")]
     channel = "R"
     if "--channel" in args:
         i = args.index("--channel")
+        if i + 1 >= len(args):
+            raise ValueError("--channel needs one of R, G, B, A, L")
         channel = args[i + 1].upper()
         del args[i : i + 2]
     if args[:1] == ["--gltf"] and len(args) > 1:
         for g in args[1:]:
-            for (n, s, ch), name, what in gltf_pairs(g):
+            for (n, s, ch), name, what in gltf_pairs(g, extra):
                 label = f"{os.path.basename(n)} | {name} | {what} {os.path.basename(s)}"
+                if not (os.path.exists(n) and os.path.exists(s)):
+                    print(f"{label}: file absent")
+                    continue
                 print(line(label, witness(n, s, ch, raw)))
         return 0
     if len(args) != 2 or channel not in ("R", "G", "B", "A", "L"):
