@@ -234,9 +234,16 @@ fn deflate_segments(t: &[u8], seg: usize) -> Option<Vec<u8>> {
     Some(out)
 }
 
+/// A compressed block and its index in the file's offset table.
+type Compressed = exr::error::Result<(usize, exr::block::chunk::Chunk)>;
+
 /// Compresses and writes the blocks covering rows `0..rows` of `planes` (local rows; image row
 /// `first_row + r`), `first_row` a multiple of the block height. Returns the rows written: all
 /// of them when `last` (the image's final rows), else only whole blocks.
+///
+/// Blocks are compressed [`BATCH`] at a time on the rayon pool while the calling thread writes
+/// the batch before (a pipeline of two): the write — a copy into the page cache, a tenth of
+/// a second per 100 MB on this machine — no longer leaves the pool idle between batches.
 fn write_rows<W: ChunksWriter>(
     writer: &mut W,
     headers: &[Header],
@@ -250,10 +257,8 @@ fn write_rows<W: ChunksWriter>(
     let half = headers[0].channels.list[0].sample_type == SampleType::F16;
     let whole = if last { rows } else { rows / lines * lines };
     let blocks = whole.div_ceil(lines);
-    let mut b = 0;
-    while b < blocks {
-        let batch: Vec<exr::error::Result<(usize, exr::block::chunk::Chunk)>> = (b..(b + BATCH)
-            .min(blocks))
+    let compress = |b: usize| -> Vec<Compressed> {
+        (b..(b + BATCH).min(blocks))
             .into_par_iter()
             .map(|k| {
                 let (r0, r1) = (k * lines, ((k + 1) * lines).min(whole));
@@ -274,12 +279,26 @@ fn write_rows<W: ChunksWriter>(
                 };
                 Ok((y / lines, block.compress_to_chunk(headers)?))
             })
-            .collect();
-        for c in batch {
-            let (index, chunk) = c?;
-            writer.write_chunk(index, chunk)?;
-        }
-        b += BATCH;
+            .collect()
+    };
+    let mut batch = if blocks > 0 { compress(0) } else { Vec::new() };
+    let mut b = 0;
+    while !batch.is_empty() {
+        let next_b = b + BATCH;
+        let mut next = Vec::new();
+        // The next batch is compressed on the pool while this thread writes the current one
+        // (`in_place_scope` runs this closure here, not on a pool thread).
+        let written = rayon::in_place_scope(|s| {
+            if next_b < blocks {
+                s.spawn(|_| next = compress(next_b));
+            }
+            batch
+                .drain(..)
+                .try_for_each(|c| c.and_then(|(index, chunk)| writer.write_chunk(index, chunk)))
+        });
+        written?;
+        batch = next;
+        b = next_b;
     }
     debug_assert!(first_row + whole <= height);
     Ok(whole)
