@@ -656,7 +656,7 @@ pub fn dimensions(path: &Path) -> Option<(usize, usize)> {
 /// `path` removes.
 pub fn write_atomic(
     path: &Path,
-    write: impl FnOnce(&mut std::io::BufWriter<std::fs::File>) -> Result<(), String>,
+    write: impl FnOnce(&mut std::io::BufWriter<targets::TargetFile>) -> Result<(), String>,
 ) -> Result<(), RgbnError> {
     let file = targets::AtomicFile::create(path)?;
     let mut buf = std::io::BufWriter::with_capacity(1 << 20, file.handle()?);

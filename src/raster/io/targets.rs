@@ -54,8 +54,9 @@ impl AtomicFile {
 
     /// A handle to write the bytes through (flush what buffers it before
     /// [`commit`](Self::commit)).
-    pub fn handle(&self) -> Result<File, RgbnError> {
-        self.file.try_clone().map_err(|e| self.error(e))
+    pub fn handle(&self) -> Result<TargetFile, RgbnError> {
+        let file = self.file.try_clone().map_err(|e| self.error(e))?;
+        Ok(TargetFile { file, dirty: 0 })
     }
 
     /// The error of writing the target, `detail` saying what failed.
@@ -74,6 +75,67 @@ impl AtomicFile {
         // Renamed: nothing left to remove.
         self.tmp = PathBuf::new();
         Ok(())
+    }
+}
+
+/// Bytes written between two requests to start writing back ([`TargetFile`]).
+const WRITEBACK_EVERY: usize = 8 << 20;
+
+/// The writing side of an [`AtomicFile`]: a file that, every [`WRITEBACK_EVERY`] bytes, asks
+/// the kernel to start writing its dirty pages to the disk (Linux `sync_file_range` with
+/// `SYNC_FILE_RANGE_WRITE`: asynchronous, a hint). The disk then works while the rest of the
+/// file is encoded, and the sync in [`AtomicFile::commit`] waits only for the last pages
+/// instead of the whole file (≈ 0.2 s for a 100 MB EXR on this machine).
+pub struct TargetFile {
+    file: File,
+    dirty: usize,
+}
+
+impl TargetFile {
+    fn wrote(&mut self, n: usize) {
+        self.dirty += n;
+        if self.dirty >= WRITEBACK_EVERY {
+            self.dirty = 0;
+            start_writeback(&self.file);
+        }
+    }
+}
+
+/// Starts writing `file`'s dirty pages back, without waiting (Linux; elsewhere nothing).
+#[cfg(target_os = "linux")]
+fn start_writeback(file: &File) {
+    use std::os::fd::AsRawFd;
+    // SAFETY: a valid open descriptor; offset 0 and length 0 mean the whole file. The result
+    // is ignored: it is a hint, and the sync at commit is what guarantees the data.
+    unsafe {
+        libc::sync_file_range(file.as_raw_fd(), 0, 0, libc::SYNC_FILE_RANGE_WRITE);
+    }
+}
+
+#[cfg(not(target_os = "linux"))]
+fn start_writeback(_file: &File) {}
+
+impl Write for TargetFile {
+    fn write(&mut self, buf: &[u8]) -> std::io::Result<usize> {
+        let n = self.file.write(buf)?;
+        self.wrote(n);
+        Ok(n)
+    }
+
+    fn write_all(&mut self, buf: &[u8]) -> std::io::Result<()> {
+        self.file.write_all(buf)?;
+        self.wrote(buf.len());
+        Ok(())
+    }
+
+    fn flush(&mut self) -> std::io::Result<()> {
+        self.file.flush()
+    }
+}
+
+impl std::io::Seek for TargetFile {
+    fn seek(&mut self, pos: std::io::SeekFrom) -> std::io::Result<u64> {
+        self.file.seek(pos)
     }
 }
 
@@ -240,7 +302,7 @@ pub enum RowEncoding {
 /// [`commit`](Self::commit) ends it and renames it into place.
 pub struct PngTarget {
     file: AtomicFile,
-    writer: png::Writer<BufWriter<File>>,
+    writer: png::Writer<BufWriter<TargetFile>>,
     width: usize,
     height: usize,
     bits: u8,
@@ -313,7 +375,7 @@ impl PngTarget {
 
 /// The rows of a [`PngTarget`], a band at a time.
 pub struct PngRowWriter<'a> {
-    stream: png::StreamWriter<'a, BufWriter<File>>,
+    stream: png::StreamWriter<'a, BufWriter<TargetFile>>,
     path: &'a Path,
     width: usize,
     height: usize,
@@ -422,5 +484,45 @@ impl PngRowWriter<'_> {
             detail: e.to_string(),
             path: path.into(),
         })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::io::{Seek, SeekFrom};
+
+    #[test]
+    fn a_target_written_past_several_writebacks_and_patched_by_seeking_reads_back_whole() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("big.bin");
+        std::fs::write(&path, b"the old target").unwrap();
+        // 2.5 writeback intervals of a byte pattern, odd-sized writes, then the first 8 bytes
+        // patched after seeking back (as the EXR writer patches its offset table).
+        let n = WRITEBACK_EVERY * 5 / 2 + 12_345;
+        let expected: Vec<u8> = (0..n)
+            .map(|i| if i < 8 { 0xEE } else { (i * 7 % 251) as u8 })
+            .collect();
+        let file = AtomicFile::create(&path).unwrap();
+        let mut out = file.handle().unwrap();
+        let mut at = 0;
+        for chunk in (0..n)
+            .map(|i| (i * 7 % 251) as u8)
+            .collect::<Vec<_>>()
+            .chunks(1_000_003)
+        {
+            out.write_all(chunk).unwrap();
+            at += chunk.len();
+        }
+        assert_eq!(at, n);
+        out.seek(SeekFrom::Start(0)).unwrap();
+        out.write_all(&[0xEE; 8]).unwrap();
+        out.flush().unwrap();
+        // Before the commit the old target is untouched.
+        assert_eq!(std::fs::read(&path).unwrap(), b"the old target");
+        file.commit().unwrap();
+        assert_eq!(std::fs::read(&path).unwrap(), expected);
+        let left: Vec<_> = std::fs::read_dir(dir.path()).unwrap().collect();
+        assert_eq!(left.len(), 1, "no temporary left beside the target");
     }
 }
