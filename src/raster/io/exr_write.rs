@@ -81,31 +81,34 @@ const ZIP_LEVEL: u32 = 2;
 /// the high bytes, compressed.
 const NOISE_BITS: f64 = 7.5;
 
-/// A ZIP or ZIPS block prepared as OpenEXR does it — bytes split into even and odd halves, each
-/// byte replaced by its difference to the previous one plus 128 — then deflated segment by
-/// segment ([`deflate_segments`]: noise stored, the rest compressed with zlib-rs), where the exr
-/// crate's own deflate compresses everything at level 4, several times slower for about the
-/// same size on float data. `None` for the other compressions. A block that does not shrink is
-/// stored as it is, as the format allows.
+/// A ZIP or ZIPS block of rows `rows` of `planes` prepared as OpenEXR does it — the block's
+/// bytes ([`block_bytes`]) split into even and odd halves, each byte replaced by its difference
+/// to the previous one plus 128 ([`predicted_block`] builds that straight from the planes) —
+/// then deflated segment by segment ([`deflate_segments`]: noise stored, the rest compressed
+/// with zlib-rs), where the exr crate's own deflate compresses everything at level 4, several
+/// times slower for about the same size on float data. `None` for the other compressions. A
+/// block that does not shrink is stored as it is, as the format allows.
 fn zip_chunk(
     headers: &[Header],
-    data: &[u8],
+    planes: &[&[f32]],
+    width: usize,
+    rows: std::ops::Range<usize>,
     y: usize,
-    width_bytes: usize,
 ) -> Option<exr::block::chunk::Chunk> {
     use exr::compression::Compression as C;
-    // The format's bytes are little-endian and the block was built in native order: on a
-    // big-endian machine the exr crate, which swaps them, compresses it.
+    // The format's bytes are little-endian and the stored fallback below is built in native
+    // order: on a big-endian machine the exr crate, which swaps them, compresses the block.
     if !matches!(headers[0].compression, C::ZIP1 | C::ZIP16) || cfg!(target_endian = "big") {
         return None;
     }
-    let t = predict(data);
-    let seg = (width_bytes / 2).max(1);
+    let half = headers[0].channels.list[0].sample_type == SampleType::F16;
+    let t = predicted_block(planes, width, rows.clone(), half);
+    let seg = (width * if half { 2 } else { 4 } / 2).max(1);
     let packed = deflate_segments(&t, seg)?;
-    let compressed_pixels_le = if packed.len() < data.len() {
+    let compressed_pixels_le = if packed.len() < t.len() {
         packed
     } else {
-        data.to_vec()
+        block_bytes(planes, width, rows, half)
     };
     Some(exr::block::chunk::Chunk {
         layer_index: 0,
@@ -118,9 +121,62 @@ fn zip_chunk(
     })
 }
 
+/// `predict(&block_bytes(planes, width, rows, half))` (little-endian samples) without building
+/// the block first: each sample's bytes go straight to their halves (a 32-bit sample's bytes
+/// 0 and 2 to the even half, 1 and 3 to the odd; a 16-bit one's byte 0 and byte 1), then the
+/// differences are taken in one pass over neighbouring bytes. Two passes over a block that
+/// stays in cache, where building the block and predicting it byte pair by byte pair was half
+/// of the EXR writer's time (`perf`, BENCHMARKS.md).
+fn predicted_block(
+    planes: &[&[f32]],
+    width: usize,
+    rows: std::ops::Range<usize>,
+    half: bool,
+) -> Vec<u8> {
+    let size = if half { 2 } else { 4 };
+    let n = rows.len() * planes.len() * width * size;
+    if n == 0 {
+        return Vec::new();
+    }
+    // Every sample has an even number of bytes: the halves are equal.
+    let h = n / 2;
+    let mut split = vec![0u8; n];
+    let (even, odd) = split.split_at_mut(h);
+    let step = width * size / 2;
+    let mut at = 0;
+    for r in rows {
+        for p in planes {
+            let row = &p[r * width..(r + 1) * width];
+            let (e, o) = (&mut even[at..at + step], &mut odd[at..at + step]);
+            if half {
+                for ((v, e), o) in row.iter().zip(e.iter_mut()).zip(o.iter_mut()) {
+                    let [b0, b1] = half::f16::from_f32(*v).to_le_bytes();
+                    (*e, *o) = (b0, b1);
+                }
+            } else {
+                let (e, _) = e.as_chunks_mut::<2>();
+                let (o, _) = o.as_chunks_mut::<2>();
+                for ((v, e), o) in row.iter().zip(e.iter_mut()).zip(o.iter_mut()) {
+                    let [b0, b1, b2, b3] = v.to_le_bytes();
+                    (*e, *o) = ([b0, b2], [b1, b3]);
+                }
+            }
+            at += step;
+        }
+    }
+    let mut t = vec![0u8; n];
+    t[0] = split[0];
+    for ((d, c), p) in t[1..].iter_mut().zip(&split[1..]).zip(&split[..n - 1]) {
+        *d = c.wrapping_sub(*p).wrapping_add(128);
+    }
+    t
+}
+
 /// OpenEXR's ZIP predictor: the bytes split into even and odd halves, then each byte but the
 /// first replaced by its difference to the one before it (in that order) plus 128. Computed in
 /// one pass from pairs of bytes and the pair before them (no step waits on the previous one).
+/// The writer uses [`predicted_block`]; this is its reference in the tests.
+#[cfg(test)]
 fn predict(data: &[u8]) -> Vec<u8> {
     let n = data.len();
     if n < 2 {
@@ -263,11 +319,10 @@ fn write_rows<W: ChunksWriter>(
             .map(|k| {
                 let (r0, r1) = (k * lines, ((k + 1) * lines).min(whole));
                 let y = first_row + r0;
-                let data = block_bytes(planes, width, r0..r1, half);
-                if let Some(zipped) = zip_chunk(headers, &data, y, width * if half { 2 } else { 4 })
-                {
+                if let Some(zipped) = zip_chunk(headers, planes, width, r0..r1, y) {
                     return Ok((y / lines, zipped));
                 }
+                let data = block_bytes(planes, width, r0..r1, half);
                 let block = UncompressedBlock {
                     index: BlockIndex {
                         layer: 0,
@@ -434,6 +489,35 @@ mod tests {
                 prev = cur;
             }
             assert_eq!(predict(&data), want, "{n} bytes");
+        }
+    }
+
+    /// The predictor applied straight to the planes gives the predictor of the block's bytes,
+    /// for 32- and 16-bit samples, one and several rows and channels, odd widths.
+    #[test]
+    #[cfg(target_endian = "little")]
+    fn the_block_is_predicted_from_the_planes_as_from_its_bytes() {
+        let bytes = noise(4 * 3 * 37 * 5, 11);
+        let planes: Vec<Vec<f32>> = bytes
+            .chunks(4 * 37 * 5)
+            .map(|c| {
+                c.chunks(4)
+                    .map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3] & 0x3f]))
+                    .collect()
+            })
+            .collect();
+        let views: Vec<&[f32]> = planes.iter().map(Vec::as_slice).collect();
+        for half in [false, true] {
+            for (width, rows) in [(37, 0..5), (37, 2..3), (1, 0..1), (5, 4..9)] {
+                for k in [1, 3] {
+                    let want = predict(&block_bytes(&views[..k], width, rows.clone(), half));
+                    let got = predicted_block(&views[..k], width, rows.clone(), half);
+                    assert_eq!(
+                        got, want,
+                        "half {half}, width {width}, rows {rows:?}, {k} planes"
+                    );
+                }
+            }
         }
     }
 
