@@ -7,7 +7,7 @@ use super::ExrArgs;
 use crate::error::RgbnError;
 use crate::eval::region::{RegionOptions, DEFAULT_TILE};
 use crate::eval::stream::{StreamPlan, Streamable};
-use crate::eval::{EvalOptions, EvalResult, Evaluator, Plan, Status};
+use crate::eval::{EvalOptions, EvalResult, Evaluator, Plan, Status, DEFAULT_BUDGET};
 use crate::graph::{GraphError, LoadedGraph};
 use crate::nodes::save::write_value;
 use crate::nodes::{registry, PortType, Value};
@@ -217,8 +217,10 @@ pub fn parse_inputs(list: &[String]) -> Result<BTreeMap<String, PathBuf>, CliErr
     Ok(m)
 }
 
-fn evaluator(cache_dir: Option<&Path>) -> Result<Evaluator, CliError> {
-    let ev = Evaluator::default();
+/// The evaluator of a command: a memory cache of `budget` bytes (0: none), and the disk cache
+/// when asked for.
+fn evaluator(cache_dir: Option<&Path>, budget: usize) -> Result<Evaluator, CliError> {
+    let ev = Evaluator::new(budget);
     Ok(match cache_dir {
         Some(d) => ev.with_disk_cache(d)?,
         None => ev,
@@ -380,7 +382,7 @@ pub fn eval_cmd(a: &EvalArgs, out: &mut Out<'_>) -> Result<(), CliError> {
         }
     };
     a.streaming.stream.allows(why_whole.as_deref())?;
-    let ev = evaluator(a.cache.cache_dir.as_deref())?;
+    let ev = evaluator(a.cache.cache_dir.as_deref(), DEFAULT_BUDGET)?;
     let pb = progress_bar(0);
     let pb2 = pb.clone();
     let opts = EvalOptions {
@@ -400,7 +402,19 @@ pub fn eval_cmd(a: &EvalArgs, out: &mut Out<'_>) -> Result<(), CliError> {
             .unwrap_or(Rect::new(0, 0, usize::MAX / 2, usize::MAX / 2));
         return eval_region(a, &plan, &ev, rect, &requested, &opts, out);
     }
-    let r = ev.eval(&plan, &names, &opts);
+    let r = if a.stats {
+        // Every node's value is kept: each gets its readouts.
+        ev.eval(&plan, &names, &opts)
+    } else {
+        // Only the outputs are kept: every other value is dropped as soon as no node still
+        // to run reads it, so its planes go back to the allocator for the nodes after it
+        // (relight's picture reuses the input's freed normal plane instead of faulting in
+        // fresh pages). No memory cache either: the process ends with this evaluation.
+        let ev = evaluator(a.cache.cache_dir.as_deref(), 0)?;
+        let all: Vec<&str> = plan.outputs.keys().map(String::as_str).collect();
+        let keep = if names.is_empty() { &all } else { &names };
+        ev.eval_kept(&plan, keep, &[], &opts, None)
+    };
     pb.finish_and_clear();
     let r = r?;
     super::interrupt::check()?;
@@ -668,7 +682,7 @@ pub fn batch_cmd(a: &BatchArgs, out: &mut Out<'_>) -> Result<(), CliError> {
             return Ok(());
         }
     }
-    let ev = evaluator(a.cache.cache_dir.as_deref())?;
+    let ev = evaluator(a.cache.cache_dir.as_deref(), DEFAULT_BUDGET)?;
     if !a.out_dir.is_dir() {
         // As `mkdir -p`; a file in the way (or no permission) is an error naming the folder.
         std::fs::create_dir_all(&a.out_dir).map_err(|e| RgbnError::Write {
