@@ -382,7 +382,11 @@ pub fn eval_cmd(a: &EvalArgs, out: &mut Out<'_>) -> Result<(), CliError> {
         }
     };
     a.streaming.stream.allows(why_whole.as_deref())?;
-    let ev = evaluator(a.cache.cache_dir.as_deref(), DEFAULT_BUDGET)?;
+    // A whole-image run without --stats keeps only its outputs (below) and needs no memory
+    // cache: the process ends with this evaluation.
+    let whole_kept = a.region.is_none() && a.level == 0 && !a.stats;
+    let budget = if whole_kept { 0 } else { DEFAULT_BUDGET };
+    let ev = evaluator(a.cache.cache_dir.as_deref(), budget)?;
     let pb = progress_bar(0);
     let pb2 = pb.clone();
     let opts = EvalOptions {
@@ -402,18 +406,17 @@ pub fn eval_cmd(a: &EvalArgs, out: &mut Out<'_>) -> Result<(), CliError> {
             .unwrap_or(Rect::new(0, 0, usize::MAX / 2, usize::MAX / 2));
         return eval_region(a, &plan, &ev, rect, &requested, &opts, out);
     }
-    let r = if a.stats {
-        // Every node's value is kept: each gets its readouts.
-        ev.eval(&plan, &names, &opts)
-    } else {
+    let r = if whole_kept {
         // Only the outputs are kept: every other value is dropped as soon as no node still
         // to run reads it, so its planes go back to the allocator for the nodes after it
         // (relight's picture reuses the input's freed normal plane instead of faulting in
-        // fresh pages). No memory cache either: the process ends with this evaluation.
-        let ev = evaluator(a.cache.cache_dir.as_deref(), 0)?;
+        // fresh pages).
         let all: Vec<&str> = plan.outputs.keys().map(String::as_str).collect();
         let keep = if names.is_empty() { &all } else { &names };
         ev.eval_kept(&plan, keep, &[], &opts, None)
+    } else {
+        // --stats: every node's value is kept, each gets its readouts.
+        ev.eval(&plan, &names, &opts)
     };
     pb.finish_and_clear();
     let r = r?;
