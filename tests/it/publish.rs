@@ -226,9 +226,19 @@ fn published_viewer_matches_rgbn_render_in_chromium() {
         dir.path(),
     );
     let query = format!("bare&light={}", light_arg(LIGHTS[0]));
-    let shot = screenshot_with(&browser, &folder, &query, (320, 320), false);
-    let (mean, max) = compare(&shot, (0, 0), &want, (0, 0), 256, 256);
-    eprintln!("publish: demo relit from file:// without file access: mean |Δ| = {mean:.3} levels (max {max})");
+    // Up to three shots: on a loaded machine Chromium's virtual-time budget has been seen to
+    // run out before the data: URL textures were decoded (one blank shot in four full test
+    // runs, mean |Δ| 126). A viewer that does not render fails all three.
+    let mut mean = f64::INFINITY;
+    for attempt in 1..=3 {
+        let shot = screenshot_with(&browser, &folder, &query, (320, 320), false);
+        let (m, max) = compare(&shot, (0, 0), &want, (0, 0), 256, 256);
+        eprintln!("publish: demo relit from file:// without file access (shot {attempt}): mean |Δ| = {m:.3} levels (max {max})");
+        mean = m;
+        if m <= MAX_MEAN_LEVELS {
+            break;
+        }
+    }
     if mean > MAX_MEAN_LEVELS {
         failures.push(format!("file:// without file access: mean |Δ| {mean:.3}"));
     }
