@@ -44,8 +44,18 @@ fn header(width: usize, height: usize, names: &[&str], f: ExrFormat) -> Header {
     )
 }
 
-/// The uncompressed bytes of rows `rows` of `planes` (each `width` values a row, row 0 of the
-/// slice being row `first` of the image): per row, each channel's samples in native byte order.
+/// The rows of a block of rows `rows` of `planes` (each `width` values a row) in the order
+/// the format lays them out: per image row, each channel's row.
+fn block_rows<'a>(
+    planes: &'a [&'a [f32]],
+    width: usize,
+    rows: std::ops::Range<usize>,
+) -> impl Iterator<Item = &'a [f32]> + 'a {
+    rows.flat_map(move |r| planes.iter().map(move |p| &p[r * width..(r + 1) * width]))
+}
+
+/// The uncompressed bytes of rows `rows` of `planes` ([`block_rows`]' order), each sample in
+/// native byte order.
 fn block_bytes(
     planes: &[&[f32]],
     width: usize,
@@ -54,17 +64,14 @@ fn block_bytes(
 ) -> Vec<u8> {
     let size = if half { 2 } else { 4 };
     let mut out = Vec::with_capacity(rows.len() * planes.len() * width * size);
-    for r in rows {
-        for p in planes {
-            let row = &p[r * width..(r + 1) * width];
-            if half {
-                for v in row {
-                    out.extend_from_slice(&half::f16::from_f32(*v).to_ne_bytes());
-                }
-            } else {
-                for v in row {
-                    out.extend_from_slice(&v.to_ne_bytes());
-                }
+    for row in block_rows(planes, width, rows) {
+        if half {
+            for v in row {
+                out.extend_from_slice(&half::f16::from_f32(*v).to_ne_bytes());
+            }
+        } else {
+            for v in row {
+                out.extend_from_slice(&v.to_ne_bytes());
             }
         }
     }
@@ -143,25 +150,20 @@ fn predicted_block(
     let mut split = vec![0u8; n];
     let (even, odd) = split.split_at_mut(h);
     let step = width * size / 2;
-    let mut at = 0;
-    for r in rows {
-        for p in planes {
-            let row = &p[r * width..(r + 1) * width];
-            let (e, o) = (&mut even[at..at + step], &mut odd[at..at + step]);
-            if half {
-                for ((v, e), o) in row.iter().zip(e.iter_mut()).zip(o.iter_mut()) {
-                    let [b0, b1] = half::f16::from_f32(*v).to_le_bytes();
-                    (*e, *o) = (b0, b1);
-                }
-            } else {
-                let (e, _) = e.as_chunks_mut::<2>();
-                let (o, _) = o.as_chunks_mut::<2>();
-                for ((v, e), o) in row.iter().zip(e.iter_mut()).zip(o.iter_mut()) {
-                    let [b0, b1, b2, b3] = v.to_le_bytes();
-                    (*e, *o) = ([b0, b2], [b1, b3]);
-                }
+    let halves = even.chunks_exact_mut(step).zip(odd.chunks_exact_mut(step));
+    for (row, (e, o)) in block_rows(planes, width, rows).zip(halves) {
+        if half {
+            for ((v, e), o) in row.iter().zip(e.iter_mut()).zip(o.iter_mut()) {
+                let [b0, b1] = half::f16::from_f32(*v).to_le_bytes();
+                (*e, *o) = (b0, b1);
             }
-            at += step;
+        } else {
+            let (e, _) = e.as_chunks_mut::<2>();
+            let (o, _) = o.as_chunks_mut::<2>();
+            for ((v, e), o) in row.iter().zip(e.iter_mut()).zip(o.iter_mut()) {
+                let [b0, b1, b2, b3] = v.to_le_bytes();
+                (*e, *o) = ([b0, b2], [b1, b3]);
+            }
         }
     }
     let mut t = vec![0u8; n];
