@@ -12,7 +12,7 @@ use crate::graph::{GraphError, LoadedGraph};
 use crate::nodes::save::write_value;
 use crate::nodes::{registry, PortType, Value};
 use crate::params::{ParamKind, ParamValue};
-use crate::raster::io::targets::{ExrTarget, PngTarget, RowEncoding};
+use crate::raster::io::targets::{ExrTarget, PngRowWriter, PngTarget, RowEncoding};
 use crate::raster::io::{self, ExrFormat, SaveOptions};
 use crate::raster::io::{Format, NormalConvention};
 use crate::raster::window::Rect;
@@ -88,13 +88,14 @@ pub struct CacheArgs {
 #[derive(Args, Debug)]
 pub struct GraphStreamArgs {
     /// Evaluate strip by strip, reading and writing rows, with memory bounded by the strip:
-    /// `auto` does for images over 16 Mpx (or the pixel limit) when the graph allows (one
+    /// `auto` does for images from 2 Mpx (or over the pixel limit) when the graph allows (one
     /// `load` of PNG, TIFF or EXR files, local operators only, images written as PNG or EXR
     /// and pictures as PNG; in a batch, per file), `always` insists (and says why not; in a
     /// batch a file that cannot is a failure), `never` evaluates whole images.
     #[arg(long, value_enum, default_value_t = StreamMode::Auto)]
     pub stream: StreamMode,
-    /// Rows per strip when streaming (default: 4 Mpx worth, at least 64 rows and four halos).
+    /// Rows per strip when streaming (default: 1 Mpx worth, at least 256 rows and four halos;
+    /// the first three strips ramp up from an eighth).
     #[arg(long, value_name = "ROWS", value_parser = clap::value_parser!(u64).range(1..))]
     pub strip_rows: Option<u64>,
 }
@@ -368,7 +369,7 @@ pub fn eval_cmd(a: &EvalArgs, out: &mut Out<'_>) -> Result<(), CliError> {
     } else {
         match stream_plan(&plan, &requested)? {
             Err(why) => Some(why),
-            Ok(sp) if a.streaming.stream.streams(sp.size()) => {
+            Ok(sp) if a.streaming.stream.streams_graph(sp.size()) => {
                 return eval_stream(
                     &plan,
                     sp,
@@ -450,6 +451,13 @@ fn write_all(
     requested: &[(String, PathBuf)],
     save: &SaveOptions,
 ) -> Vec<Result<(), RgbnError>> {
+    if !crate::raster::par::pipelined() {
+        // One thread: one file after the other.
+        return requested
+            .iter()
+            .map(|(name, path)| write_value(&outputs[name], path, save))
+            .collect();
+    }
     std::thread::scope(|s| {
         let writes: Vec<_> = requested
             .iter()
@@ -516,46 +524,72 @@ fn eval_stream(
             _ => Some(PngTarget::create(path, w, h, SaveOptions::default().bits)?),
         });
     }
-    {
-        let mut rows = Vec::new();
+    let cancel = super::interrupt::flag();
+    let cancelled = || {
+        cancel
+            .as_ref()
+            .is_some_and(|c| c.load(std::sync::atomic::Ordering::Relaxed))
+    };
+    let encoding = RowEncoding::Normal(NormalConvention::OpenGl);
+    let pipelined = crate::raster::par::pipelined();
+    std::thread::scope(|scope| -> Result<(), CliError> {
+        let mut sinks = Vec::new();
         for t in &mut targets {
-            rows.push(match t {
-                Some(t) => Some(t.rows(RowEncoding::Normal(NormalConvention::OpenGl))?),
+            sinks.push(match t {
+                Some(t) => Some(if pipelined {
+                    PngSink::thread(scope, t, encoding)
+                } else {
+                    PngSink::Here(t.rows(encoding)?)
+                }),
                 None => None,
             });
         }
-        let cancel = super::interrupt::flag();
-        let cancelled = || {
-            cancel
-                .as_ref()
-                .is_some_and(|c| c.load(std::sync::atomic::Ordering::Relaxed))
-        };
-        sp.run(
+        let mut stopped = false;
+        let r = sp.run(
             strip_rows.map(|r| r as usize),
             cancelled,
             |_, values, core| {
                 super::interrupt::check()?;
                 let (a, b) = (core.start * w, core.end * w);
-                for ((r, e), v) in rows.iter_mut().zip(exrs.iter_mut()).zip(values) {
-                    match (v, r, e) {
-                        (Value::Rgbn(img), _, Some(e)) => e.write(img, core.clone())?,
-                        (Value::Rgbn(img), Some(r), _) => {
-                            let [x, y, z] = img.normal();
-                            r.write([&x[a..b], &y[a..b], &z[a..b]])?;
+                for ((s, e), v) in sinks.iter_mut().zip(exrs.iter_mut()).zip(values) {
+                    let band = match (v, s, e) {
+                        (Value::Rgbn(img), _, Some(e)) => {
+                            e.write(img, core.clone())?;
+                            continue;
                         }
-                        (Value::Picture(p), Some(r), _) => r.write_rgba8(&p.rgba[4 * a..4 * b])?,
+                        (Value::Rgbn(img), Some(s), _) => {
+                            let [x, y, z] = img.normal();
+                            s.write(PngBand::Normals([&x[a..b], &y[a..b], &z[a..b]]))
+                        }
+                        (Value::Picture(p), Some(s), _) => {
+                            s.write(PngBand::Rgba(&p.rgba[4 * a..4 * b]))
+                        }
                         (other, ..) => {
                             unreachable!("streamed outputs are images and pictures: {other:?}")
                         }
+                    };
+                    if let Err(e) = band {
+                        stopped = e.is_none();
+                        return Err(e.map_or_else(|| usage("a PNG writer stopped"), Into::into));
                     }
                 }
                 Ok::<(), CliError>(())
             },
-        )?;
-        for r in rows.into_iter().flatten() {
-            r.finish()?;
+        );
+        // Every writer ends (a failed one with its error, which explains a band it refused).
+        let mut ended = Ok(());
+        for s in sinks.into_iter().flatten() {
+            let f = s.finish();
+            if ended.is_ok() {
+                ended = f;
+            }
         }
-    }
+        match r {
+            Err(_) if stopped && ended.is_err() => Err(ended.unwrap_err().into()),
+            Err(e) => Err(e),
+            Ok(()) => Ok(ended?),
+        }
+    })?;
     for t in targets.into_iter().flatten() {
         t.commit()?;
     }
@@ -717,7 +751,7 @@ pub fn batch_cmd(a: &BatchArgs, out: &mut Out<'_>) -> Result<(), CliError> {
         // Strip by strip when it can be and should be (as `rgbn eval`).
         if a.streaming.stream != StreamMode::Never {
             let why = match stream_plan(&plan, &requested)? {
-                Ok(sp) if a.streaming.stream.streams(sp.size()) => {
+                Ok(sp) if a.streaming.stream.streams_graph(sp.size()) => {
                     let mut sink = std::io::sink();
                     eval_stream(
                         &plan,
@@ -898,4 +932,83 @@ pub fn ops_cmd(out: &mut Out<'_>) -> Result<(), CliError> {
             crate::nodes::GRAPH_NODE_OP
         ),
     )
+}
+
+/// Rows of a streamed PNG output, lent by the strip that computed them.
+enum PngBand<'b> {
+    /// Normals, three planes.
+    Normals([&'b [f32]; 3]),
+    /// A picture's RGBA bytes.
+    Rgba(&'b [u8]),
+}
+
+/// Where a streamed PNG output's rows go: encoded here, or (with more than one thread,
+/// [`crate::raster::par::pipelined`]) copied to a thread of its own that filters and
+/// compresses them while the next strip is computed.
+enum PngSink<'s> {
+    Here(PngRowWriter<'s>),
+    Thread {
+        tx: std::sync::mpsc::SyncSender<OwnedBand>,
+        writer: std::thread::ScopedJoinHandle<'s, Result<(), RgbnError>>,
+    },
+}
+
+/// A [`PngBand`] on its way to a writing thread.
+enum OwnedBand {
+    Normals([Vec<f32>; 3]),
+    Rgba(Vec<u8>),
+}
+
+impl<'s> PngSink<'s> {
+    /// A writing thread for `target`'s rows (one band waiting, one being written).
+    fn thread<'e>(
+        scope: &'s std::thread::Scope<'s, 'e>,
+        target: &'s mut PngTarget,
+        encoding: RowEncoding,
+    ) -> Self {
+        let (tx, rx) = std::sync::mpsc::sync_channel::<OwnedBand>(1);
+        let writer = scope.spawn(move || {
+            let mut rows = target.rows(encoding)?;
+            for band in rx {
+                match band {
+                    OwnedBand::Normals([x, y, z]) => rows.write([&x, &y, &z])?,
+                    OwnedBand::Rgba(b) => rows.write_rgba8(&b)?,
+                }
+            }
+            rows.finish()
+        });
+        PngSink::Thread { tx, writer }
+    }
+
+    /// Writes the next rows. `Err(None)`: the writing thread stopped (its error comes from
+    /// [`finish`](Self::finish)).
+    fn write(&mut self, band: PngBand<'_>) -> Result<(), Option<RgbnError>> {
+        match self {
+            PngSink::Here(rows) => match band {
+                PngBand::Normals(p) => rows.write(p),
+                PngBand::Rgba(b) => rows.write_rgba8(b),
+            }
+            .map_err(Some),
+            PngSink::Thread { tx, .. } => {
+                let owned = match band {
+                    PngBand::Normals(p) => OwnedBand::Normals(p.map(<[f32]>::to_vec)),
+                    PngBand::Rgba(b) => OwnedBand::Rgba(b.to_vec()),
+                };
+                tx.send(owned).map_err(|_| None)
+            }
+        }
+    }
+
+    /// Ends the rows (every row must have been written).
+    fn finish(self) -> Result<(), RgbnError> {
+        match self {
+            PngSink::Here(rows) => rows.finish(),
+            PngSink::Thread { tx, writer } => {
+                drop(tx);
+                writer
+                    .join()
+                    .unwrap_or_else(|p| std::panic::resume_unwind(p))
+            }
+        }
+    }
 }

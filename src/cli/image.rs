@@ -164,7 +164,8 @@ pub struct FilterArgs {
     /// wrap), `always` insists (and says why not), `never` reads the image whole.
     #[arg(long, value_enum, default_value_t = StreamMode::Auto)]
     pub stream: StreamMode,
-    /// Rows per strip when streaming (default: 8 Mpx worth, at least 64 rows and four halos).
+    /// Rows per strip when streaming (default: 8 Mpx worth, at least 64 rows and four halos;
+    /// the first three strips ramp up from an eighth).
     #[arg(long, value_name = "ROWS", value_parser = clap::value_parser!(u64).range(1..))]
     pub strip_rows: Option<u64>,
 }
@@ -189,6 +190,18 @@ impl StreamMode {
             StreamMode::Always => true,
             StreamMode::Auto => px > strips::AUTO_STREAM_PIXELS || px > crate::raster::max_pixels(),
             StreamMode::Never => false,
+        }
+    }
+
+    /// Whether a graph evaluation over an image of `size` that can be streamed is: always, or
+    /// in `auto` mode from [`strips::AUTO_STREAM_GRAPH_PIXELS`] (a graph's strips overlap its
+    /// reading, its operators and its writing, which a whole-image run does one after the
+    /// other).
+    pub(super) fn streams_graph(self, (w, h): (usize, usize)) -> bool {
+        let px = (w as u64) * (h as u64);
+        match self {
+            StreamMode::Auto => px >= strips::AUTO_STREAM_GRAPH_PIXELS || self.streams((w, h)),
+            _ => self.streams((w, h)),
         }
     }
 

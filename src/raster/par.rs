@@ -5,6 +5,17 @@
 
 use rayon::prelude::*;
 
+/// Whether rgbn runs work beside the calling thread. Its thread budget is the rayon pool's size
+/// (`RAYON_NUM_THREADS`, by default the cores): with more than one thread the pipelines run
+/// their stages side by side (decoding beside converting, reading beside computing, compressing
+/// beside writing, one output's file beside the next); with one, each stage runs after the
+/// other on the calling thread, so that `RAYON_NUM_THREADS=1` is one thread of work, not one
+/// plus helpers.
+#[must_use]
+pub fn pipelined() -> bool {
+    rayon::current_num_threads() > 1
+}
+
 /// A raw pointer that may be shared between rayon tasks writing disjoint elements of one buffer
 /// (column groups in [`par_column_groups`], `convolve::filter_columns` and
 /// `smooth::smooth_normals`).

@@ -22,6 +22,13 @@ use std::path::Path;
 /// image, where reading whole would take about 1.6 GB.
 pub const AUTO_STREAM_PIXELS: u64 = 16 << 20;
 
+/// From this many pixels, `rgbn eval` and `rgbn batch` stream a graph that can be streamed by
+/// default: its strips keep the decoding, which cannot be split, running beside the
+/// operators and the compression of the outputs, on two cores of a 4K PNG (8.3 Mpx) in 0.56–0.6
+/// of the time of a whole-image run (BENCHMARKS.md, 2026-12-03), and the memory is the strip's.
+/// Below (one or two strips) there is nothing to overlap.
+pub const AUTO_STREAM_GRAPH_PIXELS: u64 = 2 << 20;
+
 /// Pixels of a strip (its window without the halos) when the caller does not choose: large
 /// enough that the halos cost little (two 33-row halos on 512 rows of a 16384-wide image), small
 /// enough that a window of a few planes stays far below a GiB.
@@ -250,24 +257,34 @@ impl Window<'_> {
 /// Normalises decoded normals as [`RgbnImage::repair`] does (zero-length ones become
 /// `(0, 0, 1)`) and counts what needed it.
 fn repair_normals([nx, ny, nz]: [&mut [f32]; 3]) -> Validation {
-    (nx.par_iter_mut(), ny.par_iter_mut(), nz.par_iter_mut())
-        .into_par_iter()
-        .fold(Validation::default, |mut v, (x, y, z)| {
-            let len = (*x * *x + *y * *y + *z * *z).sqrt();
-            v.pixels += 1;
-            if len < MIN_NORMAL_LENGTH {
-                v.zero_length_normal += 1;
-                (*x, *y, *z) = (0.0, 0.0, 1.0);
-            } else {
-                if (len - 1.0).abs() > 1e-3 {
-                    v.non_unit += 1;
-                }
-                if *z <= 0.0 {
-                    v.back_facing += 1;
-                }
-                (*x, *y, *z) = (*x / len, *y / len, *z / len);
+    /// Pixels per task: the loop below is branch-free (selects and mask counts), so each
+    /// chunk vectorises; a pixel at a time through three zipped parallel iterators was a tenth
+    /// of a streamed 4K graph's CPU time.
+    const CHUNK: usize = 1 << 14;
+    nx.par_chunks_mut(CHUNK)
+        .zip(ny.par_chunks_mut(CHUNK))
+        .zip(nz.par_chunks_mut(CHUNK))
+        .map(|((xs, ys), zs)| {
+            let (mut zero, mut non_unit, mut back) = (0usize, 0usize, 0usize);
+            for ((x, y), z) in xs.iter_mut().zip(ys.iter_mut()).zip(zs.iter_mut()) {
+                let len = (*x * *x + *y * *y + *z * *z).sqrt();
+                let is_zero = len < MIN_NORMAL_LENGTH;
+                zero += usize::from(is_zero);
+                non_unit += usize::from(!is_zero & ((len - 1.0).abs() > 1e-3));
+                back += usize::from(!is_zero & (*z <= 0.0));
+                (*x, *y, *z) = if is_zero {
+                    (0.0, 0.0, 1.0)
+                } else {
+                    (*x / len, *y / len, *z / len)
+                };
             }
-            v
+            Validation {
+                pixels: xs.len(),
+                zero_length_normal: zero,
+                non_unit,
+                back_facing: back,
+                ..Validation::default()
+            }
         })
         .reduce(Validation::default, Validation::merge)
 }
@@ -335,11 +352,28 @@ fn read_band(input: &mut StreamInput, y0: usize, y1: usize) -> Result<Band, Rgbn
     })
 }
 
-/// The strips: `(y0, y1)` rows each, `strip` rows but the last.
+/// The strips: `(y0, y1)` rows each, `strip` rows but the first three and the last. The first
+/// three ramp up (an eighth, a quarter and half of `strip`, at least 16 rows): the work on the
+/// strips can start once a few rows are decoded instead of a whole strip's, while the decoding,
+/// which cannot be split, runs on beside it (the first strip of 512 rows of a 4K PNG is a
+/// tenth of a second of decoding with the other core idle).
 fn strip_ranges(h: usize, strip: usize) -> impl Iterator<Item = (usize, usize)> {
-    (0..h)
-        .step_by(strip)
-        .map(move |y0| (y0, (y0 + strip).min(h)))
+    let mut k = 0u32;
+    let mut y0 = 0;
+    std::iter::from_fn(move || {
+        if y0 >= h {
+            return None;
+        }
+        let rows = if k < 3 {
+            (strip >> (3 - k)).max(16).min(strip)
+        } else {
+            strip
+        };
+        k += 1;
+        let r = (y0, (y0 + rows).min(h));
+        y0 = r.1;
+        Some(r)
+    })
 }
 
 /// Runs `f` on every strip of `input`, top to bottom: strips of `strip` rows (see
@@ -381,14 +415,20 @@ pub fn for_each_strip_image<E: From<RgbnError>>(
     mut f: impl FnMut(&RgbnImage, usize, Range<usize>) -> Result<(), E>,
 ) -> Result<Validation, E> {
     let w = input.size().0;
+    // Without a colour image, the default albedo's planes, kept from strip to strip (`f`
+    // cannot change them) and only resized.
+    let mut albedo: [Vec<f32>; 3] = Default::default();
     drive(input, halo, strip, |win, y0, core| {
         let rows = win.rows;
         let n = rows * w;
         let had_color = win.color.is_some();
-        let color = win
-            .color
-            .take()
-            .unwrap_or_else(|| std::array::from_fn(|_| vec![DEFAULT_ALBEDO; n]));
+        let color = win.color.take().unwrap_or_else(|| {
+            let mut c = std::mem::take(&mut albedo);
+            for p in &mut c {
+                p.resize(n, DEFAULT_ALBEDO);
+            }
+            c
+        });
         let img = RgbnImage::new(
             w,
             rows,
@@ -399,7 +439,11 @@ pub fn for_each_strip_image<E: From<RgbnError>>(
         let r = f(&img, y0, core);
         let (color, normal, mask) = img.into_planes();
         win.normal = normal;
-        win.color = had_color.then_some(color);
+        if had_color {
+            win.color = Some(color);
+        } else {
+            albedo = color;
+        }
         win.mask = mask;
         r
     })
@@ -420,28 +464,18 @@ fn drive<E: From<RgbnError>>(
         mask: input.mask.as_ref().map(|_| Vec::new()),
         ..Planes::default()
     };
-    let mut repaired = Validation::default();
     let path = input.normal.path().to_path_buf();
-    std::thread::scope(|scope| {
-        // A rendezvous: one band decoded ahead, waiting, never two.
-        let (tx, rx) = std::sync::mpsc::sync_channel::<Result<Band, RgbnError>>(0);
-        scope.spawn(move || {
-            // Each strip's window ends `halo` rows below it: the rows to read next.
-            let mut read = 0;
-            for (_, y1) in strip_ranges(h, strip) {
-                let b = (y1 + halo).min(h);
-                if b == read {
-                    continue;
-                }
-                let band = read_band(input, read, b);
-                let failed = band.is_err();
-                // A closed channel: the consumer stopped (an error of its own).
-                if tx.send(band).is_err() || failed {
-                    return;
-                }
-                read = b;
-            }
-        });
+    // The bands to read: each strip's window ends `halo` rows below it.
+    let bands = move || {
+        let mut read = 0;
+        strip_ranges(h, strip).filter_map(move |(_, y1)| {
+            let b = (y1 + halo).min(h);
+            (b != read).then(|| (std::mem::replace(&mut read, b), b))
+        })
+    };
+    // Runs every strip, taking the bands from `next` as their rows are needed.
+    let mut strips = |next: &mut dyn FnMut() -> Result<Band, RgbnError>| -> Result<Validation, E> {
+        let mut repaired = Validation::default();
         for (y0, y1) in strip_ranges(h, strip) {
             let (a, b) = (y0.saturating_sub(halo), (y1 + halo).min(h));
             // Drop the rows above the new window; keep the overlap; append what was read.
@@ -452,12 +486,7 @@ fn drive<E: From<RgbnError>>(
             win.y0 = a;
             win.rows -= drop_rows;
             while win.y0 + win.rows < b {
-                // Only a panic ends the reader without a band or an error (and the scope
-                // re-raises it).
-                let band = rx.recv().map_err(|_| RgbnError::Decode {
-                    detail: "the reading thread stopped".into(),
-                    path: path.clone(),
-                })??;
+                let band = next()?;
                 debug_assert_eq!(band.y0, win.y0 + win.rows);
                 let len = (win.rows + band.y1 - band.y0) * w;
                 let news = band
@@ -465,16 +494,50 @@ fn drive<E: From<RgbnError>>(
                     .iter()
                     .chain(band.color.iter().flatten())
                     .chain(band.mask.as_ref());
-                for (p, new) in win.all_mut().zip(news) {
+                // The planes side by side: these copies are the caller's, between two strips'
+                // parallel work.
+                let pairs: Vec<(&mut Vec<f32>, &Vec<f32>)> = win.all_mut().zip(news).collect();
+                pairs.into_par_iter().for_each(|(p, new)| {
                     // Exactly: a doubling growth would hold up to twice the window.
                     p.reserve_exact(len.saturating_sub(p.len()));
                     p.extend_from_slice(new);
-                }
+                });
                 win.rows += band.y1 - band.y0;
                 repaired = repaired.merge(band.repaired);
             }
             f(&mut win, a, y0 - a..y1 - a)?;
         }
         Ok(repaired)
+    };
+    if !crate::raster::par::pipelined() {
+        // One thread: each band is read when its rows are needed.
+        let mut todo = bands();
+        return strips(&mut || {
+            let (a, b) = todo.next().expect("a band for every window's rows");
+            read_band(input, a, b)
+        });
+    }
+    std::thread::scope(|scope| {
+        // The reader runs up to two bands ahead (one waiting in the channel, one being
+        // decoded), so the decoding, which cannot be split, never waits for a strip.
+        let (tx, rx) = std::sync::mpsc::sync_channel::<Result<Band, RgbnError>>(1);
+        scope.spawn(move || {
+            for (a, b) in bands() {
+                let band = read_band(input, a, b);
+                let failed = band.is_err();
+                // A closed channel: the consumer stopped (an error of its own).
+                if tx.send(band).is_err() || failed {
+                    return;
+                }
+            }
+        });
+        // Only a panic ends the reader without a band or an error (and the scope re-raises
+        // it).
+        strips(&mut || {
+            rx.recv().map_err(|_| RgbnError::Decode {
+                detail: "the reading thread stopped".into(),
+                path: path.clone(),
+            })?
+        })
     })
 }

@@ -352,15 +352,26 @@ fn write_rows<W: ChunksWriter>(
         let mut next = Vec::new();
         // The next batch is compressed on the pool while this thread writes the current one
         // (`in_place_scope` runs this closure here, not on a pool thread).
-        let written = rayon::in_place_scope(|s| {
-            if next_b < blocks {
-                s.spawn(|_| next = compress(next_b));
-            }
+        let mut write = |batch: &mut Vec<Compressed>| {
             batch
                 .drain(..)
                 .try_for_each(|c| c.and_then(|(index, chunk)| writer.write_chunk(index, chunk)))
-        });
-        written?;
+        };
+        if crate::raster::par::pipelined() {
+            let written = rayon::in_place_scope(|s| {
+                if next_b < blocks {
+                    s.spawn(|_| next = compress(next_b));
+                }
+                write(&mut batch)
+            });
+            written?;
+        } else {
+            // One thread: write, then compress the next batch.
+            write(&mut batch)?;
+            if next_b < blocks {
+                next = compress(next_b);
+            }
+        }
         batch = next;
         b = next_b;
     }

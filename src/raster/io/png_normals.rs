@@ -74,13 +74,6 @@ pub(super) fn decode_png_normals(
     let n = w * h;
     let mut normal = buf::zeroed_planes(n);
     let mut color = buf::zeroed_planes(n);
-    let (full_tx, full_rx) = mpsc::sync_channel::<(usize, Vec<u8>)>(BATCHES);
-    let (empty_tx, empty_rx) = mpsc::sync_channel::<Vec<u8>>(BATCHES);
-    for _ in 0..BATCHES {
-        empty_tx
-            .send(vec![0u8; BATCH_ROWS * line])
-            .expect("the receiver is alive");
-    }
     let layout = RowLayout {
         w,
         channels,
@@ -88,68 +81,74 @@ pub(super) fn decode_png_normals(
         line,
         flip_y,
     };
-    let decoded = std::thread::scope(|s| {
-        let (normal, color) = (&mut normal, &mut color);
-        let converter = s.spawn(move || {
-            let mut v = Validation::default();
-            let [nx, ny, nz] = normal.each_mut();
-            let [cr, cg, cb] = color.each_mut();
-            for (y0, batch) in full_rx {
+    // Decodes the next batch of rows (from row `y`) into `batch`.
+    let mut decode = |y: usize, batch: &mut Vec<u8>| -> Result<(), RgbnError> {
+        let rows = BATCH_ROWS.min(h - y);
+        batch.resize(rows * line, 0);
+        for (k, row) in batch.chunks_exact_mut(line).enumerate() {
+            match reader.read_row(row) {
+                Ok(Some(_)) => {}
+                Ok(None) => {
+                    return Err(RgbnError::Decode {
+                        detail: format!("the image data ends at row {} of {h}", y + k + 1),
+                        path: path.into(),
+                    })
+                }
+                Err(e) => return Err(err(e)),
+            }
+        }
+        Ok(())
+    };
+    let decoded = if crate::raster::par::pipelined() {
+        let (full_tx, full_rx) = mpsc::sync_channel::<(usize, Vec<u8>)>(BATCHES);
+        let (empty_tx, empty_rx) = mpsc::sync_channel::<Vec<u8>>(BATCHES);
+        for _ in 0..BATCHES {
+            empty_tx
+                .send(vec![0u8; BATCH_ROWS * line])
+                .expect("the receiver is alive");
+        }
+        std::thread::scope(|s| {
+            let (normal, color) = (&mut normal, &mut color);
+            let converter = s.spawn(move || {
+                let mut v = Validation::default();
+                for (y0, batch) in full_rx {
+                    v = v.merge(layout.convert_batch(y0, &batch, normal, color));
+                    // The decoder may be gone (an error): the buffer is then simply dropped.
+                    let _ = empty_tx.send(batch);
+                }
+                v
+            });
+            let mut y = 0;
+            let result: Result<(), RgbnError> = loop {
+                if y == h {
+                    break Ok(());
+                }
+                let mut batch = empty_rx.recv().expect("the converter returns every batch");
+                if let Err(e) = decode(y, &mut batch) {
+                    break Err(e);
+                }
                 let rows = batch.len() / line;
-                let px = y0 * w..(y0 + rows) * w;
-                let (nx, ny, nz) = (
-                    &mut nx[px.clone()],
-                    &mut ny[px.clone()],
-                    &mut nz[px.clone()],
-                );
-                layout.convert(&batch, [&mut *nx, &mut *ny, &mut *nz]);
-                let (cr, cg, cb) = (&mut cr[px.clone()], &mut cg[px.clone()], &mut cb[px]);
-                for c in [&mut *cr, &mut *cg, &mut *cb] {
-                    c.fill(DEFAULT_ALBEDO);
-                }
-                v = v.merge(Validation::of_pixels([cr, cg, cb], [nx, ny, nz], None));
-                // The decoder may be gone (an error): the buffer is then simply dropped.
-                let _ = empty_tx.send(batch);
-            }
-            v
-        });
+                full_tx.send((y, batch)).expect("the converter is alive");
+                y += rows;
+            };
+            drop(full_tx);
+            let counts = converter
+                .join()
+                .expect("the converting thread does not panic");
+            result.map(|()| counts)
+        })
+    } else {
+        // One thread: each batch is converted right after it is decoded.
+        let mut batch = vec![0u8; BATCH_ROWS * line];
+        let mut v = Validation::default();
         let mut y = 0;
-        let result: Result<(), RgbnError> = loop {
-            if y == h {
-                break Ok(());
-            }
-            let mut batch = empty_rx.recv().expect("the converter returns every batch");
-            let rows = BATCH_ROWS.min(h - y);
-            batch.resize(rows * line, 0);
-            let mut failed = None;
-            for (k, row) in batch.chunks_exact_mut(line).enumerate() {
-                match reader.read_row(row) {
-                    Ok(Some(_)) => {}
-                    Ok(None) => {
-                        failed = Some(RgbnError::Decode {
-                            detail: format!("the image data ends at row {} of {h}", y + k + 1),
-                            path: path.into(),
-                        });
-                        break;
-                    }
-                    Err(e) => {
-                        failed = Some(err(e));
-                        break;
-                    }
-                }
-            }
-            if let Some(e) = failed {
-                break Err(e);
-            }
-            full_tx.send((y, batch)).expect("the converter is alive");
-            y += rows;
-        };
-        drop(full_tx);
-        let counts = converter
-            .join()
-            .expect("the converting thread does not panic");
-        result.map(|()| counts)
-    });
+        while y < h {
+            decode(y, &mut batch)?;
+            v = v.merge(layout.convert_batch(y, &batch, &mut normal, &mut color));
+            y += batch.len() / line;
+        }
+        Ok(v)
+    };
     let counts = decoded?;
     let img = RgbnImage::new(w, h, color, normal, None)?;
     Ok(Some((img, counts)))
@@ -166,6 +165,33 @@ struct RowLayout {
 }
 
 impl RowLayout {
+    /// Turns the decoded rows `batch` (from image row `y0`) into the image's pixels: normals,
+    /// the default albedo, and their validation counts.
+    fn convert_batch(
+        &self,
+        y0: usize,
+        batch: &[u8],
+        normal: &mut [Vec<f32>; 3],
+        color: &mut [Vec<f32>; 3],
+    ) -> Validation {
+        let w = self.w;
+        let rows = batch.len() / self.line;
+        let px = y0 * w..(y0 + rows) * w;
+        let [nx, ny, nz] = normal.each_mut();
+        let [cr, cg, cb] = color.each_mut();
+        let (nx, ny, nz) = (
+            &mut nx[px.clone()],
+            &mut ny[px.clone()],
+            &mut nz[px.clone()],
+        );
+        self.convert(batch, [&mut *nx, &mut *ny, &mut *nz]);
+        let (cr, cg, cb) = (&mut cr[px.clone()], &mut cg[px.clone()], &mut cb[px]);
+        for c in [&mut *cr, &mut *cg, &mut *cb] {
+            c.fill(DEFAULT_ALBEDO);
+        }
+        Validation::of_pixels([cr, cg, cb], [nx, ny, nz], None)
+    }
+
     /// Converts a batch of decoded rows into its normal planes' pixels.
     fn convert(&self, batch: &[u8], [nx, ny, nz]: [&mut [f32]; 3]) {
         let c = self.channels;

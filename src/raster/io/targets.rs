@@ -11,6 +11,7 @@ use super::temp;
 use super::{png_format, NormalConvention};
 use crate::error::RgbnError;
 use crate::raster::srgb::{linear_to_srgb, linear_to_srgb8};
+use rayon::prelude::*;
 use std::fs::File;
 use std::io::{BufWriter, Write};
 use std::path::{Path, PathBuf};
@@ -163,6 +164,10 @@ struct ExrBand {
 /// succeeds.
 pub struct ExrTarget {
     tx: Option<std::sync::mpsc::SyncSender<ExrBand>>,
+    /// With one thread ([`crate::raster::par::pipelined`]), the writer says when a band is
+    /// written and [`write`](Self::write) waits for it: the band is compressed and written
+    /// while the caller waits, not beside its next strip.
+    done: Option<std::sync::mpsc::Receiver<()>>,
     thread: Option<std::thread::JoinHandle<Result<(), String>>>,
     file: Option<AtomicFile>,
     width: usize,
@@ -179,6 +184,12 @@ impl ExrTarget {
         let file = AtomicFile::create(path)?;
         let handle = file.handle()?;
         let (tx, rx) = std::sync::mpsc::sync_channel::<ExrBand>(1);
+        let (done_tx, done) = if crate::raster::par::pipelined() {
+            (None, None)
+        } else {
+            let (t, r) = std::sync::mpsc::sync_channel::<()>(1);
+            (Some(t), Some(r))
+        };
         let thread = std::thread::Builder::new()
             .name("rgbn-exr-writer".into())
             .spawn(move || -> Result<(), String> {
@@ -197,6 +208,10 @@ impl ExrTarget {
                     let mut band = Some(first);
                     while let Some(b) = band.take().or_else(|| rx.recv().ok()) {
                         rows.push(writer, &meta.headers, &b.planes, b.rows)?;
+                        if let Some(d) = &done_tx {
+                            // The caller may be gone (an error of its own): nothing to tell.
+                            let _ = d.send(());
+                        }
                     }
                     if rows.written() == height {
                         Ok(())
@@ -215,6 +230,7 @@ impl ExrTarget {
             })?;
         Ok(Self {
             tx: Some(tx),
+            done,
             thread: Some(thread),
             file: Some(file),
             width,
@@ -231,19 +247,20 @@ impl ExrTarget {
         let (a, b) = (rows.start * w, rows.end * w);
         let [r, g, bl] = img.color();
         let [nx, ny, nz] = img.normal();
-        let mut planes: Vec<Vec<f32>> = Vec::with_capacity(7);
+        let mut sources: Vec<&[f32]> = Vec::with_capacity(7);
         if let Some(m) = img.mask() {
-            planes.push(m[a..b].to_vec());
+            sources.push(m);
         }
-        for p in [bl, g, nx, ny, nz, r] {
-            planes.push(p[a..b].to_vec());
-        }
+        sources.extend([bl, g, nx, ny, nz, r].map(Vec::as_slice));
+        // Copied on the pool, plane by plane: the caller goes on with its next strip sooner.
+        let planes: Vec<Vec<f32>> = sources.par_iter().map(|p| p[a..b].to_vec()).collect();
         let band = ExrBand {
             rows: rows.len(),
             mask: img.mask().is_some(),
             planes,
         };
-        let sent = self.tx.as_ref().is_some_and(|tx| tx.send(band).is_ok());
+        let sent = self.tx.as_ref().is_some_and(|tx| tx.send(band).is_ok())
+            && self.done.as_ref().is_none_or(|d| d.recv().is_ok());
         if sent {
             Ok(())
         } else {
