@@ -94,8 +94,8 @@ pub struct GraphStreamArgs {
     /// batch a file that cannot is a failure), `never` evaluates whole images.
     #[arg(long, value_enum, default_value_t = StreamMode::Auto)]
     pub stream: StreamMode,
-    /// Rows per strip when streaming (default: 1 Mpx worth, at least 256 rows and four halos;
-    /// the first three strips ramp up from an eighth).
+    /// Rows per strip when streaming (default: a window of planes under 4 MiB, at least 256
+    /// rows and four halos; the first three strips ramp up from an eighth).
     #[arg(long, value_name = "ROWS", value_parser = clap::value_parser!(u64).range(1..))]
     pub strip_rows: Option<u64>,
 }
@@ -590,11 +590,31 @@ fn eval_stream(
             Ok(()) => Ok(ended?),
         }
     })?;
-    for t in targets.into_iter().flatten() {
-        t.commit()?;
-    }
-    for e in exrs.into_iter().flatten() {
-        e.commit()?;
+    // Each file is synced and renamed into place; with more than one thread, side by side
+    // (one file's wait for the disk beside the other's).
+    let commits: Vec<Box<dyn FnOnce() -> Result<(), RgbnError> + Send>> = targets
+        .into_iter()
+        .flatten()
+        .map(|t| Box::new(move || t.commit()) as Box<dyn FnOnce() -> _ + Send>)
+        .chain(
+            exrs.into_iter()
+                .flatten()
+                .map(|e| Box::new(move || e.commit()) as Box<dyn FnOnce() -> _ + Send>),
+        )
+        .collect();
+    let done: Vec<Result<(), RgbnError>> = if pipelined {
+        std::thread::scope(|s| {
+            let running: Vec<_> = commits.into_iter().map(|c| s.spawn(c)).collect();
+            running
+                .into_iter()
+                .map(|r| r.join().unwrap_or_else(|p| std::panic::resume_unwind(p)))
+                .collect()
+        })
+    } else {
+        commits.into_iter().map(|c| c()).collect()
+    };
+    for d in done {
+        d?;
     }
     for (name, path) in requested {
         out.line(format_args!(

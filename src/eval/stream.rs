@@ -175,8 +175,8 @@ impl<'p> StreamPlan<'p> {
         self.input.size()
     }
 
-    /// Runs the plan strip by strip (`strip` rows each, by default half the pixels of
-    /// [`strips::strip_rows`]); `out` receives, per strip, its first row, the requested outputs'
+    /// Runs the plan strip by strip (`strip` rows each, by default a window of planes under
+    /// [`crate::recycle::BIG`], below); `out` receives, per strip, its first row, the requested outputs'
     /// values over its window, in the order requested, and the window rows that are the strip's
     /// (the rest is halo: write only these).
     pub fn run<E: From<GraphError>>(
@@ -187,13 +187,18 @@ impl<'p> StreamPlan<'p> {
     ) -> Result<(), E> {
         let (w, _) = self.input.size();
         let halo = self.halo;
-        // A graph holds more planes per pixel than the filter command (the source as an
-        // image with its colour, each node's output), and its strips are what overlaps the
-        // decoding with the operators: an eighth of the filter's strip, at least 256 rows
-        // (whole-process runs of a 4K graph: 0.68 s with strips of 256 rows, 0.78 s of 768,
-        // 0.85 s of 1092; 16K images keep their 256 rows).
-        let strip = strip
-            .unwrap_or_else(|| strips::strip_rows_of(w, halo, strips::STRIP_PIXELS / 8).max(256));
+        // By default a window's planes stay just under [`crate::recycle::BIG`]: the system
+        // allocator's heap (kept by `recycle::keep_freed_memory`) hands the same blocks back
+        // strip after strip, where bigger ones, mapped and unmapped, were page-faulted and
+        // zero-filled afresh (a 4K graph: 0.29 s of system time with 273-row strips, 0.17 s
+        // with 240). At least 256 rows (strips are what overlaps the decoding with the
+        // operators; a 16K image keeps its 256 rows) and four halos.
+        let strip = strip.unwrap_or_else(|| {
+            (crate::recycle::BIG / (4 * w.max(1)))
+                .saturating_sub(2 * halo)
+                .max(256)
+                .max(4 * halo)
+        });
         let plan = self.plan;
         let ctx = RunContext {
             protected: plan.protected.clone(),

@@ -24,9 +24,9 @@ pub const AUTO_STREAM_PIXELS: u64 = 16 << 20;
 
 /// From this many pixels, `rgbn eval` and `rgbn batch` stream a graph that can be streamed by
 /// default: its strips keep the decoding, which cannot be split, running beside the
-/// operators and the compression of the outputs, on two cores of a 4K PNG (8.3 Mpx) in 0.56–0.6
-/// of the time of a whole-image run (BENCHMARKS.md, 2026-12-03), and the memory is the strip's.
-/// Below (one or two strips) there is nothing to overlap.
+/// operators and the compression of the outputs (a whole-image run does one after the other),
+/// and the memory is the strip's (BENCHMARKS.md, 2026-12-03, the 4K `rgbn eval` rows). Below
+/// (a few strips) there is little to overlap.
 pub const AUTO_STREAM_GRAPH_PIXELS: u64 = 2 << 20;
 
 /// Pixels of a strip (its window without the halos) when the caller does not choose: large
@@ -289,14 +289,35 @@ fn repair_normals([nx, ny, nz]: [&mut [f32]; 3]) -> Validation {
         .reduce(Validation::default, Validation::merge)
 }
 
-/// Rows `y0..y1` of the files, decoded and repaired.
+/// Rows `y0..y1` of the files, decoded (the normals not yet repaired: [`repair_band`]).
 struct Band {
     y0: usize,
     y1: usize,
     normal: [Vec<f32>; 3],
     color: Option<[Vec<f32>; 3]>,
     mask: Option<Vec<f32>>,
-    repaired: Validation,
+}
+
+/// Repairs a band's normals ([`repair_normals`]), on the strips' side: the reading thread,
+/// whose decoding is the one part that cannot be split, only decodes (the repair on its side
+/// waited for the pool behind the strips' work, and the reading fell behind). With `strict`
+/// loading, a band with a normal that needs repair is an error (its count is the band's).
+fn repair_band(band: &mut Band, strict: bool, path: &Path) -> Result<Validation, RgbnError> {
+    let [nx, ny, nz] = &mut band.normal;
+    let repaired = repair_normals([nx, ny, nz]);
+    if strict && !repaired.is_clean() {
+        let (count, kind) = if repaired.zero_length_normal > 0 {
+            (repaired.zero_length_normal, "zero-length")
+        } else {
+            (repaired.non_unit, "not unit length")
+        };
+        return Err(RgbnError::InvalidNormals {
+            count,
+            kind: format!("{kind}, in rows {}..{}", band.y0, band.y1),
+            path: path.into(),
+        });
+    }
+    Ok(repaired)
 }
 
 /// Reads the next `y1 − y0` rows of `input` (rows `y0..y1`).
@@ -310,20 +331,6 @@ fn read_band(input: &mut StreamInput, y0: usize, y1: usize) -> Result<Band, Rgbn
         input
             .normal
             .read(&mut p, RowMap::Normal(input.opts.convention))?;
-    }
-    let [nx, ny, nz] = &mut normal;
-    let repaired = repair_normals([nx, ny, nz]);
-    if input.opts.strict && !repaired.is_clean() {
-        let (count, kind) = if repaired.zero_length_normal > 0 {
-            (repaired.zero_length_normal, "zero-length")
-        } else {
-            (repaired.non_unit, "not unit length")
-        };
-        return Err(RgbnError::InvalidNormals {
-            count,
-            kind: format!("{kind}, in rows {y0}..{y1}"),
-            path: input.normal.path().into(),
-        });
     }
     let color = match input.color.as_mut() {
         Some(r) => {
@@ -348,7 +355,6 @@ fn read_band(input: &mut StreamInput, y0: usize, y1: usize) -> Result<Band, Rgbn
         normal,
         color,
         mask,
-        repaired,
     })
 }
 
@@ -465,6 +471,7 @@ fn drive<E: From<RgbnError>>(
         ..Planes::default()
     };
     let path = input.normal.path().to_path_buf();
+    let strict = input.opts.strict;
     // The bands to read: each strip's window ends `halo` rows below it.
     let bands = move || {
         let mut read = 0;
@@ -486,8 +493,9 @@ fn drive<E: From<RgbnError>>(
             win.y0 = a;
             win.rows -= drop_rows;
             while win.y0 + win.rows < b {
-                let band = next()?;
+                let mut band = next()?;
                 debug_assert_eq!(band.y0, win.y0 + win.rows);
+                let band_repaired = repair_band(&mut band, strict, &path)?;
                 let len = (win.rows + band.y1 - band.y0) * w;
                 let news = band
                     .normal
@@ -503,7 +511,7 @@ fn drive<E: From<RgbnError>>(
                     p.extend_from_slice(new);
                 });
                 win.rows += band.y1 - band.y0;
-                repaired = repaired.merge(band.repaired);
+                repaired = repaired.merge(band_repaired);
             }
             f(&mut win, a, y0 - a..y1 - a)?;
         }
@@ -519,7 +527,8 @@ fn drive<E: From<RgbnError>>(
     }
     std::thread::scope(|scope| {
         // The reader runs up to two bands ahead (one waiting in the channel, one being
-        // decoded), so the decoding, which cannot be split, never waits for a strip.
+        // decoded): the decoding, which cannot be split, seldom waits for a strip (queues of
+        // four and eight bands measured no faster).
         let (tx, rx) = std::sync::mpsc::sync_channel::<Result<Band, RgbnError>>(1);
         scope.spawn(move || {
             for (a, b) in bands() {
