@@ -526,10 +526,9 @@ fn drive<E: From<RgbnError>>(
         });
     }
     std::thread::scope(|scope| {
-        // The reader runs up to two bands ahead (one waiting in the channel, one being
-        // decoded): the decoding, which cannot be split, seldom waits for a strip (queues of
-        // four and eight bands measured no faster).
-        let (tx, rx) = std::sync::mpsc::sync_channel::<Result<Band, RgbnError>>(1);
+        // A rendezvous: one band decoded ahead, waiting, never two (the memory bound of
+        // `tests/streaming_memory.rs`; queues of two, four and eight bands measured no faster).
+        let (tx, rx) = std::sync::mpsc::sync_channel::<Result<Band, RgbnError>>(0);
         scope.spawn(move || {
             for (a, b) in bands() {
                 let band = read_band(input, a, b);
@@ -549,4 +548,33 @@ fn drive<E: From<RgbnError>>(
             })?
         })
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::strip_ranges;
+
+    /// The strips tile the rows exactly once, in order; the first three are an eighth, a
+    /// quarter and half of the strip (at least 16 rows, at most the strip), the rest whole
+    /// strips but the last.
+    #[test]
+    fn strips_ramp_up_and_cover_every_row_once() {
+        for (h, strip, first) in [
+            (2160, 256, vec![(0, 32), (32, 96), (96, 224), (224, 480)]),
+            (100, 64, vec![(0, 16), (16, 32), (32, 64), (64, 100)]),
+            (10, 7, vec![(0, 7), (7, 10)]),
+            (5, 1, vec![(0, 1), (1, 2), (2, 3), (3, 4)]),
+        ] {
+            let r: Vec<(usize, usize)> = strip_ranges(h, strip).collect();
+            assert_eq!(&r[..first.len()], &first[..], "h {h}, strip {strip}");
+            assert_eq!(r[0].0, 0);
+            assert_eq!(r.last().unwrap().1, h);
+            for w in r.windows(2) {
+                assert_eq!(w[0].1, w[1].0, "contiguous");
+            }
+            for &(a, b) in r.iter().skip(3).rev().skip(1) {
+                assert_eq!(b - a, strip, "whole strips after the ramp");
+            }
+        }
+    }
 }

@@ -871,3 +871,56 @@ fn a_streamed_exr_output_of_a_truncated_input_leaves_the_target_untouched() {
         .collect();
     assert!(names.iter().all(|n| !n.ends_with(".tmp")), "{names:?}");
 }
+
+/// `RAYON_NUM_THREADS=1` runs every pipeline's stages in turn on one thread (the strip reader,
+/// the PNG and EXR writers, the whole-image decoder's converter, outputs one after the other);
+/// two threads run them side by side. Both write the same files, byte for byte: the stages
+/// only move, the numbers and their order do not. Streamed in strips of 7 rows (the first
+/// three ramping up), and whole.
+#[test]
+fn one_thread_and_two_write_the_same_bytes_streamed_and_whole() {
+    let d = tempfile::tempdir().unwrap();
+    let img = relief(96, 80, 11);
+    let spec = write_files(d.path(), &img, 16);
+    let n = spec.normal.as_ref().unwrap().display().to_string();
+    let graph = super::common::graph_path("input_image.ron");
+    let run = |threads: &str, mode: &str| {
+        let (o, r) = (
+            d.path().join(format!("o_{threads}_{mode}.exr")),
+            d.path().join(format!("r_{threads}_{mode}.png")),
+        );
+        let out = std::process::Command::new(env!("CARGO_BIN_EXE_rgbn"))
+            .env("RAYON_NUM_THREADS", threads)
+            .args([
+                "eval",
+                graph.to_str().unwrap(),
+                "-i",
+                &format!("image={n}"),
+                "-o",
+                &format!("image={}", o.display()),
+                "-o",
+                &format!("relit={}", r.display()),
+                "--stream",
+                mode,
+                "--strip-rows",
+                "7",
+            ])
+            .output()
+            .unwrap();
+        assert!(out.status.success(), "{}", stderr(&out));
+        (std::fs::read(o).unwrap(), std::fs::read(r).unwrap())
+    };
+    for mode in ["always", "never"] {
+        let (o1, r1) = run("1", mode);
+        let (o2, r2) = run("2", mode);
+        assert!(o1.len() > 1000, "an EXR was written ({mode})");
+        assert!(
+            o1 == o2,
+            "the EXR differs between one thread and two ({mode})"
+        );
+        assert!(
+            r1 == r2,
+            "the relit PNG differs between one thread and two ({mode})"
+        );
+    }
+}
