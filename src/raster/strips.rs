@@ -362,7 +362,8 @@ fn read_band(input: &mut StreamInput, y0: usize, y1: usize) -> Result<Band, Rgbn
 /// three ramp up (an eighth, a quarter and half of `strip`, at least 16 rows): the work on the
 /// strips can start once a few rows are decoded instead of a whole strip's, while the decoding,
 /// which cannot be split, runs on beside it (the first strip of 512 rows of a 4K PNG is a
-/// tenth of a second of decoding with the other core idle).
+/// tenth of a second of decoding with the other core idle). An image of at most `strip` rows is
+/// one strip.
 fn strip_ranges(h: usize, strip: usize) -> impl Iterator<Item = (usize, usize)> {
     let mut k = 0u32;
     let mut y0 = 0;
@@ -370,7 +371,8 @@ fn strip_ranges(h: usize, strip: usize) -> impl Iterator<Item = (usize, usize)> 
         if y0 >= h {
             return None;
         }
-        let rows = if k < 3 {
+        // One strip that holds the image stays one (exact, with no cut at all).
+        let rows = if k < 3 && h > strip {
             (strip >> (3 - k)).max(16).min(strip)
         } else {
             strip
@@ -556,7 +558,7 @@ mod tests {
 
     /// The strips tile the rows exactly once, in order; the first three are an eighth, a
     /// quarter and half of the strip (at least 16 rows, at most the strip), the rest whole
-    /// strips but the last.
+    /// strips but the last; an image within one strip is one strip.
     #[test]
     fn strips_ramp_up_and_cover_every_row_once() {
         for (h, strip, first) in [
@@ -564,6 +566,8 @@ mod tests {
             (100, 64, vec![(0, 16), (16, 32), (32, 64), (64, 100)]),
             (10, 7, vec![(0, 7), (7, 10)]),
             (5, 1, vec![(0, 1), (1, 2), (2, 3), (3, 4)]),
+            (100, 100, vec![(0, 100)]),
+            (100, 200, vec![(0, 100)]),
         ] {
             let r: Vec<(usize, usize)> = strip_ranges(h, strip).collect();
             assert_eq!(&r[..first.len()], &first[..], "h {h}, strip {strip}");
