@@ -539,7 +539,7 @@ fn eval_stream(
                 Some(t) => Some(if pipelined {
                     PngSink::thread(scope, t, encoding)
                 } else {
-                    PngSink::Here(t.rows(encoding)?)
+                    PngSink::Here(Box::new(t.rows(encoding)?))
                 }),
                 None => None,
             });
@@ -966,7 +966,7 @@ enum PngBand<'b> {
 /// [`crate::raster::par::pipelined`]) copied to a thread of its own that filters and
 /// compresses them while the next strip is computed.
 enum PngSink<'s> {
-    Here(PngRowWriter<'s>),
+    Here(Box<PngRowWriter<'s>>),
     Thread {
         tx: std::sync::mpsc::SyncSender<OwnedBand>,
         writer: std::thread::ScopedJoinHandle<'s, Result<(), RgbnError>>,
