@@ -11,6 +11,9 @@
 //! [`RgbnImage::validate`] come with them. The numbers are the same, bit for bit: the same
 //! formula per sample, the same counts (`tests`).
 //!
+//! With one thread ([`crate::raster::par::pipelined`] false) each batch is converted right
+//! after it is decoded, on the calling thread: the same numbers, one thread of work.
+//!
 //! Only the common case takes this path: a non-interlaced 8- or 16-bit RGB or RGBA PNG. Others
 //! (palette, greyscale, interlaced) go through the one-shot decoder.
 
