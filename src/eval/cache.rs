@@ -19,9 +19,18 @@ pub struct CacheEntry {
     /// Its non-integrable fraction F (`raster::integrate::non_integrable_fraction`), when
     /// measured.
     pub fraction: Option<f64>,
+    /// Outputs left out (bit `k`: port `k`), for an operator with
+    /// [`crate::nodes::OpSpec::lazy_outputs`] whose evaluation read only some: their values are
+    /// placeholders, never handed on. 0 for a complete entry.
+    pub skipped: u64,
 }
 
 impl CacheEntry {
+    /// Whether the entry holds every output in `wanted` (bit `k`: port `k`).
+    #[must_use]
+    pub fn has(&self, wanted: u64) -> bool {
+        self.skipped & wanted == 0
+    }
     /// Bytes of pixel data held.
     #[must_use]
     pub fn byte_size(&self) -> usize {
@@ -171,6 +180,7 @@ mod tests {
             values: vec![Value::Number(n)],
             curl: None,
             fraction: None,
+            skipped: 0,
         })
     }
 
@@ -211,6 +221,7 @@ mod tests {
             values,
             curl: None,
             fraction: None,
+            skipped: 0,
         })
     }
 

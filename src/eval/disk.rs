@@ -172,6 +172,7 @@ fn decode(payload: &[u8]) -> Option<CacheEntry> {
         values,
         curl,
         fraction,
+        skipped: 0,
     })
 }
 
@@ -258,6 +259,7 @@ mod tests {
             ],
             curl: Some(1e-3),
             fraction: Some(0.25),
+            skipped: 0,
         };
         c.put(7, &e).unwrap();
         assert_eq!(c.get(7), Some(e));

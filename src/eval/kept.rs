@@ -126,7 +126,7 @@ impl Evaluator {
             kept: kept.iter().map(|(_, (i, _))| *i).collect(),
             on_value,
         };
-        let whole = self.eval_instances(plan, &roots, opts, Some(&k))?;
+        let whole = self.eval_instances(plan, &roots, opts, Some(&k), None)?;
         let outputs: BTreeMap<String, crate::nodes::Value> = kept
             .into_iter()
             .filter_map(|(name, (i, p))| {

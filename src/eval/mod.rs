@@ -33,7 +33,7 @@ pub use disk::DiskCache;
 pub use kept::ValueFn;
 
 use crate::graph::{At, GraphError, LoadedGraph, NodeId, NodeKind, PortRef, Source};
-use crate::nodes::{self, DynOp, Parsed, PortType, RunContext, Value};
+use crate::nodes::{self, DynOp, Parsed, PortType, RunContext, Value, ALL_PORTS};
 use crate::params::{nearest, ParamKind, ParamValue};
 use crate::raster::gradient::GradientField;
 use rayon::prelude::*;
@@ -95,6 +95,35 @@ pub struct Plan {
 }
 
 impl Plan {
+    /// The outputs read of each instance (bit `k`: port `k`) when `roots` are asked for
+    /// (instance, port; `None`: every port): a root's port, and every port an instance read
+    /// takes as input. Over-estimated where a cache cuts the graph short (an instance read
+    /// only by a cached one still counts). An operator without
+    /// [`crate::nodes::OpSpec::lazy_outputs`] wants all its ports once one is read; 0: not read.
+    #[must_use]
+    pub fn demand(&self, roots: &[(usize, Option<usize>)]) -> Vec<u64> {
+        let port_bit = |p: usize| if p < 64 { 1u64 << p } else { ALL_PORTS };
+        let mut d = vec![0u64; self.instances.len()];
+        for &(i, p) in roots {
+            d[i] |= p.map_or(ALL_PORTS, port_bit);
+        }
+        // Instances are in topological order: a reader comes after what it reads.
+        for i in (0..self.instances.len()).rev() {
+            if d[i] == 0 {
+                continue;
+            }
+            if !self.instances[i].op.spec().lazy_outputs {
+                d[i] = ALL_PORTS;
+            }
+            for c in &self.instances[i].inputs {
+                if let Conn::Slot(j, p) = c {
+                    d[*j] |= port_bit(*p);
+                }
+            }
+        }
+        d
+    }
+
     /// Whether output `port` of instance `j` is a number (a summary of a whole image).
     #[must_use]
     pub fn is_number(&self, j: usize, port: usize) -> bool {
@@ -570,9 +599,13 @@ impl Evaluator {
             }
         }
         let mut slots = Vec::new();
+        let mut asked = Vec::new();
         for c in &roots {
             match c {
-                Conn::Slot(i, _) => slots.push(*i),
+                Conn::Slot(i, p) => {
+                    slots.push(*i);
+                    asked.push((*i, Some(*p)));
+                }
                 Conn::Unbound { name, at } => {
                     return Err(GraphError::UnboundInput {
                         name: name.clone(),
@@ -582,7 +615,10 @@ impl Evaluator {
                 Conn::None => {}
             }
         }
-        let whole = self.eval_instances(plan, &slots, opts, None)?;
+        // Only the outputs asked for and read are computed (a lazy operator's others are
+        // left out).
+        let demand = plan.demand(&asked);
+        let whole = self.eval_instances(plan, &slots, opts, None, Some(&demand))?;
         let mut out = BTreeMap::new();
         for (name, c) in names.iter().zip(&roots) {
             if let Conn::Slot(i, p) = c {
@@ -600,14 +636,18 @@ impl Evaluator {
 
     /// Evaluates instances `roots` of `plan` whole, with everything they need: their results
     /// (and those of every instance considered, or with `keep` only those it keeps: see
-    /// [`kept`]), the stats of each, and the memory estimate.
+    /// [`kept`]), the stats of each, and the memory estimate. `demand` ([`Plan::demand`]):
+    /// the outputs of each instance to compute; `None`: all of them (an instance's every
+    /// output complete, as the editor's thumbnails and the tiles expect).
     fn eval_instances(
         &self,
         plan: &Plan,
         roots: &[usize],
         opts: &EvalOptions,
         keep: Option<&kept::Keep>,
+        demand: Option<&[u64]>,
     ) -> Result<Whole, GraphError> {
+        let want = |i: usize| demand.map_or(ALL_PORTS, |d| d[i]);
         let mut keys = HashMap::new();
         let mut results: HashMap<usize, Arc<CacheEntry>> = HashMap::new();
         let mut visited = HashSet::new();
@@ -617,6 +657,7 @@ impl Evaluator {
             self.pull(
                 plan,
                 i,
+                &want,
                 &mut keys,
                 &mut visited,
                 &mut results,
@@ -661,9 +702,7 @@ impl Evaluator {
         }
         let total = to_run.len();
         let done = AtomicUsize::new(0);
-        let ctx = RunContext {
-            protected: plan.protected.clone(),
-        };
+        let ctx = RunContext::new(plan.protected.clone());
         for l in 0..depth {
             let batch: Vec<usize> = to_run.iter().copied().filter(|i| level[i] == l).collect();
             let ran: Vec<Result<Ran, GraphError>> = batch
@@ -672,7 +711,7 @@ impl Evaluator {
                     if opts.cancelled() {
                         return Err(GraphError::Cancelled);
                     }
-                    let r = self.run_one(plan, i, keys[&i], &results, &ctx)?;
+                    let r = self.run_one(plan, i, keys[&i], &results, &ctx, want(i))?;
                     if let Some(p) = &opts.progress {
                         p(&Progress {
                             done: done.fetch_add(1, Ordering::Relaxed) + 1,
@@ -716,6 +755,7 @@ impl Evaluator {
         &self,
         plan: &Plan,
         i: usize,
+        want: &dyn Fn(usize) -> u64,
         keys: &mut HashMap<usize, CacheKey>,
         visited: &mut HashSet<usize>,
         results: &mut HashMap<usize, Arc<CacheEntry>>,
@@ -730,7 +770,8 @@ impl Evaluator {
         let spec = inst.op.spec();
         if !spec.side_effect {
             let mut status = None;
-            let mut entry = lock(&self.mem).get(key);
+            // An entry that left out an output wanted now is no hit.
+            let mut entry = lock(&self.mem).get(key).filter(|e| e.has(want(i)));
             if entry.is_some() {
                 status = Some(Status::Hit);
             } else if let Some(e) = self.disk.as_ref().and_then(|d| d.get(key)) {
@@ -761,7 +802,7 @@ impl Evaluator {
         for c in &inst.inputs {
             match c {
                 Conn::Slot(j, _) => {
-                    self.pull(plan, *j, keys, visited, results, to_run, stats)?;
+                    self.pull(plan, *j, want, keys, visited, results, to_run, stats)?;
                 }
                 Conn::Unbound { name, at } => {
                     return Err(GraphError::UnboundInput {
@@ -801,7 +842,7 @@ impl Evaluator {
                     return Err(GraphError::Cancelled);
                 }
                 let t0 = Instant::now();
-                let (curl, fraction) = integrability_of(&e.values);
+                let (curl, fraction) = integrability_of(&e);
                 let mut c = (*e).clone();
                 (c.curl, c.fraction) = (curl, fraction);
                 Ok((i, Arc::new(c), t0.elapsed()))
@@ -829,9 +870,24 @@ impl Evaluator {
         key: CacheKey,
         results: &HashMap<usize, Arc<CacheEntry>>,
         ctx: &RunContext,
+        want: u64,
     ) -> Result<(Arc<CacheEntry>, NodeStats), GraphError> {
         let inst = &plan.instances[i];
         let spec = inst.op.spec();
+        // A lazy operator is told which outputs are read; the rest are recorded as skipped.
+        let ports = spec.outputs.len();
+        let lazy_ctx;
+        let (ctx, skipped) = if spec.lazy_outputs && want != ALL_PORTS {
+            let all = if ports >= 64 {
+                ALL_PORTS
+            } else {
+                (1u64 << ports) - 1
+            };
+            lazy_ctx = ctx.wanting(want);
+            (&lazy_ctx, !want & all)
+        } else {
+            (ctx, 0)
+        };
         let inputs: Vec<Option<Value>> = inst
             .inputs
             .iter()
@@ -854,10 +910,12 @@ impl Evaluator {
             values,
             curl: None,
             fraction: None,
+            skipped,
         });
         if !spec.side_effect {
             lock(&self.mem).insert(key, entry.clone());
-            if let Some(d) = &self.disk {
+            // The disk keeps complete entries only.
+            if let Some(d) = self.disk.as_ref().filter(|_| skipped == 0) {
                 if let Err(e) = d.put(key, &entry) {
                     tracing::warn!("disk cache write failed ({e}): {}", d.dir().display());
                 }
@@ -882,12 +940,14 @@ impl Evaluator {
     }
 }
 
-/// Relative RMS curl and non-integrable fraction of the first RGBN value (F is `None` where
-/// the integration refuses the image, e.g. a mask with nothing inside).
-fn integrability_of(values: &[Value]) -> (Option<f64>, Option<f64>) {
-    values
+/// Relative RMS curl and non-integrable fraction of the first RGBN value computed (F is
+/// `None` where the integration refuses the image, e.g. a mask with nothing inside).
+fn integrability_of(e: &CacheEntry) -> (Option<f64>, Option<f64>) {
+    e.values
         .iter()
-        .find_map(|v| match v {
+        .enumerate()
+        .filter(|(k, _)| e.has(if *k < 64 { 1 << k } else { 0 }))
+        .find_map(|(_, v)| match v {
             Value::Rgbn(img) => {
                 let g = GradientField::from_normals(img);
                 let curl = g.curl_stats(img.mask()).relative;

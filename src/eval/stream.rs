@@ -33,6 +33,8 @@ pub struct StreamPlan<'p> {
     outputs: Vec<(usize, usize)>,
     input: StreamInput,
     halo: usize,
+    /// The outputs read of each instance ([`Plan::demand`]).
+    demand: Vec<u64>,
 }
 
 /// What [`StreamPlan::check`] found.
@@ -153,7 +155,10 @@ impl<'p> StreamPlan<'p> {
             Opened::Stream(s) => *s,
             Opened::Whole(why) => return no(why),
         };
+        let asked: Vec<(usize, Option<usize>)> = outs.iter().map(|&(i, p)| (i, Some(p))).collect();
+        let demand = plan.demand(&asked);
         Ok(Streamable::Yes(Box::new(StreamPlan {
+            demand,
             plan,
             source,
             order,
@@ -200,9 +205,20 @@ impl<'p> StreamPlan<'p> {
                 .max(4 * halo)
         });
         let plan = self.plan;
-        let ctx = RunContext {
-            protected: plan.protected.clone(),
-        };
+        // Each instance told which of its outputs are read (a lazy operator skips the rest).
+        let ctx = RunContext::new(plan.protected.clone());
+        let ctxs: Vec<RunContext> = self
+            .demand
+            .iter()
+            .enumerate()
+            .map(|(i, &d)| {
+                if plan.instances[i].op.spec().lazy_outputs {
+                    ctx.wanting(d)
+                } else {
+                    ctx.clone()
+                }
+            })
+            .collect();
         let source_at = plan.instances[self.source].at.clone();
         let node_err = |i: usize, source: RgbnError| GraphError::Node {
             op: plan.instances[i].op.spec().id.to_string(),
@@ -231,7 +247,7 @@ impl<'p> StreamPlan<'p> {
                     .collect();
                 let v = inst
                     .op
-                    .run_at(&inst.params, inputs, &ctx, (0, y0), 1)
+                    .run_at(&inst.params, inputs, &ctxs[i], (0, y0), 1)
                     .map_err(|e| Fail::Graph(node_err(i, e)))?;
                 values[i] = Some(v);
             }

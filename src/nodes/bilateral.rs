@@ -3,7 +3,7 @@
 
 use super::{Coarse, Kind, OpSpec, Operator, RunContext};
 use crate::error::RgbnError;
-use crate::ops::bilateral::{split, BilateralParams};
+use crate::ops::bilateral::{detail, filtered, BilateralParams};
 use crate::RgbnImage;
 
 crate::inputs! {
@@ -40,6 +40,9 @@ impl Operator for BilateralNode {
             "filter",
             "RGBN bilateral filter (Toler-Franklin et al. 2007; Pereira & Velho §VII): base = the edge-preserving smoothing of the normals, detail = the rotation taking the base to the input, as a normal in the base's tangent frame. combine.rotation (blend, same frame) of base and detail gives the input back.",
         )
+        // The detail and the readout are computed only when read: the base alone is the
+        // filter (its kernel's cost).
+        .lazy_outputs()
     }
     fn check(p: &BilateralParams) -> Result<(), RgbnError> {
         p.validate()
@@ -51,12 +54,28 @@ impl Operator for BilateralNode {
             coarse: Coarse::None,
         }
     }
-    fn run(p: &BilateralParams, i: BilateralIn, _: &RunContext) -> Result<BilateralOut, RgbnError> {
-        let (base, detail, rep) = split(&i.image, p)?;
+    fn run(
+        p: &BilateralParams,
+        i: BilateralIn,
+        ctx: &RunContext,
+    ) -> Result<BilateralOut, RgbnError> {
+        let base = filtered(&i.image, p)?;
+        // Outputs not read get placeholders (the evaluator records them as skipped): an
+        // empty image, NaN.
+        let detail = if ctx.wants(1) {
+            detail(&i.image, &base, p)?
+        } else {
+            RgbnImage::flat(0, 0, [0.0; 3])
+        };
+        let relative_rms_curl = if ctx.wants(2) {
+            crate::raster::gradient::curl_stats_of_normals(&base).relative
+        } else {
+            f64::NAN
+        };
         Ok(BilateralOut {
             base,
             detail,
-            relative_rms_curl: rep.curl_after.relative,
+            relative_rms_curl,
         })
     }
 }

@@ -134,6 +134,11 @@ pub struct OpSpec {
     pub outputs: Vec<PortSpec>,
     /// The node has an effect outside the graph (writes a file): it is never cached.
     pub side_effect: bool,
+    /// The operator may leave out the outputs an evaluation does not read
+    /// ([`RunContext::wants`]): their values are then placeholders, which the evaluator
+    /// never hands on (it records them as skipped and runs the node again when one is asked
+    /// for). Declared with [`OpSpec::lazy_outputs`].
+    pub lazy_outputs: bool,
 }
 
 impl OpSpec {
@@ -154,6 +159,7 @@ impl OpSpec {
             inputs: Vec::new(),
             outputs: Vec::new(),
             side_effect: false,
+            lazy_outputs: false,
         }
     }
     /// Sets the version.
@@ -168,13 +174,56 @@ impl OpSpec {
         self.side_effect = true;
         self
     }
+    /// Declares that the operator computes only the outputs [`RunContext::wants`] (the
+    /// bilateral's detail and readout when only its base is read).
+    #[must_use]
+    pub fn lazy_outputs(mut self) -> Self {
+        self.lazy_outputs = true;
+        self
+    }
 }
 
+/// Every output port wanted (bit `k`: port `k`).
+pub const ALL_PORTS: u64 = u64::MAX;
+
 /// What a running node may know about its surroundings.
-#[derive(Clone, Debug, Default)]
+#[derive(Clone, Debug)]
 pub struct RunContext {
     /// Files read by the graph; writing nodes refuse to overwrite them.
     pub protected: Vec<PathBuf>,
+    /// The outputs the evaluation reads, bit `k` for port `k` ([`ALL_PORTS`] unless the
+    /// operator declares [`OpSpec::lazy_outputs`]).
+    pub wanted: u64,
+}
+
+impl Default for RunContext {
+    fn default() -> Self {
+        Self::new(Vec::new())
+    }
+}
+
+impl RunContext {
+    /// A context wanting every output.
+    #[must_use]
+    pub fn new(protected: Vec<PathBuf>) -> Self {
+        Self {
+            protected,
+            wanted: ALL_PORTS,
+        }
+    }
+    /// Whether output `port` (port order) is read. Ports past 63 always are.
+    #[must_use]
+    pub fn wants(&self, port: usize) -> bool {
+        port >= 64 || self.wanted & (1 << port) != 0
+    }
+    /// This context wanting only the outputs in `wanted`.
+    #[must_use]
+    pub fn wanting(&self, wanted: u64) -> Self {
+        Self {
+            protected: self.protected.clone(),
+            wanted,
+        }
+    }
 }
 
 /// What part of an input an operator needs to compute part of its outputs (GEGL's

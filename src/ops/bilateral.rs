@@ -186,11 +186,19 @@ pub struct BilateralReport {
     pub curl_after: CurlStats,
 }
 
-/// The bilateral-filtered image (module docs). Colour is smoothed only with `filter_color`.
+/// The bilateral-filtered image (module docs) with its curl. Colour is smoothed only with
+/// `filter_color`.
 pub fn bilateral(
     img: &RgbnImage,
     params: &BilateralParams,
 ) -> Result<(RgbnImage, BilateralReport), RgbnError> {
+    let out = filtered(img, params)?;
+    let curl_after = crate::raster::gradient::curl_stats_of_normals(&out);
+    Ok((out, BilateralReport { curl_after }))
+}
+
+/// The bilateral-filtered image alone ([`bilateral`] without its curl).
+pub fn filtered(img: &RgbnImage, params: &BilateralParams) -> Result<RgbnImage, RgbnError> {
     params.validate()?;
     let sigma_spatial = params.sigma_spatial_px as f32;
     let spec = kernel::Spec {
@@ -232,8 +240,7 @@ pub fn bilateral(
     if let Some(c) = out_c {
         out.set_color(c)?;
     }
-    let curl_after = crate::raster::gradient::curl_stats_of_normals(&out);
-    Ok((out, BilateralReport { curl_after }))
+    Ok(out)
 }
 
 /// Splits an image into `(base, detail)` (module docs): base = [`bilateral`], detail normals =
@@ -243,6 +250,26 @@ pub fn split(
     params: &BilateralParams,
 ) -> Result<(RgbnImage, RgbnImage, BilateralReport), RgbnError> {
     let (base, report) = bilateral(img, params)?;
+    let detail = detail(img, &base, params)?;
+    Ok((base, detail, report))
+}
+
+/// The detail of [`split`] given its base: `img`'s normals in the tangent frame of `base`'s
+/// (`params.tangent`), `img`'s colour.
+pub fn detail(
+    img: &RgbnImage,
+    base: &RgbnImage,
+    params: &BilateralParams,
+) -> Result<RgbnImage, RgbnError> {
+    if (base.width(), base.height()) != (img.width(), img.height()) {
+        return Err(RgbnError::InvalidImage(format!(
+            "the base is {}×{}, the image {}×{}",
+            base.width(),
+            base.height(),
+            img.width(),
+            img.height()
+        )));
+    }
     let frame = params.detail_frame();
     let (bn, on) = (base.normal(), img.normal());
     let n = img.len();
@@ -268,8 +295,7 @@ pub fn split(
                 (x[k], y[k], z[k]) = (t[0], t[1], t[2]);
             }
         });
-    let detail = img.with_normals(d)?;
-    Ok((base, detail, report))
+    img.with_normals(d)
 }
 
 /// `o` in the tangent frame of base normal `b` (both normalised first), in `f64`.

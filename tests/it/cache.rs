@@ -357,3 +357,62 @@ fn curl_stats_are_measured_per_node() {
     .unwrap();
     assert!((fn_ - 0.8).abs() < 0.05, "{fn_}");
 }
+
+/// A lazy operator's outputs that nothing reads are left out, and never handed on: asked for
+/// later (memory or disk cache behind), the node runs again and they equal the direct split.
+/// The bilateral computes its base alone when only the base is read.
+#[test]
+fn outputs_not_read_are_left_out_and_computed_when_asked_for() {
+    use rgbn::nodes::Value;
+    use rgbn::ops::bilateral::{split, BilateralParams};
+    let lg = LoadedGraph::load(&graph_path("bilateral_split.ron")).unwrap();
+    let (base, detail, rep) = split(
+        &rgbn::raster::sample::demo_medallion(96),
+        &BilateralParams {
+            sigma_spatial_px: 2.5,
+            sigma_normal: 0.25,
+            sigma_color: 0.2,
+            filter_color: true,
+            ..BilateralParams::default()
+        },
+    )
+    .unwrap();
+    let image = |r: &EvalResult, name: &str| match &r.outputs[name] {
+        Value::Rgbn(i) => i.clone(),
+        other => panic!("{name}: {:?}", other.port_type()),
+    };
+    let d = tempfile::tempdir().unwrap();
+    let ev = Evaluator::default().with_disk_cache(d.path()).unwrap();
+    let r = run(&ev, &lg, &["base"]);
+    assert_eq!(r.missed_nodes(), vec![1, 2]);
+    assert_eq!(image(&r, "base"), base);
+    // Asked for again, the base is a hit.
+    assert_eq!(run(&ev, &lg, &["base"]).misses(), 0);
+    // The detail was left out: the bilateral runs again (its input is a hit).
+    let r = run(&ev, &lg, &["detail"]);
+    assert_eq!(r.missed_nodes(), vec![2]);
+    assert_eq!(image(&r, "detail"), detail);
+    // So was the readout in both runs.
+    let r = run(&ev, &lg, &["relative_rms_curl"]);
+    assert_eq!(r.missed_nodes(), vec![2]);
+    match r.outputs["relative_rms_curl"] {
+        Value::Number(c) => assert_eq!(c, rep.curl_after.relative),
+        ref other => panic!("{:?}", other.port_type()),
+    }
+    // The disk kept no partial entry: a fresh evaluator on it recomputes the bilateral for
+    // its detail rather than reading a placeholder.
+    let fresh = Evaluator::default().with_disk_cache(d.path()).unwrap();
+    let r = run(&fresh, &lg, &["detail"]);
+    assert_eq!(r.missed_nodes(), vec![2]);
+    assert_eq!(image(&r, "detail"), detail);
+    // Every output at once makes a complete entry: then nothing runs, whatever is asked.
+    let r = run(&ev, &lg, &[]);
+    assert_eq!(r.missed_nodes(), vec![2]);
+    assert_eq!(
+        (image(&r, "base"), image(&r, "detail")),
+        (base.clone(), detail.clone())
+    );
+    for name in ["detail", "base", "relative_rms_curl"] {
+        assert_eq!(run(&ev, &lg, &[name]).misses(), 0, "{name}");
+    }
+}

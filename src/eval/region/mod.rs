@@ -240,7 +240,7 @@ impl Evaluator {
                     })
             })
             .collect();
-        let whole = self.eval_instances(plan, &whole_roots, opts, None)?;
+        let whole = self.eval_instances(plan, &whole_roots, opts, None, None)?;
         let mut keys = whole.keys;
         // The whole results at the level: reduced (and cached so) at a coarse one.
         let mut wv: HashMap<usize, Arc<CacheEntry>> = whole
@@ -256,6 +256,7 @@ impl Evaluator {
                         values: e.values.iter().map(|v| reduce(v, s)).collect(),
                         curl: None,
                         fraction: None,
+                        skipped: 0,
                     });
                     self.mem_insert(k, r.clone());
                     r
@@ -542,9 +543,7 @@ impl Evaluator {
             }
         }
         // 5. Compute, instance by instance in order, the tiles of each in parallel.
-        let ctx = RunContext {
-            protected: plan.protected.clone(),
-        };
+        let ctx = RunContext::new(plan.protected.clone());
         let mut tiles = Vec::new();
         for i in 0..=root {
             if level_todo[i] {
@@ -654,6 +653,7 @@ impl Evaluator {
                         values,
                         curl: None,
                         fraction: None,
+                        skipped: 0,
                     });
                     self.mem_insert(tile_key(key, tile, level, t.0, t.1), e.clone());
                     Ok((t, e))
@@ -756,6 +756,7 @@ impl Evaluator {
             values,
             curl: None,
             fraction: None,
+            skipped: 0,
         }))
     }
 

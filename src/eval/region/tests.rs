@@ -91,6 +91,7 @@ fn assemble_puts_each_tile_where_it_belongs() {
                 values: vec![Value::Scalar(Arc::new(p))],
                 curl: None,
                 fraction: None,
+                skipped: 0,
             };
             have.insert((tx, ty), Arc::new(e));
         }
