@@ -7,6 +7,8 @@
 //!   the cache insertion.
 //! - `kernel/ID`: the operator's own `run` on the same parameters and input values (the pure
 //!   function and its port adaptation, no engine).
+//! - `node/ID:PORT`: for an operator with lazy outputs, the same graph asked for its first
+//!   output only (the others left out).
 //!
 //! `node/ID ÷ kernel/ID` is the engine's overhead per operator (BENCHMARKS.md, "Node
 //! overhead"). Parameters come from the operator's first example graph in `graphs/` (sizes
@@ -262,6 +264,17 @@ fn bench(c: &mut Criterion) {
         group.bench_function(format!("kernel/{}", spec.id), |b| {
             b.iter(|| op.run(&parsed, direct.clone(), &ctx).expect("runs"));
         });
+        // An operator that computes only the outputs read: its first output alone (the
+        // bilateral's base, against OpenCV's bilateralFilter).
+        if spec.lazy_outputs {
+            let first = spec.outputs[0].name.as_str();
+            group.bench_function(format!("node/{}:{first}", spec.id), |b| {
+                b.iter(|| {
+                    let ev = Evaluator::new(8 << 30);
+                    ev.eval(&plan, &[first], &opts).expect("evaluates")
+                });
+            });
+        }
     }
     group.finish();
 }

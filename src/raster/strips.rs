@@ -528,9 +528,13 @@ fn drive<E: From<RgbnError>>(
         });
     }
     std::thread::scope(|scope| {
-        // A rendezvous: one band decoded ahead, waiting, never two (the memory bound of
-        // `tests/streaming_memory.rs`; queues of two, four and eight bands measured no faster).
-        let (tx, rx) = std::sync::mpsc::sync_channel::<Result<Band, RgbnError>>(0);
+        // One band decoded ahead, waiting; a second decoded behind it while its planes are
+        // small (a 4K strip's: 12 MB), so that the reading never waits on the strips' joins,
+        // never for big bands (the memory bound of `tests/streaming_memory.rs`).
+        let planes = 3 + input.color.as_ref().map_or(0, |_| 3) + usize::from(input.mask.is_some());
+        let band_bytes = (strip + halo) * w * planes * 4;
+        let ahead = usize::from(band_bytes <= 16 << 20);
+        let (tx, rx) = std::sync::mpsc::sync_channel::<Result<Band, RgbnError>>(ahead);
         scope.spawn(move || {
             for (a, b) in bands() {
                 let band = read_band(input, a, b);
