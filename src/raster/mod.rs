@@ -321,6 +321,45 @@ impl RgbnImage {
         })
     }
 
+    /// [`RgbnImage::new`] over colour planes shared with their owner (not copied): the
+    /// streamed strips' constant albedo.
+    pub fn with_shared_color(
+        width: usize,
+        height: usize,
+        color: Arc<[Vec<f32>; 3]>,
+        normal: [Vec<f32>; 3],
+        mask: Option<Vec<f32>>,
+    ) -> Result<Self, RgbnError> {
+        let n = width * height;
+        let bad = color.iter().chain(normal.iter()).any(|c| c.len() != n)
+            || mask.as_ref().is_some_and(|m| m.len() != n);
+        if bad {
+            return Err(RgbnError::InvalidImage(format!(
+                "every plane of a {width}×{height} image needs {n} values"
+            )));
+        }
+        Ok(Self {
+            width,
+            height,
+            color,
+            normal: Arc::new(normal),
+            mask: mask.map(Arc::new),
+        })
+    }
+
+    /// The planes back with the colour as shared ([`RgbnImage::with_shared_color`]): normal
+    /// and mask taken without a copy when this image holds the only reference, copied
+    /// otherwise.
+    #[must_use]
+    pub fn into_shared_color(self) -> (Arc<[Vec<f32>; 3]>, [Vec<f32>; 3], Option<Vec<f32>>) {
+        (
+            self.color,
+            Arc::try_unwrap(self.normal).unwrap_or_else(|a| (*a).clone()),
+            self.mask
+                .map(|m| Arc::try_unwrap(m).unwrap_or_else(|m| (*m).clone())),
+        )
+    }
+
     /// The planes back: colour, normal, mask (each taken without a copy when this image holds
     /// the only reference to it, copied otherwise).
     #[must_use]

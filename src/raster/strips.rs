@@ -17,6 +17,7 @@ use crate::error::RgbnError;
 use rayon::prelude::*;
 use std::ops::Range;
 use std::path::Path;
+use std::sync::Arc;
 
 /// Above this many pixels, `rgbn filter` streams by default (`--stream auto`): twice a 4K
 /// image, where reading whole would take about 1.6 GB.
@@ -423,21 +424,26 @@ pub fn for_each_strip_image<E: From<RgbnError>>(
     mut f: impl FnMut(&RgbnImage, usize, Range<usize>) -> Result<(), E>,
 ) -> Result<Validation, E> {
     let w = input.size().0;
-    // Without a colour image, the default albedo's planes, kept from strip to strip (`f`
-    // cannot change them) and only resized.
-    let mut albedo: [Vec<f32>; 3] = Default::default();
+    // Without a colour image, the default albedo's planes, shared by every strip's image (an
+    // output written on another thread holds them without a copy) and only resized.
+    let mut albedo: Arc<[Vec<f32>; 3]> = Arc::default();
     drive(input, halo, strip, |win, y0, core| {
         let rows = win.rows;
         let n = rows * w;
         let had_color = win.color.is_some();
-        let color = win.color.take().unwrap_or_else(|| {
-            let mut c = std::mem::take(&mut albedo);
-            for p in &mut c {
-                p.resize(n, DEFAULT_ALBEDO);
+        let color = match win.color.take() {
+            Some(c) => Arc::new(c),
+            None => {
+                if albedo[0].len() != n {
+                    // Shared only while a writer still holds an earlier strip: then a copy.
+                    for p in Arc::make_mut(&mut albedo).iter_mut() {
+                        p.resize(n, DEFAULT_ALBEDO);
+                    }
+                }
+                albedo.clone()
             }
-            c
-        });
-        let img = RgbnImage::new(
+        };
+        let img = RgbnImage::with_shared_color(
             w,
             rows,
             color,
@@ -445,12 +451,10 @@ pub fn for_each_strip_image<E: From<RgbnError>>(
             win.mask.take(),
         )?;
         let r = f(&img, y0, core);
-        let (color, normal, mask) = img.into_planes();
+        let (color, normal, mask) = img.into_shared_color();
         win.normal = normal;
         if had_color {
-            win.color = Some(color);
-        } else {
-            albedo = color;
+            win.color = Some(Arc::try_unwrap(color).unwrap_or_else(|c| (*c).clone()));
         }
         win.mask = mask;
         r

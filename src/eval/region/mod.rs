@@ -345,7 +345,8 @@ impl Evaluator {
                 if mode[i] != Mode::Tiled {
                     continue;
                 }
-                if let Some(e) = self.mem_get(keys[&i]) {
+                // Complete entries only (a lazy operator's may lack ports).
+                if let Some(e) = self.mem_get(keys[&i]).filter(|e| e.skipped == 0) {
                     mode[i] = Mode::Whole;
                     wv.insert(i, e);
                 }

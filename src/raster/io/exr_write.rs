@@ -450,7 +450,7 @@ impl RowBlocks {
         &mut self,
         writer: &mut W,
         headers: &[Header],
-        planes: &[Vec<f32>],
+        planes: &[&[f32]],
         rows: usize,
     ) -> exr::error::Result<()> {
         let (w, h) = (self.width, self.height);
@@ -659,10 +659,8 @@ mod tests {
                     exr::block::write(&mut out, headers, true, |meta, writer| {
                         let mut y = 0;
                         for &n in &bands {
-                            let band: Vec<Vec<f32>> = planes
-                                .iter()
-                                .map(|p| p[y * w..(y + n) * w].to_vec())
-                                .collect();
+                            let band: Vec<&[f32]> =
+                                planes.iter().map(|p| &p[y * w..(y + n) * w]).collect();
                             rows.push(writer, &meta.headers, &band, n)?;
                             y += n;
                         }

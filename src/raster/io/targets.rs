@@ -11,7 +11,6 @@ use super::temp;
 use super::{png_format, NormalConvention};
 use crate::error::RgbnError;
 use crate::raster::srgb::{linear_to_srgb, linear_to_srgb8};
-use rayon::prelude::*;
 use std::fs::File;
 use std::io::{BufWriter, Write};
 use std::path::{Path, PathBuf};
@@ -148,12 +147,28 @@ impl Drop for AtomicFile {
     }
 }
 
-/// Rows of an RGBN image on their way to an [`ExrTarget`]'s writer thread: the planes in the
-/// file's (alphabetical) channel order.
+/// Rows of an RGBN image on their way to an [`ExrTarget`]'s writer thread: the image (its
+/// planes shared, not copied) and the rows to write.
 struct ExrBand {
-    rows: usize,
-    mask: bool,
-    planes: Vec<Vec<f32>>,
+    img: crate::raster::RgbnImage,
+    rows: std::ops::Range<usize>,
+}
+
+impl ExrBand {
+    /// The band's rows of each plane, in the file's (alphabetical) channel order: `A` (with a
+    /// mask), `B`, `G`, `N.X`, `N.Y`, `N.Z`, `R`.
+    fn planes(&self) -> Vec<&[f32]> {
+        let w = self.img.width();
+        let (a, b) = (self.rows.start * w, self.rows.end * w);
+        let [r, g, bl] = self.img.color();
+        let [nx, ny, nz] = self.img.normal();
+        let mut planes: Vec<&[f32]> = Vec::with_capacity(7);
+        if let Some(m) = self.img.mask() {
+            planes.push(&m[a..b]);
+        }
+        planes.extend([bl, g, nx, ny, nz, r].map(|p| &p[a..b]));
+        planes
+    }
 }
 
 /// An RGBN image written to an EXR a band of rows at a time, as [`super::save_exr_with`]
@@ -196,7 +211,8 @@ impl ExrTarget {
                 let Ok(first) = rx.recv() else {
                     return Err("no rows were written".into());
                 };
-                let names: Vec<&'static str> = if first.mask {
+                let mask = first.img.mask().is_some();
+                let names: Vec<&'static str> = if mask {
                     vec!["A", "B", "G", "N.X", "N.Y", "N.Z", "R"]
                 } else {
                     vec!["B", "G", "N.X", "N.Y", "N.Z", "R"]
@@ -207,7 +223,14 @@ impl ExrTarget {
                 exr::block::write(&mut out, headers, true, |meta, writer| {
                     let mut band = Some(first);
                     while let Some(b) = band.take().or_else(|| rx.recv().ok()) {
-                        rows.push(writer, &meta.headers, &b.planes, b.rows)?;
+                        if b.img.mask().is_some() != mask {
+                            return Err(exr::error::Error::Invalid(
+                                "a band with a mask and one without in the same image".into(),
+                            ));
+                        }
+                        rows.push(writer, &meta.headers, &b.planes(), b.rows.len())?;
+                        // The band's planes go back to their owner (or are freed) now.
+                        drop(b);
                         if let Some(d) = &done_tx {
                             // The caller may be gone (an error of its own): nothing to tell.
                             let _ = d.send(());
@@ -243,21 +266,19 @@ impl ExrTarget {
         img: &crate::raster::RgbnImage,
         rows: std::ops::Range<usize>,
     ) -> Result<(), RgbnError> {
-        let w = self.width;
-        let (a, b) = (rows.start * w, rows.end * w);
-        let [r, g, bl] = img.color();
-        let [nx, ny, nz] = img.normal();
-        let mut sources: Vec<&[f32]> = Vec::with_capacity(7);
-        if let Some(m) = img.mask() {
-            sources.push(m);
+        if img.width() != self.width || rows.end > img.height() {
+            return Err(self.error(format!(
+                "rows {rows:?} of a {}×{} image do not fit a {}-wide EXR",
+                img.width(),
+                img.height(),
+                self.width
+            )));
         }
-        sources.extend([bl, g, nx, ny, nz, r].map(Vec::as_slice));
-        // Copied on the pool, plane by plane: the caller goes on with its next strip sooner.
-        let planes: Vec<Vec<f32>> = sources.par_iter().map(|p| p[a..b].to_vec()).collect();
+        // The planes are shared with the writer, not copied: the caller's next strip starts
+        // at once, and the memory of a copy is never touched.
         let band = ExrBand {
-            rows: rows.len(),
-            mask: img.mask().is_some(),
-            planes,
+            img: img.clone(),
+            rows,
         };
         let sent = self.tx.as_ref().is_some_and(|tx| tx.send(band).is_ok())
             && self.done.as_ref().is_none_or(|d| d.recv().is_ok());
