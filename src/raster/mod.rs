@@ -147,6 +147,9 @@ impl Plane {
 /// The planes of an image: colour, normal, mask ([`RgbnImage::into_planes`]).
 pub type ImagePlanes = ([Vec<f32>; 3], [Vec<f32>; 3], Option<Vec<f32>>);
 
+/// [`ImagePlanes`] with the colour still shared ([`RgbnImage::into_shared_color`]).
+pub type SharedColorPlanes = (Arc<[Vec<f32>; 3]>, [Vec<f32>; 3], Option<Vec<f32>>);
+
 /// Colour + unit normal (+ optional coverage mask) per pixel.
 ///
 /// The three parts are reference-counted and copy-on-write: cloning an image is cheap, and an
@@ -351,7 +354,7 @@ impl RgbnImage {
     /// and mask taken without a copy when this image holds the only reference, copied
     /// otherwise.
     #[must_use]
-    pub fn into_shared_color(self) -> (Arc<[Vec<f32>; 3]>, [Vec<f32>; 3], Option<Vec<f32>>) {
+    pub fn into_shared_color(self) -> SharedColorPlanes {
         (
             self.color,
             Arc::try_unwrap(self.normal).unwrap_or_else(|a| (*a).clone()),
