@@ -52,6 +52,35 @@ fn input_4k() -> RgbnImage {
     img
 }
 
+/// `image` → bilateral (σ_s 2, σ_c 0.1, σ_n 0.2, colour filtered: `bilateral_rgbn_9x9`'s
+/// parameters) → graph output `base`, with `img` bound to the input; the bindings must outlive
+/// the evaluations.
+fn bilateral_graph(img: &RgbnImage) -> (rgbn::eval::Plan, Vec<rgbn::nodes::bound::Binding>) {
+    let text = r#"(
+    version: 2,
+    next_id: 2,
+    inputs: { "image": (ty: Rgbn) },
+    outputs: { "base": (node: 1, port: "base") },
+    nodes: [
+        (id: 1, op: "bilateral", params: {
+            "filter_color": Bool(true), "sigma_color": Float(0.1),
+            "sigma_normal": Float(0.2), "sigma_spatial_px": Float(2.0),
+        }, inputs: { "image": Input("image") }),
+    ],
+)"#;
+    let lg = rgbn::graph::LoadedGraph::from_text(text, "bil9.ron", std::path::PathBuf::from("."))
+        .expect("graph");
+    let mut plan = rgbn::eval::Plan::new(
+        &lg,
+        &std::collections::BTreeMap::new(),
+        std::path::Path::new("."),
+    )
+    .expect("plan");
+    let values = [("image".to_string(), rgbn::nodes::Value::Rgbn(img.clone()))].into();
+    let bound = plan.bind_values(&lg, values).expect("bound");
+    (plan, bound)
+}
+
 fn kernels(c: &mut Criterion) {
     let img = input_4k();
     let opts = FilterOptions::default();
@@ -96,6 +125,17 @@ fn kernels(c: &mut Criterion) {
     };
     group.bench_function("bilateral_rgbn_9x9", |b| {
         b.iter(|| rgbn::ops::bilateral::bilateral(black_box(&img), &bilateral).unwrap())
+    });
+    // The same filter as a node: a one-node graph whose base is its output, the image bound as
+    // a graph input, a fresh evaluator each iteration (so the node runs every time: keys, the
+    // memory estimate, the node, the cache insertion). Peer: the same OpenCV filter.
+    let (plan, _bound) = bilateral_graph(&img);
+    group.bench_function("bilateral_rgbn_9x9_node", |b| {
+        b.iter(|| {
+            let ev = rgbn::eval::Evaluator::new(8 << 30);
+            ev.eval(&plan, &["base"], &rgbn::eval::EvalOptions::default())
+                .unwrap()
+        })
     });
     let g0 = GradientField::from_normals(&img);
     group.bench_function("gauss8_on_gradient_field", |b| {
