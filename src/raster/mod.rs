@@ -307,21 +307,7 @@ impl RgbnImage {
         normal: [Vec<f32>; 3],
         mask: Option<Vec<f32>>,
     ) -> Result<Self, RgbnError> {
-        let n = width * height;
-        let bad = color.iter().chain(normal.iter()).any(|c| c.len() != n)
-            || mask.as_ref().is_some_and(|m| m.len() != n);
-        if bad {
-            return Err(RgbnError::InvalidImage(format!(
-                "every plane of a {width}×{height} image needs {n} values"
-            )));
-        }
-        Ok(Self {
-            width,
-            height,
-            color: Arc::new(color),
-            normal: Arc::new(normal),
-            mask: mask.map(Arc::new),
-        })
+        Self::with_shared_color(width, height, Arc::new(color), normal, mask)
     }
 
     /// [`RgbnImage::new`] over colour planes shared with their owner (not copied): the

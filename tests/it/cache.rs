@@ -364,19 +364,8 @@ fn curl_stats_are_measured_per_node() {
 #[test]
 fn outputs_not_read_are_left_out_and_computed_when_asked_for() {
     use rgbn::nodes::Value;
-    use rgbn::ops::bilateral::{split, BilateralParams};
     let lg = LoadedGraph::load(&graph_path("bilateral_split.ron")).unwrap();
-    let (base, detail, rep) = split(
-        &rgbn::raster::sample::demo_medallion(96),
-        &BilateralParams {
-            sigma_spatial_px: 2.5,
-            sigma_normal: 0.25,
-            sigma_color: 0.2,
-            filter_color: true,
-            ..BilateralParams::default()
-        },
-    )
-    .unwrap();
+    let (base, detail, rep) = bilateral_split_example();
     let image = |r: &EvalResult, name: &str| match &r.outputs[name] {
         Value::Rgbn(i) => i.clone(),
         other => panic!("{name}: {:?}", other.port_type()),

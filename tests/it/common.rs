@@ -121,3 +121,24 @@ pub fn rms_normals(a: &rgbn::nodes::Value, b: &rgbn::nodes::Value) -> f64 {
     }
     (sum / n as f64).sqrt()
 }
+
+/// `graphs/bilateral_split.ron` computed directly: the bilateral split of the 96² demo with the
+/// graph's parameters (base, detail, report).
+pub fn bilateral_split_example() -> (
+    rgbn::RgbnImage,
+    rgbn::RgbnImage,
+    rgbn::ops::bilateral::BilateralReport,
+) {
+    use rgbn::ops::bilateral::{split, BilateralParams};
+    split(
+        &rgbn::raster::sample::demo_medallion(96),
+        &BilateralParams {
+            sigma_spatial_px: 2.5,
+            sigma_normal: 0.25,
+            sigma_color: 0.2,
+            filter_color: true,
+            ..BilateralParams::default()
+        },
+    )
+    .unwrap()
+}

@@ -6,7 +6,6 @@ use crate::common::*;
 use rgbn::eval::Evaluator;
 use rgbn::graph::LoadedGraph;
 use rgbn::nodes::Value;
-use rgbn::ops::bilateral::{split, BilateralParams};
 use rgbn::ops::brush::{brush_image, BrushParams, BrushStroke};
 use rgbn::ops::filter::Kernel;
 use rgbn::ops::pen::{apply_pen, PenParams, Profile};
@@ -104,17 +103,7 @@ fn project_graph_equals_brush_then_projection() {
 #[test]
 fn bilateral_graph_equals_split() {
     let r = eval("bilateral_split.ron", std::env::temp_dir().as_path());
-    let (base, detail, _) = split(
-        &demo_medallion(96),
-        &BilateralParams {
-            sigma_spatial_px: 2.5,
-            sigma_normal: 0.25,
-            sigma_color: 0.2,
-            filter_color: true,
-            ..BilateralParams::default()
-        },
-    )
-    .unwrap();
+    let (base, detail, _) = bilateral_split_example();
     assert_eq!(image(&r.outputs["base"]), &base);
     assert_eq!(image(&r.outputs["detail"]), &detail);
 }
