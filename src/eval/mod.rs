@@ -875,18 +875,13 @@ impl Evaluator {
         let inst = &plan.instances[i];
         let spec = inst.op.spec();
         // A lazy operator is told which outputs are read; the rest are recorded as skipped.
-        let ports = spec.outputs.len();
+        let skipped = spec.skipped(want);
         let lazy_ctx;
-        let (ctx, skipped) = if spec.lazy_outputs && want != ALL_PORTS {
-            let all = if ports >= 64 {
-                ALL_PORTS
-            } else {
-                (1u64 << ports) - 1
-            };
+        let ctx = if skipped != 0 {
             lazy_ctx = ctx.wanting(want);
-            (&lazy_ctx, !want & all)
+            &lazy_ctx
         } else {
-            (ctx, 0)
+            ctx
         };
         let inputs: Vec<Option<Value>> = inst
             .inputs

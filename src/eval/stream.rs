@@ -212,7 +212,7 @@ impl<'p> StreamPlan<'p> {
             .iter()
             .enumerate()
             .map(|(i, &d)| {
-                if plan.instances[i].op.spec().lazy_outputs {
+                if plan.instances[i].op.spec().skipped(d) != 0 {
                     ctx.wanting(d)
                 } else {
                     ctx.clone()

@@ -181,6 +181,17 @@ impl OpSpec {
         self.lazy_outputs = true;
         self
     }
+    /// The outputs (bit `k`: port `k`) a run that reads only `wanted` leaves out: those not
+    /// wanted when the operator is lazy, none otherwise.
+    #[must_use]
+    pub fn skipped(&self, wanted: u64) -> u64 {
+        if !self.lazy_outputs {
+            return 0;
+        }
+        let n = self.outputs.len();
+        let all = if n >= 64 { ALL_PORTS } else { (1u64 << n) - 1 };
+        !wanted & all
+    }
 }
 
 /// Every output port wanted (bit `k`: port `k`).
