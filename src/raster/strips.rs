@@ -359,22 +359,30 @@ fn read_band(input: &mut StreamInput, y0: usize, y1: usize) -> Result<Band, Rgbn
     })
 }
 
-/// The strips: `(y0, y1)` rows each, `strip` rows but the first three and the last. The first
-/// three ramp up (an eighth, a quarter and half of `strip`, at least 16 rows): the work on the
-/// strips can start once a few rows are decoded instead of a whole strip's, while the decoding,
-/// which cannot be split, runs on beside it (the first strip of 512 rows of a 4K PNG is a
-/// tenth of a second of decoding with the other core idle). An image of at most `strip` rows is
-/// one strip.
+/// The strips: `(y0, y1)` rows each, `strip` rows but the first three and the last few. The
+/// first three ramp up (an eighth, a quarter and half of `strip`, at least 16 rows): the work on
+/// the strips can start once a few rows are decoded instead of a whole strip's, while the
+/// decoding, which cannot be split, runs on beside it (the first strip of 512 rows of a 4K PNG
+/// is a tenth of a second of decoding with the other core idle). The last ramp down: once at
+/// most a strip and a half is left, each strip takes half of what is left, down to an eighth of
+/// `strip` (at least 16 rows). What follows the last band's decoding (the last strip's
+/// operators, the last rows compressed and written, with the decoding's core otherwise idle) is
+/// then a small strip's work instead of a whole one's. An image of at most `strip` rows is one
+/// strip.
 fn strip_ranges(h: usize, strip: usize) -> impl Iterator<Item = (usize, usize)> {
+    let least = (strip >> 3).max(16);
     let mut k = 0u32;
     let mut y0 = 0;
     std::iter::from_fn(move || {
         if y0 >= h {
             return None;
         }
+        let left = h - y0;
         // One strip that holds the image stays one (exact, with no cut at all).
         let rows = if k < 3 && h > strip {
             (strip >> (3 - k)).max(16).min(strip)
+        } else if h > strip && left <= strip + strip / 2 && left > 2 * least {
+            left.div_ceil(2)
         } else {
             strip
         };
@@ -435,9 +443,19 @@ pub fn for_each_strip_image<E: From<RgbnError>>(
             Some(c) => Arc::new(c),
             None => {
                 if albedo[0].len() != n {
-                    // Shared only while a writer still holds an earlier strip: then a copy.
-                    for p in Arc::make_mut(&mut albedo).iter_mut() {
-                        p.resize(n, DEFAULT_ALBEDO);
+                    // Resized in place; while a writer still holds an earlier strip's, new
+                    // planes (the old ones are not copied to be resized).
+                    match Arc::get_mut(&mut albedo) {
+                        Some(planes) => planes
+                            .par_iter_mut()
+                            .for_each(|p| p.resize(n, DEFAULT_ALBEDO)),
+                        None => {
+                            let mut planes: [Vec<f32>; 3] = Default::default();
+                            planes
+                                .par_iter_mut()
+                                .for_each(|p| *p = vec![DEFAULT_ALBEDO; n]);
+                            albedo = Arc::new(planes);
+                        }
                     }
                 }
                 albedo.clone()
@@ -565,27 +583,51 @@ mod tests {
     use super::strip_ranges;
 
     /// The strips tile the rows exactly once, in order; the first three are an eighth, a
-    /// quarter and half of the strip (at least 16 rows, at most the strip), the rest whole
-    /// strips but the last; an image within one strip is one strip.
+    /// quarter and half of the strip (at least 16 rows, at most the strip); the last halve what
+    /// is left once at most a strip and a half is; whole strips between; an image within one
+    /// strip is one strip.
     #[test]
-    fn strips_ramp_up_and_cover_every_row_once() {
-        for (h, strip, first) in [
-            (2160, 256, vec![(0, 32), (32, 96), (96, 224), (224, 480)]),
-            (100, 64, vec![(0, 16), (16, 32), (32, 64), (64, 100)]),
-            (10, 7, vec![(0, 7), (7, 10)]),
-            (5, 1, vec![(0, 1), (1, 2), (2, 3), (3, 4)]),
-            (100, 100, vec![(0, 100)]),
-            (100, 200, vec![(0, 100)]),
+    fn strips_ramp_up_and_down_and_cover_every_row_once() {
+        for (h, strip, first, last) in [
+            (
+                2160,
+                256,
+                vec![(0, 32), (32, 96), (96, 224), (224, 480)],
+                // 2016 + 144: 72, then 36 and 36 (no halving below 2 · 32 rows).
+                vec![(1760, 2016), (2016, 2088), (2088, 2124), (2124, 2160)],
+            ),
+            (
+                100,
+                64,
+                vec![(0, 16), (16, 32), (32, 64)],
+                vec![(32, 64), (64, 82), (82, 100)],
+            ),
+            (10, 7, vec![(0, 7), (7, 10)], vec![(7, 10)]),
+            (5, 1, vec![(0, 1), (1, 2), (2, 3), (3, 4)], vec![(4, 5)]),
+            (100, 100, vec![(0, 100)], vec![(0, 100)]),
+            (100, 200, vec![(0, 100)], vec![(0, 100)]),
         ] {
             let r: Vec<(usize, usize)> = strip_ranges(h, strip).collect();
             assert_eq!(&r[..first.len()], &first[..], "h {h}, strip {strip}");
+            assert_eq!(
+                &r[r.len() - last.len()..],
+                &last[..],
+                "h {h}, strip {strip}"
+            );
             assert_eq!(r[0].0, 0);
             assert_eq!(r.last().unwrap().1, h);
             for w in r.windows(2) {
                 assert_eq!(w[0].1, w[1].0, "contiguous");
             }
-            for &(a, b) in r.iter().skip(3).rev().skip(1) {
-                assert_eq!(b - a, strip, "whole strips after the ramp");
+            for &(a, b) in &r {
+                let left = h - a;
+                let whole = b - a == strip.min(left);
+                let halved = b - a == left.div_ceil(2) && left <= strip + strip / 2;
+                let ramp_up = a < (strip >> 1).max(16) * 2;
+                assert!(
+                    whole || halved || ramp_up,
+                    "strip {a}..{b} of {h}, strip {strip}"
+                );
             }
         }
     }
