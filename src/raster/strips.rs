@@ -365,12 +365,13 @@ fn read_band(input: &mut StreamInput, y0: usize, y1: usize) -> Result<Band, Rgbn
 /// decoding, which cannot be split, runs on beside it (the first strip of 512 rows of a 4K PNG
 /// is a tenth of a second of decoding with the other core idle). The last ramp down: once at
 /// most a strip and a half is left, each strip takes half of what is left, down to an eighth of
-/// `strip` (at least 16 rows). What follows the last band's decoding (the last strip's
+/// `strip` (at least 16 rows, and at least `halo`: a strip's own rows stay more than the context
+/// recomputed around it). What follows the last band's decoding (the last strip's
 /// operators, the last rows compressed and written, with the decoding's core otherwise idle) is
 /// then a small strip's work instead of a whole one's. An image of at most `strip` rows is one
 /// strip.
-fn strip_ranges(h: usize, strip: usize) -> impl Iterator<Item = (usize, usize)> {
-    let least = (strip >> 3).max(16);
+fn strip_ranges(h: usize, strip: usize, halo: usize) -> impl Iterator<Item = (usize, usize)> {
+    let least = (strip >> 3).max(16).max(halo);
     let mut k = 0u32;
     let mut y0 = 0;
     std::iter::from_fn(move || {
@@ -499,7 +500,7 @@ fn drive<E: From<RgbnError>>(
     // The bands to read: each strip's window ends `halo` rows below it.
     let bands = move || {
         let mut read = 0;
-        strip_ranges(h, strip).filter_map(move |(_, y1)| {
+        strip_ranges(h, strip, halo).filter_map(move |(_, y1)| {
             let b = (y1 + halo).min(h);
             (b != read).then(|| (std::mem::replace(&mut read, b), b))
         })
@@ -507,7 +508,7 @@ fn drive<E: From<RgbnError>>(
     // Runs every strip, taking the bands from `next` as their rows are needed.
     let mut strips = |next: &mut dyn FnMut() -> Result<Band, RgbnError>| -> Result<Validation, E> {
         let mut repaired = Validation::default();
-        for (y0, y1) in strip_ranges(h, strip) {
+        for (y0, y1) in strip_ranges(h, strip, halo) {
             let (a, b) = (y0.saturating_sub(halo), (y1 + halo).min(h));
             // Drop the rows above the new window; keep the overlap; append what was read.
             let drop_rows = a.saturating_sub(win.y0).min(win.rows);
@@ -607,7 +608,7 @@ mod tests {
             (100, 100, vec![(0, 100)], vec![(0, 100)]),
             (100, 200, vec![(0, 100)], vec![(0, 100)]),
         ] {
-            let r: Vec<(usize, usize)> = strip_ranges(h, strip).collect();
+            let r: Vec<(usize, usize)> = strip_ranges(h, strip, 8).collect();
             assert_eq!(&r[..first.len()], &first[..], "h {h}, strip {strip}");
             assert_eq!(
                 &r[r.len() - last.len()..],
@@ -630,5 +631,17 @@ mod tests {
                 );
             }
         }
+    }
+
+    /// The ramp down stops at the halo: with 60 rows of context, 144 rows left are two strips
+    /// of 72 (halved once), not 72, 36 and 36.
+    #[test]
+    fn the_ramp_down_keeps_strips_above_the_halo() {
+        let r: Vec<(usize, usize)> = strip_ranges(2160, 256, 60).collect();
+        assert_eq!(
+            &r[r.len() - 3..],
+            &[(1760, 2016), (2016, 2088), (2088, 2160)]
+        );
+        assert!(r.iter().skip(3).all(|&(a, b)| b - a >= 60));
     }
 }
