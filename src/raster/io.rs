@@ -17,6 +17,7 @@
 //! Writes are atomic (a temporary file in the same folder, then rename) and refuse to write over
 //! any input (see [`check_output`]).
 
+pub mod ahead;
 mod exr_write;
 mod openexr;
 mod png_normals;
@@ -358,13 +359,14 @@ fn png_decode_error(path: &Path, e: png::DecodingError) -> RgbnError {
 fn png_reader(
     path: &Path,
     transformations: png::Transformations,
-) -> Result<png::Reader<std::io::BufReader<std::fs::File>>, RgbnError> {
+) -> Result<png::Reader<std::io::BufReader<ahead::ReadAhead>>, RgbnError> {
     let file = std::fs::File::open(path).map_err(|e| RgbnError::Read {
         path: path.into(),
         source: e,
     })?;
     let limits = png::Limits { bytes: usize::MAX };
-    let mut dec = png::Decoder::new_with_limits(std::io::BufReader::new(file), limits);
+    let mut dec =
+        png::Decoder::new_with_limits(std::io::BufReader::new(ahead::ReadAhead::new(file)), limits);
     dec.set_transformations(transformations);
     dec.read_info().map_err(|e| png_decode_error(path, e))
 }

@@ -12,6 +12,7 @@
 //!   [`ExrRows`] for channels of an EXR stored in scan-line blocks top to bottom (a tiled one
 //!   is read whole); [`Rows`] is any of them, by the file's extension.
 
+use super::ahead::ReadAhead;
 use super::{open_check, png_decode_error, NormalConvention};
 use crate::error::RgbnError;
 use crate::raster::srgb::{srgb16_lut, srgb8_lut};
@@ -124,7 +125,7 @@ impl Rows {
 }
 
 type ExrBlocks = exr::block::reader::SequentialBlockDecompressor<
-    exr::block::reader::AllChunksReader<BufReader<File>>,
+    exr::block::reader::AllChunksReader<BufReader<ReadAhead>>,
 >;
 
 /// Channels of an EXR of one layer stored in scan-line blocks top to bottom (line order
@@ -172,8 +173,11 @@ impl ExrRows {
             path: path.into(),
             source: e,
         })?;
-        let reader =
-            exr::block::read(BufReader::with_capacity(1 << 20, file), false).map_err(err)?;
+        let reader = exr::block::read(
+            BufReader::with_capacity(1 << 20, ReadAhead::new(file)),
+            false,
+        )
+        .map_err(err)?;
         let headers = reader.headers();
         if headers.len() != 1 {
             return Ok(Err(format!(
@@ -333,7 +337,7 @@ const MAX_TIFF_STRIP_PIXELS: usize = 1 << 24;
 /// samples, grey, grey + alpha, RGB or RGBA, interleaved.
 pub struct TiffRows {
     path: PathBuf,
-    dec: tiff::decoder::Decoder<BufReader<File>>,
+    dec: tiff::decoder::Decoder<BufReader<ReadAhead>>,
     width: usize,
     height: usize,
     channels: usize,
@@ -360,7 +364,8 @@ impl TiffRows {
             path: path.into(),
         };
         let mut dec =
-            tiff::decoder::Decoder::new(BufReader::with_capacity(1 << 20, file)).map_err(err)?;
+            tiff::decoder::Decoder::new(BufReader::with_capacity(1 << 20, ReadAhead::new(file)))
+                .map_err(err)?;
         let (w, h) = dec.dimensions().map_err(err)?;
         let (width, height) = (w as usize, h as usize);
         if width == 0 || height == 0 {
@@ -473,7 +478,7 @@ impl TiffRows {
 /// A PNG read top to bottom, a band of rows at a time.
 pub struct PngRows {
     path: PathBuf,
-    reader: png::Reader<BufReader<File>>,
+    reader: png::Reader<BufReader<ReadAhead>>,
     width: usize,
     height: usize,
     channels: usize,
@@ -493,8 +498,10 @@ impl PngRows {
         })?;
         // Rows are decoded one at a time: no image-sized buffer, so no size limit here.
         let limits = png::Limits { bytes: usize::MAX };
-        let mut dec =
-            png::Decoder::new_with_limits(BufReader::with_capacity(1 << 20, file), limits);
+        let mut dec = png::Decoder::new_with_limits(
+            BufReader::with_capacity(1 << 20, ReadAhead::new(file)),
+            limits,
+        );
         dec.set_transformations(png::Transformations::EXPAND);
         let reader = dec.read_info().map_err(|e| png_decode_error(path, e))?;
         let info = reader.info();
