@@ -28,19 +28,27 @@ pub struct ReadAhead {
     file: File,
     len: u64,
     pos: u64,
+    window: u64,
     /// Bytes `[start, end)` asked for.
     asked: (u64, u64),
 }
 
 impl ReadAhead {
-    /// Wraps `file` (positioned at its start) and asks for its first window.
+    /// Wraps `file` (positioned at its start) and asks for its first [`WINDOW`].
     #[must_use]
     pub fn new(file: File) -> Self {
+        Self::with_window(file, WINDOW)
+    }
+
+    /// As [`new`](Self::new), asking `window` bytes ahead.
+    #[must_use]
+    pub fn with_window(file: File, window: u64) -> Self {
         let len = file.metadata().map_or(0, |m| m.len());
         let mut r = Self {
             file,
             len,
             pos: 0,
+            window,
             asked: (0, 0),
         };
         r.ask();
@@ -49,34 +57,42 @@ impl ReadAhead {
 
     /// Asks for what [`next_ask`] says the position needs.
     fn ask(&mut self) {
-        if let Some((from, to)) = next_ask(self.pos, self.asked, self.len) {
-            will_need(&self.file, from, to - from);
-            self.asked = if from == self.asked.1 {
-                (self.asked.0, to)
-            } else {
-                (from, to)
-            };
+        if let Some(ask) = next_ask(self.pos, self.asked, self.len, self.window) {
+            will_need(&self.file, ask.0, ask.1 - ask.0);
+            self.asked = asked_after(self.asked, ask);
         }
     }
 }
 
 /// The bytes `[from, to)` to ask for next when reading at `pos` of a file of `len` bytes,
-/// `asked` being asked already; `None` while at least half a [`WINDOW`] ahead is asked for (or
-/// the file's end). Inside the asked range the next half window follows it; outside (a seek,
-/// or nothing asked yet), a whole window starts at `pos`.
+/// `asked` being asked already, `window` bytes ahead; `None` while at least half a window
+/// ahead is asked for (or the file's end). Inside the asked range the next half window follows
+/// it; outside (a seek, or nothing asked yet), a whole window starts at `pos`.
 #[must_use]
-pub fn next_ask(pos: u64, asked: (u64, u64), len: u64) -> Option<(u64, u64)> {
+pub fn next_ask(pos: u64, asked: (u64, u64), len: u64, window: u64) -> Option<(u64, u64)> {
     let (start, end) = asked;
+    let half = window / 2;
     if pos >= len {
         return None;
     }
     if start == end || pos < start || pos > end {
-        return Some((pos, (pos + WINDOW).min(len)));
+        return Some((pos, (pos + window).min(len)));
     }
-    if end >= len || end >= pos + WINDOW / 2 {
+    if end >= len || end >= pos + half {
         return None;
     }
-    Some((end, (end + WINDOW / 2).max(pos + WINDOW / 2).min(len)))
+    Some((end, (end + half).max(pos + half).min(len)))
+}
+
+/// The range asked for once `ask` (from [`next_ask`]) is asked after `asked`: one range when
+/// it follows on, else the new one alone.
+#[must_use]
+pub fn asked_after(asked: (u64, u64), ask: (u64, u64)) -> (u64, u64) {
+    if ask.0 == asked.1 {
+        (asked.0, ask.1)
+    } else {
+        ask
+    }
 }
 
 /// Asks the kernel to start reading `len` bytes of `file` from `offset` (a hint: its result
@@ -125,9 +141,9 @@ mod tests {
         let mut out = Vec::new();
         let mut pos = 0;
         loop {
-            if let Some((a, b)) = next_ask(pos, asked, len) {
-                out.push((a, b));
-                asked = if a == asked.1 { (asked.0, b) } else { (a, b) };
+            if let Some(ask) = next_ask(pos, asked, len, WINDOW) {
+                out.push(ask);
+                asked = asked_after(asked, ask);
             }
             // Whatever is read next lies in what was asked, at least half a window on.
             assert!(pos >= len || (asked.0 <= pos && asked.1 >= (pos + WINDOW / 2).min(len)));
@@ -165,20 +181,20 @@ mod tests {
     fn a_seek_outside_what_was_asked_starts_a_window_there() {
         // Asked [0, 32 MB): a seek to 80 MB of a 100 MB file asks [80, 100).
         assert_eq!(
-            next_ask(80 * MB, (0, 32 * MB), 100 * MB),
+            next_ask(80 * MB, (0, 32 * MB), 100 * MB, WINDOW),
             Some((80 * MB, 100 * MB))
         );
         // A seek back before the asked range (a TIFF's header read at its end, then strips).
         assert_eq!(
-            next_ask(MB, (90 * MB, 100 * MB), 100 * MB),
+            next_ask(MB, (90 * MB, 100 * MB), 100 * MB, WINDOW),
             Some((MB, MB + WINDOW))
         );
         // Nothing to ask at or past the end, or while half a window ahead is asked.
-        assert_eq!(next_ask(100 * MB, (0, 32 * MB), 100 * MB), None);
-        assert_eq!(next_ask(10 * MB, (0, 32 * MB), 100 * MB), None);
+        assert_eq!(next_ask(100 * MB, (0, 32 * MB), 100 * MB, WINDOW), None);
+        assert_eq!(next_ask(10 * MB, (0, 32 * MB), 100 * MB, WINDOW), None);
         // Just under half a window ahead: the next half window.
         assert_eq!(
-            next_ask(17 * MB, (0, 32 * MB), 100 * MB),
+            next_ask(17 * MB, (0, 32 * MB), 100 * MB, WINDOW),
             Some((32 * MB, 32 * MB + WINDOW / 2))
         );
     }
@@ -187,15 +203,17 @@ mod tests {
     fn reads_and_seeks_return_the_files_bytes() {
         let dir = tempfile::tempdir().unwrap();
         let path = dir.path().join("f.bin");
-        // Three windows and a bit, bytes from a simple generator.
-        let len = 3 * WINDOW as usize + 4097;
+        // Three windows of 64 KiB and a bit (so reads cross several asks), bytes from a
+        // simple generator.
+        const W: u64 = 64 << 10;
+        let len = 3 * W as usize + 4097;
         let bytes: Vec<u8> = (0..len)
             .map(|i| (i.wrapping_mul(2_654_435_761) >> 13) as u8)
             .collect();
         std::fs::write(&path, &bytes).unwrap();
-        let mut r = ReadAhead::new(File::open(&path).unwrap());
+        let mut r = ReadAhead::with_window(File::open(&path).unwrap(), W);
         let mut got = Vec::new();
-        let mut buf = vec![0u8; 1_000_003];
+        let mut buf = vec![0u8; 10_007];
         loop {
             let n = r.read(&mut buf).unwrap();
             if n == 0 {
@@ -204,7 +222,9 @@ mod tests {
             got.extend_from_slice(&buf[..n]);
         }
         assert!(got == bytes, "a front-to-back read differs");
-        for at in [len as u64 - 10, 7, WINDOW + 3] {
+        // The reads asked the kernel for the whole file, up to its end.
+        assert_eq!(r.asked.1, len as u64);
+        for at in [len as u64 - 10, 7, W + 3] {
             assert_eq!(r.seek(SeekFrom::Start(at)).unwrap(), at);
             let mut b = [0u8; 10];
             let n = r.read(&mut b).unwrap();
