@@ -81,7 +81,8 @@ pub fn next_ask(pos: u64, asked: (u64, u64), len: u64, window: u64) -> Option<(u
     if end >= len || end >= pos + half {
         return None;
     }
-    Some((end, (end + half).max(pos + half).min(len)))
+    // Here pos ≤ end < pos + half: the next half window from `end` reaches past pos + half.
+    Some((end, (end + half).min(len)))
 }
 
 /// The range asked for once `ask` (from [`next_ask`]) is asked after `asked`: one range when
@@ -95,22 +96,27 @@ pub fn asked_after(asked: (u64, u64), ask: (u64, u64)) -> (u64, u64) {
     }
 }
 
-/// Asks the kernel to start reading `len` bytes of `file` from `offset` (a hint: its result
-/// is ignored; a file system without readahead ignores it too).
-#[cfg(target_os = "linux")]
+/// Asks the kernel to start reading `len` bytes of `file` from `offset`.
 fn will_need(file: &File, offset: u64, len: u64) {
+    #[cfg(target_os = "linux")]
+    advise(file, offset, len, libc::POSIX_FADV_WILLNEED);
+    #[cfg(not(target_os = "linux"))]
+    let _ = (file, offset, len);
+}
+
+/// `posix_fadvise(file, offset, len, advice)` (`len` 0: to the end of the file). A hint: its
+/// result is ignored, and a file system without a page cache ignores it too.
+#[cfg(target_os = "linux")]
+pub(crate) fn advise(file: &File, offset: u64, len: u64, advice: libc::c_int) {
     use std::os::fd::AsRawFd;
     let (Ok(off), Ok(n)) = (libc::off_t::try_from(offset), libc::off_t::try_from(len)) else {
         return;
     };
-    // SAFETY: a valid open descriptor and a byte range; the advice changes no contents.
+    // SAFETY: a valid open descriptor and a byte range; advice changes no file's contents.
     unsafe {
-        libc::posix_fadvise(file.as_raw_fd(), off, n, libc::POSIX_FADV_WILLNEED);
+        libc::posix_fadvise(file.as_raw_fd(), off, n, advice);
     }
 }
-
-#[cfg(not(target_os = "linux"))]
-fn will_need(_file: &File, _offset: u64, _len: u64) {}
 
 impl Read for ReadAhead {
     fn read(&mut self, buf: &mut [u8]) -> std::io::Result<usize> {

@@ -92,7 +92,6 @@ const FORGET_FROM: u64 = 8 << 20;
 /// copies of what is on disk): a run that fails leaves it as it was.
 #[cfg(target_os = "linux")]
 fn forget_cached(path: &Path) {
-    use std::os::fd::AsRawFd;
     let big = std::fs::metadata(path).is_ok_and(|m| m.is_file() && m.len() >= FORGET_FROM);
     if !big {
         return;
@@ -103,10 +102,7 @@ fn forget_cached(path: &Path) {
         .name("rgbn-forget-cached".into())
         .spawn(move || {
             if let Ok(f) = File::open(&path) {
-                // SAFETY: a valid open descriptor; offset 0 and length 0 mean the whole file.
-                unsafe {
-                    libc::posix_fadvise(f.as_raw_fd(), 0, 0, libc::POSIX_FADV_DONTNEED);
-                }
+                super::ahead::advise(&f, 0, 0, libc::POSIX_FADV_DONTNEED);
             }
         });
 }
