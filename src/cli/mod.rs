@@ -154,6 +154,11 @@ where
                 if std::env::var_os("RGBN_KEEP_FREED").is_none_or(|v| v != "0") {
                     crate::recycle::keep_freed_memory();
                 }
+                // Files replaced by outputs are freed after the process exits, not in the
+                // commit (`RGBN_FREE_REPLACED=0`: at once, for measuring it).
+                if std::env::var_os("RGBN_FREE_REPLACED").is_none_or(|v| v != "0") {
+                    crate::raster::io::targets::replaced::free_replaced_after_exit();
+                }
                 interrupt::install();
                 let stdout = std::io::stdout();
                 let mut lock = stdout.lock();

@@ -10,11 +10,12 @@
 //! [`crate::raster::convolve::gaussian_support`]). Consecutive windows overlap by `2·halo` rows,
 //! which are kept, not read again: each file is read once, top to bottom.
 
-use super::io::stream::{ExrRows, RowMap, Rows};
-use super::io::{Format, InputSpec, LoadOptions, DEFAULT_ALBEDO};
+use super::io::stream::{ExrRows, RowMap, Rows, Samples};
+use super::io::{Format, InputSpec, LoadOptions, NormalConvention, DEFAULT_ALBEDO};
 use super::{RgbnImage, Validation, MIN_NORMAL_LENGTH};
 use crate::error::RgbnError;
 use rayon::prelude::*;
+use std::mem::MaybeUninit;
 use std::ops::Range;
 use std::path::Path;
 use std::sync::Arc;
@@ -256,56 +257,50 @@ impl Window<'_> {
 }
 
 /// Normalises decoded normals as [`RgbnImage::repair`] does (zero-length ones become
-/// `(0, 0, 1)`) and counts what needed it.
+/// `(0, 0, 1)`) and counts what needed it. The loop is branch-free (selects and mask counts),
+/// so it vectorises; a pixel at a time through three zipped parallel iterators was a tenth of
+/// a streamed 4K graph's CPU time.
 fn repair_normals([nx, ny, nz]: [&mut [f32]; 3]) -> Validation {
-    /// Pixels per task: the loop below is branch-free (selects and mask counts), so each
-    /// chunk vectorises; a pixel at a time through three zipped parallel iterators was a tenth
-    /// of a streamed 4K graph's CPU time.
-    const CHUNK: usize = 1 << 14;
-    nx.par_chunks_mut(CHUNK)
-        .zip(ny.par_chunks_mut(CHUNK))
-        .zip(nz.par_chunks_mut(CHUNK))
-        .map(|((xs, ys), zs)| {
-            let (mut zero, mut non_unit, mut back) = (0usize, 0usize, 0usize);
-            for ((x, y), z) in xs.iter_mut().zip(ys.iter_mut()).zip(zs.iter_mut()) {
-                let len = (*x * *x + *y * *y + *z * *z).sqrt();
-                let is_zero = len < MIN_NORMAL_LENGTH;
-                zero += usize::from(is_zero);
-                non_unit += usize::from(!is_zero & ((len - 1.0).abs() > 1e-3));
-                back += usize::from(!is_zero & (*z <= 0.0));
-                (*x, *y, *z) = if is_zero {
-                    (0.0, 0.0, 1.0)
-                } else {
-                    (*x / len, *y / len, *z / len)
-                };
-            }
-            Validation {
-                pixels: xs.len(),
-                zero_length_normal: zero,
-                non_unit,
-                back_facing: back,
-                ..Validation::default()
-            }
-        })
-        .reduce(Validation::default, Validation::merge)
+    let (mut zero, mut non_unit, mut back) = (0usize, 0usize, 0usize);
+    for ((x, y), z) in nx.iter_mut().zip(ny.iter_mut()).zip(nz.iter_mut()) {
+        let len = (*x * *x + *y * *y + *z * *z).sqrt();
+        let is_zero = len < MIN_NORMAL_LENGTH;
+        zero += usize::from(is_zero);
+        non_unit += usize::from(!is_zero & ((len - 1.0).abs() > 1e-3));
+        back += usize::from(!is_zero & (*z <= 0.0));
+        (*x, *y, *z) = if is_zero {
+            (0.0, 0.0, 1.0)
+        } else {
+            (*x / len, *y / len, *z / len)
+        };
+    }
+    Validation {
+        pixels: nx.len(),
+        zero_length_normal: zero,
+        non_unit,
+        back_facing: back,
+        ..Validation::default()
+    }
 }
 
-/// Rows `y0..y1` of the files, decoded (the normals not yet repaired: [`repair_band`]).
+/// Rows `y0..y1` of the files, decoded and not yet mapped ([`Samples`]; the normals not yet
+/// repaired either: [`append_band`]).
 struct Band {
     y0: usize,
     y1: usize,
-    normal: [Vec<f32>; 3],
-    color: Option<[Vec<f32>; 3]>,
-    mask: Option<Vec<f32>>,
+    normal: Samples,
+    color: Option<Samples>,
+    mask: Option<Samples>,
 }
 
-/// Repairs a band's normals ([`repair_normals`]), on the strips' side: the reading thread,
-/// whose decoding is the one part that cannot be split, only decodes (the repair on its side
-/// waited for the pool behind the strips' work, and the reading fell behind). With `strict`
-/// loading, a band with a normal that needs repair is an error (its count is the band's).
-fn repair_band(band: &mut Band, strict: bool, path: &Path) -> Result<Validation, RgbnError> {
-    let [nx, ny, nz] = &mut band.normal;
-    let repaired = repair_normals([nx, ny, nz]);
+/// With `strict` loading, rows with a normal that needed repair are an error (its count is
+/// theirs; `rows` names them).
+fn check_strict(
+    repaired: Validation,
+    strict: bool,
+    path: &Path,
+    rows: Range<usize>,
+) -> Result<Validation, RgbnError> {
     if strict && !repaired.is_clean() {
         let (count, kind) = if repaired.zero_length_normal > 0 {
             (repaired.zero_length_normal, "zero-length")
@@ -314,48 +309,106 @@ fn repair_band(band: &mut Band, strict: bool, path: &Path) -> Result<Validation,
         };
         return Err(RgbnError::InvalidNormals {
             count,
-            kind: format!("{kind}, in rows {}..{}", band.y0, band.y1),
+            kind: format!("{kind}, in rows {}..{}", rows.start, rows.end),
             path: path.into(),
         });
     }
     Ok(repaired)
 }
 
-/// Reads the next `y1 − y0` rows of `input` (rows `y0..y1`).
-fn read_band(input: &mut StreamInput, y0: usize, y1: usize) -> Result<Band, RgbnError> {
-    let n = (y1 - y0) * input.size().0;
-    let planes = || -> [Vec<f32>; 3] { std::array::from_fn(|_| vec![0.0; n]) };
-    let mut normal = planes();
-    {
-        let [nx, ny, nz] = &mut normal;
-        let mut p = [&mut nx[..], &mut ny[..], &mut nz[..]];
-        input
-            .normal
-            .read(&mut p, RowMap::Normal(input.opts.convention))?;
+/// Rows of the window appended from one band at a time, mapped on the pool in blocks of this
+/// many rows.
+const APPEND_ROWS: usize = 8;
+
+/// Appends `band`'s rows to the window's planes: each file's samples mapped to `f32`
+/// ([`Samples::map_rows`]) straight into the planes' new rows and the normals repaired there
+/// ([`repair_normals`], as [`crate::raster::io::load`] does), blocks of rows in parallel, one
+/// pass. This is the caller's work, between two strips' parallel work; the reading thread,
+/// whose decoding is the one part that cannot be split, only decodes. Returns what was
+/// repaired.
+fn append_band(
+    win: &mut Planes,
+    band: &Band,
+    w: usize,
+    convention: NormalConvention,
+) -> Validation {
+    let rows = band.y1 - band.y0;
+    let n = rows * w;
+    if n == 0 {
+        return Validation::default();
     }
-    let color = match input.color.as_mut() {
-        Some(r) => {
-            let mut c = planes();
-            let [c0, c1, c2] = &mut c;
-            r.read(&mut [c0, c1, c2], RowMap::Srgb)?;
-            Some(c)
+    // The files in the order of `Planes::all_mut`, with their planes' count.
+    let files: Vec<(&Samples, RowMap, usize)> = [
+        Some((&band.normal, RowMap::Normal(convention), 3)),
+        band.color.as_ref().map(|c| (c, RowMap::Srgb, 3)),
+        band.mask.as_ref().map(|m| (m, RowMap::Unit, 1)),
+    ]
+    .into_iter()
+    .flatten()
+    .collect();
+    let blocks = rows.div_ceil(APPEND_ROWS);
+    let mut per_block: Vec<Vec<&mut [MaybeUninit<f32>]>> =
+        (0..blocks).map(|_| Vec::with_capacity(7)).collect();
+    let mut planes = 0;
+    for p in win.all_mut() {
+        // Exactly: a doubling growth would hold up to twice the window.
+        p.reserve_exact(n);
+        for (b, part) in p.spare_capacity_mut()[..n]
+            .chunks_mut(APPEND_ROWS * w)
+            .enumerate()
+        {
+            per_block[b].push(part);
         }
-        None => None,
-    };
-    let mask = match input.mask.as_mut() {
-        Some(r) => {
-            let mut m = vec![0.0; n];
-            r.read(&mut [&mut m], RowMap::Unit)?;
-            Some(m)
-        }
-        None => None,
-    };
+        planes += 1;
+    }
+    assert_eq!(planes, files.iter().map(|f| f.2).sum::<usize>());
+    let repaired = per_block
+        .into_par_iter()
+        .enumerate()
+        .map(|(b, mut parts)| {
+            let r = b * APPEND_ROWS..((b + 1) * APPEND_ROWS).min(rows);
+            let mut rest = &mut parts[..];
+            for &(samples, map, k) in &files {
+                let (mine, more) = rest.split_at_mut(k);
+                samples.map_rows(r.clone(), mine, map);
+                rest = more;
+            }
+            // The normals (the first three planes), written just above.
+            let [x, y, z] = &mut parts[..3] else {
+                unreachable!("three normal planes")
+            };
+            // SAFETY: `map_rows` wrote every value of these parts (`MaybeUninit<f32>` has
+            // `f32`'s layout).
+            let init = |p: &mut [MaybeUninit<f32>]| unsafe {
+                &mut *(std::ptr::from_mut::<[MaybeUninit<f32>]>(p) as *mut [f32])
+            };
+            repair_normals([init(x), init(y), init(z)])
+        })
+        .reduce(Validation::default, Validation::merge);
+    for p in win.all_mut() {
+        // SAFETY: `reserve_exact` made room for `n` more values, and the blocks above wrote
+        // every one of them (`map_rows` writes all of its rows of every plane it is given; the
+        // blocks cover rows `0..rows` of every plane).
+        unsafe { p.set_len(p.len() + n) };
+    }
+    repaired
+}
+
+/// Reads the next `y1 − y0` rows of `input` (rows `y0..y1`), as stored.
+fn read_band(input: &mut StreamInput, y0: usize, y1: usize) -> Result<Band, RgbnError> {
+    let rows = y1 - y0;
     Ok(Band {
         y0,
         y1,
-        normal,
-        color,
-        mask,
+        normal: input.normal.read_samples(rows)?,
+        color: match input.color.as_mut() {
+            Some(r) => Some(r.read_samples(rows)?),
+            None => None,
+        },
+        mask: match input.mask.as_mut() {
+            Some(r) => Some(r.read_samples(rows)?),
+            None => None,
+        },
     })
 }
 
@@ -497,6 +550,7 @@ fn drive<E: From<RgbnError>>(
     };
     let path = input.normal.path().to_path_buf();
     let strict = input.opts.strict;
+    let convention = input.opts.convention;
     // The bands to read: each strip's window ends `halo` rows below it.
     let bands = move || {
         let mut read = 0;
@@ -518,23 +572,14 @@ fn drive<E: From<RgbnError>>(
             win.y0 = a;
             win.rows -= drop_rows;
             while win.y0 + win.rows < b {
-                let mut band = next()?;
+                let band = next()?;
                 debug_assert_eq!(band.y0, win.y0 + win.rows);
-                let band_repaired = repair_band(&mut band, strict, &path)?;
-                let len = (win.rows + band.y1 - band.y0) * w;
-                let news = band
-                    .normal
-                    .iter()
-                    .chain(band.color.iter().flatten())
-                    .chain(band.mask.as_ref());
-                // The planes side by side: these copies are the caller's, between two strips'
-                // parallel work.
-                let pairs: Vec<(&mut Vec<f32>, &Vec<f32>)> = win.all_mut().zip(news).collect();
-                pairs.into_par_iter().for_each(|(p, new)| {
-                    // Exactly: a doubling growth would hold up to twice the window.
-                    p.reserve_exact(len.saturating_sub(p.len()));
-                    p.extend_from_slice(new);
-                });
+                let band_repaired = check_strict(
+                    append_band(&mut win, &band, w, convention),
+                    strict,
+                    &path,
+                    band.y0..band.y1,
+                )?;
                 win.rows += band.y1 - band.y0;
                 repaired = repaired.merge(band_repaired);
             }

@@ -18,6 +18,8 @@ use crate::error::RgbnError;
 use crate::raster::srgb::{srgb16_lut, srgb8_lut};
 use std::fs::File;
 use std::io::BufReader;
+use std::mem::MaybeUninit;
+use std::ops::Range;
 use std::path::{Path, PathBuf};
 
 /// How decoded samples become `f32`.
@@ -31,26 +33,156 @@ pub enum RowMap {
     Unit,
 }
 
-/// Sample `v` of channel `k` of an 8- or 16-bit file as `map` says, with the arithmetic of the
-/// whole-image loaders.
-fn sample_map(map: RowMap, sixteen: bool) -> impl Fn(u16, usize) -> f32 {
-    let max = if sixteen { 65535.0 } else { 255.0 };
-    let (lut8, lut16) = (srgb8_lut(), srgb16_lut());
-    move |v: u16, k: usize| -> f32 {
+/// How sample `v` of channel `k` of an 8- or 16-bit file becomes `f32` as `map` says, with the
+/// arithmetic of the whole-image loaders.
+#[derive(Clone, Copy)]
+enum SampleFn {
+    /// `v·scale − 1`, negated for a DirectX normal's `y`.
+    Normal { scale: f32, negate: bool },
+    /// `v / max`.
+    Div(f32),
+    /// A table (sRGB to linear).
+    Lut(&'static [f32]),
+}
+
+impl SampleFn {
+    fn of(map: RowMap, sixteen: bool, k: usize) -> Self {
+        let max = if sixteen { 65535.0 } else { 255.0 };
         match map {
-            RowMap::Normal(conv) => {
-                let n = f32::from(v) * (2.0 / max) - 1.0;
-                if k == 1 && conv == NormalConvention::DirectX {
-                    -n
-                } else {
-                    n
-                }
-            }
-            RowMap::Srgb if sixteen => lut16[usize::from(v)],
-            RowMap::Srgb => lut8[usize::from(v)],
-            RowMap::Unit => f32::from(v) / max,
+            RowMap::Normal(conv) => SampleFn::Normal {
+                scale: 2.0 / max,
+                negate: k == 1 && conv == NormalConvention::DirectX,
+            },
+            RowMap::Srgb if sixteen => SampleFn::Lut(srgb16_lut()),
+            RowMap::Srgb => SampleFn::Lut(srgb8_lut()),
+            RowMap::Unit => SampleFn::Div(max),
         }
     }
+
+    /// `out[i] = self(sample(i))` for every `i`.
+    #[inline]
+    fn fill(self, out: &mut [MaybeUninit<f32>], sample: impl Fn(usize) -> u16) {
+        // One loop per mapping, the mapping chosen once per plane, not per sample.
+        match self {
+            SampleFn::Normal {
+                scale,
+                negate: false,
+            } => {
+                for (i, o) in out.iter_mut().enumerate() {
+                    o.write(f32::from(sample(i)) * scale - 1.0);
+                }
+            }
+            SampleFn::Normal {
+                scale,
+                negate: true,
+            } => {
+                for (i, o) in out.iter_mut().enumerate() {
+                    o.write(-(f32::from(sample(i)) * scale - 1.0));
+                }
+            }
+            SampleFn::Div(max) => {
+                for (i, o) in out.iter_mut().enumerate() {
+                    o.write(f32::from(sample(i)) / max);
+                }
+            }
+            SampleFn::Lut(t) => {
+                for (i, o) in out.iter_mut().enumerate() {
+                    o.write(t[usize::from(sample(i))]);
+                }
+            }
+        }
+    }
+}
+
+/// Rows of a file as decoded, before they become `f32` planes ([`Samples::map_rows`]): what the
+/// strip driver's reading thread hands on ([`crate::raster::strips`]), so that the mapping,
+/// which can be split, runs on the pool as the rows are appended to a strip's window, and the
+/// reading thread, whose decoding cannot be split, only decodes. Integer samples stay in their
+/// file's width (6 bytes a pixel for a 16-bit RGB PNG, not 12 as `f32` planes).
+pub struct Samples {
+    width: usize,
+    rows: usize,
+    /// Samples per pixel (interleaved data) or planes ([`SampleData::Planes`]).
+    channels: usize,
+    /// 16-bit samples (the scale of the mapping).
+    sixteen: bool,
+    data: SampleData,
+}
+
+enum SampleData {
+    /// 8-bit samples, interleaved.
+    U8(Vec<u8>),
+    /// 16-bit samples, interleaved, as big-endian byte pairs (PNG).
+    U16Be(Vec<u8>),
+    /// 16-bit samples, interleaved (TIFF; its 8-bit samples widened).
+    U16(Vec<u16>),
+    /// One `f32` plane per channel (EXR), taken as they are.
+    Planes(Vec<Vec<f32>>),
+}
+
+impl Samples {
+    /// Rows held.
+    #[must_use]
+    pub fn rows(&self) -> usize {
+        self.rows
+    }
+
+    /// Writes rows `rows` (of the ones held) of channel `k` into `planes[k]` (`rows.len() ×
+    /// width` values each, all written), mapped by `map` (an EXR's floats as they are); a
+    /// greyscale file repeats its channel.
+    ///
+    /// # Panics
+    /// If `rows` is not within the rows held or a plane has another length.
+    pub fn map_rows(
+        &self,
+        rows: Range<usize>,
+        planes: &mut [&mut [MaybeUninit<f32>]],
+        map: RowMap,
+    ) {
+        assert!(rows.end <= self.rows);
+        let (w, c) = (self.width, self.channels.max(1));
+        let n = rows.len() * w;
+        for (k, out) in planes.iter_mut().enumerate() {
+            assert_eq!(out.len(), n, "a plane of {} values for {n}", out.len());
+            let ch = k.min(c - 1);
+            let f = SampleFn::of(map, self.sixteen, k);
+            let base = rows.start * w * c + ch;
+            match &self.data {
+                SampleData::U8(d) => f.fill(out, |i| u16::from(d[base + i * c])),
+                SampleData::U16Be(d) => f.fill(out, |i| {
+                    let j = 2 * (base + i * c);
+                    u16::from_be_bytes([d[j], d[j + 1]])
+                }),
+                SampleData::U16(d) => f.fill(out, |i| d[base + i * c]),
+                SampleData::Planes(p) => {
+                    let src = &p[ch][rows.start * w..rows.end * w];
+                    for (o, v) in out.iter_mut().zip(src) {
+                        o.write(*v);
+                    }
+                }
+            }
+        }
+    }
+
+    /// [`map_rows`](Self::map_rows) of every row held into initialised planes.
+    pub fn map_into(&self, planes: &mut [&mut [f32]], map: RowMap) {
+        let mut views: Vec<&mut [MaybeUninit<f32>]> = planes
+            .iter_mut()
+            // SAFETY: `map_rows` writes only initialised values.
+            .map(|p| unsafe { as_uninit(p) })
+            .collect();
+        self.map_rows(0..self.rows, &mut views, map);
+    }
+}
+
+/// `p` as a slice to be written through [`Samples::map_rows`].
+///
+/// # Safety
+/// Only initialised values may be written through the result (as `map_rows` does), or `p` is
+/// left uninitialised.
+unsafe fn as_uninit(p: &mut [f32]) -> &mut [MaybeUninit<f32>] {
+    // SAFETY: `MaybeUninit<f32>` has `f32`'s layout; the caller writes only initialised values.
+    unsafe { &mut *(std::ptr::from_mut::<[f32]>(p) as *mut [MaybeUninit<f32>]) }
 }
 
 /// A file read top to bottom, a band of rows at a time: a PNG ([`PngRows`]), a TIFF stored
@@ -113,13 +245,12 @@ impl Rows {
         }
     }
 
-    /// Decodes the next `planes[0].len() / width` rows into `planes` ([`PngRows::read`]; an
-    /// EXR's float samples are taken as they are, as [`super::load_exr`] does, whatever `map`).
-    pub fn read(&mut self, planes: &mut [&mut [f32]], map: RowMap) -> Result<(), RgbnError> {
+    /// Decodes the next `rows` rows as they are stored ([`Samples`]).
+    pub fn read_samples(&mut self, rows: usize) -> Result<Samples, RgbnError> {
         match self {
-            Rows::Png(r) => r.read(planes, map),
-            Rows::Tiff(r) => r.read(planes, map),
-            Rows::Exr(r) => r.read(planes),
+            Rows::Png(r) => r.read_samples(rows),
+            Rows::Tiff(r) => r.read_samples(rows),
+            Rows::Exr(r) => r.read_samples(rows),
         }
     }
 }
@@ -304,11 +435,11 @@ impl ExrRows {
         Ok(())
     }
 
-    /// Reads the next `planes[0].len() / width` rows of the chosen channels into `planes`.
-    pub fn read(&mut self, planes: &mut [&mut [f32]]) -> Result<(), RgbnError> {
+    /// Reads the next `rows` rows of the chosen channels ([`Samples`]: one `f32` plane each).
+    pub fn read_samples(&mut self, rows: usize) -> Result<Samples, RgbnError> {
         let w = self.width;
-        let rows = planes.first().map_or(0, |p| p.len() / w);
-        for r in 0..rows {
+        let mut planes = vec![Vec::with_capacity(rows * w); self.want.len()];
+        for _ in 0..rows {
             if self.row >= self.height {
                 return Err(RgbnError::Decode {
                     detail: format!("the image has only {} rows", self.height),
@@ -319,13 +450,18 @@ impl ExrRows {
                 self.next_block()?;
             }
             let y = self.row - self.buf_y0;
-            for (k, plane) in planes.iter_mut().enumerate() {
-                let src = &self.buf[k.min(self.want.len() - 1)][y * w..(y + 1) * w];
-                plane[r * w..(r + 1) * w].copy_from_slice(src);
+            for (plane, src) in planes.iter_mut().zip(&self.buf) {
+                plane.extend_from_slice(&src[y * w..(y + 1) * w]);
             }
             self.row += 1;
         }
-        Ok(())
+        Ok(Samples {
+            width: w,
+            rows,
+            channels: self.want.len(),
+            sixteen: false,
+            data: SampleData::Planes(planes),
+        })
     }
 }
 
@@ -445,12 +581,11 @@ impl TiffRows {
         Ok(())
     }
 
-    /// Decodes the next `planes[0].len() / width` rows into `planes` ([`PngRows::read`]).
-    pub fn read(&mut self, planes: &mut [&mut [f32]], map: RowMap) -> Result<(), RgbnError> {
+    /// Decodes the next `rows` rows, as they are stored ([`Samples`]).
+    pub fn read_samples(&mut self, rows: usize) -> Result<Samples, RgbnError> {
         let (w, c) = (self.width, self.channels);
-        let rows = planes.first().map_or(0, |p| p.len() / w);
-        let f = sample_map(map, self.sixteen);
-        for r in 0..rows {
+        let mut data = Vec::with_capacity(rows * w * c);
+        for _ in 0..rows {
             if self.row >= self.height {
                 return Err(RgbnError::Decode {
                     detail: format!("the image has only {} rows", self.height),
@@ -461,17 +596,16 @@ impl TiffRows {
                 self.next_strip()?;
             }
             let off = (self.row - self.strip_y0) * w * c;
-            let data = &self.strip[off..off + w * c];
-            for (k, plane) in planes.iter_mut().enumerate() {
-                let ch = k.min(c - 1);
-                let out = &mut plane[r * w..(r + 1) * w];
-                for (x, o) in out.iter_mut().enumerate() {
-                    *o = f(data[x * c + ch], k);
-                }
-            }
+            data.extend_from_slice(&self.strip[off..off + w * c]);
             self.row += 1;
         }
-        Ok(())
+        Ok(Samples {
+            width: w,
+            rows,
+            channels: c,
+            sixteen: self.sixteen,
+            data: SampleData::U16(data),
+        })
     }
 }
 
@@ -545,15 +679,13 @@ impl PngRows {
         &self.path
     }
 
-    /// Decodes the next `planes[0].len() / width` rows into `planes` (channel `k` into plane
-    /// `k`; a greyscale file repeats its channel), mapped by `map`. A file that ends early is a
-    /// decode error naming the row.
-    pub fn read(&mut self, planes: &mut [&mut [f32]], map: RowMap) -> Result<(), RgbnError> {
-        let w = self.width;
-        let rows = planes.first().map_or(0, |p| p.len() / w);
+    /// Decodes the next `rows` rows, as they are stored ([`Samples`]: 16-bit samples as the
+    /// file's big-endian byte pairs). A file that ends early is a decode error naming the row.
+    pub fn read_samples(&mut self, rows: usize) -> Result<Samples, RgbnError> {
         let c = self.channels;
-        let f = sample_map(map, self.sixteen);
-        for r in 0..rows {
+        let row_bytes = self.width * c * if self.sixteen { 2 } else { 1 };
+        let mut data = Vec::with_capacity(rows * row_bytes);
+        for _ in 0..rows {
             let row = match self.reader.next_row() {
                 Ok(Some(row)) => row,
                 Ok(None) => {
@@ -573,23 +705,141 @@ impl PngRows {
                     return Err(err);
                 }
             };
-            let data = row.data();
-            for (k, plane) in planes.iter_mut().enumerate() {
-                let ch = k.min(c - 1);
-                let out = &mut plane[r * w..(r + 1) * w];
-                if self.sixteen {
-                    for (x, o) in out.iter_mut().enumerate() {
-                        let i = 2 * (x * c + ch);
-                        *o = f(u16::from_be_bytes([data[i], data[i + 1]]), k);
-                    }
-                } else {
-                    for (x, o) in out.iter_mut().enumerate() {
-                        *o = f(u16::from(data[x * c + ch]), k);
+            let bytes = row.data();
+            if bytes.len() < row_bytes {
+                return Err(RgbnError::Decode {
+                    detail: format!(
+                        "row {} holds {} bytes, {row_bytes} expected",
+                        self.row,
+                        bytes.len()
+                    ),
+                    path: self.path.clone(),
+                });
+            }
+            data.extend_from_slice(&bytes[..row_bytes]);
+            self.row += 1;
+        }
+        Ok(Samples {
+            width: self.width,
+            rows,
+            channels: c,
+            sixteen: self.sixteen,
+            data: if self.sixteen {
+                SampleData::U16Be(data)
+            } else {
+                SampleData::U8(data)
+            },
+        })
+    }
+
+    /// Decodes the next `planes[0].len() / width` rows into `planes` (channel `k` into plane
+    /// `k`; a greyscale file repeats its channel), mapped by `map`. A file that ends early is a
+    /// decode error naming the row.
+    pub fn read(&mut self, planes: &mut [&mut [f32]], map: RowMap) -> Result<(), RgbnError> {
+        let rows = planes.first().map_or(0, |p| p.len() / self.width);
+        self.read_samples(rows)?.map_into(planes, map);
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Writes a `w × h` PNG of `channels` samples of `bits` per sample, sample `i` being
+    /// `f(i)`.
+    fn png_of(
+        path: &Path,
+        (w, h): (u32, u32),
+        color: png::ColorType,
+        bits: u8,
+        f: impl Fn(usize) -> u16,
+    ) {
+        let channels = color.samples();
+        let mut enc = png::Encoder::new(File::create(path).unwrap(), w, h);
+        enc.set_color(color);
+        enc.set_depth(if bits == 16 {
+            png::BitDepth::Sixteen
+        } else {
+            png::BitDepth::Eight
+        });
+        let n = w as usize * h as usize * channels;
+        let data: Vec<u8> = if bits == 16 {
+            (0..n).flat_map(|i| f(i).to_be_bytes()).collect()
+        } else {
+            (0..n).map(|i| f(i) as u8).collect()
+        };
+        enc.write_header().unwrap().write_image_data(&data).unwrap();
+    }
+
+    /// Rows mapped in blocks of any size, as the strip driver maps them, are the formula of
+    /// the whole-image loaders: a 16-bit normal `v·2/65535 − 1` (its `y` negated for DirectX),
+    /// an 8-bit grey mask what [`super::super::load_mask`] reads, repeated in every plane.
+    #[test]
+    fn samples_mapped_in_blocks_are_the_loaders_values() {
+        let d = tempfile::tempdir().unwrap();
+        let (w, h) = (13usize, 11usize);
+        let sample = |i: usize| ((i * 7919 + 13) % 65536) as u16;
+        let np = d.path().join("n.png");
+        png_of(&np, (w as u32, h as u32), png::ColorType::Rgb, 16, sample);
+        let mp = d.path().join("m.png");
+        png_of(
+            &mp,
+            (w as u32, h as u32),
+            png::ColorType::Grayscale,
+            8,
+            |i| (i * 37 % 256) as u16,
+        );
+
+        let mut rows = PngRows::open(&np).unwrap().unwrap();
+        let first = rows.read_samples(4).unwrap();
+        let rest = rows.read_samples(h - 4).unwrap();
+        assert_eq!((first.rows(), rest.rows()), (4, h - 4));
+        for conv in [NormalConvention::OpenGl, NormalConvention::DirectX] {
+            let map = RowMap::Normal(conv);
+            for (band, y0) in [(&first, 0), (&rest, 4)] {
+                let n = band.rows() * w;
+                let mut planes = [vec![f32::NAN; n], vec![f32::NAN; n], vec![f32::NAN; n]];
+                // Blocks of 1, 2 and the rest of the rows, each into its part of the planes.
+                let cuts = [0, 1.min(band.rows()), 3.min(band.rows()), band.rows()];
+                for c in cuts.windows(2) {
+                    let [a, b, cc] = &mut planes;
+                    let mut views = [
+                        &mut a[c[0] * w..c[1] * w],
+                        &mut b[c[0] * w..c[1] * w],
+                        &mut cc[c[0] * w..c[1] * w],
+                    ]
+                    // SAFETY: `map_rows` writes only initialised values.
+                    .map(|p| unsafe { as_uninit(p) });
+                    band.map_rows(c[0]..c[1], &mut views, map);
+                }
+                for (k, p) in planes.iter().enumerate() {
+                    for (i, v) in p.iter().enumerate() {
+                        let s = f64::from(sample((y0 * w + i) * 3 + k));
+                        let mut want = s * 2.0 / 65535.0 - 1.0;
+                        if k == 1 && conv == NormalConvention::DirectX {
+                            want = -want;
+                        }
+                        assert!(
+                            (f64::from(*v) - want).abs() < 2e-7,
+                            "{conv:?} plane {k} pixel {i} of rows {y0}..: {v} vs {want}"
+                        );
                     }
                 }
             }
-            self.row += 1;
         }
-        Ok(())
+
+        let (_, _, want) = super::super::load_mask(&mp).unwrap();
+        let mut m = PngRows::open(&mp).unwrap().unwrap();
+        let band = m.read_samples(h).unwrap();
+        let mut planes = [vec![0.0; w * h], vec![0.0; w * h]];
+        let [a, b] = &mut planes;
+        band.map_into(&mut [a, b], RowMap::Unit);
+        assert_eq!(
+            planes[0], want,
+            "the mask as the whole-image loader reads it"
+        );
+        assert_eq!(planes[1], want, "a grey file repeats its channel");
+        assert!(m.read_samples(1).is_err(), "past the last row is an error");
     }
 }
