@@ -498,6 +498,54 @@ fn stream_plan<'p>(
 }
 
 /// `rgbn eval` streamed ([`crate::eval::stream`]): images as 16-bit normal maps and pictures as
+
+/// Runs `sp`'s strips, each output's rows to its EXR target or PNG sink (by position), and
+/// ends every sink (a failed one with its error, which explains a band it refused).
+fn stream_strips(
+    sp: StreamPlan<'_>,
+    strip_rows: Option<usize>,
+    cancelled: impl Fn() -> bool,
+    exrs: &mut [Option<ExrTarget>],
+    mut sinks: Vec<Option<PngSink<'_, '_>>>,
+) -> Result<(), CliError> {
+    let mut stopped = false;
+    let r = sp.run(strip_rows, cancelled, |_, values, core| {
+        super::interrupt::check()?;
+        for ((s, e), v) in sinks.iter_mut().zip(exrs.iter_mut()).zip(values) {
+            let band = match (v, s, e) {
+                (Value::Rgbn(img), _, Some(e)) => {
+                    e.write(img, core.clone())?;
+                    continue;
+                }
+                (Value::Rgbn(img), Some(s), _) => {
+                    s.write(PngBand::Normals(img.clone(), core.clone()))
+                }
+                (Value::Picture(p), Some(s), _) => s.write(PngBand::Rgba(p.clone(), core.clone())),
+                (other, ..) => {
+                    unreachable!("streamed outputs are images and pictures: {other:?}")
+                }
+            };
+            if let Err(e) = band {
+                stopped = e.is_none();
+                return Err(e.map_or_else(|| usage("a PNG writer stopped"), Into::into));
+            }
+        }
+        Ok::<(), CliError>(())
+    });
+    let mut ended = Ok(());
+    for s in sinks.into_iter().flatten() {
+        let f = s.finish();
+        if ended.is_ok() {
+            ended = f;
+        }
+    }
+    match r {
+        Err(_) if stopped && ended.is_err() => Err(ended.unwrap_err().into()),
+        Err(e) => Err(e),
+        Ok(()) => Ok(ended?),
+    }
+}
+
 /// RGBA PNGs, written row by row.
 fn eval_stream(
     plan: &Plan,
@@ -532,62 +580,37 @@ fn eval_stream(
     };
     let encoding = RowEncoding::Normal(NormalConvention::OpenGl);
     let pipelined = crate::raster::par::pipelined();
-    std::thread::scope(|scope| -> Result<(), CliError> {
-        let mut sinks = Vec::new();
-        for t in &mut targets {
-            sinks.push(match t {
-                Some(t) => Some(if pipelined {
-                    PngSink::thread(scope, t, encoding)
-                } else {
-                    PngSink::Here(Box::new(t.rows(encoding)?))
-                }),
-                None => None,
-            });
-        }
-        let mut stopped = false;
-        let r = sp.run(
-            strip_rows.map(|r| r as usize),
-            cancelled,
-            |_, values, core| {
-                super::interrupt::check()?;
-                for ((s, e), v) in sinks.iter_mut().zip(exrs.iter_mut()).zip(values) {
-                    let band = match (v, s, e) {
-                        (Value::Rgbn(img), _, Some(e)) => {
-                            e.write(img, core.clone())?;
-                            continue;
-                        }
-                        (Value::Rgbn(img), Some(s), _) => {
-                            s.write(PngBand::Normals(img.clone(), core.clone()))
-                        }
-                        (Value::Picture(p), Some(s), _) => {
-                            s.write(PngBand::Rgba(p.clone(), core.clone()))
-                        }
-                        (other, ..) => {
-                            unreachable!("streamed outputs are images and pictures: {other:?}")
-                        }
-                    };
-                    if let Err(e) = band {
-                        stopped = e.is_none();
-                        return Err(e.map_or_else(|| usage("a PNG writer stopped"), Into::into));
-                    }
-                }
-                Ok::<(), CliError>(())
-            },
-        );
-        // Every writer ends (a failed one with its error, which explains a band it refused).
-        let mut ended = Ok(());
-        for s in sinks.into_iter().flatten() {
-            let f = s.finish();
-            if ended.is_ok() {
-                ended = f;
+    // Outside the pool, the PNG outputs are written by tasks on it; a worker of a pool (`--jobs`)
+    // must not wait for tasks of its own pool, and writes them on threads of their own.
+    let on_pool = rayon::current_thread_index().is_none();
+    let strip_rows = strip_rows.map(|r| r as usize);
+    if pipelined && on_pool {
+        rayon::in_place_scope(|rscope| -> Result<(), CliError> {
+            let mut sinks = Vec::new();
+            for t in &mut targets {
+                sinks.push(match t {
+                    Some(t) => Some(PngSink::pool(rscope, t, encoding)?),
+                    None => None,
+                });
             }
-        }
-        match r {
-            Err(_) if stopped && ended.is_err() => Err(ended.unwrap_err().into()),
-            Err(e) => Err(e),
-            Ok(()) => Ok(ended?),
-        }
-    })?;
+            stream_strips(sp, strip_rows, cancelled, &mut exrs, sinks)
+        })?;
+    } else {
+        std::thread::scope(|scope| -> Result<(), CliError> {
+            let mut sinks = Vec::new();
+            for t in &mut targets {
+                sinks.push(match t {
+                    Some(t) => Some(if pipelined {
+                        PngSink::thread(scope, t, encoding)
+                    } else {
+                        PngSink::Here(Box::new(t.rows(encoding)?))
+                    }),
+                    None => None,
+                });
+            }
+            stream_strips(sp, strip_rows, cancelled, &mut exrs, sinks)
+        })?;
+    }
     // Each file is synced and renamed into place; with more than one thread, side by side
     // (one file's wait for the disk beside the other's).
     let commits: Vec<Box<dyn FnOnce() -> Result<(), RgbnError> + Send>> = targets
@@ -977,20 +1000,36 @@ impl PngBand {
     }
 }
 
+/// A streamed PNG written by tasks on the pool ([`PngSink::pool`]).
+type PoolPng<'r, 's> = crate::raster::par::Sequenced<
+    'r,
+    's,
+    PngBand,
+    PngRowWriter<'s>,
+    fn(&mut PngRowWriter<'s>, PngBand) -> Result<(), RgbnError>,
+>;
+
+/// [`PngBand::write_to`] as a function for [`PoolPng`].
+fn write_png_band(rows: &mut PngRowWriter<'_>, band: PngBand) -> Result<(), RgbnError> {
+    band.write_to(rows)
+}
+
 /// Where a streamed PNG output's rows go: encoded here, or (with more than one thread,
-/// [`crate::raster::par::pipelined`]) handed to a thread of its own that filters and
-/// compresses them while the next strip is computed. The band shares the strip's planes: the
+/// [`crate::raster::par::pipelined`]) handed to tasks on the pool (a caller outside it) or to
+/// a thread of its own (a worker of a pool), that filter and compress them while the next
+/// strip is computed. The band shares the strip's planes: the
 /// main thread copies nothing (a copy of every band, 33 MB for a 4K picture, was serial work
 /// between two strips' parallel work).
-enum PngSink<'s> {
+enum PngSink<'r, 's> {
     Here(Box<PngRowWriter<'s>>),
+    Pool(Box<PoolPng<'r, 's>>),
     Thread {
         tx: std::sync::mpsc::SyncSender<PngBand>,
         writer: std::thread::ScopedJoinHandle<'s, Result<(), RgbnError>>,
     },
 }
 
-impl<'s> PngSink<'s> {
+impl<'r, 's> PngSink<'r, 's> {
     /// A writing thread for `target`'s rows (one band waiting, one being written).
     fn thread<'e>(
         scope: &'s std::thread::Scope<'s, 'e>,
@@ -1008,11 +1047,28 @@ impl<'s> PngSink<'s> {
         PngSink::Thread { tx, writer }
     }
 
+    /// Writing tasks on the pool for `target`'s rows ([`crate::raster::par::Sequenced`]: one
+    /// band waiting, one being written).
+    fn pool(
+        scope: &'r rayon::Scope<'s>,
+        target: &'s mut PngTarget,
+        encoding: RowEncoding,
+    ) -> Result<Self, RgbnError> {
+        let rows = target.rows(encoding)?;
+        Ok(PngSink::Pool(Box::new(crate::raster::par::Sequenced::new(
+            scope,
+            rows,
+            1,
+            write_png_band,
+        ))))
+    }
+
     /// Writes the next rows. `Err(None)`: the writing thread stopped (its error comes from
     /// [`finish`](Self::finish)).
     fn write(&mut self, band: PngBand) -> Result<(), Option<RgbnError>> {
         match self {
             PngSink::Here(rows) => band.write_to(rows).map_err(Some),
+            PngSink::Pool(s) => s.push(band).map_err(|()| None),
             PngSink::Thread { tx, .. } => tx.send(band).map_err(|_| None),
         }
     }
@@ -1021,6 +1077,7 @@ impl<'s> PngSink<'s> {
     fn finish(self) -> Result<(), RgbnError> {
         match self {
             PngSink::Here(rows) => rows.finish(),
+            PngSink::Pool(s) => s.finish()?.finish(),
             PngSink::Thread { tx, writer } => {
                 drop(tx);
                 writer

@@ -225,4 +225,233 @@ mod tests {
             );
         }
     }
+
+    /// A [`Sequenced`] stage in a pool of `threads`, fed from outside the pool: every item
+    /// handled once, in order, on the pool's threads; the state comes back.
+    #[test]
+    fn sequenced_items_are_handled_once_in_order_on_the_pool() {
+        for threads in [1, 2, 3] {
+            let pool = rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .build()
+                .expect("a thread pool");
+            let (seen, on_pool) = pool.in_place_scope(|scope| {
+                let stage = Sequenced::new(
+                    scope,
+                    (Vec::new(), true),
+                    1,
+                    |s: &mut (Vec<usize>, bool), x: usize| {
+                        s.0.push(x);
+                        s.1 &= rayon::current_thread_index().is_some();
+                        Ok(())
+                    },
+                );
+                for i in 0..500 {
+                    stage.push(i).expect("no item fails");
+                }
+                stage.finish().expect("no item fails")
+            });
+            assert_eq!(seen, (0..500).collect::<Vec<_>>(), "{threads} threads");
+            assert!(on_pool, "every item handled by a worker of the pool");
+        }
+    }
+
+    /// The first failing item ends the stage: later items are refused (not handled) and
+    /// `finish` gives that error.
+    #[test]
+    fn a_failing_item_stops_the_stage_with_its_error() {
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(2)
+            .build()
+            .expect("a thread pool");
+        let handled = std::sync::Mutex::new(Vec::new());
+        let (refused, err) = pool.in_place_scope(|scope| {
+            let stage = Sequenced::new(scope, (), 2, |(): &mut (), x: usize| {
+                if x == 7 {
+                    return Err(crate::error::RgbnError::InvalidImage(format!("item {x}")));
+                }
+                handled.lock().unwrap().push(x);
+                Ok(())
+            });
+            let refused = (0..100).filter(|&i| stage.push(i).is_err()).count();
+            let err = match stage.finish() {
+                Err(e) => e.to_string(),
+                Ok(()) => panic!("item 7 failed, yet the stage finished"),
+            };
+            (refused, err)
+        });
+        assert_eq!(*handled.lock().unwrap(), (0..7).collect::<Vec<_>>());
+        assert!(err.contains("item 7"), "{err}");
+        // Items 0..7 handled, 7 failed; of the rest, at most the `cap` queued behind it were
+        // accepted before the failure was known.
+        assert!(refused >= 100 - 8 - 2, "{refused} refused");
+    }
+}
+
+/// Items handled one at a time, in the order given, by tasks on the rayon pool: a stage of a
+/// pipeline (a PNG's rows filtered and compressed into one stream) that runs on the pool's
+/// threads instead of a thread of its own, so that the process runs no more threads of work
+/// than the pool has. A task runs while items wait and ends when none do; [`push`] queues a
+/// new one. The caller must not be a worker of the pool ([`push`] and [`finish`] wait).
+///
+/// [`push`]: Sequenced::push
+/// [`finish`]: Sequenced::finish
+pub struct Sequenced<'r, 's, T, S, F> {
+    inner: std::sync::Arc<SeqInner<T, S, F>>,
+    scope: &'r rayon::Scope<'s>,
+}
+
+struct SeqInner<T, S, F> {
+    q: std::sync::Mutex<SeqQueue<T>>,
+    cv: std::sync::Condvar,
+    state: std::sync::Mutex<Option<S>>,
+    work: F,
+    cap: usize,
+}
+
+struct SeqQueue<T> {
+    items: std::collections::VecDeque<T>,
+    running: bool,
+    /// The first error of `work` (or a panic's): the items after it are dropped.
+    failed: Option<crate::error::RgbnError>,
+}
+
+impl<'r, 's, T, S, F> Sequenced<'r, 's, T, S, F>
+where
+    T: Send + 's,
+    S: Send + 's,
+    F: Fn(&mut S, T) -> Result<(), crate::error::RgbnError> + Send + Sync + 's,
+{
+    /// A stage running `work` on `state` for each item, with at most `cap` items waiting.
+    pub fn new(scope: &'r rayon::Scope<'s>, state: S, cap: usize, work: F) -> Self {
+        Self {
+            inner: std::sync::Arc::new(SeqInner {
+                q: std::sync::Mutex::new(SeqQueue {
+                    items: std::collections::VecDeque::new(),
+                    running: false,
+                    failed: None,
+                }),
+                cv: std::sync::Condvar::new(),
+                state: std::sync::Mutex::new(Some(state)),
+                work,
+                cap: cap.max(1),
+            }),
+            scope,
+        }
+    }
+
+    /// Queues `item` (waiting while `cap` items wait). `Err(())`: an earlier item failed (the
+    /// error comes from [`finish`](Self::finish)); `item` is dropped.
+    pub fn push(&self, item: T) -> Result<(), ()> {
+        let inner = &self.inner;
+        let mut q = inner.lock_q();
+        while q.failed.is_none() && q.items.len() >= inner.cap {
+            q = inner
+                .cv
+                .wait(q)
+                .unwrap_or_else(std::sync::PoisonError::into_inner);
+        }
+        if q.failed.is_some() {
+            return Err(());
+        }
+        q.items.push_back(item);
+        if !q.running {
+            q.running = true;
+            let task = std::sync::Arc::clone(inner);
+            self.scope.spawn(move |_| task.run());
+        }
+        Ok(())
+    }
+
+    /// Waits for every item queued, and hands back the state (or the first error).
+    pub fn finish(self) -> Result<S, crate::error::RgbnError> {
+        let inner = &self.inner;
+        let mut q = inner.lock_q();
+        while q.running {
+            q = inner
+                .cv
+                .wait(q)
+                .unwrap_or_else(std::sync::PoisonError::into_inner);
+        }
+        if let Some(e) = q.failed.take() {
+            return Err(e);
+        }
+        drop(q);
+        // The last task has ended (it lets the state go just after saying so).
+        let state = inner
+            .state
+            .lock()
+            .unwrap_or_else(std::sync::PoisonError::into_inner)
+            .take();
+        Ok(state.expect("the state is taken once"))
+    }
+}
+
+impl<T, S, F> SeqInner<T, S, F>
+where
+    F: Fn(&mut S, T) -> Result<(), crate::error::RgbnError>,
+{
+    fn lock_q(&self) -> std::sync::MutexGuard<'_, SeqQueue<T>> {
+        self.q
+            .lock()
+            .unwrap_or_else(std::sync::PoisonError::into_inner)
+    }
+
+    /// The task: the waiting items, in order, until none waits.
+    fn run(&self) {
+        // Ends the task however it ends: a panic stops the stage with an error (and the scope
+        // re-raises the panic).
+        struct Ended<'a, T, S, F>(&'a SeqInner<T, S, F>, bool);
+        impl<T, S, F> Drop for Ended<'_, T, S, F> {
+            fn drop(&mut self) {
+                if self.1 {
+                    return;
+                }
+                let mut q = self
+                    .0
+                    .q
+                    .lock()
+                    .unwrap_or_else(std::sync::PoisonError::into_inner);
+                q.running = false;
+                q.failed.get_or_insert(crate::error::RgbnError::Decode {
+                    detail: "a writing task panicked".into(),
+                    path: std::path::PathBuf::new(),
+                });
+                q.items.clear();
+                self.0.cv.notify_all();
+            }
+        }
+        let mut ended = Ended(self, false);
+        let mut guard = self
+            .state
+            .lock()
+            .unwrap_or_else(std::sync::PoisonError::into_inner);
+        let state = guard.as_mut().expect("the state is there until finished");
+        loop {
+            let item = {
+                let mut q = self.lock_q();
+                match q.items.pop_front() {
+                    Some(item) => {
+                        self.cv.notify_all();
+                        item
+                    }
+                    None => {
+                        q.running = false;
+                        self.cv.notify_all();
+                        ended.1 = true;
+                        return;
+                    }
+                }
+            };
+            if let Err(e) = (self.work)(state, item) {
+                let mut q = self.lock_q();
+                q.failed = Some(e);
+                q.items.clear();
+                q.running = false;
+                self.cv.notify_all();
+                ended.1 = true;
+                return;
+            }
+        }
+    }
 }

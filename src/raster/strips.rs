@@ -394,19 +394,29 @@ fn append_band(
     repaired
 }
 
-/// Reads the next `y1 − y0` rows of `input` (rows `y0..y1`), as stored.
-fn read_band(input: &mut StreamInput, y0: usize, y1: usize) -> Result<Band, RgbnError> {
+/// Reads the next `y1 − y0` rows of `input` (rows `y0..y1`), as stored, into the memory of
+/// `spare` (a band read earlier and appended since) where it has some.
+fn read_band(
+    input: &mut StreamInput,
+    y0: usize,
+    y1: usize,
+    spare: Option<Band>,
+) -> Result<Band, RgbnError> {
     let rows = y1 - y0;
+    let (normal, mut color, mut mask) = match spare {
+        Some(b) => (Some(b.normal), b.color, b.mask),
+        None => (None, None, None),
+    };
     Ok(Band {
         y0,
         y1,
-        normal: input.normal.read_samples(rows)?,
+        normal: input.normal.read_samples_reusing(rows, normal)?,
         color: match input.color.as_mut() {
-            Some(r) => Some(r.read_samples(rows)?),
+            Some(r) => Some(r.read_samples_reusing(rows, color.take())?),
             None => None,
         },
         mask: match input.mask.as_mut() {
-            Some(r) => Some(r.read_samples(rows)?),
+            Some(r) => Some(r.read_samples_reusing(rows, mask.take())?),
             None => None,
         },
     })
@@ -453,8 +463,10 @@ fn strip_ranges(h: usize, strip: usize, halo: usize) -> impl Iterator<Item = (us
 /// of rows with a normal that needs repair stops with [`RgbnError::InvalidNormals`] (its count
 /// is that band's).
 ///
-/// The files are decoded on a thread of their own, one band ahead of `f`: decoding (inflate)
-/// is sequential, and overlaps the strips' parallel work.
+/// With more than one thread, the files are decoded one or two bands ahead of `f`: decoding
+/// (inflate) is sequential, and overlaps the strips' parallel work. The decoding runs as tasks
+/// on the pool when the caller is outside it (so the process runs no more threads of work than
+/// the pool has: BENCHMARKS.md, "Decoding on the pool"), on a thread of its own otherwise.
 pub fn for_each_strip<E: From<RgbnError>>(
     input: &mut StreamInput,
     halo: usize,
@@ -559,53 +571,67 @@ fn drive<E: From<RgbnError>>(
             (b != read).then(|| (std::mem::replace(&mut read, b), b))
         })
     };
-    // Runs every strip, taking the bands from `next` as their rows are needed.
-    let mut strips = |next: &mut dyn FnMut() -> Result<Band, RgbnError>| -> Result<Validation, E> {
-        let mut repaired = Validation::default();
-        for (y0, y1) in strip_ranges(h, strip, halo) {
-            let (a, b) = (y0.saturating_sub(halo), (y1 + halo).min(h));
-            // Drop the rows above the new window; keep the overlap; append what was read.
-            let drop_rows = a.saturating_sub(win.y0).min(win.rows);
-            for p in win.all_mut() {
-                p.drain(..drop_rows * w);
+    // Runs every strip, taking the bands from `next` as their rows are needed and handing it
+    // back each band once appended (for its memory to be read into again).
+    let mut strips =
+        |next: &mut dyn FnMut(Option<Band>) -> Result<Band, RgbnError>| -> Result<Validation, E> {
+            let mut repaired = Validation::default();
+            let mut spare = None;
+            for (y0, y1) in strip_ranges(h, strip, halo) {
+                let (a, b) = (y0.saturating_sub(halo), (y1 + halo).min(h));
+                // Drop the rows above the new window; keep the overlap; append what was read.
+                let drop_rows = a.saturating_sub(win.y0).min(win.rows);
+                for p in win.all_mut() {
+                    p.drain(..drop_rows * w);
+                }
+                win.y0 = a;
+                win.rows -= drop_rows;
+                while win.y0 + win.rows < b {
+                    let band = next(spare.take())?;
+                    debug_assert_eq!(band.y0, win.y0 + win.rows);
+                    let band_repaired = check_strict(
+                        append_band(&mut win, &band, w, convention),
+                        strict,
+                        &path,
+                        band.y0..band.y1,
+                    )?;
+                    win.rows += band.y1 - band.y0;
+                    repaired = repaired.merge(band_repaired);
+                    spare = Some(band);
+                }
+                f(&mut win, a, y0 - a..y1 - a)?;
             }
-            win.y0 = a;
-            win.rows -= drop_rows;
-            while win.y0 + win.rows < b {
-                let band = next()?;
-                debug_assert_eq!(band.y0, win.y0 + win.rows);
-                let band_repaired = check_strict(
-                    append_band(&mut win, &band, w, convention),
-                    strict,
-                    &path,
-                    band.y0..band.y1,
-                )?;
-                win.rows += band.y1 - band.y0;
-                repaired = repaired.merge(band_repaired);
-            }
-            f(&mut win, a, y0 - a..y1 - a)?;
-        }
-        Ok(repaired)
-    };
+            Ok(repaired)
+        };
     if !crate::raster::par::pipelined() {
         // One thread: each band is read when its rows are needed.
         let mut todo = bands();
-        return strips(&mut || {
+        return strips(&mut |spare| {
             let (a, b) = todo.next().expect("a band for every window's rows");
-            read_band(input, a, b)
+            read_band(input, a, b, spare)
         });
     }
+    // One band decoded ahead, waiting; a second decoded behind it while its planes are small
+    // (a 4K strip's: 12 MB), so that the reading never waits on the strips' joins, never for
+    // big bands (the memory bound of `tests/streaming_memory.rs`).
+    let planes = 3 + input.color.as_ref().map_or(0, |_| 3) + usize::from(input.mask.is_some());
+    let band_bytes = (strip + halo) * w * planes * 4;
+    let ahead = usize::from(band_bytes <= 16 << 20);
+    if rayon::current_thread_index().is_none() {
+        // A caller outside the pool (the command line's main thread) may wait for the bands:
+        // they are decoded by tasks on the pool.
+        return decode_on_pool(input, bands(), ahead + 1, &path, &mut strips);
+    }
+    // A worker of a pool (`rgbn eval --jobs`: one file per worker) must not wait for tasks
+    // queued on its own pool: the bands are decoded on a thread of their own.
     std::thread::scope(|scope| {
-        // One band decoded ahead, waiting; a second decoded behind it while its planes are
-        // small (a 4K strip's: 12 MB), so that the reading never waits on the strips' joins,
-        // never for big bands (the memory bound of `tests/streaming_memory.rs`).
-        let planes = 3 + input.color.as_ref().map_or(0, |_| 3) + usize::from(input.mask.is_some());
-        let band_bytes = (strip + halo) * w * planes * 4;
-        let ahead = usize::from(band_bytes <= 16 << 20);
         let (tx, rx) = std::sync::mpsc::sync_channel::<Result<Band, RgbnError>>(ahead);
+        // The bands appended, back to the reader to be read into again: as many as can be
+        // out at once (waiting, being read, being appended), so handing one back never waits.
+        let (spare_tx, spare_rx) = std::sync::mpsc::sync_channel::<Band>(ahead + 2);
         scope.spawn(move || {
             for (a, b) in bands() {
-                let band = read_band(input, a, b);
+                let band = read_band(input, a, b, spare_rx.try_recv().ok());
                 let failed = band.is_err();
                 // A closed channel: the consumer stopped (an error of its own).
                 if tx.send(band).is_err() || failed {
@@ -615,12 +641,135 @@ fn drive<E: From<RgbnError>>(
         });
         // Only a panic ends the reader without a band or an error (and the scope re-raises
         // it).
-        strips(&mut || {
+        strips(&mut |spare| {
+            if let Some(band) = spare {
+                // The reader may be gone (its last band read): the band is then dropped.
+                let _ = spare_tx.try_send(band);
+            }
             rx.recv().map_err(|_| RgbnError::Decode {
                 detail: "the reading thread stopped".into(),
                 path: path.clone(),
             })?
         })
+    })
+}
+
+/// The bands decoded and not yet taken, and the reader's state ([`decode_on_pool`]).
+struct Decoded {
+    ready: std::collections::VecDeque<Result<Band, RgbnError>>,
+    /// Bands appended, to be read into again.
+    spare: Vec<Band>,
+    /// A decoding task is queued or running.
+    running: bool,
+    /// No more bands will come (all read, an error, or the consumer stopped).
+    finished: bool,
+    /// The consumer stopped: the task ends after its band.
+    stop: bool,
+}
+
+/// [`drive`]'s strips with the bands decoded by tasks on the pool, not on a thread of their
+/// own: the process runs as many threads of work as the pool has (no decoding thread
+/// competing with the pool's workers for the cores, whose preemption mid-join stalls the
+/// other workers). A task decodes bands while fewer than `limit` wait, then ends; taking a
+/// band queues a new one. For a caller outside the pool only (it waits for the bands, which a
+/// worker of the pool must not).
+fn decode_on_pool<E: From<RgbnError>>(
+    input: &mut StreamInput,
+    bands: impl Iterator<Item = (usize, usize)> + Send,
+    limit: usize,
+    path: &Path,
+    strips: &mut dyn FnMut(
+        &mut dyn FnMut(Option<Band>) -> Result<Band, RgbnError>,
+    ) -> Result<Validation, E>,
+) -> Result<Validation, E> {
+    use std::sync::{Condvar, Mutex};
+    let state = Mutex::new(Decoded {
+        ready: std::collections::VecDeque::new(),
+        spare: Vec::new(),
+        running: false,
+        finished: false,
+        stop: false,
+    });
+    let cv = Condvar::new();
+    let reader = Mutex::new((input, bands));
+    let lock = || {
+        state
+            .lock()
+            .unwrap_or_else(std::sync::PoisonError::into_inner)
+    };
+    // Marks the task ended however it ends (a panic included: the consumer then sees the
+    // bands end, and the scope re-raises the panic).
+    struct Ended<'a>(&'a Mutex<Decoded>, &'a Condvar);
+    impl Drop for Ended<'_> {
+        fn drop(&mut self) {
+            let mut q = self
+                .0
+                .lock()
+                .unwrap_or_else(std::sync::PoisonError::into_inner);
+            q.running = false;
+            self.1.notify_all();
+        }
+    }
+    let task = || {
+        let _ended = Ended(&state, &cv);
+        let mut r = reader
+            .lock()
+            .unwrap_or_else(std::sync::PoisonError::into_inner);
+        loop {
+            let spare = {
+                let mut q = lock();
+                if q.stop || q.ready.len() >= limit {
+                    return;
+                }
+                q.spare.pop()
+            };
+            let (input, bands) = &mut *r;
+            let Some((a, b)) = bands.next() else {
+                lock().finished = true;
+                return;
+            };
+            let band = read_band(input, a, b, spare);
+            let mut q = lock();
+            q.finished |= band.is_err();
+            q.ready.push_back(band);
+            cv.notify_all();
+            if q.finished {
+                return;
+            }
+        }
+    };
+    rayon::in_place_scope(|scope| {
+        let task = &task;
+        let start = |q: &mut Decoded| {
+            if !q.running && !q.finished && !q.stop && q.ready.len() < limit {
+                q.running = true;
+                scope.spawn(move |_| task());
+            }
+        };
+        let r = strips(&mut |spare| {
+            let mut q = lock();
+            if let Some(b) = spare {
+                q.spare.push(b);
+            }
+            start(&mut q);
+            loop {
+                if let Some(band) = q.ready.pop_front() {
+                    start(&mut q);
+                    return band;
+                }
+                if q.finished && !q.running {
+                    return Err(RgbnError::Decode {
+                        detail: "the reading stopped".into(),
+                        path: path.to_path_buf(),
+                    });
+                }
+                q = cv
+                    .wait(q)
+                    .unwrap_or_else(std::sync::PoisonError::into_inner);
+            }
+        });
+        lock().stop = true;
+        r
     })
 }
 

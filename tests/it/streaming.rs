@@ -924,3 +924,25 @@ fn one_thread_and_two_write_the_same_bytes_streamed_and_whole() {
         );
     }
 }
+
+/// The bands are decoded by tasks on the pool when the strips are driven from outside it, on a
+/// thread of their own from a worker of a pool, inline with one thread: the same windows, bit
+/// for bit, whichever way (the reading must not depend on where it runs).
+#[test]
+fn strips_read_alike_outside_a_pool_inside_one_and_on_one_thread() {
+    let d = tempfile::tempdir().unwrap();
+    let img = relief(40, 300, 3);
+    let spec = write_files(d.path(), &img, 16);
+    let kernels = [Kernel::Gaussian { sigma_px: 1.5 }];
+    let opts = FilterOptions::default();
+    let outside = streamed(&spec, &kernels, &opts, 24);
+    for threads in [1, 2] {
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap();
+        let inside = pool.install(|| streamed(&spec, &kernels, &opts, 24));
+        assert_eq!(inside.0, outside.0, "{threads} threads");
+        assert_eq!(inside.1.clamped, outside.1.clamped);
+    }
+}

@@ -164,6 +164,42 @@ impl Samples {
         }
     }
 
+    /// The interleaved bytes of `spare` (8- or 16-bit PNG samples), emptied, their memory kept
+    /// for the next rows: a reader that reuses the band it handed on earlier writes into pages
+    /// already mapped instead of fresh ones the kernel must zero on first touch (on the
+    /// decoding thread, whose work cannot be split: BENCHMARKS.md, "Reused bands").
+    fn spare_bytes(spare: Option<Samples>) -> Vec<u8> {
+        match spare.map(|s| s.data) {
+            Some(SampleData::U8(mut v) | SampleData::U16Be(mut v)) => {
+                v.clear();
+                v
+            }
+            _ => Vec::new(),
+        }
+    }
+
+    /// [`spare_bytes`](Self::spare_bytes) for 16-bit TIFF samples.
+    fn spare_u16(spare: Option<Samples>) -> Vec<u16> {
+        match spare.map(|s| s.data) {
+            Some(SampleData::U16(mut v)) => {
+                v.clear();
+                v
+            }
+            _ => Vec::new(),
+        }
+    }
+
+    /// [`spare_bytes`](Self::spare_bytes) for `n` EXR planes.
+    fn spare_planes(spare: Option<Samples>, n: usize) -> Vec<Vec<f32>> {
+        match spare.map(|s| s.data) {
+            Some(SampleData::Planes(mut v)) if v.len() == n => {
+                v.iter_mut().for_each(Vec::clear);
+                v
+            }
+            _ => vec![Vec::new(); n],
+        }
+    }
+
     /// [`map_rows`](Self::map_rows) of every row held into initialised planes.
     pub fn map_into(&self, planes: &mut [&mut [f32]], map: RowMap) {
         let mut views: Vec<&mut [MaybeUninit<f32>]> = planes
@@ -247,10 +283,20 @@ impl Rows {
 
     /// Decodes the next `rows` rows as they are stored ([`Samples`]).
     pub fn read_samples(&mut self, rows: usize) -> Result<Samples, RgbnError> {
+        self.read_samples_reusing(rows, None)
+    }
+
+    /// [`read_samples`](Self::read_samples) into the memory of `spare`, samples this reader
+    /// handed on earlier and no longer needed (of another kind, or `None`: fresh memory).
+    pub fn read_samples_reusing(
+        &mut self,
+        rows: usize,
+        spare: Option<Samples>,
+    ) -> Result<Samples, RgbnError> {
         match self {
-            Rows::Png(r) => r.read_samples(rows),
-            Rows::Tiff(r) => r.read_samples(rows),
-            Rows::Exr(r) => r.read_samples(rows),
+            Rows::Png(r) => r.read_samples_reusing(rows, spare),
+            Rows::Tiff(r) => r.read_samples_reusing(rows, spare),
+            Rows::Exr(r) => r.read_samples_reusing(rows, spare),
         }
     }
 }
@@ -435,10 +481,18 @@ impl ExrRows {
         Ok(())
     }
 
-    /// Reads the next `rows` rows of the chosen channels ([`Samples`]: one `f32` plane each).
-    pub fn read_samples(&mut self, rows: usize) -> Result<Samples, RgbnError> {
+    /// Reads the next `rows` rows of the chosen channels ([`Samples`]: one `f32` plane each),
+    /// into the memory of `spare` where it holds planes ([`Rows::read_samples_reusing`]).
+    pub fn read_samples_reusing(
+        &mut self,
+        rows: usize,
+        spare: Option<Samples>,
+    ) -> Result<Samples, RgbnError> {
         let w = self.width;
-        let mut planes = vec![Vec::with_capacity(rows * w); self.want.len()];
+        let mut planes = Samples::spare_planes(spare, self.want.len());
+        for p in &mut planes {
+            p.reserve_exact(rows * w);
+        }
         for _ in 0..rows {
             if self.row >= self.height {
                 return Err(RgbnError::Decode {
@@ -581,10 +635,16 @@ impl TiffRows {
         Ok(())
     }
 
-    /// Decodes the next `rows` rows, as they are stored ([`Samples`]).
-    pub fn read_samples(&mut self, rows: usize) -> Result<Samples, RgbnError> {
+    /// Decodes the next `rows` rows, as they are stored ([`Samples`]), into the memory of
+    /// `spare` where it holds 16-bit samples ([`Rows::read_samples_reusing`]).
+    pub fn read_samples_reusing(
+        &mut self,
+        rows: usize,
+        spare: Option<Samples>,
+    ) -> Result<Samples, RgbnError> {
         let (w, c) = (self.width, self.channels);
-        let mut data = Vec::with_capacity(rows * w * c);
+        let mut data = Samples::spare_u16(spare);
+        data.reserve_exact(rows * w * c);
         for _ in 0..rows {
             if self.row >= self.height {
                 return Err(RgbnError::Decode {
@@ -682,9 +742,20 @@ impl PngRows {
     /// Decodes the next `rows` rows, as they are stored ([`Samples`]: 16-bit samples as the
     /// file's big-endian byte pairs). A file that ends early is a decode error naming the row.
     pub fn read_samples(&mut self, rows: usize) -> Result<Samples, RgbnError> {
+        self.read_samples_reusing(rows, None)
+    }
+
+    /// [`read_samples`](Self::read_samples) into the memory of `spare` where it holds bytes
+    /// ([`Rows::read_samples_reusing`]).
+    pub fn read_samples_reusing(
+        &mut self,
+        rows: usize,
+        spare: Option<Samples>,
+    ) -> Result<Samples, RgbnError> {
         let c = self.channels;
         let row_bytes = self.width * c * if self.sixteen { 2 } else { 1 };
-        let mut data = Vec::with_capacity(rows * row_bytes);
+        let mut data = Samples::spare_bytes(spare);
+        data.reserve_exact(rows * row_bytes);
         for _ in 0..rows {
             let row = match self.reader.next_row() {
                 Ok(Some(row)) => row,
