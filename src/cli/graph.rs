@@ -497,8 +497,6 @@ fn stream_plan<'p>(
     })
 }
 
-/// `rgbn eval` streamed ([`crate::eval::stream`]): images as 16-bit normal maps and pictures as
-
 /// Runs `sp`'s strips, each output's rows to its EXR target or PNG sink (by position), and
 /// ends every sink (a failed one with its error, which explains a band it refused).
 fn stream_strips(
@@ -546,6 +544,7 @@ fn stream_strips(
     }
 }
 
+/// `rgbn eval` streamed ([`crate::eval::stream`]): images as 16-bit normal maps and pictures as
 /// RGBA PNGs, written row by row.
 fn eval_stream(
     plan: &Plan,

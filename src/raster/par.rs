@@ -156,138 +156,6 @@ pub fn ordered_sum_of(n: usize, f: impl Fn(usize) -> Option<f64> + Sync) -> (f64
         .ordered_reduce(|| (0.0, 0), |a, b| (a.0 + b.0, a.1 + b.1))
 }
 
-#[cfg(test)]
-mod tests {
-    use super::*;
-    use crate::raster::sample::noise_field;
-
-    /// Runs `f` in a pool of `threads` threads.
-    fn in_pool<T: Send>(threads: usize, f: impl FnOnce() -> T + Send) -> T {
-        rayon::ThreadPoolBuilder::new()
-            .num_threads(threads)
-            .build()
-            .expect("a thread pool")
-            .install(f)
-    }
-
-    #[test]
-    fn ordered_sums_are_the_same_bits_at_every_thread_count() {
-        // Values of very different magnitudes, so that the order of addition shows in the bits.
-        let a: Vec<f64> = (0..300_001)
-            .map(|i| ((i as f64) * 0.618_033_988_7).fract() * 10f64.powi(i % 17 - 8))
-            .collect();
-        let b: Vec<f64> = a.iter().rev().map(|v| v.sqrt() - 0.3).collect();
-        let sequential: f64 = a
-            .chunks(SUM_CHUNK)
-            .zip(b.chunks(SUM_CHUNK))
-            .map(|(a, b)| a.iter().zip(b).map(|(x, y)| x * y).sum::<f64>())
-            .sum();
-        let (s1, n1) = (0..a.len())
-            .filter(|i| i % 3 != 0)
-            .fold((0.0, 0), |(s, n), i| (s + a[i], n + 1));
-        for threads in [1, 2, 3, 8] {
-            let dot = in_pool(threads, || ordered_dot(&a, &b));
-            assert_eq!(dot.to_bits(), sequential.to_bits(), "{threads} threads");
-            // Chunks of SUM_CHUNK, each summed in order: the same additions as one pass
-            // only where a chunk boundary falls; so compare with the chunked sequential sum.
-            let (s, n) = in_pool(threads, || {
-                ordered_sum_of(a.len(), |i| (i % 3 != 0).then_some(a[i]))
-            });
-            assert_eq!(n, n1);
-            assert!((s - s1).abs() <= 1e-12 * s1.abs(), "{s} vs {s1}");
-            let again = in_pool(9 - threads, || {
-                ordered_sum_of(a.len(), |i| (i % 3 != 0).then_some(a[i]))
-            });
-            assert_eq!(
-                s.to_bits(),
-                again.0.to_bits(),
-                "{threads} vs {} threads",
-                9 - threads
-            );
-        }
-    }
-
-    #[test]
-    fn curl_statistics_are_the_same_bits_at_every_thread_count() {
-        let g = noise_field(301, 257, 7);
-        let one = in_pool(1, || g.curl_stats(None));
-        for threads in [2, 3, 8] {
-            let many = in_pool(threads, || g.curl_stats(None));
-            assert_eq!(
-                one.relative.to_bits(),
-                many.relative.to_bits(),
-                "{threads} threads"
-            );
-            assert_eq!(
-                one.rms_curl.to_bits(),
-                many.rms_curl.to_bits(),
-                "{threads} threads"
-            );
-        }
-    }
-
-    /// A [`Sequenced`] stage in a pool of `threads`, fed from outside the pool: every item
-    /// handled once, in order, on the pool's threads; the state comes back.
-    #[test]
-    fn sequenced_items_are_handled_once_in_order_on_the_pool() {
-        for threads in [1, 2, 3] {
-            let pool = rayon::ThreadPoolBuilder::new()
-                .num_threads(threads)
-                .build()
-                .expect("a thread pool");
-            let (seen, on_pool) = pool.in_place_scope(|scope| {
-                let stage = Sequenced::new(
-                    scope,
-                    (Vec::new(), true),
-                    1,
-                    |s: &mut (Vec<usize>, bool), x: usize| {
-                        s.0.push(x);
-                        s.1 &= rayon::current_thread_index().is_some();
-                        Ok(())
-                    },
-                );
-                for i in 0..500 {
-                    stage.push(i).expect("no item fails");
-                }
-                stage.finish().expect("no item fails")
-            });
-            assert_eq!(seen, (0..500).collect::<Vec<_>>(), "{threads} threads");
-            assert!(on_pool, "every item handled by a worker of the pool");
-        }
-    }
-
-    /// The first failing item ends the stage: later items are refused (not handled) and
-    /// `finish` gives that error.
-    #[test]
-    fn a_failing_item_stops_the_stage_with_its_error() {
-        let pool = rayon::ThreadPoolBuilder::new()
-            .num_threads(2)
-            .build()
-            .expect("a thread pool");
-        let handled = std::sync::Mutex::new(Vec::new());
-        let (refused, err) = pool.in_place_scope(|scope| {
-            let stage = Sequenced::new(scope, (), 2, |(): &mut (), x: usize| {
-                if x == 7 {
-                    return Err(crate::error::RgbnError::InvalidImage(format!("item {x}")));
-                }
-                handled.lock().unwrap().push(x);
-                Ok(())
-            });
-            let refused = (0..100).filter(|&i| stage.push(i).is_err()).count();
-            let err = match stage.finish() {
-                Err(e) => e.to_string(),
-                Ok(()) => panic!("item 7 failed, yet the stage finished"),
-            };
-            (refused, err)
-        });
-        assert_eq!(*handled.lock().unwrap(), (0..7).collect::<Vec<_>>());
-        assert!(err.contains("item 7"), "{err}");
-        // Items 0..7 handled, 7 failed; of the rest, at most the `cap` queued behind it were
-        // accepted before the failure was known.
-        assert!(refused >= 100 - 8 - 2, "{refused} refused");
-    }
-}
-
 /// Items handled one at a time, in the order given, by tasks on the rayon pool: a stage of a
 /// pipeline (a PNG's rows filtered and compressed into one stream) that runs on the pool's
 /// threads instead of a thread of its own, so that the process runs no more threads of work
@@ -453,5 +321,137 @@ where
                 return;
             }
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::raster::sample::noise_field;
+
+    /// Runs `f` in a pool of `threads` threads.
+    fn in_pool<T: Send>(threads: usize, f: impl FnOnce() -> T + Send) -> T {
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .expect("a thread pool")
+            .install(f)
+    }
+
+    #[test]
+    fn ordered_sums_are_the_same_bits_at_every_thread_count() {
+        // Values of very different magnitudes, so that the order of addition shows in the bits.
+        let a: Vec<f64> = (0..300_001)
+            .map(|i| ((i as f64) * 0.618_033_988_7).fract() * 10f64.powi(i % 17 - 8))
+            .collect();
+        let b: Vec<f64> = a.iter().rev().map(|v| v.sqrt() - 0.3).collect();
+        let sequential: f64 = a
+            .chunks(SUM_CHUNK)
+            .zip(b.chunks(SUM_CHUNK))
+            .map(|(a, b)| a.iter().zip(b).map(|(x, y)| x * y).sum::<f64>())
+            .sum();
+        let (s1, n1) = (0..a.len())
+            .filter(|i| i % 3 != 0)
+            .fold((0.0, 0), |(s, n), i| (s + a[i], n + 1));
+        for threads in [1, 2, 3, 8] {
+            let dot = in_pool(threads, || ordered_dot(&a, &b));
+            assert_eq!(dot.to_bits(), sequential.to_bits(), "{threads} threads");
+            // Chunks of SUM_CHUNK, each summed in order: the same additions as one pass
+            // only where a chunk boundary falls; so compare with the chunked sequential sum.
+            let (s, n) = in_pool(threads, || {
+                ordered_sum_of(a.len(), |i| (i % 3 != 0).then_some(a[i]))
+            });
+            assert_eq!(n, n1);
+            assert!((s - s1).abs() <= 1e-12 * s1.abs(), "{s} vs {s1}");
+            let again = in_pool(9 - threads, || {
+                ordered_sum_of(a.len(), |i| (i % 3 != 0).then_some(a[i]))
+            });
+            assert_eq!(
+                s.to_bits(),
+                again.0.to_bits(),
+                "{threads} vs {} threads",
+                9 - threads
+            );
+        }
+    }
+
+    #[test]
+    fn curl_statistics_are_the_same_bits_at_every_thread_count() {
+        let g = noise_field(301, 257, 7);
+        let one = in_pool(1, || g.curl_stats(None));
+        for threads in [2, 3, 8] {
+            let many = in_pool(threads, || g.curl_stats(None));
+            assert_eq!(
+                one.relative.to_bits(),
+                many.relative.to_bits(),
+                "{threads} threads"
+            );
+            assert_eq!(
+                one.rms_curl.to_bits(),
+                many.rms_curl.to_bits(),
+                "{threads} threads"
+            );
+        }
+    }
+
+    /// A [`Sequenced`] stage in a pool of `threads`, fed from outside the pool: every item
+    /// handled once, in order, on the pool's threads; the state comes back.
+    #[test]
+    fn sequenced_items_are_handled_once_in_order_on_the_pool() {
+        for threads in [1, 2, 3] {
+            let pool = rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .build()
+                .expect("a thread pool");
+            let (seen, on_pool) = pool.in_place_scope(|scope| {
+                let stage = Sequenced::new(
+                    scope,
+                    (Vec::new(), true),
+                    1,
+                    |s: &mut (Vec<usize>, bool), x: usize| {
+                        s.0.push(x);
+                        s.1 &= rayon::current_thread_index().is_some();
+                        Ok(())
+                    },
+                );
+                for i in 0..500 {
+                    stage.push(i).expect("no item fails");
+                }
+                stage.finish().expect("no item fails")
+            });
+            assert_eq!(seen, (0..500).collect::<Vec<_>>(), "{threads} threads");
+            assert!(on_pool, "every item handled by a worker of the pool");
+        }
+    }
+
+    /// The first failing item ends the stage: later items are refused (not handled) and
+    /// `finish` gives that error.
+    #[test]
+    fn a_failing_item_stops_the_stage_with_its_error() {
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(2)
+            .build()
+            .expect("a thread pool");
+        let handled = std::sync::Mutex::new(Vec::new());
+        let (refused, err) = pool.in_place_scope(|scope| {
+            let stage = Sequenced::new(scope, (), 2, |(): &mut (), x: usize| {
+                if x == 7 {
+                    return Err(crate::error::RgbnError::InvalidImage(format!("item {x}")));
+                }
+                handled.lock().unwrap().push(x);
+                Ok(())
+            });
+            let refused = (0..100).filter(|&i| stage.push(i).is_err()).count();
+            let err = match stage.finish() {
+                Err(e) => e.to_string(),
+                Ok(()) => panic!("item 7 failed, yet the stage finished"),
+            };
+            (refused, err)
+        });
+        assert_eq!(*handled.lock().unwrap(), (0..7).collect::<Vec<_>>());
+        assert!(err.contains("item 7"), "{err}");
+        // Items 0..7 handled, 7 failed; of the rest, at most the `cap` queued behind it were
+        // accepted before the failure was known.
+        assert!(refused >= 100 - 8 - 2, "{refused} refused");
     }
 }

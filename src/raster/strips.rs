@@ -673,6 +673,7 @@ struct Decoded {
 /// other workers). A task decodes bands while fewer than `limit` wait, then ends; taking a
 /// band queues a new one. For a caller outside the pool only (it waits for the bands, which a
 /// worker of the pool must not).
+#[allow(clippy::type_complexity)] // `strips`: [`drive`]'s loop over the bands it is handed
 fn decode_on_pool<E: From<RgbnError>>(
     input: &mut StreamInput,
     bands: impl Iterator<Item = (usize, usize)> + Send,
