@@ -708,6 +708,8 @@ fn decode_on_pool<E: From<RgbnError>>(
                 .lock()
                 .unwrap_or_else(std::sync::PoisonError::into_inner);
             q.running = false;
+            // A panic while reading: no more bands (the consumer stops waiting for them).
+            q.finished |= std::thread::panicking();
             self.1.notify_all();
         }
     }
