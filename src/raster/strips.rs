@@ -466,7 +466,7 @@ fn strip_ranges(h: usize, strip: usize, halo: usize) -> impl Iterator<Item = (us
 /// With more than one thread, the files are decoded one or two bands ahead of `f`: decoding
 /// (inflate) is sequential, and overlaps the strips' parallel work. The decoding runs as tasks
 /// on the pool when the caller is outside it (so the process runs no more threads of work than
-/// the pool has: BENCHMARKS.md, "Decoding on the pool"), on a thread of its own otherwise.
+/// the pool has: BENCHMARKS.md, twelfth session), on a thread of its own otherwise.
 pub fn for_each_strip<E: From<RgbnError>>(
     input: &mut StreamInput,
     halo: usize,

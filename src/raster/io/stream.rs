@@ -167,7 +167,7 @@ impl Samples {
     /// The interleaved bytes of `spare` (8- or 16-bit PNG samples), emptied, their memory kept
     /// for the next rows: a reader that reuses the band it handed on earlier writes into pages
     /// already mapped instead of fresh ones the kernel must zero on first touch (on the
-    /// decoding thread, whose work cannot be split: BENCHMARKS.md, "Reused bands").
+    /// decoding thread, whose work cannot be split: BENCHMARKS.md, twelfth session).
     fn spare_bytes(spare: Option<Samples>) -> Vec<u8> {
         match spare.map(|s| s.data) {
             Some(SampleData::U8(mut v) | SampleData::U16Be(mut v)) => {
