@@ -281,13 +281,9 @@ impl Rows {
         }
     }
 
-    /// Decodes the next `rows` rows as they are stored ([`Samples`]).
-    pub fn read_samples(&mut self, rows: usize) -> Result<Samples, RgbnError> {
-        self.read_samples_reusing(rows, None)
-    }
-
-    /// [`read_samples`](Self::read_samples) into the memory of `spare`, samples this reader
-    /// handed on earlier and no longer needed (of another kind, or `None`: fresh memory).
+    /// Decodes the next `rows` rows as they are stored ([`Samples`]), into the memory of
+    /// `spare`, samples this reader handed on earlier and no longer needed (of another kind,
+    /// or `None`: fresh memory).
     pub fn read_samples_reusing(
         &mut self,
         rows: usize,
