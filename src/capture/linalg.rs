@@ -70,3 +70,42 @@ pub fn angle_deg(a: [f32; 3], b: [f32; 3]) -> f64 {
     }
     (d / (la * lb)).clamp(-1.0, 1.0).acos().to_degrees()
 }
+
+/// The inverse of a symmetric `3 × 3` matrix (adjugate over determinant); `None` when the
+/// matrix is ill-conditioned (`condition(a) < MIN_LIGHT_CONDITION`) or not finite.
+pub(crate) fn inverse3(a: &M3) -> Option<M3> {
+    let cond = condition(a);
+    if cond.is_nan() || cond < MIN_LIGHT_CONDITION {
+        return None;
+    }
+    let d = det3(a);
+    let adj = [
+        [
+            a[1][1] * a[2][2] - a[1][2] * a[2][1],
+            a[0][2] * a[2][1] - a[0][1] * a[2][2],
+            a[0][1] * a[1][2] - a[0][2] * a[1][1],
+        ],
+        [
+            a[1][2] * a[2][0] - a[1][0] * a[2][2],
+            a[0][0] * a[2][2] - a[0][2] * a[2][0],
+            a[0][2] * a[1][0] - a[0][0] * a[1][2],
+        ],
+        [
+            a[1][0] * a[2][1] - a[1][1] * a[2][0],
+            a[0][1] * a[2][0] - a[0][0] * a[2][1],
+            a[0][0] * a[1][1] - a[0][1] * a[1][0],
+        ],
+    ];
+    let inv = adj.map(|row| row.map(|v| v / d));
+    inv.iter().flatten().all(|v| v.is_finite()).then_some(inv)
+}
+
+/// `A x` for a `3 × 3` matrix.
+pub(crate) fn mul3(a: &M3, x: [f64; 3]) -> [f64; 3] {
+    std::array::from_fn(|r| a[r][0] * x[0] + a[r][1] * x[1] + a[r][2] * x[2])
+}
+
+/// `x · y`.
+pub(crate) fn dot3(x: [f64; 3], y: [f64; 3]) -> f64 {
+    x[0] * y[0] + x[1] * y[1] + x[2] * y[2]
+}

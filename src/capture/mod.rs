@@ -13,6 +13,7 @@ pub mod inputs;
 pub mod linalg;
 pub mod lp;
 pub mod photometric;
+pub mod robust;
 
 #[cfg(test)]
 mod real_data_tests;

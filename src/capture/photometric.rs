@@ -70,22 +70,25 @@
 
 use super::inputs::{Lights, PhotoStack};
 use super::linalg::{condition, gram, solve3, MIN_LIGHT_CONDITION};
+use super::robust::{l1_irls, sbl, RobustParams};
 use crate::error::RgbnError;
 use crate::raster::{buf, check_size, RgbnImage};
 use rayon::prelude::*;
 use std::path::PathBuf;
 
-/// The photometric-stereo estimator.
-#[derive(
-    Clone, Copy, Debug, Default, PartialEq, Eq, Hash, serde::Serialize, serde::Deserialize,
-)]
-pub enum PsMethod {
-    /// Woodham's least squares on all unsaturated observations.
-    LeastSquares,
-    /// Trimmed least squares: drop the darkest and brightest fractions per pixel, then the
-    /// observations shadowed by the estimate, and re-solve (module docs).
-    #[default]
-    Trimmed,
+crate::choice_enum! {
+    /// The photometric-stereo estimator (module docs; `docs/capture.md` says which to use when).
+    #[derive(serde::Serialize, serde::Deserialize)]
+    pub enum PsMethod {
+        /// Trimmed least squares: drop the darkest and brightest fractions per pixel, then the observations shadowed by the estimate, and re-solve.
+        Trimmed = "trimmed",
+        /// Woodham's least squares on all unsaturated observations.
+        LeastSquares = "ls",
+        /// L1 regression by iteratively reweighted least squares, started from least squares (robust to sparse shadows and highlights).
+        L1 = "l1",
+        /// Sparse Bayesian learning (Ikehata et al. 2012): per-observation error variances learnt by evidence maximisation; outliers weighted out.
+        Sbl = "sbl",
+    }
 }
 
 /// Parameters of [`photometric_stereo`].
@@ -105,6 +108,14 @@ pub struct PhotometricParams {
     /// A pixel whose brightest grey observation (intensity-normalised) is below this is dark:
     /// no normal is estimated, ≥ 0.
     pub dark_level: f32,
+    /// L1 and SBL: observations darker than this fraction of the pixel's brightest usable one
+    /// are shadows and left out before the regression, in [0, 1).
+    pub shadow_level: f32,
+    /// L1 and SBL: after the regression, observations with `n · l` below this are dropped as
+    /// attached shadows and the regression runs again from the estimate, in [−1, 1); −1 skips.
+    pub robust_min_shading: f32,
+    /// L1 and SBL iteration settings.
+    pub robust: RobustParams,
 }
 
 impl Default for PhotometricParams {
@@ -116,6 +127,9 @@ impl Default for PhotometricParams {
             min_shading: 0.05,
             saturation_level: 0.995,
             dark_level: 1e-3,
+            shadow_level: 0.0,
+            robust_min_shading: -1.0,
+            robust: RobustParams::default(),
         }
     }
 }
@@ -149,6 +163,25 @@ impl PhotometricParams {
         }
         if !(self.dark_level >= 0.0 && self.dark_level.is_finite()) {
             return Err(RgbnError::param("dark_level", "must be ≥ 0"));
+        }
+        if !(0.0..1.0).contains(&self.shadow_level) {
+            return Err(RgbnError::param("shadow_level", "must be in [0, 1)"));
+        }
+        if !(-1.0..1.0).contains(&self.robust_min_shading) {
+            return Err(RgbnError::param("robust_min_shading", "must be in [-1, 1)"));
+        }
+        let r = &self.robust;
+        if r.max_iterations == 0 {
+            return Err(RgbnError::param("max_iterations", "must be ≥ 1"));
+        }
+        for (name, v) in [
+            ("tolerance", r.tolerance),
+            ("l1_delta", r.l1_delta),
+            ("sbl_lambda", r.sbl_lambda),
+        ] {
+            if !(v > 0.0 && v.is_finite()) {
+                return Err(RgbnError::param(name, format!("must be > 0, got {v}")));
+            }
         }
         Ok(())
     }
@@ -356,6 +389,14 @@ struct Scratch {
     sel: Vec<usize>,
     /// The observations of the final solve (albedo is fitted on them).
     chosen: Vec<usize>,
+    /// Grey observations as `f64` (robust estimators).
+    g: Vec<f64>,
+    /// Per-light weights of the final robust solve (the albedo fit uses them when `weighted`).
+    w: Vec<f64>,
+    /// Per-light error variances (SBL).
+    gamma: Vec<f64>,
+    /// The albedo fit is weighted by `w`.
+    weighted: bool,
 }
 
 impl Scratch {
@@ -365,6 +406,10 @@ impl Scratch {
             usable: Vec::with_capacity(m),
             sel: Vec::with_capacity(m),
             chosen: Vec::with_capacity(m),
+            g: vec![0.0; m],
+            w: vec![1.0; m],
+            gamma: vec![0.0; m],
+            weighted: false,
         }
     }
 }
@@ -428,6 +473,7 @@ fn solve_pixel(
         rep.with_saturated += 1;
     }
     s.chosen.clear();
+    s.weighted = false;
     let b = match params.method {
         PsMethod::LeastSquares if s.usable.len() == m => {
             let mut b = [0.0f64; 3];
@@ -445,6 +491,7 @@ fn solve_pixel(
             solve_subset(&s.usable, dirs, &s.obs)
         }
         PsMethod::Trimmed => trimmed_solve(s, dirs, params),
+        PsMethod::L1 | PsMethod::Sbl => robust_solve(s, dirs, params),
     };
     let Some(b) = b else {
         rep.unsolvable += 1;
@@ -461,10 +508,11 @@ fn solve_pixel(
     for &j in &s.chosen {
         let d = dirs[j];
         let sh = (nn[0] * d[0] + nn[1] * d[1] + nn[2] * d[2]).max(0.0);
+        let wsh = if s.weighted { s.w[j] * sh } else { sh };
         for (nc, &o) in num.iter_mut().zip(&s.obs[j][..3]) {
-            *nc += f64::from(o) * sh;
+            *nc += f64::from(o) * wsh;
         }
-        den += sh * sh;
+        den += wsh * sh;
     }
     let rho = if den > 0.0 {
         num.map(|v| (v / den) as f32)
@@ -522,264 +570,57 @@ fn trimmed_solve(
     }
 }
 
-#[cfg(test)]
-mod tests {
-    use super::*;
-    use crate::capture::linalg::angle_deg;
-    use crate::raster::sample::Surface;
-
-    /// Renders Lambertian photos of an RGBN (albedo × intensity × max(0, n·l)).
-    fn render(img: &RgbnImage, lights: &Lights) -> PhotoStack {
-        let n = img.len();
-        let photos = lights
-            .directions
-            .iter()
-            .enumerate()
-            .map(|(j, d)| {
-                let len = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
-                let l = d.map(|c| c / len);
-                let e = lights.intensities.as_ref().map_or([1.0; 3], |i| i[j]);
-                std::array::from_fn(|c| {
-                    (0..n)
-                        .map(|i| {
-                            let nn = [img.normal()[0][i], img.normal()[1][i], img.normal()[2][i]];
-                            let s = (nn[0] * l[0] + nn[1] * l[1] + nn[2] * l[2]).max(0.0);
-                            img.color()[c][i] * e[c] * s
-                        })
-                        .collect()
-                })
-            })
-            .collect();
-        PhotoStack::new(img.width(), img.height(), photos).unwrap()
+/// The L1 and SBL estimators ([`super::robust`]): shadows below `shadow_level` out, least
+/// squares, the regression, then (with `robust_min_shading > −1`) the attached shadows of that
+/// estimate out and the regression again. Leaves the final set in `s.chosen`, its weights in
+/// `s.w`.
+fn robust_solve(
+    s: &mut Scratch,
+    dirs: &[[f64; 3]],
+    params: &PhotometricParams,
+) -> Option<[f64; 3]> {
+    for &j in &s.usable {
+        s.g[j] = f64::from(s.obs[j][3]);
     }
-
-    fn ring_lights(m: usize, tilt_deg: f32) -> Vec<[f32; 3]> {
-        let t = tilt_deg.to_radians();
-        (0..m)
-            .map(|j| {
-                let a = std::f32::consts::TAU * j as f32 / m as f32;
-                [t.sin() * a.cos(), t.sin() * a.sin(), t.cos()]
-            })
-            .collect()
-    }
-
-    fn coloured(mut img: RgbnImage) -> RgbnImage {
-        let (w, h) = (img.width(), img.height());
-        let col = [0.7f32, 0.4, 0.2].map(|base| {
-            (0..w * h)
-                .map(|i| {
-                    base * (0.5 + 0.5 * ((i % w) as f32 / w as f32)) + 0.05 * ((i / w) % 3) as f32
-                })
-                .collect()
-        });
-        img.set_color(col).unwrap();
-        img
-    }
-
-    fn max_angle_deg(a: &RgbnImage, b: &RgbnImage, sel: &[f32]) -> f64 {
-        (0..a.len())
-            .filter(|&i| sel[i] >= 0.5)
-            .map(|i| {
-                let x = a.normal_at(i % a.width(), i / a.width());
-                let y = b.normal_at(i % b.width(), i / b.width());
-                angle_deg(x, y)
-            })
-            .fold(0.0, f64::max)
-    }
-
-    #[test]
-    fn least_squares_is_exact_on_lambertian_renders_without_shadows() {
-        // Mild dome + near-frontal lights: every pixel is lit by every light.
-        let (img, _) = Surface::Paraboloid { curvature: 0.004 }.render(48, 40);
-        let img = coloured(img);
-        let lights = Lights {
-            directions: ring_lights(6, 25.0),
-            intensities: Some(vec![
-                [1.0, 0.9, 0.8],
-                [1.2, 1.1, 1.0],
-                [0.7, 0.8, 0.9],
-                [1.0, 1.0, 1.0],
-                [0.9, 1.3, 1.1],
-                [1.1, 1.0, 0.6],
-            ]),
-        };
-        let stack = render(&img, &lights);
-        for method in [PsMethod::LeastSquares, PsMethod::Trimmed] {
-            let params = PhotometricParams {
-                method,
-                ..Default::default()
-            };
-            let (out, rep) = photometric_stereo(&stack, &lights, None, &params).unwrap();
-            assert_eq!(rep.solved, 48 * 40, "{rep:?}");
-            let all = vec![1.0; 48 * 40];
-            let e = max_angle_deg(&out, &img, &all);
-            assert!(e < 0.01, "{method:?}: {e}°");
-            for c in 0..3 {
-                for (a, b) in out.color()[c].iter().zip(&img.color()[c]) {
-                    assert!((a - b).abs() < 1e-4, "{method:?} albedo {a} vs {b}");
-                }
+    let gmax = s.usable.iter().map(|&j| s.g[j]).fold(0.0, f64::max);
+    let floor = f64::from(params.shadow_level) * gmax;
+    s.sel.clear();
+    s.sel.extend(s.usable.iter().copied().filter(|&j| s.g[j] >= floor));
+    let b0 = match solve_subset(&s.sel, dirs, &s.obs) {
+        Some(b) => b,
+        None => {
+            s.sel.clear();
+            s.sel.extend_from_slice(&s.usable);
+            solve_subset(&s.sel, dirs, &s.obs)?
+        }
+    };
+    let run = |s: &mut Scratch, b0: [f64; 3]| match params.method {
+        PsMethod::Sbl => sbl(&s.sel, dirs, &s.g, b0, &mut s.gamma, &mut s.w, &params.robust),
+        _ => l1_irls(&s.sel, dirs, &s.g, b0, &mut s.w, &params.robust),
+    };
+    let mut b = run(s, b0)?;
+    if params.robust_min_shading > -1.0 {
+        let len = (b[0] * b[0] + b[1] * b[1] + b[2] * b[2]).sqrt();
+        let n = b.map(|c| c / len);
+        let t = f64::from(params.robust_min_shading);
+        s.chosen.clear();
+        s.chosen.extend(s.sel.iter().copied().filter(|&j| {
+            let d = dirs[j];
+            n[0] * d[0] + n[1] * d[1] + n[2] * d[2] >= t
+        }));
+        if s.chosen.len() < s.sel.len() && s.chosen.len() >= 3 {
+            std::mem::swap(&mut s.chosen, &mut s.sel);
+            if let Some(b2) = run(s, b) {
+                b = b2;
             }
         }
     }
-
-    #[test]
-    fn trimming_removes_attached_shadows_and_highlights() {
-        // A sphere lit from steep directions: many pixels see some lights from behind, and one
-        // light per pixel gets a fake specular spike.
-        let (img, _) = Surface::Sphere { radius_px: 30.0 }.render(64, 64);
-        let img = coloured(img);
-        let lights = Lights {
-            directions: ring_lights(12, 50.0)
-                .into_iter()
-                .chain([[0.0, 0.0, 1.0]])
-                .collect(),
-            intensities: None,
-        };
-        let mut stack = render(&img, &lights);
-        // Specular spike: add 0.6 to the light closest to the mirror direction of the view.
-        for i in 0..64 * 64 {
-            let nn = img.normal_at(i % 64, i / 64);
-            let h = [
-                2.0 * nn[2] * nn[0],
-                2.0 * nn[2] * nn[1],
-                2.0 * nn[2] * nn[2] - 1.0,
-            ];
-            let j = (0..13)
-                .min_by(|&a, &b| {
-                    angle_deg(h, lights.directions[a])
-                        .total_cmp(&angle_deg(h, lights.directions[b]))
-                })
-                .unwrap();
-            if angle_deg(h, lights.directions[j]) < 20.0 {
-                for c in 0..3 {
-                    stack.photos[j][c][i] += 0.3;
-                }
-            }
-        }
-        // Only pixels seen by enough lights: n_z ≥ 0.5.
-        let sel: Vec<f32> = (0..64 * 64)
-            .map(|i| {
-                f32::from(u8::from(
-                    img.normal()[2][i] >= 0.5 && img.mask().unwrap()[i] > 0.5,
-                ))
-            })
-            .collect();
-        let mean = |out: &RgbnImage| {
-            let idx: Vec<usize> = (0..64 * 64).filter(|&i| sel[i] > 0.5).collect();
-            idx.iter()
-                .map(|&i| angle_deg(out.normal_at(i % 64, i / 64), img.normal_at(i % 64, i / 64)))
-                .sum::<f64>()
-                / idx.len() as f64
-        };
-        let mask = img.mask().map(<[f32]>::to_vec);
-        let ls = PhotometricParams {
-            method: PsMethod::LeastSquares,
-            ..Default::default()
-        };
-        let (out_ls, _) = photometric_stereo(&stack, &lights, mask.as_deref(), &ls).unwrap();
-        let (out_tr, rep) = photometric_stereo(
-            &stack,
-            &lights,
-            mask.as_deref(),
-            &PhotometricParams::default(),
-        )
-        .unwrap();
-        let (e_ls, e_tr) = (mean(&out_ls), mean(&out_tr));
-        eprintln!(
-            "synthetic sphere, shadows + highlights: LS {e_ls:.2}°, trimmed {e_tr:.2}° ({rep:?})"
-        );
-        assert!(e_tr < 0.5 * e_ls && e_tr < 1.0, "{e_ls} {e_tr}");
-        assert!(out_tr.validate().is_clean());
-    }
-
-    #[test]
-    fn bad_inputs_are_clear_errors() {
-        let (img, _) = Surface::Paraboloid { curvature: 0.004 }.render(16, 12);
-        let lights = Lights {
-            directions: ring_lights(4, 30.0),
-            intensities: None,
-        };
-        let stack = render(&img, &lights);
-        let p = PhotometricParams::default();
-        // Too few lights.
-        let two = PhotoStack::new(16, 12, stack.photos[..2].to_vec()).unwrap();
-        let l2 = Lights {
-            directions: lights.directions[..2].to_vec(),
-            intensities: None,
-        };
-        assert!(matches!(
-            photometric_stereo(&two, &l2, None, &p),
-            Err(RgbnError::TooFewLights { count: 2 })
-        ));
-        // Rows ≠ photos.
-        let l3 = Lights {
-            directions: lights.directions[..3].to_vec(),
-            intensities: None,
-        };
-        assert!(matches!(
-            photometric_stereo(&stack, &l3, None, &p),
-            Err(RgbnError::LightCountMismatch {
-                got: 3,
-                photos: 4,
-                ..
-            })
-        ));
-        let li = Lights {
-            intensities: Some(vec![[1.0; 3]; 3]),
-            ..lights.clone()
-        };
-        assert!(matches!(
-            photometric_stereo(&stack, &li, None, &p),
-            Err(RgbnError::LightCountMismatch { .. })
-        ));
-        // Coplanar (all in the x–z plane) and zero lights.
-        let flat = Lights {
-            directions: vec![
-                [0.5, 0.0, 0.8],
-                [-0.5, 0.0, 0.8],
-                [0.0, 0.0, 1.0],
-                [0.3, 0.0, 0.9],
-            ],
-            intensities: None,
-        };
-        let e = photometric_stereo(&stack, &flat, None, &p).unwrap_err();
-        assert!(matches!(e, RgbnError::DegenerateLights { .. }), "{e}");
-        let mut zero = lights.clone();
-        zero.directions[1] = [0.0; 3];
-        assert!(matches!(
-            photometric_stereo(&stack, &zero, None, &p),
-            Err(RgbnError::DegenerateLights { .. })
-        ));
-        // Mask of the wrong size; planes of the wrong size.
-        assert!(matches!(
-            photometric_stereo(&stack, &lights, Some(&[1.0; 5]), &p),
-            Err(RgbnError::SizeMismatch { .. })
-        ));
-        assert!(PhotoStack::new(16, 12, vec![[vec![0.0; 5], vec![], vec![]]]).is_err());
-        // Bad parameters.
-        let bad = PhotometricParams {
-            dark_fraction: 0.6,
-            bright_fraction: 0.5,
-            ..Default::default()
-        };
-        assert!(bad.validate().is_err());
-        // Dark and saturated pixels are counted, not NaN.
-        let mut s2 = stack.clone();
-        for ph in &mut s2.photos {
-            for plane in ph.iter_mut() {
-                plane[0] = 0.0; // all dark
-                plane[1] = 1.0; // saturated in every photo → unsolvable
-            }
-        }
-        s2.photos[0][1][2] = 1.0; // one saturated observation → still solved from 3
-        let (out, rep) = photometric_stereo(&s2, &lights, None, &p).unwrap();
-        assert_eq!(rep.dark, 1, "{rep:?}");
-        assert_eq!(rep.unsolvable, 1, "{rep:?}");
-        assert_eq!(rep.with_saturated, 2, "{rep:?}");
-        assert_eq!(rep.solved, 16 * 12 - 2);
-        assert_eq!(out.normal_at(0, 0), [0.0, 0.0, 1.0]);
-        assert_eq!(out.mask().unwrap()[0], 0.0);
-        assert_eq!(out.mask().unwrap()[2], 1.0);
-        assert!(out.validate().is_clean());
-    }
+    s.chosen.clear();
+    s.chosen.extend_from_slice(&s.sel);
+    s.weighted = true;
+    Some(b)
 }
+
+#[cfg(test)]
+#[path = "photometric_tests.rs"]
+mod tests;

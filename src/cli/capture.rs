@@ -20,6 +20,10 @@ pub enum MethodArg {
     Ls,
     /// Trimmed least squares (robust to shadows and highlights).
     Trimmed,
+    /// L1 regression by iteratively reweighted least squares, from least squares.
+    L1,
+    /// Sparse Bayesian learning (Ikehata et al. 2012).
+    Sbl,
 }
 
 #[derive(Args, Debug)]
@@ -158,6 +162,8 @@ pub fn capture_cmd(a: &CaptureArgs, out: &mut Out<'_>) -> Result<(), CliError> {
         method: match a.method {
             MethodArg::Ls => PsMethod::LeastSquares,
             MethodArg::Trimmed => PsMethod::Trimmed,
+            MethodArg::L1 => PsMethod::L1,
+            MethodArg::Sbl => PsMethod::Sbl,
         },
         ..PhotometricParams::default()
     };

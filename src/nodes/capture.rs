@@ -17,29 +17,10 @@ use crate::capture::lp::is_lp;
 use crate::capture::photometric::PsMethod;
 use crate::capture::photometric::{photometric_stereo, PhotometricParams};
 use crate::error::RgbnError;
-use crate::params::Choice;
 use crate::raster::gradient::GradientField;
 use crate::raster::integrate::curl_interior;
 use crate::RgbnImage;
 use std::path::{Path, PathBuf};
-
-impl Choice for PsMethod {
-    const ALL: &'static [Self] = &[PsMethod::LeastSquares, PsMethod::Trimmed];
-    fn name(self) -> &'static str {
-        match self {
-            PsMethod::LeastSquares => "ls",
-            PsMethod::Trimmed => "trimmed",
-        }
-    }
-    fn doc(self) -> &'static str {
-        match self {
-            PsMethod::LeastSquares => "Woodham's least squares on all unsaturated observations.",
-            PsMethod::Trimmed => {
-                "Drop the darkest/brightest and the shadowed observations, re-solve."
-            }
-        }
-    }
-}
 
 crate::params! {
     /// Parameters of the photometric-stereo node: its input files and the method.
@@ -53,7 +34,7 @@ crate::params! {
         pub intensities: String = String::new() => path.optional(),
         /// Optional object mask (white = object), the photos' size.
         pub mask: String = String::new() => path.optional(),
-        /// ls: Woodham's least squares on all unsaturated observations; trimmed: drop the darkest/brightest and the shadowed observations, re-solve (robust to shadows and highlights).
+        /// The estimator: trimmed (drop the darkest/brightest and the shadowed observations, re-solve), ls (Woodham's least squares), l1 (L1 regression by reweighted least squares), sbl (sparse Bayesian learning, Ikehata et al. 2012); docs/capture.md says which to use when.
         pub method: PsMethod = PsMethod::Trimmed => choice,
         /// The photos are sRGB-encoded (decoded to linear); off for linear/raw data.
         pub srgb: bool = false => bool,

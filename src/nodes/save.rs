@@ -65,7 +65,7 @@ impl SaveParams {
 }
 
 /// Writes `value` to `path` by its type and the path's extension:
-/// RGBN → `.exr` (everything) or `.png`/`.tif` (normal map); picture → `.png`/`.tif`;
+/// RGBN → `.exr` (everything), `.png`/`.tif` (normal map) or `.ptm` (LRGB PTM); picture → `.png`/`.tif`;
 /// mask → `.png`/`.tif` (16-bit grey) or `.exr`; scalar field → `.exr` (`Y` channel, f32);
 /// number → a text file with the value.
 pub fn write_value(value: &Value, path: &Path, opts: &SaveOptions) -> Result<(), RgbnError> {
@@ -87,7 +87,7 @@ pub fn write_value(value: &Value, path: &Path, opts: &SaveOptions) -> Result<(),
                     .collect();
                 io::write_raster16(&data, m.width(), m.height(), 1, f, path)
             }
-            Format::Jpeg | Format::Ptm => {
+            Format::Jpeg | Format::Ptm | Format::Rti => {
                 Err(unsupported(path, "masks are written as .png, .tif or .exr"))
             }
         },
@@ -168,9 +168,9 @@ impl Operator for Save {
     }
     fn check(p: &SaveParams) -> Result<(), RgbnError> {
         match Format::of(Path::new(&p.path))? {
-            Format::Ptm => Err(unsupported(
+            Format::Rti => Err(unsupported(
                 Path::new(&p.path),
-                "PTM files are read, not written",
+                "HSH .rti files are read, not written: write .ptm for RTIViewer",
             )),
             _ => Ok(()),
         }

@@ -7,8 +7,11 @@
 //! - **Normal maps** PNG/TIFF (8/16 bit) or EXR: `n = v/(2^bits−1)·2−1`, then renormalised;
 //!   OpenGL (`+y` up, the internal frame) or DirectX (`y` flipped) convention.
 //! - **Masks**: any greyscale (or first channel) image, values in [0, 1].
-//! - **PTM** (read only): an uncompressed LRGB or RGB Polynomial Texture Map gives colour, the
-//!   normal at the luminance maximum and a mask of the pixels without one (see [`super::ptm`]).
+//! - **PTM**: an uncompressed LRGB or RGB Polynomial Texture Map gives colour, the normal at the
+//!   luminance maximum and a mask of the pixels without one (see [`super::ptm`]); an RGBN image
+//!   is written as an LRGB PTM.
+//! - **RTI** (`.rti`, read only): an HSH file gives colour, the normal at the luminance maximum
+//!   and a mask (see [`super::hsh`]).
 //!
 //! Bad normals on load are **repaired, with counts** (see [`RgbnImage::repair`]): non-finite and
 //! zero-length normals become `(0, 0, 1)`, others are renormalised; back-facing normals are kept
@@ -19,12 +22,14 @@
 
 pub mod ahead;
 mod exr_write;
+mod format;
 mod openexr;
 mod png_normals;
 pub mod stream;
 pub mod targets;
 
 pub use exr_write::ExrFormat;
+pub use format::Format;
 pub mod temp;
 
 pub use openexr::{
@@ -38,51 +43,6 @@ use crate::raster::buf;
 use openexr::read_exr_channels;
 use rayon::prelude::*;
 use std::path::{Path, PathBuf};
-
-/// File formats rgbn reads and writes, decided by extension.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Format {
-    Exr,
-    Png,
-    Jpeg,
-    Tiff,
-    /// Polynomial Texture Map (read only, see [`super::ptm`]).
-    Ptm,
-}
-
-impl Format {
-    /// The format of `path` by its extension (case-insensitive).
-    pub fn of(path: &Path) -> Result<Self, RgbnError> {
-        let ext = path
-            .extension()
-            .and_then(|e| e.to_str())
-            .map(str::to_ascii_lowercase)
-            .unwrap_or_default();
-        Ok(match ext.as_str() {
-            "exr" => Self::Exr,
-            "png" => Self::Png,
-            "jpg" | "jpeg" => Self::Jpeg,
-            "tif" | "tiff" => Self::Tiff,
-            "ptm" => Self::Ptm,
-            "rti" => return Err(RgbnError::UnsupportedFormat {
-                format:
-                    "rti (HSH/RBF RTI files are not read; export an uncompressed LRGB or RGB .ptm)"
-                        .into(),
-                path: path.into(),
-            }),
-            _ => {
-                return Err(RgbnError::UnsupportedFormat {
-                    format: if ext.is_empty() {
-                        "(no extension)".into()
-                    } else {
-                        ext
-                    },
-                    path: path.into(),
-                })
-            }
-        })
-    }
-}
 
 /// Normal-map convention of a file. Internally rgbn always uses OpenGL (`+y` up).
 #[derive(
@@ -167,6 +127,7 @@ pub fn load(spec: &InputSpec, opts: &LoadOptions) -> Result<Loaded, RgbnError> {
             let (img, counted) = match Format::of(p)? {
                 Format::Exr => (load_exr(p, opts)?, None),
                 Format::Ptm => (super::ptm::load_ptm(p)?, None),
+                Format::Rti => (super::hsh::load_hsh(p)?, None),
                 _ => load_normal_map_counted(p, opts)?,
             };
             (img, p.clone(), counted)
@@ -288,7 +249,7 @@ fn decode_raster(path: &Path) -> Result<Raster, RgbnError> {
         Format::Jpeg => image::ImageFormat::Jpeg,
         Format::Tiff => image::ImageFormat::Tiff,
         Format::Exr => unreachable!("EXR is decoded by the exr crate"),
-        Format::Ptm => return Err(ptm_not_a_raster(path)),
+        Format::Ptm | Format::Rti => return Err(ptm_not_a_raster(path)),
     };
     let decode_err = |e: image::ImageError| {
         let detail = e.to_string();
@@ -414,10 +375,10 @@ fn decode_png(path: &Path) -> Result<Raster, RgbnError> {
     })
 }
 
-/// A PTM named where a colour image, mask, normal map or output is expected.
+/// A PTM or RTI file named where a colour image, mask, normal map or picture is expected.
 fn ptm_not_a_raster(path: &Path) -> RgbnError {
     RgbnError::UnsupportedFormat {
-        format: "ptm (a PTM is read whole, as the RGBN input; it is not written, nor read as a colour image, mask or photo)".into(),
+        format: "ptm/rti (an RTI file is read whole, as the RGBN input, and an RGBN image is written as .ptm; neither is read as a colour image, mask or photo, nor written from one)".into(),
         path: path.into(),
     }
 }
@@ -646,6 +607,7 @@ pub fn dimensions(path: &Path) -> Option<(usize, usize)> {
             Some((size.width(), size.height()))
         }
         Format::Ptm => super::ptm::dimensions(path),
+        Format::Rti => super::hsh::dimensions(path),
         _ => image::image_dimensions(path)
             .ok()
             .map(|(w, h)| (w as usize, h as usize)),
@@ -892,8 +854,8 @@ fn encode_raster(
                 .write_image(bytes, w as u32, h as u32, ct),
             Format::Jpeg => image::codecs::jpeg::JpegEncoder::new_with_quality(out, 95)
                 .write_image(bytes, w as u32, h as u32, ct),
-            Format::Png | Format::Exr | Format::Ptm => {
-                unreachable!("PNG: encode_png; EXR: the exr crate; PTM: refused by the callers")
+            Format::Png | Format::Exr | Format::Ptm | Format::Rti => {
+                unreachable!("PNG: encode_png; EXR: the exr crate; PTM/RTI: refused by the callers")
             }
         };
         r.map_err(|e| e.to_string())
@@ -909,7 +871,7 @@ pub fn write_raster8(
     fmt: Format,
     path: &Path,
 ) -> Result<(), RgbnError> {
-    if fmt == Format::Ptm {
+    if matches!(fmt, Format::Ptm | Format::Rti) {
         return Err(ptm_not_a_raster(path));
     }
     if fmt == Format::Png {
@@ -927,7 +889,7 @@ pub fn write_raster16(
     fmt: Format,
     path: &Path,
 ) -> Result<(), RgbnError> {
-    if fmt == Format::Ptm {
+    if matches!(fmt, Format::Ptm | Format::Rti) {
         return Err(ptm_not_a_raster(path));
     }
     if fmt == Format::Jpeg {
@@ -962,6 +924,11 @@ pub fn write_raster16(
 pub fn save(img: &RgbnImage, path: &Path, opts: &SaveOptions) -> Result<(), RgbnError> {
     match Format::of(path)? {
         Format::Exr => save_exr_with(img, path, opts.precision, opts.compression),
+        Format::Ptm => super::ptm::save_ptm(img, path),
+        Format::Rti => Err(RgbnError::UnsupportedFormat {
+            format: "rti (HSH files are read, not written: write .ptm for RTIViewer)".into(),
+            path: path.into(),
+        }),
         _ => save_normal_map(img, path, opts.bits, opts.convention),
     }
 }

@@ -15,6 +15,7 @@ pub mod integrate;
 pub mod io;
 pub mod mesh;
 pub(crate) mod par;
+pub mod hsh;
 pub mod ptm;
 pub mod pyramid;
 pub mod sample;

@@ -1,6 +1,7 @@
 //! Polynomial Texture Maps (`.ptm`, Malzbender, Gelb & Wolters, "Polynomial Texture Maps",
-//! SIGGRAPH 2001): reading an uncompressed LRGB or RGB PTM as an RGBN image, and a writer used
-//! by tests and tools.
+//! SIGGRAPH 2001): reading an uncompressed LRGB or RGB PTM as an RGBN image, writing an RGBN
+//! image as an LRGB PTM that RTIViewer opens ([`save_ptm`], [`ptm_from_rgbn`]), and a general
+//! writer used by tests and tools.
 //!
 //! # File layout (PTM_1.2, also PTM_1.1)
 //!
@@ -74,7 +75,7 @@
 //!
 //! Not read (a one-line error naming the format): the compressed `PTM_FORMAT_JPEG_RGB`,
 //! `PTM_FORMAT_JPEG_LRGB`, `PTM_FORMAT_JPEGLS_*` and the other PTM formats (`PTM_FORMAT_LUM`,
-//! palettes), and HSH/RBF RTI files (`#HSH1.2` …; `.rti`).
+//! palettes), and RTI files (`#HSH1.2` …; `.rti`, read by [`super::hsh`]).
 //!
 //! Safety on bad input: header fields are parsed strictly (negative, non-numeric, non-finite →
 //! error), the size is checked against `RGBN_MAX_PIXELS` and the file length against the data
@@ -605,6 +606,56 @@ pub fn write_ptm(
         }
     }
     write_atomic(path, |out| out.write_all(&bytes).map_err(|e| e.to_string()))
+}
+
+// ------------------------------------------------------------------------------------------
+// An RGBN image as a PTM (for RTIViewer and the other RTI tools)
+// ------------------------------------------------------------------------------------------
+
+/// Half the luminance curvature of [`ptm_from_rgbn`]'s polynomials, in file units: a Lambertian
+/// `255 · n · l` has the Hessian `−255 · I` at its maximum for a normal facing the viewer.
+const LAMBERT_HALF_CURVATURE: f64 = 127.5;
+
+/// An RGBN image as LRGB PTM data: per pixel the paraboloid
+/// `L(u, v) = 255 · (1 − ½ ((u − n_x)² + (v − n_y)²))` — the second-order expansion of a
+/// Lambertian `255 · n · l` about its maximum for a normal facing the viewer — whose maximum is
+/// exactly `(n_x, n_y)`, so a PTM reader (rgbn's, RTIViewer's `calculateNormal`) finds the
+/// normal again, and the colour as sRGB bytes. In coefficients:
+/// `a0 = a1 = −127.5`, `a2 = 0`, `a3 = 255 n_x`, `a4 = 255 n_y`,
+/// `a5 = 255 (1 − (n_x² + n_y²)/2)`, so `L(0, 0) ≈ 255 n_z` (a light from the viewer).
+///
+/// Pixels outside the mask or facing away (`n_z ≤ 0`) get a flat polynomial (all zero: no
+/// maximum, read back as masked out) and their colour.
+#[must_use]
+pub fn ptm_from_rgbn(img: &RgbnImage) -> PtmData {
+    let [nx, ny, nz] = img.normal();
+    let mask = img.mask();
+    let lum = (0..img.len())
+        .into_par_iter()
+        .map(|i| {
+            let inside = mask.is_none_or(|m| m[i] >= 0.5) && nz[i] > 0.0;
+            if !inside {
+                return [0.0; 6];
+            }
+            let (x, y) = (f64::from(nx[i]), f64::from(ny[i]));
+            let k = LAMBERT_HALF_CURVATURE;
+            [-k, -k, 0.0, 2.0 * k * x, 2.0 * k * y, 2.0 * k * (1.0 - (x * x + y * y) / 2.0)]
+        })
+        .collect();
+    let [r, g, b] = img.color();
+    let rgb = (0..img.len())
+        .into_par_iter()
+        .map(|i| [r[i], g[i], b[i]].map(crate::raster::srgb::linear_to_srgb8))
+        .collect();
+    PtmData::Lrgb { lum, rgb }
+}
+
+/// Writes an RGBN image as an uncompressed LRGB PTM_1.2 ([`ptm_from_rgbn`]), atomically.
+///
+/// # Errors
+/// Write errors.
+pub fn save_ptm(img: &RgbnImage, path: &Path) -> Result<(), RgbnError> {
+    write_ptm(path, img.width(), img.height(), &ptm_from_rgbn(img))
 }
 
 #[cfg(test)]

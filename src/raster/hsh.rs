@@ -1,0 +1,712 @@
+//! RTI files with hemispherical harmonics (`.rti`, "HSH": RTIBuilder's fitter, read by
+//! RTIViewer, relight and OpenLIME): reading one as an RGBN image, and a writer used by tests
+//! and tools.
+//!
+//! # File layout
+//!
+//! Text header lines ending in `\n` (RTIBuilder writes `\r\n`), then raw bytes:
+//!
+//! ```text
+//! #HSH1.2                 any number of comment lines starting with '#'
+//! 3                       RTI type: 3 = hemispherical harmonics
+//! 320 470 3               width, height, bands
+//! 9 2 1                   terms, colour layout, bytes per coefficient
+//! <terms f32 scales> <terms f32 biases>        little-endian
+//! <coefficient bytes>
+//! ```
+//!
+//! - **Terms**: `order²` — 4 (order 2), 9 (order 3) or 16 (order 4).
+//! - **Coefficient** `t` of a byte `c`: `c / 255 · scale_t + bias_t`; one scale and bias per
+//!   term, shared by all pixels and bands. The value of a band under a light `l` is
+//!   `Σ_t coef_t · H_t(l)`, in 0..1 units of the 8-bit photos (RTIViewer clamps it to [0, 1]
+//!   and multiplies by 255).
+//! - **Colour layouts** (the second field of the terms line):
+//!   - `2`, **RGB** (what RTIBuilder writes): per pixel, `bands = 3` groups of `terms` bytes —
+//!     all red terms, then green, then blue.
+//!   - `1`, **LRGB**: per pixel, `terms` bytes of one luminance function, then the pixel's
+//!     `R, G, B` bytes (the layout of a PTM_1.1 LRGB pixel; relight's universal writer numbers
+//!     LRGB 1 and RGB 2). The value of a channel is `L(l) · C / 255` as in an LRGB PTM.
+//! - **Rows are stored bottom-up** (the first row in the file is the bottom of the image), as
+//!   in a PTM; `x` right, `y` up, like rgbn's normal frame: no axis is flipped.
+//! - **Basis**: hemispherical harmonics (Gautron, Křivánek, Pattanaik & Bouatouch 2004), the
+//!   associated Legendre functions of `2 cos θ − 1` over the upper hemisphere, with the light
+//!   `l = (sin θ cos φ, sin θ sin φ, cos θ)` in the image frame; the term order and signs are
+//!   RTIViewer's ([`hsh_basis`] writes them out).
+//!
+//! Sources read for the layout (no code copied): RTIViewer's HSH loader as distributed in
+//! public mirrors (header lines, scale/bias arrays of `terms` floats, per-pixel band-major
+//! bytes, `c/255 · scale + bias`), relight's `legacy_rti.cpp` (the bottom-up row order of
+//! `.rti` data, colour-layout numbers 1 = LRGB, 2 = RGB), and joncooper/rti's `rti.coffee`
+//! (the basis functions up to order 4). Real RTIBuilder files (`#HSH1.2`, `9 2 1`, 320 × 470)
+//! were checked to have exactly the size this layout implies.
+//!
+//! # What rgbn makes of an HSH
+//!
+//! - **Normal**: the light direction that maximises the pixel's luminance function (the mean
+//!   of the three bands' functions, or the LRGB luminance), found over the hemisphere by a
+//!   grid of directions in the unit disk of `(l_x, l_y)` followed by a pattern search down to
+//!   `1e-5` — for a diffuse surface the reflected light is largest when the light faces the
+//!   surface, `l = n`. A pixel whose function is flat (black) or whose maximum lies on the
+//!   horizon gets mask 0 and normal `(0, 0, 1)`, as a PTM pixel without a maximum.
+//! - **Colour**: RGB: each band's function at `l = n` (for a diffuse surface the albedo,
+//!   free of shading), clamped to [0, 1]; LRGB: the stored bytes. Both sRGB-encoded, converted
+//!   to rgbn's linear light.
+//!
+//! Not read (a one-line error naming what): other RTI types (PTM-basis, RBF, spherical
+//! harmonics, DMD), bands other than 3 with RGB, more than one byte per coefficient, and the
+//! multi-view `.mview` / web formats.
+//!
+//! # References
+//!
+//! - P. Gautron, J. Křivánek, S. Pattanaik, K. Bouatouch, "A Novel Hemispherical Basis for
+//!   Accurate and Efficient Rendering", Eurographics Symposium on Rendering 2004.
+//! - M. Mudge, T. Malzbender, C. Schroer, M. Lum, "New Reflection Transformation Imaging
+//!   Methods for Rock Art and Multiple-Viewpoint Display", VAST 2006 (HSH in RTI).
+
+use super::{check_size, RgbnImage};
+use crate::error::RgbnError;
+use crate::raster::io::write_atomic;
+use crate::raster::srgb::srgb_to_linear;
+use rayon::prelude::*;
+use std::io::{BufRead, Read, Write};
+use std::path::Path;
+
+/// Most terms of a supported basis (order 4).
+pub const MAX_TERMS: usize = 16;
+
+/// The colour layout of an HSH file.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum HshLayout {
+    /// One function per colour channel (RTIBuilder's layout, number 2).
+    Rgb,
+    /// One luminance function plus 8-bit `R, G, B` per pixel (number 1).
+    Lrgb,
+}
+
+impl HshLayout {
+    fn number(self) -> u32 {
+        match self {
+            Self::Lrgb => 1,
+            Self::Rgb => 2,
+        }
+    }
+    fn name(self) -> &'static str {
+        match self {
+            Self::Lrgb => "LRGB",
+            Self::Rgb => "RGB",
+        }
+    }
+    /// Bytes per pixel for `terms` terms.
+    fn bytes_per_pixel(self, terms: usize) -> usize {
+        match self {
+            Self::Lrgb => terms + 3,
+            Self::Rgb => 3 * terms,
+        }
+    }
+}
+
+/// An HSH `.rti` read as an RGBN image.
+#[derive(Clone, Debug)]
+pub struct Hsh {
+    /// Colour (linear), normal at the luminance maximum, mask (0 where there is none).
+    pub image: RgbnImage,
+    /// The file's colour layout.
+    pub layout: HshLayout,
+    /// Terms per function (4, 9 or 16).
+    pub terms: usize,
+    /// Pixels with a flat function or a maximum on the horizon (mask 0, normal `(0, 0, 1)`).
+    pub no_maximum: usize,
+}
+
+/// The hemispherical-harmonics basis at the light direction `l` (unit, `l_z ≥ 0`; a direction
+/// below the horizon is evaluated at the horizon), in RTIViewer's term order: entries
+/// `0..terms` are set.
+#[must_use]
+pub fn hsh_basis(l: [f64; 3], terms: usize) -> [f64; MAX_TERMS] {
+    use std::f64::consts::PI;
+    let z = l[2].clamp(0.0, 1.0);
+    let phi = l[1].atan2(l[0]);
+    let (s1, c1) = phi.sin_cos();
+    let (s2, c2) = (2.0 * phi).sin_cos();
+    let (s3, c3) = (3.0 * phi).sin_cos();
+    // sqrt(z − z²) = sqrt(cos θ − cos² θ), and 2z − 1 = the shifted cos θ.
+    let q = (z - z * z).max(0.0);
+    let s = q.sqrt();
+    let t = 2.0 * z - 1.0;
+    let mut h = [0.0; MAX_TERMS];
+    h[0] = 1.0 / (2.0 * PI).sqrt();
+    if terms > 1 {
+        h[1] = (6.0 / PI).sqrt() * c1 * s;
+        h[2] = (3.0 / (2.0 * PI)).sqrt() * t;
+        h[3] = (6.0 / PI).sqrt() * s1 * s;
+    }
+    if terms > 4 {
+        let k = (30.0 / PI).sqrt();
+        h[4] = k * c2 * (z * z - z);
+        h[5] = k * c1 * t * s;
+        h[6] = (5.0 / (2.0 * PI)).sqrt() * (1.0 - 6.0 * z + 6.0 * z * z);
+        h[7] = k * s1 * t * s;
+        h[8] = k * s2 * (z * z - z);
+    }
+    if terms > 9 {
+        let (k35, k210, k21) = (
+            2.0 * (35.0 / PI).sqrt(),
+            (210.0 / PI).sqrt(),
+            2.0 * (21.0 / PI).sqrt(),
+        );
+        let p3 = 1.0 - 5.0 * z + 5.0 * z * z;
+        h[9] = k35 * c3 * q * s;
+        h[10] = k210 * c2 * t * (z * z - z);
+        h[11] = k21 * c1 * s * p3;
+        h[12] = (7.0 / (2.0 * PI)).sqrt() * (-1.0 + 12.0 * z - 30.0 * z * z + 20.0 * z * z * z);
+        h[13] = k21 * s1 * s * p3;
+        h[14] = k210 * s2 * t * (z * z - z);
+        h[15] = k35 * s3 * q * s;
+    }
+    h
+}
+
+/// `Σ_t c_t H_t(l)` for the first `c.len()` terms.
+#[must_use]
+pub fn eval_hsh(c: &[f64], l: [f64; 3]) -> f64 {
+    let h = hsh_basis(l, c.len());
+    c.iter().zip(&h).map(|(a, b)| a * b).sum()
+}
+
+/// The direction of the unit disk point `(u, v)` on the upper hemisphere.
+fn dir(u: f64, v: f64) -> [f64; 3] {
+    [u, v, (1.0 - u * u - v * v).max(0.0).sqrt()]
+}
+
+/// Grid step of the first search over the unit disk.
+const GRID_STEP: f64 = 0.1;
+/// The pattern search stops at this step in `(u, v)` (≈ 0.0006°).
+const FINE_STEP: f64 = 1e-5;
+/// A maximum at or beyond this radius lies on the horizon: no normal.
+const HORIZON: f64 = 0.999;
+
+/// The grid of the first search: points of the unit disk and their basis values.
+struct Grid {
+    points: Vec<(f64, f64)>,
+    basis: Vec<[f64; MAX_TERMS]>,
+}
+
+impl Grid {
+    fn new(terms: usize) -> Self {
+        let k = (1.0 / GRID_STEP).round() as i32;
+        let mut points = Vec::new();
+        for i in -k..=k {
+            for j in -k..=k {
+                let (u, v) = (f64::from(i) * GRID_STEP, f64::from(j) * GRID_STEP);
+                if u * u + v * v < 1.0 {
+                    points.push((u, v));
+                }
+            }
+        }
+        let basis = points.iter().map(|&(u, v)| hsh_basis(dir(u, v), terms)).collect();
+        Self { points, basis }
+    }
+}
+
+/// The light direction maximising `Σ c_t H_t` over the hemisphere (module docs), or `None` for
+/// a flat function or a maximum on the horizon.
+fn hsh_maximum(c: &[f64], grid: &Grid) -> Option<[f64; 3]> {
+    let f = |h: &[f64; MAX_TERMS]| c.iter().zip(h).map(|(a, b)| a * b).sum::<f64>();
+    let (mut best, mut lo) = (None::<(usize, f64)>, f64::INFINITY);
+    for (i, h) in grid.basis.iter().enumerate() {
+        let v = f(h);
+        lo = lo.min(v);
+        if best.is_none_or(|(_, b)| v > b) {
+            best = Some((i, v));
+        }
+    }
+    let (i, mut top) = best?;
+    if !(top.is_finite() && top - lo > 1e-9 * top.abs().max(1e-3)) {
+        return None;
+    }
+    let (mut u, mut v) = grid.points[i];
+    let eval = |u: f64, v: f64| -> f64 {
+        if u * u + v * v >= 1.0 {
+            f64::NEG_INFINITY
+        } else {
+            f(&hsh_basis(dir(u, v), c.len()))
+        }
+    };
+    let mut step = GRID_STEP / 2.0;
+    while step >= FINE_STEP {
+        let mut moved = false;
+        for (du, dv) in [
+            (1.0, 0.0),
+            (-1.0, 0.0),
+            (0.0, 1.0),
+            (0.0, -1.0),
+            (1.0, 1.0),
+            (1.0, -1.0),
+            (-1.0, 1.0),
+            (-1.0, -1.0),
+        ] {
+            let (nu, nv) = (u + du * step, v + dv * step);
+            let val = eval(nu, nv);
+            if val > top {
+                (u, v, top) = (nu, nv, val);
+                moved = true;
+            }
+        }
+        if !moved {
+            step /= 2.0;
+        }
+    }
+    (u * u + v * v < HORIZON * HORIZON).then(|| dir(u, v))
+}
+
+#[derive(Clone, Debug)]
+struct Header {
+    width: usize,
+    height: usize,
+    terms: usize,
+    layout: HshLayout,
+    /// Bytes of header text before the scale floats.
+    len: u64,
+}
+
+/// Longest header line accepted.
+const MAX_LINE: u64 = 4096;
+
+fn decode_err(path: &Path, detail: impl Into<String>) -> RgbnError {
+    RgbnError::Decode {
+        detail: detail.into(),
+        path: path.into(),
+    }
+}
+
+fn read_err(path: &Path, e: std::io::Error) -> RgbnError {
+    RgbnError::Read {
+        path: path.into(),
+        source: e,
+    }
+}
+
+/// A header line for an error message: at most 40 characters, control characters escaped.
+fn shown(line: &str) -> String {
+    let short: String = line.chars().take(40).collect();
+    let more = if line.chars().count() > 40 { "…" } else { "" };
+    format!("{short:?}{more}")
+}
+
+fn read_line(
+    r: &mut impl BufRead,
+    len: &mut u64,
+    path: &Path,
+    what: &str,
+) -> Result<String, RgbnError> {
+    let mut buf = Vec::new();
+    let n = r
+        .by_ref()
+        .take(MAX_LINE)
+        .read_until(b'\n', &mut buf)
+        .map_err(|e| read_err(path, e))?;
+    *len += n as u64;
+    if buf.last() != Some(&b'\n') {
+        return Err(decode_err(
+            path,
+            if n as u64 >= MAX_LINE {
+                format!("RTI header: {what} line longer than {MAX_LINE} bytes (not an RTI file?)")
+            } else {
+                format!("RTI header truncated before the {what} line ended")
+            },
+        ));
+    }
+    buf.pop();
+    if buf.last() == Some(&b'\r') {
+        buf.pop();
+    }
+    Ok(String::from_utf8_lossy(&buf).trim().to_string())
+}
+
+/// `count` whole numbers from one header line.
+fn numbers(line: &str, count: usize, what: &str, path: &Path) -> Result<Vec<usize>, RgbnError> {
+    let toks: Vec<&str> = line.split_whitespace().collect();
+    if toks.len() != count {
+        return Err(decode_err(
+            path,
+            format!(
+                "RTI header: the {what} line {} should hold {count} numbers",
+                shown(line)
+            ),
+        ));
+    }
+    toks.iter()
+        .map(|t| {
+            t.parse::<u32>().map(|v| v as usize).map_err(|_| {
+                decode_err(
+                    path,
+                    format!(
+                        "RTI header: {} in the {what} line is not a whole number",
+                        shown(t)
+                    ),
+                )
+            })
+        })
+        .collect()
+}
+
+fn read_header(r: &mut impl BufRead, path: &Path) -> Result<Header, RgbnError> {
+    let mut len = 0u64;
+    let mut first = true;
+    let type_line = loop {
+        let line = read_line(r, &mut len, path, "type")?;
+        if first && line.starts_with("PTM_") {
+            return Err(decode_err(
+                path,
+                "a PTM file named .rti: rename it to .ptm to read it as a PTM",
+            ));
+        }
+        first = false;
+        if !line.starts_with('#') {
+            break line;
+        }
+    };
+    match type_line.parse::<i64>() {
+        Ok(3) => {}
+        Ok(t) => {
+            let what = match t {
+                0 | 1 => "PTM-basis",
+                2 => "spherical-harmonics",
+                4 => "RBF",
+                _ => "unknown",
+            };
+            return Err(decode_err(
+                path,
+                format!(
+                    "RTI type {t} ({what}) is not read: rgbn reads hemispherical-harmonics (HSH, type 3) .rti files and .ptm files"
+                ),
+            ));
+        }
+        Err(_) => {
+            return Err(decode_err(
+                path,
+                format!(
+                    "not an RTI file: expected the type number (3 for HSH) after the comments, found {}",
+                    shown(&type_line)
+                ),
+            ))
+        }
+    }
+    let dims = numbers(
+        &read_line(r, &mut len, path, "size")?,
+        3,
+        "width height bands",
+        path,
+    )?;
+    let basis = numbers(
+        &read_line(r, &mut len, path, "basis")?,
+        3,
+        "terms layout bytes",
+        path,
+    )?;
+    let (width, height, bands) = (dims[0], dims[1], dims[2]);
+    let (terms, layout, element) = (basis[0], basis[1], basis[2]);
+    if ![4, 9, 16].contains(&terms) {
+        return Err(decode_err(
+            path,
+            format!("RTI header: {terms} HSH terms; rgbn reads orders 2, 3 and 4 (4, 9 or 16 terms)"),
+        ));
+    }
+    let layout = match layout {
+        1 => HshLayout::Lrgb,
+        2 => HshLayout::Rgb,
+        l => {
+            return Err(decode_err(
+                path,
+                format!("RTI header: colour layout {l} is not read (1 = LRGB, 2 = RGB)"),
+            ))
+        }
+    };
+    if bands != 3 {
+        return Err(decode_err(
+            path,
+            format!("RTI header: {bands} bands; rgbn reads 3 (colour)"),
+        ));
+    }
+    if element != 1 {
+        return Err(decode_err(
+            path,
+            format!("RTI header: {element} bytes per coefficient; rgbn reads 1"),
+        ));
+    }
+    Ok(Header {
+        width,
+        height,
+        terms,
+        layout,
+        len,
+    })
+}
+
+/// The pixel size in an HSH file's header (nothing else read), or `None` when it is not one.
+#[must_use]
+pub fn dimensions(path: &Path) -> Option<(usize, usize)> {
+    let f = std::fs::File::open(path).ok()?;
+    let h = read_header(&mut std::io::BufReader::new(f), path).ok()?;
+    Some((h.width, h.height))
+}
+
+/// Reads an HSH `.rti` file (module docs: what becomes colour, normal and mask).
+///
+/// # Errors
+/// [`RgbnError::NotFound`]/[`RgbnError::Read`] for file problems, [`RgbnError::TooLarge`] over
+/// the pixel limit, [`RgbnError::Decode`] for a malformed, truncated or unsupported file (the
+/// message names what).
+pub fn read_hsh(path: &Path) -> Result<Hsh, RgbnError> {
+    let file = std::fs::File::open(path).map_err(|e| {
+        if e.kind() == std::io::ErrorKind::NotFound {
+            RgbnError::NotFound { path: path.into() }
+        } else {
+            read_err(path, e)
+        }
+    })?;
+    let meta = file.metadata().map_err(|e| read_err(path, e))?;
+    if !meta.is_file() {
+        return Err(read_err(path, std::io::Error::other("not a regular file")));
+    }
+    let mut r = std::io::BufReader::new(file);
+    let h = read_header(&mut r, path)?;
+    check_size(h.width, h.height, &path.display().to_string())?;
+    let n = h.width * h.height;
+    let need = n
+        .checked_mul(h.layout.bytes_per_pixel(h.terms))
+        .ok_or_else(|| decode_err(path, "RTI file too large for this machine"))?;
+    let have = meta.len().saturating_sub(h.len);
+    let floats = 8 * h.terms as u64;
+    if have < floats + need as u64 {
+        return Err(decode_err(
+            path,
+            format!(
+                "truncated HSH {} file: {}×{} with {} terms needs {} bytes of scales, biases and coefficients after the header, the file has {have}",
+                h.layout.name(),
+                h.width,
+                h.height,
+                h.terms,
+                floats + need as u64
+            ),
+        ));
+    }
+    let mut fl = vec![0u8; floats as usize];
+    let mut data = super::buf::zeroed_u8(need);
+    r.read_exact(&mut fl)
+        .and_then(|()| r.read_exact(&mut data))
+        .map_err(|e| {
+            if e.kind() == std::io::ErrorKind::UnexpectedEof {
+                decode_err(path, "truncated HSH data")
+            } else {
+                read_err(path, e)
+            }
+        })?;
+    let f32s: Vec<f64> = fl
+        .chunks_exact(4)
+        .map(|b| f64::from(f32::from_le_bytes([b[0], b[1], b[2], b[3]])))
+        .collect();
+    let (scale, bias) = f32s.split_at(h.terms);
+    if let Some(i) = f32s.iter().position(|v| !v.is_finite()) {
+        return Err(decode_err(
+            path,
+            format!(
+                "RTI header: {} {} is not a finite number",
+                if i < h.terms { "scale" } else { "bias" },
+                i % h.terms
+            ),
+        ));
+    }
+    Ok(decode(&h, scale, bias, &data))
+}
+
+/// Turns the coefficient bytes into colour, normal and mask (rows flipped to top-down).
+fn decode(h: &Header, scale: &[f64], bias: &[f64], data: &[u8]) -> Hsh {
+    let (w, ht, terms) = (h.width, h.height, h.terms);
+    let n = w * ht;
+    let bpp = h.layout.bytes_per_pixel(terms);
+    let grid = Grid::new(terms);
+    let lin = srgb8_to_linear();
+    let coef = |bytes: &[u8]| -> [f64; MAX_TERMS] {
+        let mut c = [0.0; MAX_TERMS];
+        for (t, (o, &b)) in c.iter_mut().zip(bytes).enumerate() {
+            *o = f64::from(b) / 255.0 * scale[t] + bias[t];
+        }
+        c
+    };
+    let mut px = vec![[0f32; 7]; n];
+    px.par_chunks_mut(w).enumerate().for_each(|(row, out)| {
+        let file_row = ht - 1 - row;
+        for (x, o) in out.iter_mut().enumerate() {
+            let k = (file_row * w + x) * bpp;
+            let bytes = &data[k..k + bpp];
+            let (lum, bands) = match h.layout {
+                HshLayout::Lrgb => (coef(&bytes[..terms]), None),
+                HshLayout::Rgb => {
+                    let b: [[f64; MAX_TERMS]; 3] =
+                        std::array::from_fn(|c| coef(&bytes[c * terms..(c + 1) * terms]));
+                    let lum = std::array::from_fn(|t| (b[0][t] + b[1][t] + b[2][t]) / 3.0);
+                    (lum, Some(b))
+                }
+            };
+            let max = hsh_maximum(&lum[..terms], &grid);
+            let normal = max.unwrap_or([0.0, 0.0, 1.0]);
+            let color: [f32; 3] = match bands {
+                None => std::array::from_fn(|c| lin[usize::from(bytes[terms + c])]),
+                Some(b) => b.map(|c| {
+                    srgb_to_linear(eval_hsh(&c[..terms], normal).clamp(0.0, 1.0) as f32)
+                }),
+            };
+            *o = [
+                color[0],
+                color[1],
+                color[2],
+                normal[0] as f32,
+                normal[1] as f32,
+                normal[2] as f32,
+                if max.is_some() { 1.0 } else { 0.0 },
+            ];
+        }
+    });
+    let plane = |k: usize| -> Vec<f32> { px.par_iter().map(|p| p[k]).collect() };
+    let color = [plane(0), plane(1), plane(2)];
+    let normal = [plane(3), plane(4), plane(5)];
+    let mask = plane(6);
+    let no_maximum = mask.par_iter().filter(|&&m| m == 0.0).count();
+    let image = RgbnImage::new(w, ht, color, normal, Some(mask))
+        .expect("planes have width × height values");
+    Hsh {
+        image,
+        layout: h.layout,
+        terms,
+        no_maximum,
+    }
+}
+
+fn srgb8_to_linear() -> &'static [f32; 256] {
+    static LUT: std::sync::OnceLock<[f32; 256]> = std::sync::OnceLock::new();
+    LUT.get_or_init(|| std::array::from_fn(|i| srgb_to_linear(i as f32 / 255.0)))
+}
+
+/// [`read_hsh`] for [`crate::raster::io::load`]: the image, with a warning naming how many
+/// pixels have no maximum (masked out).
+///
+/// # Errors
+/// As [`read_hsh`].
+pub fn load_hsh(path: &Path) -> Result<RgbnImage, RgbnError> {
+    let p = read_hsh(path)?;
+    if p.no_maximum > 0 {
+        tracing::warn!(
+            "{} of {} pixels of the HSH {} file have a flat function or a maximum on the horizon: masked out, normal (0,0,1): {}",
+            p.no_maximum,
+            p.image.width() * p.image.height(),
+            p.layout.name(),
+            path.display()
+        );
+    }
+    Ok(p.image)
+}
+
+// ------------------------------------------------------------------------------------------
+// Writing (tests and tools)
+// ------------------------------------------------------------------------------------------
+
+/// HSH functions to write, row-major with row 0 at the **top** (the writer stores the rows
+/// bottom-up), each a list of `terms` coefficients in 0..1 units.
+#[derive(Clone, Debug, PartialEq)]
+pub enum HshData {
+    /// One luminance function and 8-bit (sRGB-encoded) colour per pixel.
+    Lrgb {
+        lum: Vec<Vec<f64>>,
+        rgb: Vec<[u8; 3]>,
+    },
+    /// One function per channel: red, green, blue.
+    Rgb { channels: [Vec<Vec<f64>>; 3] },
+}
+
+/// Writes an HSH `.rti` atomically (the layout of the module docs). The scale and bias of each
+/// term cover its range over all pixels and channels, so each coefficient is quantised to 8
+/// bits with a step of `range/255`.
+///
+/// # Errors
+/// [`RgbnError::InvalidImage`] for a wrong number of pixels or terms (4, 9 or 16, the same for
+/// every pixel) or a non-finite coefficient; write errors.
+pub fn write_hsh(
+    path: &Path,
+    width: usize,
+    height: usize,
+    data: &HshData,
+) -> Result<(), RgbnError> {
+    let n = width * height;
+    let (layout, blocks): (HshLayout, Vec<&[Vec<f64>]>) = match data {
+        HshData::Lrgb { lum, rgb } => {
+            if rgb.len() != n {
+                return Err(RgbnError::InvalidImage(format!(
+                    "HSH colour has {} pixels, {width}×{height} needs {n}",
+                    rgb.len()
+                )));
+            }
+            (HshLayout::Lrgb, vec![lum.as_slice()])
+        }
+        HshData::Rgb { channels } => (HshLayout::Rgb, channels.iter().map(Vec::as_slice).collect()),
+    };
+    let terms = blocks.first().and_then(|b| b.first()).map_or(9, Vec::len);
+    if ![4, 9, 16].contains(&terms) {
+        return Err(RgbnError::InvalidImage(format!(
+            "{terms} HSH terms: 4, 9 or 16 are written"
+        )));
+    }
+    for b in &blocks {
+        if b.len() != n || b.iter().any(|c| c.len() != terms) {
+            return Err(RgbnError::InvalidImage(format!(
+                "HSH coefficients must be {terms} per pixel for {width}×{height} pixels"
+            )));
+        }
+        if b.iter().flatten().any(|v| !v.is_finite()) {
+            return Err(RgbnError::InvalidImage("non-finite HSH coefficient".into()));
+        }
+    }
+    let mut scale = vec![0f32; terms];
+    let mut bias = vec![0f32; terms];
+    for t in 0..terms {
+        let (lo, hi) = blocks
+            .iter()
+            .flat_map(|b| b.iter().map(move |c| c[t]))
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), v| {
+                (lo.min(v), hi.max(v))
+            });
+        let (lo, hi) = if lo.is_finite() { (lo, hi) } else { (0.0, 0.0) };
+        bias[t] = lo as f32;
+        scale[t] = ((hi - lo) as f32).max(1e-12);
+    }
+    let quant = |v: f64, t: usize| -> u8 {
+        ((v - f64::from(bias[t])) / f64::from(scale[t]) * 255.0)
+            .round()
+            .clamp(0.0, 255.0) as u8
+    };
+    let header = format!(
+        "#HSH1.2\n3\n{width} {height} 3\n{terms} {} 1\n",
+        layout.number()
+    );
+    let mut bytes =
+        Vec::with_capacity(header.len() + 8 * terms + n * layout.bytes_per_pixel(terms));
+    bytes.extend_from_slice(header.as_bytes());
+    for v in scale.iter().chain(&bias) {
+        bytes.extend_from_slice(&v.to_le_bytes());
+    }
+    for row in (0..height).rev() {
+        for i in row * width..(row + 1) * width {
+            for b in &blocks {
+                bytes.extend((0..terms).map(|t| quant(b[i][t], t)));
+            }
+            if let HshData::Lrgb { rgb, .. } = data {
+                bytes.extend_from_slice(&rgb[i]);
+            }
+        }
+    }
+    write_atomic(path, |out| out.write_all(&bytes).map_err(|e| e.to_string()))
+}
+
+#[cfg(test)]
+#[path = "hsh_tests.rs"]
+mod tests;
