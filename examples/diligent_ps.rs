@@ -135,6 +135,7 @@ fn main() {
     ];
     let (mut lo, mut hi) = (6usize, 13usize);
     let mut all_subsets = false;
+    let mut diagnose = false;
     let mut base = PhotometricParams::default();
     while let Some(a) = args.next() {
         let mut val = || args.next().expect("a value after the flag");
@@ -159,6 +160,7 @@ fn main() {
             "--delta" => base.robust.l1_delta = val().parse().unwrap(),
             "--tol" => base.robust.tolerance = val().parse().unwrap(),
             "--saturation" => base.saturation_level = val().parse().unwrap(),
+            "--diagnose" => diagnose = true,
             f if f.starts_with("--") => panic!("unknown flag {f}"),
             d => dir = Some(PathBuf::from(d)),
         }
@@ -249,6 +251,11 @@ fn main() {
                 ls_t.map_or("–".into(), |l| format!("{:.2}", t / l))
             );
         }
+        if diagnose {
+            for (mi, &method) in methods.iter().enumerate() {
+                diagnose_errors(method.name(), outs[mi].as_ref().unwrap(), &gt, &inside);
+            }
+        }
         if all_subsets {
             for &method in &methods {
                 let p = PhotometricParams {
@@ -293,4 +300,32 @@ fn for_each_subset(n: usize, k: usize, f: &mut dyn FnMut(&[usize])) {
             idx[j] = idx[j - 1] + 1;
         }
     }
+}
+
+/// The mean difference vector and the error by the ground truth's tilt (diagnostics).
+fn diagnose_errors(name: &str, n: &rgbn::RgbnImage, gt: &[Vec<f32>; 3], inside: &[usize]) {
+    let mut d = [0.0f64; 3];
+    let mut bins = vec![(0.0f64, 0usize); 9];
+    for &i in inside {
+        let e = [n.normal()[0][i], n.normal()[1][i], n.normal()[2][i]];
+        let g = [gt[0][i], gt[1][i], gt[2][i]];
+        for k in 0..3 {
+            d[k] += f64::from(e[k] - g[k]);
+        }
+        let tilt = f64::from(g[2]).clamp(-1.0, 1.0).acos().to_degrees();
+        let b = ((tilt / 10.0) as usize).min(8);
+        bins[b].0 += angle_deg(e, g);
+        bins[b].1 += 1;
+    }
+    let c = inside.len() as f64;
+    println!(
+        "  {name}: mean (n − gt) = ({:+.4}, {:+.4}, {:+.4}); error by tilt (10° bins): {}",
+        d[0] / c,
+        d[1] / c,
+        d[2] / c,
+        bins.iter()
+            .map(|(s, k)| if *k > 0 { format!("{:.2}({k})", s / *k as f64) } else { "-".into() })
+            .collect::<Vec<_>>()
+            .join(" ")
+    );
 }

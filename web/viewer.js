@@ -591,9 +591,29 @@ void main() {
     ctx.fill();
   }
 
+  // RTIViewer's specular enhancement controls under its names: "Diffuse color" (kd),
+  // "Specularity" (ks), "Highlight size" (the exponent α), shown with that view only.
+  const seBox = $('se-controls');
+  const seInputs = [['se-kd', 'kd'], ['se-ks', 'ks'], ['se-alpha', 'alpha']];
+  function showSe() {
+    if (seBox) seBox.style.display = state.view === 'specular_enhancement' ? '' : 'none';
+  }
+  if (!bare && seBox) {
+    for (const [id, key] of seInputs) {
+      const el = $(id);
+      el.value = String(meta.specular_enhancement[key]);
+      el.addEventListener('input', () => {
+        meta.specular_enhancement[key] = Number(el.value);
+        requestDraw();
+      });
+    }
+    showSe();
+  }
+
   if (!bare) {
     viewSel.addEventListener('change', () => {
       state.view = viewSel.value;
+      showSe();
       updateUrl();
       requestDraw();
     });

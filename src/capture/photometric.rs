@@ -127,8 +127,8 @@ impl Default for PhotometricParams {
             min_shading: 0.05,
             saturation_level: 0.995,
             dark_level: 1e-3,
-            shadow_level: 0.0,
-            robust_min_shading: -1.0,
+            shadow_level: 0.05,
+            robust_min_shading: 0.3,
             robust: RobustParams::default(),
         }
     }

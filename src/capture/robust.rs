@@ -68,7 +68,7 @@ pub struct RobustParams {
 impl Default for RobustParams {
     fn default() -> Self {
         Self {
-            max_iterations: 30,
+            max_iterations: 10,
             tolerance: 1e-4,
             l1_delta: 1e-3,
             sbl_lambda: 1e-3,

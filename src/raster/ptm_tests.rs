@@ -434,3 +434,55 @@ fn bad_headers_are_one_line_errors_never_panics() {
         "constant polynomials: no maximum"
     );
 }
+
+#[test]
+fn rgbn_written_as_ptm_reads_back_within_half_a_degree_and_one_level() {
+    // A sphere (exact normals, mask outside) with a colour ramp, written as an LRGB PTM and
+    // read back by the PTM reader.
+    let (mut img, _) = crate::raster::sample::Surface::Sphere { radius_px: 20.0 }.render(56, 44);
+    let (w, h) = (img.width(), img.height());
+    let color: [Vec<f32>; 3] = std::array::from_fn(|c| {
+        (0..w * h)
+            .map(|i| match c {
+                0 => (i % w) as f32 / w as f32,
+                1 => (i / w) as f32 / h as f32,
+                _ => 0.25,
+            })
+            .collect()
+    });
+    img.set_color(color).unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("out.ptm");
+    crate::raster::io::save(&img, &path, &crate::raster::io::SaveOptions::default()).unwrap();
+    let back = read_ptm(&path).unwrap();
+    assert_eq!(back.format, PtmFormat::Lrgb);
+    let (mut sum, mut max, mut max_steep, mut count) = (0.0, 0.0f64, 0.0f64, 0usize);
+    let (m0, m1) = (img.mask().unwrap(), back.image.mask().unwrap());
+    for i in 0..w * h {
+        let n = img.normal_at(i % w, i / w);
+        if m0[i] < 0.5 {
+            assert_eq!(m1[i], 0.0, "outside the mask: no maximum, masked out");
+            continue;
+        }
+        let e = angle_deg(back.image.normal_at(i % w, i / w), n.map(f64::from));
+        if n[2] >= 0.2 {
+            max = max.max(e);
+            sum += e;
+            count += 1;
+        } else if m1[i] > 0.5 {
+            max_steep = max_steep.max(e);
+        }
+        for c in 0..3 {
+            let (a, b) = (
+                crate::raster::srgb::linear_to_srgb8(img.color()[c][i]),
+                crate::raster::srgb::linear_to_srgb8(back.image.color()[c][i]),
+            );
+            assert!(a.abs_diff(b) <= 1, "colour {a} vs {b} at {i}");
+        }
+    }
+    eprintln!(
+        "RGBN → PTM → RGBN: mean {:.3}°, max {max:.3}° over {count} px with n_z ≥ 0.2; max {max_steep:.2}° at grazing n_z < 0.2",
+        sum / count as f64
+    );
+    assert!(max <= 0.5, "max {max}°");
+}

@@ -106,6 +106,20 @@ impl InspectParams {
         }
     }
 
+    /// The name RTIViewer (Cultural Heritage Imaging / ISTI-CNR) gives the control that
+    /// `param` is, for the views that come from it: the editor shows it beside rgbn's name and
+    /// `docs/cli.md` lists both. Files keep rgbn's names.
+    #[must_use]
+    pub fn rtiviewer_name(param: &str) -> Option<&'static str> {
+        Some(match param {
+            "spec_kd" => "Diffuse color",
+            "spec_ks" => "Specularity",
+            "spec_alpha" => "Highlight size",
+            "unsharp_gain" => "Gain",
+            _ => return None,
+        })
+    }
+
     /// The view whose group holds the parameter `name`.
     #[must_use]
     pub fn view_of(name: &str) -> Option<View> {

@@ -112,8 +112,13 @@ pub(super) fn view_params_ui(ui: &mut Ui, view: View, p: &mut InspectParams) {
                     .entry(info.name.to_string())
                     .or_insert_with(|| info.default.clone());
                 let here = std::path::Path::new(".");
-                changed |=
-                    crate::app::params_ui::param_ui(ui, info.name, info, v, here, &mut browse);
+                // RTIViewer users know these controls by RTIViewer's names: shown beside
+                // rgbn's (the parameter's name in files stays).
+                let shown = match InspectParams::rtiviewer_name(info.name) {
+                    Some(r) => format!("{r} ({})", info.name),
+                    None => info.name.to_string(),
+                };
+                changed |= crate::app::params_ui::param_ui(ui, &shown, info, v, here, &mut browse);
             }
         });
     if changed {
