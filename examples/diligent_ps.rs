@@ -159,6 +159,7 @@ fn main() {
             "--iters" => base.robust.max_iterations = val().parse().unwrap(),
             "--delta" => base.robust.l1_delta = val().parse().unwrap(),
             "--tol" => base.robust.tolerance = val().parse().unwrap(),
+            "--clean" => base.robust.clean_residual = val().parse().unwrap(),
             "--saturation" => base.saturation_level = val().parse().unwrap(),
             "--diagnose" => diagnose = true,
             f if f.starts_with("--") => panic!("unknown flag {f}"),

@@ -70,7 +70,7 @@
 
 use super::inputs::{Lights, PhotoStack};
 use super::linalg::{condition, gram, solve3, MIN_LIGHT_CONDITION};
-use super::robust::{l1_irls, sbl, RobustParams};
+use super::robust::{is_clean, l1_irls, sbl, RobustParams};
 use crate::error::RgbnError;
 use crate::raster::{buf, check_size, RgbnImage};
 use rayon::prelude::*;
@@ -171,6 +171,9 @@ impl PhotometricParams {
             return Err(RgbnError::param("robust_min_shading", "must be in [-1, 1)"));
         }
         let r = &self.robust;
+        if !(r.clean_residual >= 0.0 && r.clean_residual.is_finite()) {
+            return Err(RgbnError::param("clean_residual", "must be ≥ 0"));
+        }
         if r.max_iterations == 0 {
             return Err(RgbnError::param("max_iterations", "must be ≥ 1"));
         }
@@ -598,6 +601,11 @@ fn robust_solve(
         PsMethod::Sbl => sbl(&s.sel, dirs, &s.g, b0, &mut s.gamma, &mut s.w, &params.robust),
         _ => l1_irls(&s.sel, dirs, &s.g, b0, &mut s.w, &params.robust),
     };
+    if is_clean(&s.sel, dirs, &s.g, b0, &params.robust) {
+        s.chosen.clear();
+        s.chosen.extend_from_slice(&s.sel);
+        return Some(b0);
+    }
     let mut b = run(s, b0)?;
     if params.robust_min_shading > -1.0 {
         let len = (b[0] * b[0] + b[1] * b[1] + b[2] * b[2]).sqrt();

@@ -34,6 +34,10 @@
 //!   `Σ_jj = γ_j − γ_j² (d_j − d_j² l_jᵀ M⁻¹ l_j)`;
 //! - the EM update of the variances is `γ_j ← μ_j² + Σ_jj` (Wipf & Rao 2004).
 //!
+//! A pixel whose least-squares start already fits every observation within
+//! [`RobustParams::clean_residual`] of its brightest one (1 %: the noise level of the data) has
+//! nothing sparse to remove and keeps the start; the others iterate.
+//!
 //! So each iteration is one weighted least squares with weights `d_j`; observations whose
 //! error variance grows are weighted out, smoothly. `γ` starts at the squared residuals of the
 //! least-squares start (plus λ). The result is `b = g_max · x̂`.
@@ -63,17 +67,29 @@ pub struct RobustParams {
     pub l1_delta: f64,
     /// SBL: the dense-noise variance λ, relative to the squared brightest observation, > 0.
     pub sbl_lambda: f64,
+    /// A pixel whose least-squares start fits every observation within this fraction of its
+    /// brightest one has no outlier to remove: it keeps the start (no iteration), ≥ 0.
+    pub clean_residual: f64,
 }
 
 impl Default for RobustParams {
     fn default() -> Self {
         Self {
             max_iterations: 10,
-            tolerance: 1e-4,
+            tolerance: 1e-3,
             l1_delta: 1e-3,
             sbl_lambda: 1e-3,
+            clean_residual: 0.01,
         }
     }
+}
+
+/// Whether the fit `b` leaves every residual of `sel` within `p.clean_residual` of the
+/// brightest observation (module docs: such a pixel is not iterated).
+pub(super) fn is_clean(sel: &[usize], dirs: &[[f64; 3]], g: &[f64], b: [f64; 3], p: &RobustParams) -> bool {
+    let gmax = sel.iter().map(|&j| g[j]).fold(0.0, f64::max);
+    let tol = p.clean_residual * gmax;
+    sel.iter().all(|&j| (g[j] - dot3(dirs[j], b)).abs() <= tol)
 }
 
 /// `(Σ w_j l_j l_jᵀ, Σ w_j l_j y_j)` over `sel`, weights and values by light index.

@@ -42,12 +42,19 @@
 //!
 //! # What rgbn makes of an HSH
 //!
-//! - **Normal**: the light direction that maximises the pixel's luminance function (the mean
-//!   of the three bands' functions, or the LRGB luminance), found over the hemisphere by a
-//!   grid of directions in the unit disk of `(l_x, l_y)` followed by a pattern search down to
-//!   `1e-5` — for a diffuse surface the reflected light is largest when the light faces the
-//!   surface, `l = n`. A pixel whose function is flat (black) or whose maximum lies on the
-//!   horizon gets mask 0 and normal `(0, 0, 1)`, as a PTM pixel without a maximum.
+//! - **Normal**: the normal of the Lambertian lobe fitted to the pixel's reflectance function.
+//!   The luminance (the mean of the three bands, or the LRGB luminance), sRGB-decoded to linear
+//!   light, is evaluated at virtual lights — a grid of step 0.05 in `(l_x, l_y)` above 10° of
+//!   elevation (about 1200 directions) — and `b = ρ n` is its least-squares fit `y ≈ b · l`,
+//!   first over the lights brighter than 5 % of the brightest, then twice over the lights with
+//!   `n · l ≥ 0.5` for the current estimate (the lit side: the model's `max(0, ·)` is inactive
+//!   there, and a low-order fit rounds off the terminator). Photometric stereo on the fitted
+//!   function, in short. The direction of the function's *maximum*, which RTIViewer-style
+//!   readers of PTMs use, is biased for HSH: a low-order fit of a clamped cosine peaks before
+//!   the pole (12.9° mean error on the test sphere, order 3); the lobe fit reads it at 1.4°
+//!   mean over the whole visible hemisphere and 0.9° where the tilt is at most 60°.
+//!   A black pixel (brightest value under 1e-4) or a fit facing away gets mask 0 and normal
+//!   `(0, 0, 1)`, as a PTM pixel without a maximum.
 //! - **Colour**: RGB: each band's function at `l = n` (for a diffuse surface the albedo,
 //!   free of shading), clamped to [0, 1]; LRGB: the stored bytes. Both sRGB-encoded, converted
 //!   to rgbn's linear light.
@@ -114,7 +121,7 @@ pub struct Hsh {
     pub layout: HshLayout,
     /// Terms per function (4, 9 or 16).
     pub terms: usize,
-    /// Pixels with a flat function or a maximum on the horizon (mask 0, normal `(0, 0, 1)`).
+    /// Black pixels and fits facing away (mask 0, normal `(0, 0, 1)`).
     pub no_maximum: usize,
 }
 
@@ -173,90 +180,128 @@ pub fn eval_hsh(c: &[f64], l: [f64; 3]) -> f64 {
     c.iter().zip(&h).map(|(a, b)| a * b).sum()
 }
 
-/// The direction of the unit disk point `(u, v)` on the upper hemisphere.
-fn dir(u: f64, v: f64) -> [f64; 3] {
-    [u, v, (1.0 - u * u - v * v).max(0.0).sqrt()]
+/// Grid step, in `(l_x, l_y)`, of the virtual lights (0.1 gives results that jump with the
+/// set of lights a threshold keeps: 1.8° instead of 1.4° on the test sphere).
+const GRID_STEP: f64 = 0.05;
+/// Lowest elevation of a virtual light (measured: 10° reads the test sphere at 1.4° mean,
+/// 20° at 2.2°).
+const MIN_ELEVATION_DEG: f64 = 10.0;
+/// The lobe fit's later passes keep the virtual lights with `n · l` at least this: the lit
+/// side near the peak, away from the terminator a low-order fit rounds off (0.3: 3.2°,
+/// 0.5: 1.4°, 0.7: 1.7°, 0.85: 3.6° mean on the test sphere).
+const MIN_SHADING: f64 = 0.5;
+
+/// sRGB-encoded `v` (clamped to [0, 1]) to linear light, by a 4097-entry table with linear
+/// interpolation (within 1e-5 of the formula).
+fn srgb_decode(v: f64) -> f64 {
+    static LUT: std::sync::OnceLock<Vec<f64>> = std::sync::OnceLock::new();
+    let lut = LUT.get_or_init(|| {
+        (0..=4096)
+            .map(|i| f64::from(srgb_to_linear(i as f32 / 4096.0)))
+            .collect()
+    });
+    let x = v.clamp(0.0, 1.0) * 4096.0;
+    let i = (x as usize).min(4095);
+    let f = x - i as f64;
+    lut[i] * (1.0 - f) + lut[i + 1] * f
 }
 
-/// Grid step of the first search over the unit disk.
-const GRID_STEP: f64 = 0.1;
-/// The pattern search stops at this step in `(u, v)` (≈ 0.0006°).
-const FINE_STEP: f64 = 1e-5;
-/// A maximum at or beyond this radius lies on the horizon: no normal.
-const HORIZON: f64 = 0.999;
-
-/// The grid of the first search: points of the unit disk and their basis values.
+/// The virtual lights and their basis values.
 struct Grid {
-    points: Vec<(f64, f64)>,
+    dirs: Vec<[f64; 3]>,
     basis: Vec<[f64; MAX_TERMS]>,
 }
 
 impl Grid {
     fn new(terms: usize) -> Self {
-        let k = (1.0 / GRID_STEP).round() as i32;
-        let mut points = Vec::new();
+        let gs = GRID_STEP;
+        let k = (1.0 / gs).round() as i32;
+        let zmin = MIN_ELEVATION_DEG.to_radians().sin();
+        let mut dirs = Vec::new();
         for i in -k..=k {
             for j in -k..=k {
-                let (u, v) = (f64::from(i) * GRID_STEP, f64::from(j) * GRID_STEP);
-                if u * u + v * v < 1.0 {
-                    points.push((u, v));
+                let (u, v) = (f64::from(i) * gs, f64::from(j) * gs);
+                let z2 = 1.0 - u * u - v * v;
+                if z2 >= zmin * zmin {
+                    dirs.push([u, v, z2.sqrt()]);
                 }
             }
         }
-        let basis = points.iter().map(|&(u, v)| hsh_basis(dir(u, v), terms)).collect();
-        Self { points, basis }
+        let basis = dirs.iter().map(|&l| hsh_basis(l, terms)).collect();
+        Self { dirs, basis }
     }
 }
 
-/// The light direction maximising `Σ c_t H_t` over the hemisphere (module docs), or `None` for
-/// a flat function or a maximum on the horizon.
-fn hsh_maximum(c: &[f64], grid: &Grid) -> Option<[f64; 3]> {
-    let f = |h: &[f64; MAX_TERMS]| c.iter().zip(h).map(|(a, b)| a * b).sum::<f64>();
-    let (mut best, mut lo) = (None::<(usize, f64)>, f64::INFINITY);
-    for (i, h) in grid.basis.iter().enumerate() {
-        let v = f(h);
-        lo = lo.min(v);
-        if best.is_none_or(|(_, b)| v > b) {
-            best = Some((i, v));
+/// Least squares `y ≈ b · l (+ c)` over the virtual lights `keep` selects: `b`, with an
+/// offset `c` when `offset` (4 unknowns), by Gaussian elimination with partial pivoting.
+fn lambert_fit(
+    grid: &Grid,
+    y: &[f64],
+    offset: bool,
+    keep: impl Fn(usize) -> bool,
+) -> Option<[f64; 3]> {
+    let m = if offset { 4 } else { 3 };
+    let mut a = [[0.0f64; 5]; 4];
+    let mut count = 0;
+    for (k, l) in grid.dirs.iter().enumerate() {
+        if !keep(k) {
+            continue;
+        }
+        count += 1;
+        let f = [l[0], l[1], l[2], 1.0];
+        for i in 0..m {
+            for j in 0..m {
+                a[i][j] += f[i] * f[j];
+            }
+            a[i][4] += f[i] * y[k];
         }
     }
-    let (i, mut top) = best?;
-    if !(top.is_finite() && top - lo > 1e-9 * top.abs().max(1e-3)) {
+    if count < m + 2 {
         return None;
     }
-    let (mut u, mut v) = grid.points[i];
-    let eval = |u: f64, v: f64| -> f64 {
-        if u * u + v * v >= 1.0 {
-            f64::NEG_INFINITY
-        } else {
-            f(&hsh_basis(dir(u, v), c.len()))
+    let scale = (0..m).map(|i| a[i][i]).fold(0.0, f64::max);
+    for c in 0..m {
+        let p = (c..m).max_by(|&x, &z| a[x][c].abs().total_cmp(&a[z][c].abs()))?;
+        a.swap(c, p);
+        if !(a[c][c].abs() > 1e-9 * scale) {
+            return None;
         }
-    };
-    let mut step = GRID_STEP / 2.0;
-    while step >= FINE_STEP {
-        let mut moved = false;
-        for (du, dv) in [
-            (1.0, 0.0),
-            (-1.0, 0.0),
-            (0.0, 1.0),
-            (0.0, -1.0),
-            (1.0, 1.0),
-            (1.0, -1.0),
-            (-1.0, 1.0),
-            (-1.0, -1.0),
-        ] {
-            let (nu, nv) = (u + du * step, v + dv * step);
-            let val = eval(nu, nv);
-            if val > top {
-                (u, v, top) = (nu, nv, val);
-                moved = true;
+        for r in 0..m {
+            if r != c {
+                let f = a[r][c] / a[c][c];
+                for k in c..5 {
+                    a[r][k] -= f * a[c][k];
+                }
             }
         }
-        if !moved {
-            step /= 2.0;
+    }
+    let b = [a[0][4] / a[0][0], a[1][4] / a[1][1], a[2][4] / a[2][2]];
+    b.iter().all(|v| v.is_finite()).then_some(b)
+}
+
+/// The normal of the Lambertian lobe fitted to a pixel's linear luminance `y` at the virtual
+/// lights (module docs), or `None` for a black pixel or a fit facing away.
+fn lobe_normal(y: &[f64], grid: &Grid) -> Option<[f64; 3]> {
+    let ymax = y.iter().copied().fold(0.0, f64::max);
+    if !(ymax > 1e-4 && ymax.is_finite()) {
+        return None;
+    }
+    let unit = |b: [f64; 3]| {
+        let len = (b[0] * b[0] + b[1] * b[1] + b[2] * b[2]).sqrt();
+        (len > 0.0 && len.is_finite()).then(|| b.map(|c| c / len))
+    };
+    let mut n = unit(lambert_fit(grid, y, false, |k| y[k] >= 0.05 * ymax)?)?;
+    for _ in 0..2 {
+        let lit = |k: usize| {
+            let l = grid.dirs[k];
+            n[0] * l[0] + n[1] * l[1] + n[2] * l[2] >= MIN_SHADING
+        };
+        match lambert_fit(grid, y, false, lit).and_then(unit) {
+            Some(m) => n = m,
+            None => break,
         }
     }
-    (u * u + v * v < HORIZON * HORIZON).then(|| dir(u, v))
+    (n[2] > 0.0).then_some(n)
 }
 
 #[derive(Clone, Debug)]
@@ -549,7 +594,20 @@ fn decode(h: &Header, scale: &[f64], bias: &[f64], data: &[u8]) -> Hsh {
                     (lum, Some(b))
                 }
             };
-            let max = hsh_maximum(&lum[..terms], &grid);
+            // Linear luminance at the virtual lights (the file's values are sRGB-encoded).
+            let lin_at = |c: &[f64; MAX_TERMS], h: &[f64; MAX_TERMS]| {
+                let v: f64 = c[..terms].iter().zip(h).map(|(a, b)| a * b).sum();
+                srgb_decode(v)
+            };
+            let y: Vec<f64> = grid
+                .basis
+                .iter()
+                .map(|h| match &bands {
+                    Some(b) => (lin_at(&b[0], h) + lin_at(&b[1], h) + lin_at(&b[2], h)) / 3.0,
+                    None => lin_at(&lum, h),
+                })
+                .collect();
+            let max = lobe_normal(&y, &grid);
             let normal = max.unwrap_or([0.0, 0.0, 1.0]);
             let color: [f32; 3] = match bands {
                 None => std::array::from_fn(|c| lin[usize::from(bytes[terms + c])]),
@@ -589,7 +647,7 @@ fn srgb8_to_linear() -> &'static [f32; 256] {
 }
 
 /// [`read_hsh`] for [`crate::raster::io::load`]: the image, with a warning naming how many
-/// pixels have no maximum (masked out).
+/// pixels have no normal (masked out).
 ///
 /// # Errors
 /// As [`read_hsh`].

@@ -577,6 +577,22 @@ pub fn write_ptm(
         };
         bias[i] = (-lo / f64::from(scale[i])).round() as i32;
     }
+    write_ptm_scaled(path, width, height, data, format, &blocks, scale, bias)
+}
+
+/// The bytes of a PTM with the given scales and biases (coefficients quantised to them).
+#[allow(clippy::too_many_arguments)]
+fn write_ptm_scaled(
+    path: &Path,
+    width: usize,
+    height: usize,
+    data: &PtmData,
+    format: PtmFormat,
+    blocks: &[&[Coefficients]],
+    scale: [f32; 6],
+    bias: [i32; 6],
+) -> Result<(), RgbnError> {
+    let n = width * height;
     let quant = |c: &Coefficients, i: usize| -> u8 {
         (c[i] / f64::from(scale[i]) + f64::from(bias[i]))
             .round()
@@ -591,7 +607,7 @@ pub fn write_ptm(
     );
     let mut bytes = Vec::with_capacity(header.len() + n * format.bytes_per_pixel());
     bytes.extend_from_slice(header.as_bytes());
-    for b in &blocks {
+    for b in blocks {
         for row in (0..height).rev() {
             for c in &b[row * width..(row + 1) * width] {
                 bytes.extend((0..6).map(|i| quant(c, i)));
@@ -612,34 +628,70 @@ pub fn write_ptm(
 // An RGBN image as a PTM (for RTIViewer and the other RTI tools)
 // ------------------------------------------------------------------------------------------
 
-/// Half the luminance curvature of [`ptm_from_rgbn`]'s polynomials, in file units: a Lambertian
-/// `255 · n · l` has the Hessian `−255 · I` at its maximum for a normal facing the viewer.
+/// Half the luminance curvature of a Lambertian `255 · n · l` at its maximum for a normal
+/// facing the viewer (its Hessian there is `−255 · I`), in file units.
 const LAMBERT_HALF_CURVATURE: f64 = 127.5;
 
-/// An RGBN image as LRGB PTM data: per pixel the paraboloid
-/// `L(u, v) = 255 · (1 − ½ ((u − n_x)² + (v − n_y)²))` — the second-order expansion of a
-/// Lambertian `255 · n · l` about its maximum for a normal facing the viewer — whose maximum is
-/// exactly `(n_x, n_y)`, so a PTM reader (rgbn's, RTIViewer's `calculateNormal`) finds the
-/// normal again, and the colour as sRGB bytes. In coefficients:
-/// `a0 = a1 = −127.5`, `a2 = 0`, `a3 = 255 n_x`, `a4 = 255 n_y`,
-/// `a5 = 255 (1 − (n_x² + n_y²)/2)`, so `L(0, 0) ≈ 255 n_z` (a light from the viewer).
+/// The fixed quantisation of [`ptm_from_rgbn`]: scales and biases of `a0..a5`, so that
+/// `a0, a1 ∈ [−1.5k, −0.5k]` (k = 127.5) in 254 steps, `a2 ∈ {0, k}`, `a3, a4 ∈ [−3k, 3k]`,
+/// `a5 ∈ [0, 256]`.
+fn rgbn_ptm_grid() -> ([f32; 6], [i32; 6]) {
+    let k = LAMBERT_HALF_CURVATURE as f32;
+    (
+        [k / 254.0, k / 254.0, k, 6.0 * k / 254.0, 6.0 * k / 254.0, 255.0 / 254.0],
+        [381, 381, 0, 127, 127, 0],
+    )
+}
+
+/// An RGBN image as LRGB PTM data on the grid of [`rgbn_ptm_grid`]: per pixel a paraboloid
+/// `L(u, v) = a5 + a0 (u² − 2 u u0) + a1 (v² − 2 v v0)` — the second-order shape of a
+/// Lambertian `255 · n · l` about its maximum, peaking at 255 — whose maximum `(u0, v0)` is the
+/// normal's `(n_x, n_y)`, so a PTM reader (rgbn's, RTIViewer's `calculateNormal`) finds the
+/// normal again: `u0 = −a3 / (2 a0)`. The curvature `a0` of each axis is chosen among its 255
+/// representable values, near `−127.5`, with `a3` rounded to its grid so that the ratio comes
+/// closest to `n_x` (likewise `a1`, `a4` for `n_y`): the 8-bit file then holds the normal to
+/// about 1e-4 instead of one quantisation step (≈ 0.4° near the rim). The colour is written
+/// as sRGB bytes.
 ///
-/// Pixels outside the mask or facing away (`n_z ≤ 0`) get a flat polynomial (all zero: no
-/// maximum, read back as masked out) and their colour.
+/// Pixels outside the mask or facing away (`n_z ≤ 0`) get `a0 = a1 = −0.5k`, `a2 = k`: no
+/// maximum (read back as masked out), and their colour.
 #[must_use]
 pub fn ptm_from_rgbn(img: &RgbnImage) -> PtmData {
+    let (scale, bias) = rgbn_ptm_grid();
+    let val = |i: usize, c: i32| f64::from(c - bias[i]) * f64::from(scale[i]);
+    // The best (curvature, linear) pair for a target maximum coordinate t (|t| < 1).
+    let axis = |t: f64| -> (f64, f64) {
+        let mut best = (f64::INFINITY, 0.0, 0.0);
+        for c0 in 0..=254 {
+            let a0 = val(0, c0);
+            let c3 = (-2.0 * a0 * t / f64::from(scale[3]) + f64::from(bias[3]))
+                .round()
+                .clamp(0.0, 254.0) as i32;
+            let a3 = val(3, c3);
+            let err = (-a3 / (2.0 * a0) - t).abs()
+                + 1e-9 * (a0 + LAMBERT_HALF_CURVATURE).abs();
+            if err < best.0 {
+                best = (err, a0, a3);
+            }
+        }
+        (best.1, best.2)
+    };
     let [nx, ny, nz] = img.normal();
     let mask = img.mask();
+    let k = LAMBERT_HALF_CURVATURE;
     let lum = (0..img.len())
         .into_par_iter()
         .map(|i| {
             let inside = mask.is_none_or(|m| m[i] >= 0.5) && nz[i] > 0.0;
             if !inside {
-                return [0.0; 6];
+                return [-0.5 * k, -0.5 * k, k, 0.0, 0.0, 0.0];
             }
             let (x, y) = (f64::from(nx[i]), f64::from(ny[i]));
-            let k = LAMBERT_HALF_CURVATURE;
-            [-k, -k, 0.0, 2.0 * k * x, 2.0 * k * y, 2.0 * k * (1.0 - (x * x + y * y) / 2.0)]
+            let ((a0, a3), (a1, a4)) = (axis(x), axis(y));
+            let (u0, v0) = (-a3 / (2.0 * a0), -a4 / (2.0 * a1));
+            // L(u0, v0) = a5 − a0 u0² − a1 v0² = 255.
+            let a5 = (255.0 + a0 * u0 * u0 + a1 * v0 * v0).clamp(0.0, 256.0);
+            [a0, a1, 0.0, a3, a4, a5]
         })
         .collect();
     let [r, g, b] = img.color();
@@ -655,7 +707,21 @@ pub fn ptm_from_rgbn(img: &RgbnImage) -> PtmData {
 /// # Errors
 /// Write errors.
 pub fn save_ptm(img: &RgbnImage, path: &Path) -> Result<(), RgbnError> {
-    write_ptm(path, img.width(), img.height(), &ptm_from_rgbn(img))
+    let data = ptm_from_rgbn(img);
+    let PtmData::Lrgb { lum, .. } = &data else {
+        unreachable!("ptm_from_rgbn writes LRGB")
+    };
+    let (scale, bias) = rgbn_ptm_grid();
+    write_ptm_scaled(
+        path,
+        img.width(),
+        img.height(),
+        &data,
+        PtmFormat::Lrgb,
+        &[lum.as_slice()],
+        scale,
+        bias,
+    )
 }
 
 #[cfg(test)]
