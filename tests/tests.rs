@@ -25,6 +25,9 @@ mod graph_errors;
 #[path = "it/cache.rs"]
 mod cache;
 
+#[path = "it/cancel.rs"]
+mod cancel;
+
 #[path = "it/combine.rs"]
 mod combine;
 

@@ -432,7 +432,7 @@ pub fn evaluate_view(
     let v = req.view.as_ref()?;
     let (plan, name) = view_plan(req, v).ok()?;
     let opts = EvalOptions {
-        cancel: Some(req.cancel.clone()),
+        cancel: crate::cancel::Cancel::from_flag(req.cancel.clone()),
         progress: None,
         curl_stats: false,
     };
@@ -651,7 +651,7 @@ pub fn evaluate_memo(
                 Ok(p) => {
                     // The readouts come after, apart ([`readouts`]): they never delay values.
                     let opts = EvalOptions {
-                        cancel: Some(req.cancel.clone()),
+                        cancel: crate::cancel::Cancel::from_flag(req.cancel.clone()),
                         progress: progress.clone(),
                         curl_stats: false,
                     };
