@@ -70,6 +70,9 @@ mod views;
 #[path = "it/nan_ops.rs"]
 mod nan_ops;
 
+#[path = "it/sliders.rs"]
+mod sliders;
+
 #[path = "it/faults.rs"]
 mod faults;
 

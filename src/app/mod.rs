@@ -21,6 +21,7 @@
 //! Layout: menu bar; node graph | preview | inspector (resizable); status bar with evaluation
 //! progress, cache memory and the viewed node's curl.
 
+pub mod add_menu;
 pub mod dialogs;
 pub mod files;
 pub mod graph_view;
@@ -254,6 +255,14 @@ impl EditorApp {
                 self.session.selected = Some(id);
                 self.say(format!("added {op} (#{id})"));
             }
+            Action::AddWired {
+                op,
+                pos,
+                wire,
+                port,
+            } => {
+                self.add_wired(&op, pos, &wire, &port);
+            }
             Action::Connect {
                 from,
                 from_port,
@@ -442,11 +451,10 @@ impl EditorApp {
                     .iter()
                     .map(|(k, (_, t))| (*k, t.clone()))
                     .collect();
-                let green = self.green.update(
-                    &self.session.doc.graph,
-                    &self.session.doc.base_dir(),
-                    ui.ctx(),
-                );
+                let base_dir = self.session.doc.base_dir();
+                let green = self
+                    .green
+                    .update(&self.session.doc.graph, &base_dir, ui.ctx());
                 let data = ViewData {
                     graph: &self.session.doc.graph,
                     ports: &self.runtime.ports,
@@ -456,6 +464,7 @@ impl EditorApp {
                     green: &green,
                     viewed: self.session.viewed.as_ref().map(|v| v.0),
                     viewed_port: self.session.viewed.as_ref().map(|v| v.1.as_str()),
+                    base_dir: &base_dir,
                 };
                 actions.extend(self.view.show_ui(ui, &data));
             });
