@@ -46,6 +46,10 @@ mod editor_images;
 #[path = "it/editor_start.rs"]
 mod editor_start;
 
+#[cfg(feature = "gui")]
+#[path = "it/editor_menu.rs"]
+mod editor_menu;
+
 #[path = "it/nodes.rs"]
 mod nodes;
 

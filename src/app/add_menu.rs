@@ -289,6 +289,23 @@ impl AddMenu {
         self.open.as_ref()?.wire.as_ref()
     }
 
+    /// The search typed and the highlighted row (while open).
+    #[must_use]
+    pub fn search(&self) -> Option<&Search> {
+        self.open.as_ref().map(|o| &o.search)
+    }
+
+    /// The operators offered (while open), in the order listed for the current search.
+    #[must_use]
+    pub fn listed(&self) -> Vec<&'static str> {
+        self.open.as_ref().map_or_else(Vec::new, |o| {
+            ranked(&o.search.text, &o.offers)
+                .into_iter()
+                .map(|k| o.offers[k].spec.id)
+                .collect()
+        })
+    }
+
     /// The graph position new nodes go to (while open).
     #[must_use]
     pub fn at(&self) -> Option<[f32; 2]> {

@@ -7,6 +7,7 @@
 //! reused slab indices: they are never persisted nor used as keys outside this module.
 
 use super::add_menu::{self, AddMenu, Wire};
+use super::crisp;
 use super::placement::{self, Rect as PlaceRect};
 use crate::graph::{Graph, NodeId, NodePorts};
 use crate::nodes::{self, PortType};
@@ -95,6 +96,8 @@ pub struct ViewData<'a> {
     pub thumbs: &'a BTreeMap<NodeId, TextureHandle>,
     /// Errors by node.
     pub errors: &'a BTreeMap<NodeId, String>,
+    /// Nodes waiting for an input (the port), shown as waiting, not failed.
+    pub waiting: &'a BTreeMap<NodeId, String>,
     /// Non-integrable fraction F of each node's RGBN output.
     pub fraction: &'a BTreeMap<NodeId, f64>,
     /// Green-convention badges of the `load` nodes ([`super::green_badge`]).
@@ -302,6 +305,12 @@ impl GraphView {
         self.to_global
     }
 
+    /// The graph panel's screen rectangle, as last drawn.
+    #[must_use]
+    pub fn panel(&self) -> Option<egui::Rect> {
+        self.panel
+    }
+
     /// Fits the view to `ids` (all nodes when empty) over the next frames.
     pub fn frame_nodes(&mut self, ids: &[NodeId]) {
         self.frame_only = (!ids.is_empty()).then(|| ids.iter().copied().collect());
@@ -418,6 +427,21 @@ struct Viewer<'a, 'd> {
 }
 
 impl Viewer<'_, '_> {
+    /// The view's zoom this frame.
+    fn zoom(&self) -> f32 {
+        self.to_global.scaling
+    }
+
+    /// The font and colour of text `style`, weak or not.
+    fn text_style(&self, ui: &Ui, style: egui::TextStyle, weak: bool) -> (egui::FontId, Color32) {
+        let color = if weak {
+            ui.visuals().weak_text_color()
+        } else {
+            ui.visuals().text_color()
+        };
+        (style.resolve(ui.style()), color)
+    }
+
     fn ports(&self, id: NodeId) -> Option<&NodePorts> {
         self.data.ports.get(&id)
     }
@@ -479,7 +503,17 @@ impl SnarlViewer<NodeId> for Viewer<'_, '_> {
     ) {
         let id = snarl[node];
         let title = self.title(&id);
-        let r = ui.label(RichText::new(title).strong());
+        let font = egui::TextStyle::Body.resolve(ui.style());
+        let color = ui.visuals().strong_text_color();
+        let r = crisp::label_ui(
+            ui,
+            &title,
+            &font,
+            color,
+            self.zoom(),
+            false,
+            egui::Sense::hover(),
+        );
         if let Some(n) = self.data.graph.nodes.get(&id) {
             if let Some(op) = nodes::find(&n.op) {
                 r.on_hover_text(op.spec().doc);
@@ -510,8 +544,17 @@ impl SnarlViewer<NodeId> for Viewer<'_, '_> {
         } else {
             p.name.clone()
         };
-        ui.label(text)
-            .on_hover_text(format!("{} — {}", p.ty.name(), p.doc));
+        let (font, color) = self.text_style(ui, egui::TextStyle::Body, false);
+        crisp::label_ui(
+            ui,
+            &text,
+            &font,
+            color,
+            self.zoom(),
+            false,
+            egui::Sense::hover(),
+        )
+        .on_hover_text(format!("{} — {}", p.ty.name(), p.doc));
         PinInfo::circle().with_fill(type_color(p.ty))
     }
 
@@ -531,15 +574,19 @@ impl SnarlViewer<NodeId> for Viewer<'_, '_> {
             return PinInfo::circle();
         };
         let viewed = self.data.viewed == Some(id) && self.data.viewed_port == Some(p.name.as_str());
-        let text = if viewed {
-            RichText::new(&p.name).underline()
-        } else {
-            RichText::new(&p.name)
-        };
-        if ui
-            .add(egui::Label::new(text).sense(egui::Sense::click()))
-            .on_hover_text(format!("{} — {} (click to preview)", p.ty.name(), p.doc))
-            .clicked()
+        let (font, color) = self.text_style(ui, egui::TextStyle::Body, false);
+        let zoom = self.zoom();
+        if crisp::label_ui(
+            ui,
+            &p.name,
+            &font,
+            color,
+            zoom,
+            viewed,
+            egui::Sense::click(),
+        )
+        .on_hover_text(format!("{} — {} (click to preview)", p.ty.name(), p.doc))
+        .clicked()
         {
             self.actions.push(Action::ViewPort(id, p.name.clone()));
         }
@@ -549,6 +596,7 @@ impl SnarlViewer<NodeId> for Viewer<'_, '_> {
     fn has_body(&mut self, node: &NodeId) -> bool {
         self.data.thumbs.contains_key(node)
             || self.data.errors.contains_key(node)
+            || self.data.waiting.contains_key(node)
             || self.data.green.contains_key(node)
     }
 
@@ -567,18 +615,25 @@ impl SnarlViewer<NodeId> for Viewer<'_, '_> {
                 let scale = (72.0 / size.x.max(size.y)).min(1.0);
                 ui.add(egui::Image::new((t.id(), size * scale)));
             }
+            let (small, weak) = self.text_style(ui, egui::TextStyle::Small, true);
             if let Some(f) = self.data.fraction.get(&id) {
-                ui.label(RichText::new(format!("F {f:.2e}")).small().weak())
+                let zoom = self.zoom();
+                crisp::label_ui(ui, &format!("F {f:.2e}"), &small, weak, zoom, false, egui::Sense::hover())
                     .on_hover_text("Non-integrable fraction of this node's normals: 0 for a surface, √(2/π) ≈ 0.80 for noise");
             }
             if let Some(b) = self.data.green.get(&id) {
-                let text = RichText::new(&b.text).small();
-                let text = if b.mismatch {
-                    text.color(Color32::from_rgb(0xe0, 0xb0, 0x40))
+                let color = if b.mismatch {
+                    Color32::from_rgb(0xe0, 0xb0, 0x40)
                 } else {
-                    text.weak()
+                    weak
                 };
-                ui.label(text).on_hover_text(&b.hover);
+                crisp::label_ui(ui, &b.text, &small, color, self.zoom(), false, egui::Sense::hover())
+                    .on_hover_text(&b.hover);
+            }
+            if let Some(port) = self.data.waiting.get(&id) {
+                let text = format!("waits for input {port}");
+                crisp::label_ui(ui, &text, &small, weak, self.zoom(), false, egui::Sense::hover())
+                    .on_hover_text("Connect this input (drag a wire to it) to evaluate the node");
             }
             if let Some(e) = self.data.errors.get(&id) {
                 ui.set_min_width(170.0);

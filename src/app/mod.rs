@@ -22,6 +22,7 @@
 //! progress, cache memory and the viewed node's curl.
 
 pub mod add_menu;
+pub mod crisp;
 pub mod dialogs;
 pub mod files;
 pub mod graph_view;
@@ -166,6 +167,17 @@ impl EditorApp {
             placed: BTreeMap::new(),
             last_widget_selection: Vec::new(),
         }
+    }
+
+    /// The graph view (its add menu, transform, drawn node rectangles).
+    #[must_use]
+    pub fn graph_view(&self) -> &GraphView {
+        &self.view
+    }
+
+    /// Fits the graph view to `ids` (all nodes when empty), as F and Home do.
+    pub fn frame_graph_nodes(&mut self, ids: &[NodeId]) {
+        self.view.frame_nodes(ids);
     }
 
     /// Copies nodes to the editor's clipboard (and their RON text to the system clipboard).
@@ -460,6 +472,7 @@ impl EditorApp {
                     ports: &self.runtime.ports,
                     thumbs: &tex,
                     errors: &self.runtime.outcome.node_errors,
+                    waiting: &self.runtime.outcome.waiting,
                     fraction: &self.runtime.outcome.fraction,
                     green: &green,
                     viewed: self.session.viewed.as_ref().map(|v| v.0),
@@ -625,6 +638,11 @@ impl EditorApp {
         if let Some(e) = self.runtime.outcome.node_errors.get(&id) {
             ui.separator();
             ui.colored_label(Color32::from_rgb(255, 110, 110), e);
+        } else if let Some(port) = self.runtime.outcome.waiting.get(&id) {
+            ui.separator();
+            ui.label(format!(
+                "Waits for input {port}: connect it to evaluate this node."
+            ));
         }
         ui.separator();
         ui.horizontal(|ui| {
@@ -766,6 +784,10 @@ impl EditorApp {
             (_, None) => "Click a node to view its output.".to_string(),
             (None, Some((id, _))) => match self.runtime.outcome.node_errors.get(id) {
                 Some(e) => format!("error: {e}"),
+                None if self.runtime.outcome.waiting.contains_key(id) => format!(
+                    "node #{id} waits for input {}: connect it",
+                    self.runtime.outcome.waiting[id]
+                ),
                 None if self.runtime.in_flight.is_some() => "evaluating…".into(),
                 None if self.runtime.outcome.viewport_only => format!(
                     "viewport only: the output is larger than the editor evaluates whole ({} Mpx); pan and zoom evaluate what is shown, rgbn eval computes all of it",

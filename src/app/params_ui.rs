@@ -177,6 +177,31 @@ pub fn param_ui(
     changed
 }
 
+/// The first sentence of an operator's doc (the inspector's line under the title): up to the
+/// first full stop followed by a space that is outside parentheses and does not end an
+/// abbreviation (`et al.`, `e.g.`, `i.e.`, `cf.`, `Fig.`, `vs.`) — "RGBN bilateral filter
+/// (Toler-Franklin et al. 2007; …): base = …" is one sentence. The whole doc when it has one
+/// sentence.
+#[must_use]
+pub fn doc_summary(doc: &str) -> &str {
+    const ABBREVIATIONS: [&str; 6] = ["et al", "e.g", "i.e", "cf", "Fig", "vs"];
+    let mut depth = 0i32;
+    for (k, c) in doc.char_indices() {
+        match c {
+            '(' | '[' => depth += 1,
+            ')' | ']' => depth -= 1,
+            '.' if depth <= 0 && doc[k + 1..].starts_with(' ') => {
+                let before = &doc[..k];
+                if !ABBREVIATIONS.iter().any(|a| before.ends_with(a)) {
+                    return &doc[..=k];
+                }
+            }
+            _ => {}
+        }
+    }
+    doc
+}
+
 /// A slider's number: at most 4 decimals (at least `min_decimals`), and small magnitudes
 /// (tolerances of 10⁻⁶) in scientific notation rather than as `0.0000`.
 #[must_use]
@@ -517,8 +542,8 @@ pub fn inspector_ui(ui: &mut Ui, graph: &mut Graph, id: NodeId, base_dir: &Path)
     ui.label(RichText::new(format!("#{id} · {}", n.op)).small().weak());
     if let Some(op) = op {
         let doc = op.spec().doc;
-        let summary = doc.split(". ").next().unwrap_or(doc);
-        ui.label(summary).on_hover_text(doc);
+        ui.add(egui::Label::new(doc_summary(doc)).wrap())
+            .on_hover_text(doc);
     }
     ui.separator();
     let mut name = n.name.clone().unwrap_or_default();
