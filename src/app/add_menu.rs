@@ -256,6 +256,8 @@ struct Open {
     search: Search,
     /// Frames since it opened (a click that opened it does not close it).
     age: u32,
+    /// Text the key that opened the menu types, kept out of the search field.
+    swallow: Option<&'static str>,
 }
 
 /// A choice made in the menu.
@@ -323,6 +325,7 @@ impl AddMenu {
             offers: all_offers(),
             search: Search::default(),
             age: 0,
+            swallow: None,
         });
     }
 
@@ -343,7 +346,16 @@ impl AddMenu {
             wire: Some(wire),
             search: Search::default(),
             age: 0,
+            swallow: None,
         });
+    }
+
+    /// Keeps `typed` (the text of the key that opened the menu: Shift+A types "A") out of the
+    /// search field when it arrives in the next frames.
+    pub fn swallow(&mut self, typed: &'static str) {
+        if let Some(o) = &mut self.open {
+            o.swallow = (!typed.is_empty()).then_some(typed);
+        }
     }
 
     /// Closes the menu.
@@ -355,6 +367,18 @@ impl AddMenu {
     pub fn show(&mut self, ctx: &egui::Context) -> Option<Pick> {
         let open = self.open.as_mut()?;
         open.age += 1;
+        if let Some(t) = open.swallow {
+            let found = ctx.input_mut(|i| {
+                let k = i
+                    .events
+                    .iter()
+                    .position(|e| matches!(e, Event::Text(x) if x == t));
+                k.map(|k| i.events.remove(k)).is_some()
+            });
+            if found || open.age > 3 {
+                open.swallow = None;
+            }
+        }
         let escape = ctx.input_mut(|i| i.consume_key(Modifiers::NONE, Key::Escape));
         if escape {
             self.open = None;
@@ -401,22 +425,22 @@ impl AddMenu {
     }
 }
 
-/// Tab or Shift+A this frame (consumed, with the text Shift+A types): the keys that open the
-/// menu at the pointer.
-pub fn take_open_keys(ctx: &egui::Context) -> bool {
-    ctx.input_mut(|i| {
-        let tab = i.consume_key(Modifiers::NONE, Key::Tab);
-        let shift_a = i.consume_key(Modifiers::SHIFT, Key::A);
-        if shift_a {
-            i.events
-                .retain(|e| !matches!(e, Event::Text(t) if t == "A"));
+/// Tab or Shift+A this frame (consumed): the keys that open the menu at the pointer. Returns
+/// the text the key types (`"A"` for Shift+A, which [`AddMenu::swallow`] keeps out of the
+/// search field whether it comes in the same frame or the next), or `None` without them.
+pub fn take_open_keys(ctx: &egui::Context) -> Option<&'static str> {
+    let typed = ctx.input_mut(|i| {
+        if i.consume_key(Modifiers::NONE, Key::Tab) {
+            Some("")
+        } else if i.consume_key(Modifiers::SHIFT, Key::A) {
+            Some("A")
+        } else {
+            None
         }
-        tab || shift_a
-    }) && {
-        // Tab also moves egui's keyboard focus to the next widget.
-        ctx.memory_mut(|m| m.move_focus(egui::FocusDirection::None));
-        true
-    }
+    })?;
+    // Tab also moves egui's keyboard focus to the next widget.
+    ctx.memory_mut(|m| m.move_focus(egui::FocusDirection::None));
+    Some(typed)
 }
 
 impl EditorApp {

@@ -319,8 +319,9 @@ impl GraphView {
 
     /// The graph's keys, at the start of a frame (before any widget takes Tab for focus):
     /// Tab or Shift+A with the pointer over the graph opens the add menu there; F frames the
-    /// selected nodes (all when none is), Home all of them. Not while `typing` in a field.
-    pub fn keys(&mut self, ctx: &egui::Context, typing: bool) {
+    /// nodes selected in the graph (else the `inspected` node, else all), Home all of them.
+    /// Not while `typing` in a field.
+    pub fn keys(&mut self, ctx: &egui::Context, typing: bool, inspected: Option<NodeId>) {
         if typing || self.menu.is_open() {
             return;
         }
@@ -331,8 +332,9 @@ impl GraphView {
                     .is_none_or(|l| l.order == egui::Order::Background)
         });
         if let Some(p) = over_graph {
-            if add_menu::take_open_keys(ctx) {
+            if let Some(typed) = add_menu::take_open_keys(ctx) {
                 self.menu.open_at(p, self.to_global);
+                self.menu.swallow(typed);
                 return;
             }
         }
@@ -343,7 +345,10 @@ impl GraphView {
             )
         });
         if f {
-            let sel = self.selected(ctx);
+            let mut sel = self.selected(ctx);
+            if sel.is_empty() {
+                sel.extend(inspected);
+            }
             self.frame_nodes(&sel);
         } else if home {
             self.frame_nodes(&[]);

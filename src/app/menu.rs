@@ -13,7 +13,7 @@ impl EditorApp {
     pub(super) fn shortcuts(&mut self, ctx: &egui::Context) {
         let typing = ctx.egui_wants_keyboard_input();
         if self.dialog.is_none() && self.files.is_none() {
-            self.view.keys(ctx, typing);
+            self.view.keys(ctx, typing, self.session.selected);
         }
         let sc = |m, k| KeyboardShortcut::new(m, k);
         let hit = |s: KeyboardShortcut| ctx.input_mut(|i| i.consume_shortcut(&s));
@@ -242,6 +242,10 @@ impl EditorApp {
             ui.menu_button("Help", |ui| {
                 if ui.button("Operators…").clicked() {
                     self.show_ops = true;
+                    ui.close();
+                }
+                if ui.button("Keyboard shortcuts…").clicked() {
+                    self.show_keys = true;
                     ui.close();
                 }
                 if ui.button("About rgbn").clicked() {

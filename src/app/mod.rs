@@ -38,6 +38,7 @@ pub mod recent;
 pub mod refresh;
 pub mod runtime;
 pub mod session;
+pub mod shortcuts;
 pub mod soak;
 pub mod start;
 pub mod state;
@@ -140,6 +141,8 @@ pub struct EditorApp {
     pending_export: Option<(std::path::PathBuf, NodeId, String)>,
     /// The Help ▸ Operators window is open.
     show_ops: bool,
+    /// The Help ▸ Keyboard shortcuts window is open.
+    show_keys: bool,
     /// Nodes the editor placed that it keeps clear of others until they are drawn evaluated
     /// (their size is known only then): position given, frames left once evaluated.
     placed: BTreeMap<NodeId, ([f32; 2], u8)>,
@@ -164,6 +167,7 @@ impl EditorApp {
             files: None,
             pending_export: None,
             show_ops: false,
+            show_keys: false,
             placed: BTreeMap::new(),
             last_widget_selection: Vec::new(),
         }
@@ -495,6 +499,14 @@ impl EditorApp {
                 .show(&ctx, ops_doc_ui);
             self.show_ops = open;
         }
+        if self.show_keys {
+            let mut open = true;
+            egui::Window::new("Keyboard shortcuts")
+                .open(&mut open)
+                .resizable(false)
+                .show(&ctx, shortcuts::shortcuts_ui);
+            self.show_keys = open;
+        }
 
         // Selection drives the inspector and the preview.
         // (Only a change of the widget's selection counts: commands select nodes too.)
@@ -628,7 +640,7 @@ impl EditorApp {
             .filter(|s| self.session.doc.graph.nodes.contains_key(s))
         else {
             ui.weak("Select a node to edit its parameters.");
-            ui.weak("Right-click the graph (or use the Add menu) to add nodes.");
+            ui.weak("Right-click the graph, or press Tab over it, to add nodes (the Add menu adds after the selected node).");
             return;
         };
         let base = self.session.doc.base_dir();

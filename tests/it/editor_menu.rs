@@ -387,13 +387,23 @@ fn f_frames_the_selected_node_and_home_frames_all() {
     let mut h = harness(small_demo());
     settle(&mut h);
     let panel = h.state().graph_view().panel().unwrap();
-    // Select node 1 by clicking its header, then F: it fills the view's middle at 1:1.
+    // Select node 1 (Shift+click), then F: it fills the view's middle at 1:1.
     let r1 = screen_rect(&h, 1);
-    click_at(
-        &mut h,
-        Pos2::new(r1.center().x, r1.top() + 8.0),
-        PointerButton::Primary,
-    );
+    let at = Pos2::new(r1.center().x, r1.top() + 8.0);
+    h.hover_at(at);
+    h.step();
+    for pressed in [true, false] {
+        h.event_modifiers(
+            Event::PointerButton {
+                pos: at,
+                button: PointerButton::Primary,
+                pressed,
+                modifiers: Modifiers::SHIFT,
+            },
+            Modifiers::SHIFT,
+        );
+        h.step();
+    }
     let hov = Pos2::new(panel.center().x, panel.top() + 20.0);
     h.hover_at(hov);
     h.step();
@@ -424,6 +434,15 @@ fn f_frames_the_selected_node_and_home_frames_all() {
             "node {id} at {r:?} outside {panel:?}"
         );
     }
+    // With nothing selected in the graph, F frames the node the inspector shows.
+    h.state_mut().session.selected = Some(4);
+    assert!(h.state().graph_view().to_global().scaling < 1.0);
+    // (A click on empty space clears the graph's selection.)
+    click_at(&mut h, hov, PointerButton::Primary);
+    press(&mut h, Key::F);
+    h.run_steps(3);
+    let r4 = screen_rect(&h, 4);
+    assert!((r4.center() - panel.center()).length() < 2.0, "{r4:?}");
 }
 
 #[test]
@@ -545,20 +564,20 @@ fn a_value_beyond_the_slider_is_kept_up_to_the_hard_bound() {
     assert_eq!(s.accesskit_node().max_numeric_value(), Some(1.0));
 }
 
-/// Checks every text shape showing `text` exactly: its glyphs reach the screen at the size they
-/// were rasterised at (within 5 %), it is not elided, the clip does not cut it and it lies in
-/// `inside`. Returns how many shapes show it.
-fn check_text(h: &H, text: &str, inside: Rect, what: &str) -> usize {
+/// Checks every text shape of area `region` showing `text` exactly: its glyphs reach the screen
+/// at the size they were rasterised at (within 5 %), it is not elided, the clip does not cut
+/// it and it lies in `inside`. Returns how many shapes show it.
+fn check_text(h: &H, text: &str, region: Rect, inside: Rect, what: &str) -> usize {
     let mut found = 0;
     for cs in &h.output().shapes {
         let egui::Shape::Text(t) = &cs.shape else {
             continue;
         };
-        if t.galley.text() != text {
+        let r = t.galley.rect.translate(t.pos.to_vec2());
+        if t.galley.text() != text || !region.contains(r.center()) {
             continue;
         }
         found += 1;
-        let r = t.galley.rect.translate(t.pos.to_vec2());
         assert!(!t.galley.elided, "{what}: {text:?} elided");
         assert!(
             cs.clip_rect.expand(0.5).contains_rect(r),
@@ -592,7 +611,12 @@ fn node_and_inspector_text_is_whole_and_sharp_for_every_operator() {
     for id in g.nodes.keys() {
         let title = node_title(&g, *id);
         let r = screen_rect(&h, *id);
-        assert_eq!(check_text(&h, &title, r, "demo header"), 1, "{title}");
+        let panel = h.state().graph_view().panel().unwrap();
+        assert_eq!(
+            check_text(&h, &title, panel, r, "demo header"),
+            1,
+            "{title}"
+        );
     }
     drop(h);
 
@@ -613,7 +637,8 @@ fn node_and_inspector_text_is_whole_and_sharp_for_every_operator() {
         for id in row {
             let title = node_title(&g, *id);
             let r = screen_rect(&h, *id);
-            headers += check_text(&h, &title, r, "header");
+            let panel = h.state().graph_view().panel().unwrap();
+            headers += check_text(&h, &title, panel, r, "header");
         }
     }
     assert_eq!(headers, ids.len(), "one header per node");
@@ -633,10 +658,28 @@ fn node_and_inspector_text_is_whole_and_sharp_for_every_operator() {
             "{summary}"
         );
         let area = inspector(&h);
-        assert_eq!(check_text(&h, summary, area, "inspector"), 1, "{summary}");
+        assert_eq!(
+            check_text(&h, summary, area, area, "inspector"),
+            1,
+            "{summary}"
+        );
     }
     assert_eq!(
         doc_summary(rgbn::nodes::find("bilateral").unwrap().spec().doc),
         "RGBN bilateral filter (Toler-Franklin et al. 2007; Pereira & Velho §VII): base = the edge-preserving smoothing of the normals, detail = the rotation taking the base to the input, as a normal in the base's tangent frame."
     );
+}
+
+#[test]
+fn every_shortcut_of_the_help_window_is_in_the_user_guide() {
+    let doc = std::fs::read_to_string(
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("docs/editor.md"),
+    )
+    .unwrap();
+    for (keys, what) in rgbn::app::shortcuts::SHORTCUTS {
+        assert!(
+            doc.contains(&format!("| {keys} | {what} |")),
+            "docs/editor.md lacks the row {keys} | {what}"
+        );
+    }
 }
