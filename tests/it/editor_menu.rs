@@ -437,8 +437,20 @@ fn f_frames_the_selected_node_and_home_frames_all() {
     // With nothing selected in the graph, F frames the node the inspector shows.
     h.state_mut().session.selected = Some(4);
     assert!(h.state().graph_view().to_global().scaling < 1.0);
-    // (A click on empty space clears the graph's selection.)
-    click_at(&mut h, hov, PointerButton::Primary);
+    // (Ctrl+click on empty space clears the graph's selection.)
+    for pressed in [true, false] {
+        h.event_modifiers(
+            Event::PointerButton {
+                pos: hov,
+                button: PointerButton::Primary,
+                pressed,
+                modifiers: Modifiers::COMMAND,
+            },
+            Modifiers::COMMAND,
+        );
+        h.step();
+    }
+    assert!(h.state().graph_view().selected(&h.ctx).is_empty());
     press(&mut h, Key::F);
     h.run_steps(3);
     let r4 = screen_rect(&h, 4);
@@ -588,10 +600,23 @@ fn check_text(h: &H, text: &str, region: Rect, inside: Rect, what: &str) -> usiz
             inside.expand(0.5).contains_rect(r),
             "{what}: {text:?} at {r:?} outside {inside:?}"
         );
-        let font = t.galley.job.sections[0].format.font_id.clone();
-        let rows = t.galley.rows.len() as f32;
-        let natural = h.ctx.fonts_mut(|f| f.row_height(&font)) * rows;
-        let ratio = r.height() / natural;
+        // The layer's zoom scales a galley's meshes but not its glyphs' atlas rectangles: the
+        // widest glyph quad on screen over the widest glyph in the atlas (both in points) is the
+        // factor between glyphs drawn and glyphs rasterised (1: sharp; the zoom: shrunk).
+        let mut quad = 0.0f32;
+        let mut atlas = 0.0f32;
+        for row in &t.galley.rows {
+            for q in row.row.visuals.mesh.vertices.chunks(4) {
+                let (lo, hi) = q.iter().fold((f32::MAX, f32::MIN), |(a, b), v| {
+                    (a.min(v.pos.x), b.max(v.pos.x))
+                });
+                quad = quad.max(hi - lo);
+            }
+            for g in &row.row.glyphs {
+                atlas = atlas.max(g.uv_rect.size.x);
+            }
+        }
+        let ratio = quad / atlas;
         assert!(
             (ratio - 1.0).abs() < 0.05,
             "{what}: {text:?} drawn at {ratio:.2} × its rasterised size"
