@@ -49,6 +49,10 @@ mod editor_images;
 #[path = "it/editor_start.rs"]
 mod editor_start;
 
+#[cfg(feature = "gui")]
+#[path = "it/editor_menu.rs"]
+mod editor_menu;
+
 #[path = "it/nodes.rs"]
 mod nodes;
 
@@ -72,6 +76,9 @@ mod views;
 
 #[path = "it/nan_ops.rs"]
 mod nan_ops;
+
+#[path = "it/sliders.rs"]
+mod sliders;
 
 #[path = "it/faults.rs"]
 mod faults;
