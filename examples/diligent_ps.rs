@@ -202,7 +202,9 @@ fn main() {
         "DiLiGenT ball {w}×{h}, {} mask pixels; threads {}; load {}",
         inside.len(),
         rayon::current_num_threads(),
-        std::fs::read_to_string("/proc/loadavg").unwrap_or_default().trim()
+        std::fs::read_to_string("/proc/loadavg")
+            .unwrap_or_default()
+            .trim()
     );
     println!(
         "farthest-point order: {}",
@@ -284,7 +286,9 @@ fn main() {
     }
     println!(
         "load at end {}",
-        std::fs::read_to_string("/proc/loadavg").unwrap_or_default().trim()
+        std::fs::read_to_string("/proc/loadavg")
+            .unwrap_or_default()
+            .trim()
     );
 }
 
@@ -325,7 +329,11 @@ fn diagnose_errors(name: &str, n: &rgbn::RgbnImage, gt: &[Vec<f32>; 3], inside: 
         d[1] / c,
         d[2] / c,
         bins.iter()
-            .map(|(s, k)| if *k > 0 { format!("{:.2}({k})", s / *k as f64) } else { "-".into() })
+            .map(|(s, k)| if *k > 0 {
+                format!("{:.2}({k})", s / *k as f64)
+            } else {
+                "-".into()
+            })
             .collect::<Vec<_>>()
             .join(" ")
     );

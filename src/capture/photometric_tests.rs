@@ -43,9 +43,7 @@ fn coloured(mut img: RgbnImage) -> RgbnImage {
     let (w, h) = (img.width(), img.height());
     let col = [0.7f32, 0.4, 0.2].map(|base| {
         (0..w * h)
-            .map(|i| {
-                base * (0.5 + 0.5 * ((i % w) as f32 / w as f32)) + 0.05 * ((i / w) % 3) as f32
-            })
+            .map(|i| base * (0.5 + 0.5 * ((i % w) as f32 / w as f32)) + 0.05 * ((i / w) % 3) as f32)
             .collect()
     });
     img.set_color(col).unwrap();
@@ -122,8 +120,7 @@ fn trimming_removes_attached_shadows_and_highlights() {
         ];
         let j = (0..13)
             .min_by(|&a, &b| {
-                angle_deg(h, lights.directions[a])
-                    .total_cmp(&angle_deg(h, lights.directions[b]))
+                angle_deg(h, lights.directions[a]).total_cmp(&angle_deg(h, lights.directions[b]))
             })
             .unwrap();
         if angle_deg(h, lights.directions[j]) < 20.0 {
@@ -257,4 +254,37 @@ fn bad_inputs_are_clear_errors() {
     assert_eq!(out.mask().unwrap()[0], 0.0);
     assert_eq!(out.mask().unwrap()[2], 1.0);
     assert!(out.validate().is_clean());
+}
+
+#[test]
+fn a_set_cancellation_token_stops_every_estimator() {
+    let (img, _) = Surface::Paraboloid { curvature: 0.004 }.render(32, 24);
+    let lights = Lights {
+        directions: ring_lights(6, 25.0),
+        intensities: None,
+    };
+    let stack = render(&img, &lights);
+    for method in [
+        PsMethod::LeastSquares,
+        PsMethod::Trimmed,
+        PsMethod::L1,
+        PsMethod::Sbl,
+    ] {
+        let params = PhotometricParams {
+            method,
+            ..Default::default()
+        };
+        let cancel = crate::cancel::Cancel::new();
+        cancel.cancel();
+        let guard = cancel.enter();
+        let got = photometric_stereo(&stack, &lights, None, &params);
+        drop(guard);
+        assert!(
+            matches!(got, Err(RgbnError::Cancelled)),
+            "{method:?}: {:?}",
+            got.map(|(_, r)| r)
+        );
+        // Without a token the same call runs.
+        assert!(photometric_stereo(&stack, &lights, None, &params).is_ok());
+    }
 }

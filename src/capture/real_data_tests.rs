@@ -178,7 +178,10 @@ fn diligent_ball_angular_error() {
     )
     .unwrap();
     let e6 = mean_angle_deg(&out, &gt, mask);
-    eprintln!("DiLiGenT ball, 6 lights ({}), default estimator: {e6:.3}°", six.join(" "));
+    eprintln!(
+        "DiLiGenT ball, 6 lights ({}), default estimator: {e6:.3}°",
+        six.join(" ")
+    );
     assert!(e6 <= 3.0, "6 photos: {e6}°");
 }
 

@@ -86,7 +86,13 @@ impl Default for RobustParams {
 
 /// Whether the fit `b` leaves every residual of `sel` within `p.clean_residual` of the
 /// brightest observation (module docs: such a pixel is not iterated).
-pub(super) fn is_clean(sel: &[usize], dirs: &[[f64; 3]], g: &[f64], b: [f64; 3], p: &RobustParams) -> bool {
+pub(super) fn is_clean(
+    sel: &[usize],
+    dirs: &[[f64; 3]],
+    g: &[f64],
+    b: [f64; 3],
+    p: &RobustParams,
+) -> bool {
     let gmax = sel.iter().map(|&j| g[j]).fold(0.0, f64::max);
     let tol = p.clean_residual * gmax;
     sel.iter().all(|&j| (g[j] - dot3(dirs[j], b)).abs() <= tol)

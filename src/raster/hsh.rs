@@ -52,8 +52,13 @@
 //!   function, in short. The direction of the function's *maximum*, which RTIViewer-style
 //!   readers of PTMs use, is biased for HSH: a low-order fit of a clamped cosine peaks before
 //!   the pole (12.9° mean error on the test sphere, order 3); the lobe fit reads it at 1.4°
-//!   mean over the whole visible hemisphere and 0.9° where the tilt is at most 60°.
-//!   A black pixel (brightest value under 1e-4) or a fit facing away gets mask 0 and normal
+//!   mean over the whole visible hemisphere and 0.9° where the tilt is at most 60°. What is
+//!   left is a radial bias near the horizon, which [`TiltCorrection`] removes by simulation
+//!   (a Lambertian pixel under a model dome, fitted and read the same way): on the test sphere
+//!   (a dome of rings at 15°–75°, not the model dome) 0.90° mean at order 3 and 0.66° at
+//!   order 4 over the whole visible hemisphere, 1.85° at order 2.
+//!   A black pixel (brightest value under three 8-bit levels, sRGB-encoded: the noise of the
+//!   coefficients' quantisation) or a fit facing away gets mask 0 and normal
 //!   `(0, 0, 1)`, as a PTM pixel without a maximum.
 //! - **Colour**: RGB: each band's function at `l = n` (for a diffuse surface the albedo,
 //!   free of shading), clamped to [0, 1]; LRGB: the stored bytes. Both sRGB-encoded, converted
@@ -73,7 +78,7 @@
 use super::{check_size, RgbnImage};
 use crate::error::RgbnError;
 use crate::raster::io::write_atomic;
-use crate::raster::srgb::srgb_to_linear;
+use crate::raster::srgb::{linear_to_srgb, srgb_to_linear};
 use rayon::prelude::*;
 use std::io::{BufRead, Read, Write};
 use std::path::Path;
@@ -283,7 +288,7 @@ fn lambert_fit(
 /// lights (module docs), or `None` for a black pixel or a fit facing away.
 fn lobe_normal(y: &[f64], grid: &Grid) -> Option<[f64; 3]> {
     let ymax = y.iter().copied().fold(0.0, f64::max);
-    if !(ymax > 1e-4 && ymax.is_finite()) {
+    if !(ymax > f64::from(srgb_to_linear(3.0 / 255.0)) && ymax.is_finite()) {
         return None;
     }
     let unit = |b: [f64; 3]| {
@@ -302,6 +307,129 @@ fn lobe_normal(y: &[f64], grid: &Grid) -> Option<[f64; 3]> {
         }
     }
     (n[2] > 0.0).then_some(n)
+}
+
+/// Lights of the model dome of [`TiltCorrection`]: a Fibonacci spiral, even in solid angle,
+/// over the elevations 15°..90° (`MODEL_DOME_LIGHTS` of them). Not any real dome's layout:
+/// RTI domes spread their lights roughly evenly above a lowest ring of about 10°–20°.
+const MODEL_DOME_LIGHTS: usize = 64;
+const MODEL_DOME_MIN_ELEVATION_DEG: f64 = 15.0;
+/// The model pixel's albedo (its luminance function is fitted sRGB-encoded, as RTI fitters do).
+const MODEL_ALBEDO: f64 = 0.5;
+/// Tilt step of the correction table.
+const TILT_STEP_DEG: f64 = 0.5;
+
+fn model_dome() -> Vec<[f64; 3]> {
+    let zmin = MODEL_DOME_MIN_ELEVATION_DEG.to_radians().sin();
+    let golden = std::f64::consts::PI * (3.0 - 5f64.sqrt());
+    (0..MODEL_DOME_LIGHTS)
+        .map(|k| {
+            // Even in solid angle: z uniform in [zmin, 1].
+            let z = 1.0 - (1.0 - zmin) * (k as f64 + 0.5) / MODEL_DOME_LIGHTS as f64;
+            let r = (1.0 - z * z).sqrt();
+            let a = golden * k as f64;
+            [r * a.cos(), r * a.sin(), z]
+        })
+        .collect()
+}
+
+/// Solves the square system `a x = b` by Gaussian elimination with partial pivoting.
+fn solve_dense(mut a: Vec<Vec<f64>>, mut b: Vec<f64>) -> Option<Vec<f64>> {
+    let n = b.len();
+    for c in 0..n {
+        let p = (c..n).max_by(|&x, &y| a[x][c].abs().total_cmp(&a[y][c].abs()))?;
+        a.swap(c, p);
+        b.swap(c, p);
+        if a[c][c].abs() < 1e-12 {
+            return None;
+        }
+        for r in c + 1..n {
+            let f = a[r][c] / a[c][c];
+            for k in c..n {
+                a[r][k] -= f * a[c][k];
+            }
+            b[r] -= f * b[c];
+        }
+    }
+    let mut x = vec![0.0; n];
+    for r in (0..n).rev() {
+        let s: f64 = (r + 1..n).map(|k| a[r][k] * x[k]).sum();
+        x[r] = (b[r] - s) / a[r][r];
+    }
+    Some(x)
+}
+
+/// The bias of [`lobe_normal`] as a function of the tilt, and its inverse.
+///
+/// A low-order HSH cannot hold a clamped cosine; the lobe fit on it reads a tilt `θ̂(θ)` that
+/// departs from the true `θ` as the lobe nears the horizon (the fit is cut off there, and the
+/// fitted function rings). The bias is, to first order, radial and a function of `θ` alone:
+/// it is simulated once per term count — a Lambertian pixel of tilt `θ` rendered under a model
+/// dome ([`model_dome`]), sRGB-encoded, fitted by least squares, read by [`lobe_normal`] — and
+/// a read tilt is mapped back through the inverse of `θ ↦ θ̂` (linear interpolation; the
+/// azimuth is kept).
+struct TiltCorrection {
+    /// `θ̂` in degrees at `θ = i · TILT_STEP_DEG`, increasing (cut where it stops increasing).
+    read: Vec<f64>,
+}
+
+impl TiltCorrection {
+    fn new(terms: usize, grid: &Grid) -> Self {
+        let lights = model_dome();
+        let basis: Vec<[f64; MAX_TERMS]> = lights.iter().map(|&l| hsh_basis(l, terms)).collect();
+        let bt_b: Vec<Vec<f64>> = (0..terms)
+            .map(|i| (0..terms).map(|j| basis.iter().map(|h| h[i] * h[j]).sum()).collect())
+            .collect();
+        let mut read: Vec<f64> = Vec::new();
+        let steps = (90.0 / TILT_STEP_DEG).round() as usize;
+        for i in 0..steps {
+            let t = (i as f64 * TILT_STEP_DEG).to_radians();
+            let n = [t.sin(), 0.0, t.cos()];
+            let obs: Vec<f64> = lights
+                .iter()
+                .map(|l| {
+                    let s = (n[0] * l[0] + n[1] * l[1] + n[2] * l[2]).max(0.0);
+                    f64::from(linear_to_srgb((MODEL_ALBEDO * s) as f32))
+                })
+                .collect();
+            let rhs = (0..terms)
+                .map(|k| basis.iter().zip(&obs).map(|(h, o)| h[k] * o).sum())
+                .collect();
+            let Some(c) = solve_dense(bt_b.clone(), rhs) else {
+                break;
+            };
+            let y: Vec<f64> = grid
+                .basis
+                .iter()
+                .map(|h| srgb_decode(c.iter().zip(h).map(|(a, b)| a * b).sum()))
+                .collect();
+            let Some(m) = lobe_normal(&y, grid) else {
+                break;
+            };
+            let got = m[2].clamp(-1.0, 1.0).acos().to_degrees();
+            if read.last().is_some_and(|&prev| got <= prev) {
+                break;
+            }
+            read.push(got);
+        }
+        Self { read }
+    }
+
+    /// The normal whose read tilt is `n`'s (module docs); `n` unchanged outside the table.
+    fn correct(&self, n: [f64; 3]) -> [f64; 3] {
+        let got = n[2].clamp(-1.0, 1.0).acos().to_degrees();
+        let r = &self.read;
+        let Some(k) = r.windows(2).position(|w| got >= w[0] && got <= w[1]) else {
+            return n;
+        };
+        let f = (got - r[k]) / (r[k + 1] - r[k]);
+        let t = ((k as f64 + f) * TILT_STEP_DEG).to_radians();
+        let len = n[0].hypot(n[1]);
+        if len <= 0.0 {
+            return n;
+        }
+        [t.sin() * n[0] / len, t.sin() * n[1] / len, t.cos()]
+    }
 }
 
 #[derive(Clone, Debug)]
@@ -501,7 +629,7 @@ pub fn dimensions(path: &Path) -> Option<(usize, usize)> {
 /// # Errors
 /// [`RgbnError::NotFound`]/[`RgbnError::Read`] for file problems, [`RgbnError::TooLarge`] over
 /// the pixel limit, [`RgbnError::Decode`] for a malformed, truncated or unsupported file (the
-/// message names what).
+/// message names what), [`RgbnError::Cancelled`] when the current token is set.
 pub fn read_hsh(path: &Path) -> Result<Hsh, RgbnError> {
     let file = std::fs::File::open(path).map_err(|e| {
         if e.kind() == std::io::ErrorKind::NotFound {
@@ -562,15 +690,18 @@ pub fn read_hsh(path: &Path) -> Result<Hsh, RgbnError> {
             ),
         ));
     }
-    Ok(decode(&h, scale, bias, &data))
+    decode(&h, scale, bias, &data)
 }
 
 /// Turns the coefficient bytes into colour, normal and mask (rows flipped to top-down).
-fn decode(h: &Header, scale: &[f64], bias: &[f64], data: &[u8]) -> Hsh {
+/// Checks the current cancellation token at every pixel (a lobe fit is tens of µs).
+fn decode(h: &Header, scale: &[f64], bias: &[f64], data: &[u8]) -> Result<Hsh, RgbnError> {
+    let cancel = crate::cancel::Cancel::current();
     let (w, ht, terms) = (h.width, h.height, h.terms);
     let n = w * ht;
     let bpp = h.layout.bytes_per_pixel(terms);
     let grid = Grid::new(terms);
+    let tilt = TiltCorrection::new(terms, &grid);
     let lin = srgb8_to_linear();
     let coef = |bytes: &[u8]| -> [f64; MAX_TERMS] {
         let mut c = [0.0; MAX_TERMS];
@@ -583,6 +714,9 @@ fn decode(h: &Header, scale: &[f64], bias: &[f64], data: &[u8]) -> Hsh {
     px.par_chunks_mut(w).enumerate().for_each(|(row, out)| {
         let file_row = ht - 1 - row;
         for (x, o) in out.iter_mut().enumerate() {
+            if cancel.is_cancelled() {
+                return;
+            }
             let k = (file_row * w + x) * bpp;
             let bytes = &data[k..k + bpp];
             let (lum, bands) = match h.layout {
@@ -607,7 +741,7 @@ fn decode(h: &Header, scale: &[f64], bias: &[f64], data: &[u8]) -> Hsh {
                     None => lin_at(&lum, h),
                 })
                 .collect();
-            let max = lobe_normal(&y, &grid);
+            let max = lobe_normal(&y, &grid).map(|n| tilt.correct(n));
             let normal = max.unwrap_or([0.0, 0.0, 1.0]);
             let color: [f32; 3] = match bands {
                 None => std::array::from_fn(|c| lin[usize::from(bytes[terms + c])]),
@@ -626,6 +760,7 @@ fn decode(h: &Header, scale: &[f64], bias: &[f64], data: &[u8]) -> Hsh {
             ];
         }
     });
+    cancel.check()?;
     let plane = |k: usize| -> Vec<f32> { px.par_iter().map(|p| p[k]).collect() };
     let color = [plane(0), plane(1), plane(2)];
     let normal = [plane(3), plane(4), plane(5)];
@@ -633,12 +768,12 @@ fn decode(h: &Header, scale: &[f64], bias: &[f64], data: &[u8]) -> Hsh {
     let no_maximum = mask.par_iter().filter(|&&m| m == 0.0).count();
     let image = RgbnImage::new(w, ht, color, normal, Some(mask))
         .expect("planes have width × height values");
-    Hsh {
+    Ok(Hsh {
         image,
         layout: h.layout,
         terms,
         no_maximum,
-    }
+    })
 }
 
 fn srgb8_to_linear() -> &'static [f32; 256] {

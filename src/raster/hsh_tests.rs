@@ -185,8 +185,9 @@ fn fitted_lambertian_sphere_gives_its_normals_and_albedo() {
         // The background (black in every photo) has no normal.
         assert!(hsh.image.mask().unwrap()[0] == 0.0);
         if terms >= 9 {
-            // Measured: order 3 1.43° / 0.87° (tilt ≤ 60°); order 4 alike.
-            assert!(mean <= 1.6, "{terms} terms: mean {mean}°");
+            // The goal of issue 55: 1° mean over the whole visible hemisphere (measured: order 3
+            // 0.90°, order 4 0.66°; 1.43° and 1.82° without the tilt correction).
+            assert!(mean <= 1.0, "{terms} terms: mean {mean}°");
             assert!(mean_30 <= 1.0, "{terms} terms: mean {mean_30}° where n_z ≥ 0.5");
             assert!(masked <= count / 50, "{masked} of {count} masked");
             // Colour: the albedo (sRGB-encoded in the file, linear in rgbn) within 2 %.
