@@ -378,7 +378,11 @@ impl TiltCorrection {
         let lights = model_dome();
         let basis: Vec<[f64; MAX_TERMS]> = lights.iter().map(|&l| hsh_basis(l, terms)).collect();
         let bt_b: Vec<Vec<f64>> = (0..terms)
-            .map(|i| (0..terms).map(|j| basis.iter().map(|h| h[i] * h[j]).sum()).collect())
+            .map(|i| {
+                (0..terms)
+                    .map(|j| basis.iter().map(|h| h[i] * h[j]).sum())
+                    .collect()
+            })
             .collect();
         let mut read: Vec<f64> = Vec::new();
         let steps = (90.0 / TILT_STEP_DEG).round() as usize;
@@ -582,7 +586,9 @@ fn read_header(r: &mut impl BufRead, path: &Path) -> Result<Header, RgbnError> {
     if ![4, 9, 16].contains(&terms) {
         return Err(decode_err(
             path,
-            format!("RTI header: {terms} HSH terms; rgbn reads orders 2, 3 and 4 (4, 9 or 16 terms)"),
+            format!(
+                "RTI header: {terms} HSH terms; rgbn reads orders 2, 3 and 4 (4, 9 or 16 terms)"
+            ),
         ));
     }
     let layout = match layout {
@@ -745,9 +751,9 @@ fn decode(h: &Header, scale: &[f64], bias: &[f64], data: &[u8]) -> Result<Hsh, R
             let normal = max.unwrap_or([0.0, 0.0, 1.0]);
             let color: [f32; 3] = match bands {
                 None => std::array::from_fn(|c| lin[usize::from(bytes[terms + c])]),
-                Some(b) => b.map(|c| {
-                    srgb_to_linear(eval_hsh(&c[..terms], normal).clamp(0.0, 1.0) as f32)
-                }),
+                Some(b) => {
+                    b.map(|c| srgb_to_linear(eval_hsh(&c[..terms], normal).clamp(0.0, 1.0) as f32))
+                }
             };
             *o = [
                 color[0],

@@ -188,7 +188,10 @@ fn fitted_lambertian_sphere_gives_its_normals_and_albedo() {
             // The goal of issue 55: 1° mean over the whole visible hemisphere (measured: order 3
             // 0.90°, order 4 0.66°; 1.43° and 1.82° without the tilt correction).
             assert!(mean <= 1.0, "{terms} terms: mean {mean}°");
-            assert!(mean_30 <= 1.0, "{terms} terms: mean {mean_30}° where n_z ≥ 0.5");
+            assert!(
+                mean_30 <= 1.0,
+                "{terms} terms: mean {mean_30}° where n_z ≥ 0.5"
+            );
             assert!(masked <= count / 50, "{masked} of {count} masked");
             // Colour: the albedo (sRGB-encoded in the file, linear in rgbn) within 2 %.
             let i = 19 * W + 26; // the sphere's centre
@@ -209,7 +212,11 @@ fn lrgb_round_trip_keeps_colour_bytes_and_normals() {
     let terms = 9;
     let [r, g, b] = fitted_sphere(terms);
     let lum: Vec<Vec<f64>> = (0..W * H)
-        .map(|i| (0..terms).map(|t| (r[i][t] + g[i][t] + b[i][t]) / 3.0).collect())
+        .map(|i| {
+            (0..terms)
+                .map(|t| (r[i][t] + g[i][t] + b[i][t]) / 3.0)
+                .collect()
+        })
         .collect();
     let rgb: Vec<[u8; 3]> = (0..W * H)
         .map(|i| [(i % 256) as u8, (i / 7 % 256) as u8, 200])
@@ -295,9 +302,16 @@ fn hand_written_bytes_pin_the_layout_row_order_and_formula() {
     let hsh = read_bytes(&v).unwrap();
     let (bottom, middle) = (hsh.image.normal_at(0, 2), hsh.image.normal_at(0, 1));
     assert!(bottom[0] > 0.2 && bottom[1].abs() < 0.02, "{bottom:?}");
-    assert!(middle[0].abs() < 0.02 && middle[1].abs() < 0.02, "{middle:?}");
+    assert!(
+        middle[0].abs() < 0.02 && middle[1].abs() < 0.02,
+        "{middle:?}"
+    );
     let m = hsh.image.mask().unwrap();
-    assert_eq!((m[2], m[1], m[0]), (1.0, 1.0, 0.0), "the black top pixel is masked");
+    assert_eq!(
+        (m[2], m[1], m[0]),
+        (1.0, 1.0, 0.0),
+        "the black top pixel is masked"
+    );
     assert_eq!(hsh.no_maximum, 1);
 }
 
@@ -317,16 +331,22 @@ fn bad_files_are_one_line_errors_never_panics() {
         (b"#HSH1.2\n1\n2 2 3\n6 1 1\n".to_vec(), "PTM-basis"),
         (b"hello\n".to_vec(), "not an RTI file"),
         (b"PTM_1.2\nPTM_FORMAT_LRGB\n".to_vec(), "rename it to .ptm"),
-        (b"#HSH1.2\n3\n2 2\n9 2 1\n".to_vec(), "should hold 3 numbers"),
-        (b"#HSH1.2\n3\n2 -2 3\n9 2 1\n".to_vec(), "not a whole number"),
+        (
+            b"#HSH1.2\n3\n2 2\n9 2 1\n".to_vec(),
+            "should hold 3 numbers",
+        ),
+        (
+            b"#HSH1.2\n3\n2 -2 3\n9 2 1\n".to_vec(),
+            "not a whole number",
+        ),
         (b"#HSH1.2\n3\n2 2 3\n7 2 1\n".to_vec(), "7 HSH terms"),
         (b"#HSH1.2\n3\n2 2 3\n9 5 1\n".to_vec(), "colour layout 5"),
         (b"#HSH1.2\n3\n2 2 4\n9 2 1\n".to_vec(), "4 bands"),
-        (b"#HSH1.2\n3\n2 2 3\n9 2 2\n".to_vec(), "2 bytes per coefficient"),
         (
-            b"#HSH1.2\n3\n4000000000 4000000000 3\n9 2 1\n".to_vec(),
-            "",
+            b"#HSH1.2\n3\n2 2 3\n9 2 2\n".to_vec(),
+            "2 bytes per coefficient",
         ),
+        (b"#HSH1.2\n3\n4000000000 4000000000 3\n9 2 1\n".to_vec(), ""),
         (vec![b'#'; 5000], "longer than"),
     ];
     for (bytes, want) in cases {

@@ -638,7 +638,14 @@ const LAMBERT_HALF_CURVATURE: f64 = 127.5;
 fn rgbn_ptm_grid() -> ([f32; 6], [i32; 6]) {
     let k = LAMBERT_HALF_CURVATURE as f32;
     (
-        [k / 254.0, k / 254.0, k, 6.0 * k / 254.0, 6.0 * k / 254.0, 255.0 / 254.0],
+        [
+            k / 254.0,
+            k / 254.0,
+            k,
+            6.0 * k / 254.0,
+            6.0 * k / 254.0,
+            255.0 / 254.0,
+        ],
         [381, 381, 0, 127, 127, 0],
     )
 }
@@ -668,8 +675,7 @@ pub fn ptm_from_rgbn(img: &RgbnImage) -> PtmData {
                 .round()
                 .clamp(0.0, 254.0) as i32;
             let a3 = val(3, c3);
-            let err = (-a3 / (2.0 * a0) - t).abs()
-                + 1e-9 * (a0 + LAMBERT_HALF_CURVATURE).abs();
+            let err = (-a3 / (2.0 * a0) - t).abs() + 1e-9 * (a0 + LAMBERT_HALF_CURVATURE).abs();
             if err < best.0 {
                 best = (err, a0, a3);
             }
