@@ -266,8 +266,8 @@ fn section(a: f32, b: f32, x: f32, xp: f32, s: &Section, y1: f32, y2: f32) -> f3
     (-s.d1).mul_add(y1, (-s.d2).mul_add(y2, input))
 }
 
-/// One causal step of both second-order sections for `LANES` lines: input `x` = x[i],
-/// `xp` = x[i-1], `st` = [a1, a2, b1, b2] (y[i-1], y[i-2] of each section); returns y[i].
+/// One causal step of both second-order sections for `LANES` lines: input `x` = x\[i\],
+/// `xp` = x\[i-1\], `st` = \[a1, a2, b1, b2\] (y\[i-1\], y\[i-2\] of each section); returns y\[i\].
 #[inline(always)]
 fn causal_step(x: &Lane, xp: &Lane, st: &mut [Lane; 4], s0: &Section, s1: &Section) -> Lane {
     let mut out = [0.0; LANES];
@@ -283,7 +283,7 @@ fn causal_step(x: &Lane, xp: &Lane, st: &mut [Lane; 4], s0: &Section, s1: &Secti
     out
 }
 
-/// One anticausal step: `x1` = x[i+1], `x2` = x[i+2]; returns the anticausal y[i].
+/// One anticausal step: `x1` = x\[i+1\], `x2` = x\[i+2\]; returns the anticausal y\[i\].
 #[inline(always)]
 fn anti_step(x1: &Lane, x2: &Lane, st: &mut [Lane; 4], s0: &Section, s1: &Section) -> Lane {
     let mut out = [0.0; LANES];

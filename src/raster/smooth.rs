@@ -5,7 +5,7 @@
 //! `filter_columns` → `curl_stats` → `to_normals` (what `ops::filter` runs for masks and
 //! compound kernels). Here:
 //!
-//! 1. **Row sweep** (bands of [`LANES`] rows), in chunks of [`GRADIENT_CHUNK`] columns that
+//! 1. **Row sweep** (bands of `LANES` rows), in chunks of `GRADIENT_CHUNK` columns that
 //!    stay in L1: each row's `(p, q)` is computed from the normals (same
 //!    [`gradient_of_normal`] and `n_z` clamp), its curl sums (averaged model) are taken with
 //!    the previous row's `p`, `q` (one extra row per band and one extra column per chunk are
@@ -13,9 +13,9 @@
 //!    row `k` of the band). `p` and `q` are filtered along x there (in L2), one after the
 //!    other (two recursions interleaved step by step measured slower: BENCHMARKS.md), then
 //!    *parked* in two planes laid out for the column sweep: each task's columns contiguous,
-//!    band after band ([`park_offset`]), written with non-temporal stores where the AVX-512
-//!    twin runs. The parked pair is kept between calls (see [`take_parked`]).
-//! 2. **Column sweep** (groups of [`LANES`] columns, [`TASK_GROUPS`] neighbouring groups a
+//!    band after band (`park_offset`), written with non-temporal stores where the AVX-512
+//!    twin runs. The parked pair is kept between calls (see `take_parked`).
+//! 2. **Column sweep** (groups of `LANES` columns, `TASK_GROUPS` neighbouring groups a
 //!    task): a task reads its columns in one sequential run per plane,
 //!    transposing each 16 × 16 block into rows; `p`, `q` are filtered along y, the curl sums
 //!    of the filtered field are taken from the lane buffers, and [`normal_of_gradient`] is
