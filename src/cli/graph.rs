@@ -3,6 +3,7 @@
 use super::error::{message, usage, CliError};
 use super::image::StreamMode;
 use super::out::Out;
+use super::png_sink::{PngBand, PngSink};
 use super::ExrArgs;
 use crate::error::RgbnError;
 use crate::eval::region::{RegionOptions, DEFAULT_TILE};
@@ -10,9 +11,8 @@ use crate::eval::stream::{StreamPlan, Streamable};
 use crate::eval::{EvalOptions, EvalResult, Evaluator, Plan, Status, DEFAULT_BUDGET};
 use crate::graph::{GraphError, LoadedGraph};
 use crate::nodes::save::write_value;
-use crate::nodes::{registry, PortType, Value};
-use crate::params::{ParamKind, ParamValue};
-use crate::raster::io::targets::{ExrTarget, PngRowWriter, PngTarget, RowEncoding};
+use crate::nodes::{PortType, Value};
+use crate::raster::io::targets::{ExrTarget, PngTarget, RowEncoding};
 use crate::raster::io::{self, ExrFormat, SaveOptions};
 use crate::raster::io::{Format, NormalConvention};
 use crate::raster::window::Rect;
@@ -391,7 +391,7 @@ pub fn eval_cmd(a: &EvalArgs, out: &mut Out<'_>) -> Result<(), CliError> {
     let pb = progress_bar(0);
     let pb2 = pb.clone();
     let opts = EvalOptions {
-        cancel: super::interrupt::flag(),
+        cancel: super::interrupt::token(),
         progress: Some(Arc::new(move |p| {
             pb2.set_length(p.total as u64);
             pb2.set_position(p.done as u64);
@@ -502,12 +502,12 @@ fn stream_plan<'p>(
 fn stream_strips(
     sp: StreamPlan<'_>,
     strip_rows: Option<usize>,
-    cancelled: impl Fn() -> bool,
+    cancel: &crate::cancel::Cancel,
     exrs: &mut [Option<ExrTarget>],
     mut sinks: Vec<Option<PngSink<'_, '_>>>,
 ) -> Result<(), CliError> {
     let mut stopped = false;
-    let r = sp.run(strip_rows, cancelled, |_, values, core| {
+    let r = sp.run(strip_rows, cancel, |_, values, core| {
         super::interrupt::check()?;
         for ((s, e), v) in sinks.iter_mut().zip(exrs.iter_mut()).zip(values) {
             let band = match (v, s, e) {
@@ -571,12 +571,7 @@ fn eval_stream(
             _ => Some(PngTarget::create(path, w, h, SaveOptions::default().bits)?),
         });
     }
-    let cancel = super::interrupt::flag();
-    let cancelled = || {
-        cancel
-            .as_ref()
-            .is_some_and(|c| c.load(std::sync::atomic::Ordering::Relaxed))
-    };
+    let cancel = super::interrupt::token();
     let encoding = RowEncoding::Normal(NormalConvention::OpenGl);
     let pipelined = crate::raster::par::pipelined();
     // Outside the pool, the PNG outputs are written by tasks on it; a worker of a pool (`--jobs`)
@@ -592,7 +587,7 @@ fn eval_stream(
                     None => None,
                 });
             }
-            stream_strips(sp, strip_rows, cancelled, &mut exrs, sinks)
+            stream_strips(sp, strip_rows, &cancel, &mut exrs, sinks)
         })?;
     } else {
         std::thread::scope(|scope| -> Result<(), CliError> {
@@ -607,7 +602,7 @@ fn eval_stream(
                     None => None,
                 });
             }
-            stream_strips(sp, strip_rows, cancelled, &mut exrs, sinks)
+            stream_strips(sp, strip_rows, &cancel, &mut exrs, sinks)
         })?;
     }
     // Each file is synced and renamed into place; with more than one thread, side by side
@@ -811,7 +806,7 @@ pub fn batch_cmd(a: &BatchArgs, out: &mut Out<'_>) -> Result<(), CliError> {
             a.streaming.stream.allows(why.as_deref())?;
         }
         let opts = EvalOptions {
-            cancel: super::interrupt::flag(),
+            cancel: super::interrupt::token(),
             ..EvalOptions::default()
         };
         let r = ev.eval(&plan, &[], &opts)?;
@@ -876,213 +871,4 @@ pub fn batch_cmd(a: &BatchArgs, out: &mut Out<'_>) -> Result<(), CliError> {
         total: files.len(),
         list: list.join(", "),
     })
-}
-
-/// `rgbn check`.
-pub fn check_cmd(a: &CheckArgs, out: &mut Out<'_>) -> Result<(), CliError> {
-    let lg = LoadedGraph::load(&a.graph)?;
-    let ins: Vec<String> = lg
-        .graph
-        .inputs
-        .iter()
-        .map(|(n, d)| format!("{n} ({})", d.ty.name()))
-        .collect();
-    let outs: Vec<String> = lg
-        .graph
-        .outputs
-        .keys()
-        .map(|n| format!("{n} ({})", lg.output_type(n).map_or("?", PortType::name)))
-        .collect();
-    out.line(format_args!(
-        "ok: {} nodes; inputs: {}; outputs: {}: {}",
-        lg.graph.nodes.len(),
-        if ins.is_empty() {
-            "none".into()
-        } else {
-            ins.join(", ")
-        },
-        if outs.is_empty() {
-            "none".into()
-        } else {
-            outs.join(", ")
-        },
-        a.graph.display()
-    ))
-}
-
-fn kind_name(k: &ParamKind) -> String {
-    match k {
-        ParamKind::Bool => "bool".into(),
-        ParamKind::Int => "int".into(),
-        ParamKind::Float => "float".into(),
-        ParamKind::Choice(o) => format!("one of {}", o.join("|")),
-        ParamKind::Text => "text".into(),
-        ParamKind::Path => "path".into(),
-        ParamKind::Vec3 => "x,y,z".into(),
-        ParamKind::Floats => "numbers a,b,…".into(),
-        ParamKind::Profile => "profile a,b,…".into(),
-        ParamKind::Points => "points x:y,…".into(),
-        ParamKind::Paths => "paths x:y,…[,closed][,name=value];…".into(),
-    }
-}
-
-/// `rgbn ops`: every operator with its doc, ports and parameters, from the specs.
-pub fn ops_cmd(out: &mut Out<'_>) -> Result<(), CliError> {
-    for op in registry() {
-        let s = op.spec();
-        out.line(format_args!("{} — {} [{}]", s.id, s.title, s.category))?;
-        out.line(format_args!("    {}", s.doc))?;
-        for (dir, ports) in [("in ", &s.inputs), ("out", &s.outputs)] {
-            for p in ports {
-                out.line(format_args!(
-                    "    {dir} {}: {}{} — {}",
-                    p.name,
-                    p.ty.name(),
-                    if p.optional { " (optional)" } else { "" },
-                    p.doc
-                ))?;
-            }
-        }
-        for p in op.params() {
-            let range = p
-                .meta
-                .range
-                .map(|(a, b)| format!(" in [{a}, {b}]"))
-                .unwrap_or_default();
-            let default = match &p.default {
-                ParamValue::Path(s) | ParamValue::Text(s) if s.is_empty() => "none".into(),
-                v => v.to_string(),
-            };
-            out.line(format_args!(
-                "    param {}: {}{}{range}, default {default} — {}",
-                p.name,
-                kind_name(&p.kind),
-                if p.meta.unit.is_empty() {
-                    String::new()
-                } else {
-                    format!(" ({})", p.meta.unit)
-                },
-                p.meta.doc
-            ))?;
-        }
-        out.line("")?;
-    }
-    out.line(format_args!(
-            "{} — Graph file as a node [graph]\n    Uses another graph file (param path, relative to this file): its inputs, outputs and exposed parameters become the node's ports and parameters.",
-            crate::nodes::GRAPH_NODE_OP
-        ),
-    )
-}
-
-/// Rows of a streamed PNG output: the strip's value (its planes or bytes shared, not copied)
-/// and the strip's rows of it.
-enum PngBand {
-    /// Normals of an image.
-    Normals(crate::raster::RgbnImage, std::ops::Range<usize>),
-    /// A picture's RGBA bytes.
-    Rgba(Arc<crate::nodes::value::Picture>, std::ops::Range<usize>),
-}
-
-impl PngBand {
-    /// Encodes the rows into `rows`.
-    fn write_to(&self, rows: &mut PngRowWriter<'_>) -> Result<(), RgbnError> {
-        match self {
-            PngBand::Normals(img, r) => {
-                let (a, b) = (r.start * img.width(), r.end * img.width());
-                let [x, y, z] = img.normal();
-                rows.write([&x[a..b], &y[a..b], &z[a..b]])
-            }
-            PngBand::Rgba(p, r) => {
-                rows.write_rgba8(&p.rgba[4 * r.start * p.width..4 * r.end * p.width])
-            }
-        }
-    }
-}
-
-/// A streamed PNG written by tasks on the pool ([`PngSink::pool`]).
-type PoolPng<'r, 's> = crate::raster::par::Sequenced<
-    'r,
-    's,
-    PngBand,
-    PngRowWriter<'s>,
-    fn(&mut PngRowWriter<'s>, PngBand) -> Result<(), RgbnError>,
->;
-
-/// [`PngBand::write_to`] as a function for [`PoolPng`].
-fn write_png_band(rows: &mut PngRowWriter<'_>, band: PngBand) -> Result<(), RgbnError> {
-    band.write_to(rows)
-}
-
-/// Where a streamed PNG output's rows go: encoded here, or (with more than one thread,
-/// [`crate::raster::par::pipelined`]) handed to tasks on the pool (a caller outside it) or to
-/// a thread of its own (a worker of a pool), that filter and compress them while the next
-/// strip is computed. The band shares the strip's planes: the
-/// main thread copies nothing (a copy of every band, 33 MB for a 4K picture, was serial work
-/// between two strips' parallel work).
-enum PngSink<'r, 's> {
-    Here(Box<PngRowWriter<'s>>),
-    Pool(Box<PoolPng<'r, 's>>),
-    Thread {
-        tx: std::sync::mpsc::SyncSender<PngBand>,
-        writer: std::thread::ScopedJoinHandle<'s, Result<(), RgbnError>>,
-    },
-}
-
-impl<'r, 's> PngSink<'r, 's> {
-    /// A writing thread for `target`'s rows (one band waiting, one being written).
-    fn thread<'e>(
-        scope: &'s std::thread::Scope<'s, 'e>,
-        target: &'s mut PngTarget,
-        encoding: RowEncoding,
-    ) -> Self {
-        let (tx, rx) = std::sync::mpsc::sync_channel::<PngBand>(1);
-        let writer = scope.spawn(move || {
-            let mut rows = target.rows(encoding)?;
-            for band in rx {
-                band.write_to(&mut rows)?;
-            }
-            rows.finish()
-        });
-        PngSink::Thread { tx, writer }
-    }
-
-    /// Writing tasks on the pool for `target`'s rows ([`crate::raster::par::Sequenced`]: one
-    /// band waiting, one being written).
-    fn pool(
-        scope: &'r rayon::Scope<'s>,
-        target: &'s mut PngTarget,
-        encoding: RowEncoding,
-    ) -> Result<Self, RgbnError> {
-        let rows = target.rows(encoding)?;
-        Ok(PngSink::Pool(Box::new(crate::raster::par::Sequenced::new(
-            scope,
-            rows,
-            1,
-            write_png_band,
-        ))))
-    }
-
-    /// Writes the next rows. `Err(None)`: the writing thread stopped (its error comes from
-    /// [`finish`](Self::finish)).
-    fn write(&mut self, band: PngBand) -> Result<(), Option<RgbnError>> {
-        match self {
-            PngSink::Here(rows) => band.write_to(rows).map_err(Some),
-            PngSink::Pool(s) => s.push(band).map_err(|()| None),
-            PngSink::Thread { tx, .. } => tx.send(band).map_err(|_| None),
-        }
-    }
-
-    /// Ends the rows (every row must have been written).
-    fn finish(self) -> Result<(), RgbnError> {
-        match self {
-            PngSink::Here(rows) => rows.finish(),
-            PngSink::Pool(s) => s.finish()?.finish(),
-            PngSink::Thread { tx, writer } => {
-                drop(tx);
-                writer
-                    .join()
-                    .unwrap_or_else(|p| std::panic::resume_unwind(p))
-            }
-        }
-    }
 }

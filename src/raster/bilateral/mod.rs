@@ -225,7 +225,12 @@ pub fn filter_with(input: &Input<'_>, spec: &Spec, simd: Simd) -> Output {
         .enumerate()
         .collect();
     let need = kernel.scratch_len();
+    // Cancelled: the remaining bands are skipped and the caller discards the output.
+    let cancel = crate::cancel::Cancel::current();
     bands.into_par_iter().for_each(|(b, (((x, y), z), c))| {
+        if cancel.is_cancelled() {
+            return;
+        }
         SCRATCH.with_borrow_mut(|scratch| {
             if scratch.len() < need {
                 *scratch = vec![0.0f32; need];
