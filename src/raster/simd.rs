@@ -18,8 +18,10 @@
 //!
 //! Results: a twin computes the same arithmetic as the portable one, so most are bit-identical
 //! to it; where a twin uses fused multiply-adds (the bilateral filter) results differ by
-//! rounding only (module docs of each kernel say how much; the tests compare every twin this
-//! CPU runs with the portable one).
+//! rounding only (to [`super::bilateral::TWIN_TOLERANCE`]). The tests compare every twin this
+//! CPU runs with the portable one for the bilateral filter (`bilateral::tests`) and the
+//! recursive Gaussian (`convolve_tests`); the smoothing and relighting twins are the portable
+//! code compiled with wider instructions and no FMA.
 //!
 //! Tests choose a twin per call (the kernels take a [`Simd`] internally), never through the
 //! environment, which is read once per process.
@@ -81,6 +83,13 @@ impl Simd {
     /// twin).
     pub fn supported_levels() -> impl Iterator<Item = Simd> {
         Simd::ALL.into_iter().filter(|l| l.supported())
+    }
+
+    /// Whether kernels run their twin of this level: [`Simd::active`] is this level or wider
+    /// (so this CPU has its instructions). The dispatch of every kernel with twins.
+    #[must_use]
+    pub fn runs(self) -> bool {
+        self <= Simd::active()
     }
 
     /// The level a kernel asked for `self` runs: `self`, or the widest this CPU has if it has
