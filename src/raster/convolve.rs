@@ -339,14 +339,12 @@ impl LineFilter for Deriche {
     fn run(&self, line: &mut [Lane], scratch: &mut Vec<Lane>, border: BorderMode) {
         #[cfg(target_arch = "x86_64")]
         {
-            if std::arch::is_x86_feature_detected!("avx512f") {
-                // SAFETY: `run_avx512` only requires AVX-512F, whose presence was just checked.
+            if crate::raster::simd::Simd::Avx512.runs() {
+                // SAFETY: `run_avx512` only requires AVX-512F, which is present (`Simd::runs`).
                 return unsafe { self.run_avx512(line, scratch, border) };
             }
-            if std::arch::is_x86_feature_detected!("avx2")
-                && std::arch::is_x86_feature_detected!("fma")
-            {
-                // SAFETY: `run_avx2` only requires AVX2 and FMA, just checked.
+            if crate::raster::simd::Simd::Avx2.runs() {
+                // SAFETY: `run_avx2` only requires AVX2 and FMA, which are present (`Simd::runs`).
                 return unsafe { self.run_avx2(line, scratch, border) };
             }
         }
@@ -476,14 +474,14 @@ pub(crate) fn rows_into_lanes(band: &[f32], width: usize, lanes: &mut [Lane]) {
         lanes.fill(lane_splat(0.0));
     }
     #[cfg(target_arch = "x86_64")]
-    if rows == LANES && std::arch::is_x86_feature_detected!("avx512f") {
-        // SAFETY: AVX-512F was just detected; `band` holds LANES rows of `width`, `lanes`
+    if rows == LANES && crate::raster::simd::Simd::Avx512.runs() {
+        // SAFETY: AVX-512F is present (`Simd::runs`); `band` holds LANES rows of `width`, `lanes`
         // `width`.
         return unsafe { transpose_avx512::rows_to_lanes(band, width, lanes) };
     }
     #[cfg(target_arch = "x86_64")]
-    if rows == LANES && std::arch::is_x86_feature_detected!("avx") {
-        // SAFETY: AVX was just detected; `band` holds LANES rows of `width`, `lanes` `width`.
+    if rows == LANES && crate::raster::simd::Simd::Avx2.runs() {
+        // SAFETY: AVX is present (`Simd::runs`: AVX2 implies it); `band` holds LANES rows of `width`, `lanes` `width`.
         return unsafe { transpose_avx::rows_to_lanes(band, width, lanes) };
     }
     for k in 0..rows {
@@ -504,13 +502,13 @@ pub(crate) fn lanes_to_rows(lanes: &[Lane], width: usize, band: &mut [f32]) {
     let rows = band.len() / width.max(1);
     assert!(rows <= LANES && band.len() == rows * width && lanes.len() == width);
     #[cfg(target_arch = "x86_64")]
-    if rows == LANES && std::arch::is_x86_feature_detected!("avx512f") {
-        // SAFETY: AVX-512F was just detected; the sizes were just checked.
+    if rows == LANES && crate::raster::simd::Simd::Avx512.runs() {
+        // SAFETY: AVX-512F is present (`Simd::runs`); the sizes were just checked.
         return unsafe { transpose_avx512::lanes_to_rows(lanes, width, band) };
     }
     #[cfg(target_arch = "x86_64")]
-    if rows == LANES && std::arch::is_x86_feature_detected!("avx") {
-        // SAFETY: AVX was just detected; the sizes were just checked.
+    if rows == LANES && crate::raster::simd::Simd::Avx2.runs() {
+        // SAFETY: AVX is present (`Simd::runs`: AVX2 implies it); the sizes were just checked.
         return unsafe { transpose_avx::lanes_to_rows(lanes, width, band) };
     }
     for k in 0..rows {

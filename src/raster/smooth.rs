@@ -254,12 +254,12 @@ impl<F: LineFilter> Sweep<'_, F> {
     ) -> (usize, CurlSums) {
         #[cfg(target_arch = "x86_64")]
         {
-            if std::arch::is_x86_feature_detected!("avx512f") {
-                // SAFETY: AVX-512F presence was just checked; the rest is the caller's contract.
+            if crate::raster::simd::Simd::Avx512.runs() {
+                // SAFETY: AVX-512F is present (`Simd::runs`); the rest is the caller's contract.
                 return unsafe { self.band_avx512(s, r0, park) };
             }
-            if std::arch::is_x86_feature_detected!("avx2") {
-                // SAFETY: AVX2 presence was just checked; the rest is the caller's contract.
+            if crate::raster::simd::Simd::Avx2.runs() {
+                // SAFETY: AVX2 is present (`Simd::runs`); the rest is the caller's contract.
                 return unsafe { self.band_avx2(s, r0, park) };
             }
         }
@@ -416,12 +416,12 @@ impl<F: LineFilter> Sweep<'_, F> {
     ) -> Vec<(CurlSums, Vec<Seam>)> {
         #[cfg(target_arch = "x86_64")]
         {
-            if std::arch::is_x86_feature_detected!("avx512f") {
-                // SAFETY: AVX-512F presence was just checked; the rest is the caller's contract.
+            if crate::raster::simd::Simd::Avx512.runs() {
+                // SAFETY: AVX-512F is present (`Simd::runs`); the rest is the caller's contract.
                 return unsafe { self.task_avx512(s, t, park, out) };
             }
-            if std::arch::is_x86_feature_detected!("avx2") {
-                // SAFETY: AVX2 presence was just checked; the rest is the caller's contract.
+            if crate::raster::simd::Simd::Avx2.runs() {
+                // SAFETY: AVX2 is present (`Simd::runs`); the rest is the caller's contract.
                 return unsafe { self.task_avx2(s, t, park, out) };
             }
         }
