@@ -10,7 +10,7 @@
 //! (p̄, q̄)(P) = Σ_Q w · (p, q)(Q) / Σ_Q w,        n̂(P) = (−p̄, −q̄, 1) / |(−p̄, −q̄, 1)|
 //! ```
 //!
-//! with `(p, q) = (−n_x/n_z, −n_y/n_z)` ([`gradient_of_normal`], `n_z` clamped as everywhere) and
+//! with `(p, q) = (−n_x/n_z, −n_y/n_z)` ([`gradient_of_normal`](crate::raster::gradient::gradient_of_normal), `n_z` clamped as everywhere) and
 //! `δ` the angle between the unit normals ([`RangeMetric::Angle`]) or `1 − n·n′`
 //! ([`RangeMetric::OneMinusDot`]). A colour σ or a normal σ may be absent (that factor is 1).
 //! Pixels with coverage < ½ keep their input. With `filter_color` the colour is the same
@@ -30,7 +30,7 @@
 //! A bilateral filter is not separable, so this is a windowed brute force, made cheap:
 //! - the disc window (`r = 4`: 49 taps, as OpenCV's `bilateralFilter` with `d = 9`);
 //! - **each pair once**: the weight is symmetric, `w(P, Q) = w(Q, P)`, so the disc kernel
-//!   ([`Kernel::tile_sym`]) evaluates it for the half disc only and adds it to both ends —
+//!   (`Kernel::tile_sym`) evaluates it for the half disc only and adds it to both ends —
 //!   about 0.55× the exponentials at [`SYM_TILE_H`]-row tiles, halo pairs included;
 //! - all three factors in one exponential, `2^−(a + b + c)` with the constants folded in, by a
 //!   branch-free `exp2` (3e-7 relative) with fused multiply-adds;
@@ -44,13 +44,13 @@
 //!   saves the validity load and multiply. The tap loop has no branches and the working set
 //!   stays in L2;
 //! - a vector of output pixels of a row per step, each tap one contiguous load per plane, the
-//!   kernel written once over a vector type ([`vector::Vf`]) and compiled as three twins
+//!   kernel written once over a vector type (`vector::Vf`) and compiled as three twins
 //!   ([`crate::raster::simd`]): AVX-512 (16 lanes, the array form the compiler vectorises),
 //!   AVX2 (8 lanes in intrinsics: the array form spilled its 16 registers), both with FMA, and
 //!   a portable one (8 lanes, no FMA). [`Simd::active`] picks one (`RGBN_SIMD` forces it); the
 //!   tests compare every twin the CPU runs with the portable one, to [`TWIN_TOLERANCE`].
 //!
-//! Discs wider than `SYM_MAX_RADIUS` take one weight per tap ([`Kernel::tile`]). With a
+//! Discs wider than `SYM_MAX_RADIUS` take one weight per tap (`Kernel::tile`). With a
 //! `stride` s > 1 the disc is sampled on the grid `s·(i, j)`: the wide-σ approximation of
 //! [`crate::ops::bilateral`] (a constant number of taps whatever σ_s).
 //!

@@ -35,11 +35,7 @@ pub(crate) struct Lanes<const L: usize>(pub [f32; L]);
 impl<const L: usize> Lanes<L> {
     #[inline(always)]
     fn map2(self, b: Self, f: impl Fn(f32, f32) -> f32) -> Self {
-        let mut o = self.0;
-        for l in 0..L {
-            o[l] = f(self.0[l], b.0[l]);
-        }
-        Lanes(o)
+        Lanes(std::array::from_fn(|l| f(self.0[l], b.0[l])))
     }
 }
 
@@ -88,15 +84,13 @@ impl<const L: usize> Vf for Lanes<L> {
     }
     #[inline(always)]
     fn madd<const F: bool>(self, b: Self, c: Self) -> Self {
-        let mut o = self.0;
-        for l in 0..L {
-            o[l] = if F {
+        Lanes(std::array::from_fn(|l| {
+            if F {
                 self.0[l].mul_add(b.0[l], c.0[l])
             } else {
                 self.0[l] * b.0[l] + c.0[l]
-            };
-        }
-        Lanes(o)
+            }
+        }))
     }
     #[inline(always)]
     fn pow2_of_rounded(self) -> Self {
@@ -108,11 +102,13 @@ impl<const L: usize> Vf for Lanes<L> {
     }
     #[inline(always)]
     fn select_le(self, t: Self, a: Self, b: Self) -> Self {
-        let mut o = a.0;
-        for l in 0..L {
-            o[l] = if self.0[l] <= t.0[l] { a.0[l] } else { b.0[l] };
-        }
-        Lanes(o)
+        Lanes(std::array::from_fn(|l| {
+            if self.0[l] <= t.0[l] {
+                a.0[l]
+            } else {
+                b.0[l]
+            }
+        }))
     }
 }
 
