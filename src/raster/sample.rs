@@ -127,12 +127,17 @@ impl Surface {
             (self.height(u, v) / s) as f32
         });
         let [nx, ny, nz] = &mut normal;
+        // Cancelled: the remaining rows keep (0, 0, 1) and the caller discards them.
+        let cancel = crate::cancel::Cancel::current();
         for (i, ((a, b), (c, m))) in nx
             .iter_mut()
             .zip(ny.iter_mut())
             .zip(nz.iter_mut().zip(mask.iter_mut()))
             .enumerate()
         {
+            if i % width == 0 && cancel.is_cancelled() {
+                break;
+            }
             let (u, v) = at(i % width, i / width);
             match self.gradient(u, v) {
                 Some([p, q]) => [*a, *b, *c] = normal_of_gradient(p as f32, q as f32),
@@ -357,9 +362,14 @@ pub fn demo_window(size: usize, win: Window) -> RgbnImage {
     let (g, _) = GradientField::from_corner_heights(w, h, &zc);
     let mut color = [buf::zeroed_f32(n), buf::zeroed_f32(n), buf::zeroed_f32(n)];
     let s = win.scale as f64;
+    // Cancelled: the remaining rows are black and the caller discards them (crate::cancel).
+    let cancel = crate::cancel::Cancel::current();
     let rows: Vec<Vec<[f32; 3]>> = (0..h)
         .into_par_iter()
         .map(|row| {
+            if cancel.is_cancelled() {
+                return vec![[0.0; 3]; w];
+            }
             let v = c - ((win.y + row) as f64 + 0.5) * s;
             (0..w)
                 .map(|x| medallion(((win.x + x) as f64 + 0.5) * s - c, v, rr).1)

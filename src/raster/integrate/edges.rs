@@ -171,9 +171,34 @@ pub(super) fn solve_edges_owned(
     wx.par_chunks_mut(w).for_each(|row| row[w - 1] = 0.0);
     wy[n - w..].fill(0.0);
     let mut b = rhs(w, ex, ey, &wx, &wy);
+    // Cancelled while the system is set up: the caller discards the zeros (crate::cancel).
+    let cancel = crate::cancel::Cancel::current();
+    let cancelled = || {
+        cancel.is_cancelled().then(|| {
+            let z = vec![0.0; n];
+            let (iterations, relative_residual) = (0, f64::NAN);
+            (
+                EdgeSolve {
+                    z,
+                    iterations,
+                    relative_residual,
+                },
+                false,
+            )
+        })
+    };
+    if let Some(r) = cancelled() {
+        return Ok(r);
+    }
     let mut mg = Multigrid::new(w, h, wx, wy);
+    if let Some(r) = cancelled() {
+        return Ok(r);
+    }
     let l0 = &mg.levels[0];
     let (label, count) = components(w, h, &l0.wx, &l0.wy, &l0.inv_diag, &l0.spans);
+    if let Some(r) = cancelled() {
+        return Ok(r);
+    }
     // b is consistent (zero sum per component) up to rounding; the rounding part is projected
     // out: CG cannot reduce it, and the V-cycle amplifies constants (module docs).
     let means = component_means(&b, &label, count);

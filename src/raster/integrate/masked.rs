@@ -26,6 +26,10 @@ pub(super) fn masked_poisson(
     let n = w * h;
     let d = params.differences;
     let warm = poisson_dct(g, Some(m), d);
+    // Cancelled during the warm start: the caller discards whatever comes back (crate::cancel).
+    if crate::cancel::Cancel::current().is_cancelled() {
+        return Ok((warm, 0, f64::NAN));
+    }
     let e = g.edge_values(d);
     let ins = |i: usize| inside(m[i]);
     let wx = par_rows(w, h, |r, out: &mut [f32]| {
