@@ -22,6 +22,9 @@ mod golden;
 #[path = "it/graph_errors.rs"]
 mod graph_errors;
 
+#[path = "it/structure.rs"]
+mod structure;
+
 #[path = "it/cache.rs"]
 mod cache;
 

@@ -273,10 +273,7 @@ pub fn group(
         if inside.len() == set.len() {
             nodes.push(gid);
         }
-        frames.push(FrameDef {
-            nodes,
-            ..f.clone()
-        });
+        frames.push(FrameDef { nodes, ..f.clone() });
     }
     parent.frames = frames;
 
@@ -404,7 +401,11 @@ pub fn ungroup(g: &Graph, id: NodeId, base_dir: &Path) -> Result<Ungrouped, Grap
         if e.node != id {
             return true;
         }
-        match sub.exposed.get(&e.param).and_then(|x| Some((map.get(&x.node)?, x))) {
+        match sub
+            .exposed
+            .get(&e.param)
+            .and_then(|x| Some((map.get(&x.node)?, x)))
+        {
             Some((nn, x)) => {
                 e.node = *nn;
                 e.param.clone_from(&x.param);
@@ -498,7 +499,10 @@ pub fn rebase(p: &str, from_dir: &Path, to_dir: &Path) -> String {
     let (t, d): (Vec<Component>, Vec<Component>) =
         (target.components().collect(), to.components().collect());
     let common = t.iter().zip(&d).take_while(|(a, b)| a == b).count();
-    if d[common..].iter().any(|c| !matches!(c, Component::Normal(_))) {
+    if d[common..]
+        .iter()
+        .any(|c| !matches!(c, Component::Normal(_)))
+    {
         return std::path::absolute(&target)
             .unwrap_or(target)
             .display()

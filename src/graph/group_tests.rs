@@ -4,12 +4,14 @@ use super::*;
 use crate::graph::{FrameDef, LoadedGraph};
 
 fn demo() -> Graph {
-    let text = std::fs::read_to_string(
-        Path::new(env!("CARGO_MANIFEST_DIR")).join("graphs/demo.ron"),
+    let text =
+        std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("graphs/demo.ron"))
+            .unwrap();
+    Graph::from_file(
+        crate::graph::file::parse(&text, "demo.ron").unwrap(),
+        &At::file("demo.ron"),
     )
-    .unwrap();
-    Graph::from_file(crate::graph::file::parse(&text, "demo.ron").unwrap(), &At::file("demo.ron"))
-        .unwrap()
+    .unwrap()
 }
 
 #[test]
@@ -19,7 +21,10 @@ fn rebase_moves_relative_paths_between_folders_and_back() {
     assert_eq!(rebase("../data/x.png", lib, base), "data/x.png");
     assert_eq!(rebase("../x.png", base, lib), "../../x.png");
     assert_eq!(rebase("../../x.png", lib, base), "../x.png");
-    assert_eq!(rebase("./a/../b.png", Path::new("."), Path::new("lib")), "../b.png");
+    assert_eq!(
+        rebase("./a/../b.png", Path::new("."), Path::new("lib")),
+        "../b.png"
+    );
     assert_eq!(rebase("/abs/x.png", base, lib), "/abs/x.png");
     assert_eq!(rebase("", base, lib), "");
     // Into a folder whose name is unknown (above the working folder): absolute.
@@ -52,10 +57,28 @@ fn grouping_three_demo_nodes_makes_a_subgraph_with_their_wires_as_ports() {
     // The mean of the three positions (240, 0), (480, 0), (720, -80).
     assert_eq!(gn.pos, [480.0, -80.0 / 3.0]);
     // Wires leaving the group: 5 and 6 read detail's image; the outputs image and relit.
-    assert_eq!(p.nodes[&5].inputs["image"], Source::Node(gid, "image".into()));
-    assert_eq!(p.nodes[&6].inputs["image"], Source::Node(gid, "image".into()));
-    assert_eq!(p.outputs["image"], PortRef { node: gid, port: "image".into() });
-    assert_eq!(p.outputs["relit"], PortRef { node: gid, port: "picture".into() });
+    assert_eq!(
+        p.nodes[&5].inputs["image"],
+        Source::Node(gid, "image".into())
+    );
+    assert_eq!(
+        p.nodes[&6].inputs["image"],
+        Source::Node(gid, "image".into())
+    );
+    assert_eq!(
+        p.outputs["image"],
+        PortRef {
+            node: gid,
+            port: "image".into()
+        }
+    );
+    assert_eq!(
+        p.outputs["relit"],
+        PortRef {
+            node: gid,
+            port: "picture".into()
+        }
+    );
     assert_eq!(p.outputs["normals"], g.outputs["normals"]);
     // The subgraph: the three nodes unchanged but for the entering wire.
     assert_eq!(s.nodes.keys().copied().collect::<Vec<_>>(), vec![2, 3, 4]);
@@ -65,8 +88,20 @@ fn grouping_three_demo_nodes_makes_a_subgraph_with_their_wires_as_ports() {
     }
     assert_eq!(s.nodes[&2].params, g.nodes[&2].params);
     assert_eq!(s.inputs["image"].ty, crate::nodes::PortType::Rgbn);
-    assert_eq!(s.outputs["image"], PortRef { node: 3, port: "image".into() });
-    assert_eq!(s.outputs["picture"], PortRef { node: 4, port: "picture".into() });
+    assert_eq!(
+        s.outputs["image"],
+        PortRef {
+            node: 3,
+            port: "image".into()
+        }
+    );
+    assert_eq!(
+        s.outputs["picture"],
+        PortRef {
+            node: 4,
+            port: "picture".into()
+        }
+    );
     assert_eq!(s.exposed["detail_amount"].param, "amount");
     assert_eq!(s.next_id, 5);
     // Both validate once the subgraph is where the node says.
@@ -87,13 +122,22 @@ fn grouping_three_demo_nodes_makes_a_subgraph_with_their_wires_as_ports() {
     assert_eq!(u.graph.nodes.len(), g.nodes.len());
     for (id, n) in &g.nodes {
         let m = &u.graph.nodes[map.get(id).unwrap_or(id)];
-        assert_eq!((&m.op, &m.name, &m.params, m.pos), (&n.op, &n.name, &n.params, n.pos));
-        let want: BTreeMap<String, Source> =
-            n.inputs.iter().map(|(k, s)| (k.clone(), relabel(s))).collect();
+        assert_eq!(
+            (&m.op, &m.name, &m.params, m.pos),
+            (&n.op, &n.name, &n.params, n.pos)
+        );
+        let want: BTreeMap<String, Source> = n
+            .inputs
+            .iter()
+            .map(|(k, s)| (k.clone(), relabel(s)))
+            .collect();
         assert_eq!(m.inputs, want, "node {id}");
     }
     for (name, r) in &g.outputs {
-        assert_eq!(u.graph.outputs[name].node, *map.get(&r.node).unwrap_or(&r.node));
+        assert_eq!(
+            u.graph.outputs[name].node,
+            *map.get(&r.node).unwrap_or(&r.node)
+        );
         assert_eq!(u.graph.outputs[name].port, r.port);
     }
     assert!(u.graph.exposed.is_empty() && u.graph.frames.is_empty());
@@ -139,7 +183,12 @@ fn frames_and_exposed_parameters_follow_the_nodes_both_ways() {
     std::fs::create_dir(dir.path().join("lib")).unwrap();
     r.sub.save(&dir.path().join("lib/g.ron")).unwrap();
     let u = ungroup(&r.graph, r.node, dir.path()).unwrap();
-    let inner: Vec<&FrameDef> = u.graph.frames.iter().filter(|f| f.title == "inner").collect();
+    let inner: Vec<&FrameDef> = u
+        .graph
+        .frames
+        .iter()
+        .filter(|f| f.title == "inner")
+        .collect();
     assert_eq!(inner.len(), 1);
     assert_eq!(inner[0].nodes, u.nodes[..2].to_vec());
     assert_eq!(u.graph.exposed["sharp"].node, u.nodes[0]);
@@ -163,7 +212,10 @@ fn ungroup_applies_overrides_rebases_paths_and_refuses_other_nodes() {
     assert_eq!(sharpen.params["amount"], ParamValue::Float(2.0));
     let denoise = &u.graph.nodes[&u.nodes[0]];
     assert_eq!(denoise.inputs["image"], Source::Node(1, "image".into()));
-    assert_eq!(u.graph.nodes[&3].inputs["image"], Source::Node(u.nodes[1], "image".into()));
+    assert_eq!(
+        u.graph.nodes[&3].inputs["image"],
+        Source::Node(u.nodes[1], "image".into())
+    );
     assert_eq!(u.graph.outputs["image"].node, u.nodes[1]);
     LoadedGraph::from_graph(u.graph.clone(), None, root.clone()).unwrap();
     // A load node's relative path is rewritten for the library's folder and back.
