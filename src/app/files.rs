@@ -152,6 +152,7 @@ impl EditorApp {
         self.cancel();
         self.session.doc_epoch += 1;
         self.session.doc = doc;
+        self.session.groups.clear();
         self.session.autosaved = None;
         self.session.viewed = default_view(&self.session.doc.graph);
         self.session.selected = self.session.viewed.as_ref().map(|v| v.0);

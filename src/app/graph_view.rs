@@ -8,7 +8,7 @@
 
 use super::placement::{self, Rect as PlaceRect};
 use crate::graph::{Graph, NodeId, NodePorts};
-use crate::nodes::{self, PortType};
+use crate::nodes::{self, PortType, GRAPH_NODE_OP, REROUTE_OP};
 use egui::{Color32, Id, Pos2, RichText, TextureHandle, Ui};
 use egui_snarl::ui::{PinInfo, SnarlPin, SnarlStyle, SnarlViewer, SnarlWidget};
 use egui_snarl::{InPin, InPinId, OutPin, OutPinId, Snarl};
@@ -57,6 +57,31 @@ pub enum Action {
     Export(NodeId),
     /// Choose this path parameter of this node in the file dialog.
     BrowseParam(NodeId, String),
+    /// Put a new frame around these nodes.
+    FrameNodes(Vec<NodeId>),
+    /// Open the rename / recolour dialog of frame number `index`.
+    EditFrame(usize),
+    /// Remove frame number `index` (its nodes stay).
+    DeleteFrame(usize),
+    /// Put a reroute at `pos` on the wire from `from`'s `from_port` into `to`'s `port`.
+    InsertReroute {
+        /// Source node.
+        from: NodeId,
+        /// Its output port.
+        from_port: String,
+        /// Target node.
+        to: NodeId,
+        /// Its input port.
+        port: String,
+        /// Graph position.
+        pos: [f32; 2],
+    },
+    /// Group these nodes into a subgraph (opens the dialog choosing what to expose).
+    Group(Vec<NodeId>),
+    /// Inline this graph node.
+    Ungroup(NodeId),
+    /// Open this graph node in place.
+    EnterGroup(NodeId),
 }
 
 /// Colour of a port type (pins and wires).
@@ -272,18 +297,50 @@ impl GraphView {
     pub fn show_ui(&mut self, ui: &mut Ui, data: &ViewData<'_>) -> Vec<Action> {
         let frame = (self.frame_pending > 0).then(|| ui.available_rect_before_wrap());
         self.frame_pending = self.frame_pending.saturating_sub(1);
+        let (pointer, shift) = ui.input(|i| (i.pointer.latest_pos(), i.modifiers.shift));
         let mut viewer = Viewer {
             data,
             search: &mut self.search,
             actions: Vec::new(),
             frame,
             measured: &mut self.measured,
+            transform: egui::emath::TSTransform::IDENTITY,
+            pointer,
+            shift,
         };
-        SnarlWidget::new()
+        let resp = SnarlWidget::new()
             .id(Id::new(SNARL_ID))
             .style(self.style)
             .show(&mut self.snarl, &mut viewer, ui);
-        viewer.actions
+        let (mut actions, to_global) = (viewer.actions, viewer.transform);
+        // Frames: their title bars drag their nodes (moved in the widget, written back to the
+        // graph with the nodes' own moves).
+        let rects = super::frames::frame_rects(data.graph, |id| {
+            super::frames::node_rect(data.graph, &self.measured, id)
+        });
+        for (i, delta) in super::frames::bars_ui(ui, data.graph, &rects, to_global, resp.rect, &mut actions) {
+            for id in &data.graph.frames[i].nodes {
+                if let Some(info) = self.by_id.get(id).and_then(|s| self.snarl.get_node_info_mut(*s)) {
+                    info.pos += delta;
+                }
+            }
+        }
+        // A double-click on a graph node opens it in place.
+        if let Some(p) = pointer.filter(|p| resp.rect.contains(*p)) {
+            if ui.input(|i| i.pointer.button_double_clicked(egui::PointerButton::Primary)) {
+                let at = to_global.inverse() * p;
+                let hit = self.drawn_rects(data.graph).into_iter().find(|(id, r)| {
+                    let max = r.max();
+                    data.graph.nodes[id].op == GRAPH_NODE_OP
+                        && (r.min[0]..=max[0]).contains(&at.x)
+                        && (r.min[1]..=max[1]).contains(&at.y)
+                });
+                if let Some((id, _)) = hit {
+                    actions.push(Action::EnterGroup(id));
+                }
+            }
+        }
+        actions
     }
 }
 
@@ -335,6 +392,12 @@ struct Viewer<'a, 'd> {
     frame: Option<egui::Rect>,
     /// Drawn node rectangles (see [`GraphView::node_rects`]).
     measured: &'a mut BTreeMap<NodeId, ([f32; 2], [f32; 2])>,
+    /// The view's transform (graph → screen) this frame.
+    transform: egui::emath::TSTransform,
+    /// The pointer on the screen.
+    pointer: Option<Pos2>,
+    /// Shift is held (Shift + right-click on a wire inserts a reroute).
+    shift: bool,
 }
 
 impl Viewer<'_, '_> {
@@ -359,16 +422,61 @@ pub fn node_title(graph: &Graph, id: NodeId) -> String {
     let Some(n) = graph.nodes.get(&id) else {
         return format!("#{id}");
     };
-    let op_title = nodes::find(&n.op).map_or(n.op.as_str(), |o| o.spec().title);
+    let op_title = match n.op.as_str() {
+        REROUTE_OP => "Reroute",
+        GRAPH_NODE_OP => "Group",
+        op => nodes::find(op).map_or(op, |o| o.spec().title),
+    };
     match &n.name {
         Some(name) => format!("{name} · {op_title}"),
         None => op_title.to_string(),
     }
 }
 
+impl Viewer<'_, '_> {
+    fn is_reroute(&self, id: NodeId) -> bool {
+        self.data.graph.is_reroute(id)
+    }
+}
+
 impl SnarlViewer<NodeId> for Viewer<'_, '_> {
     fn title(&mut self, node: &NodeId) -> String {
         node_title(self.data.graph, *node)
+    }
+
+    fn node_frame(
+        &mut self,
+        default: egui::Frame,
+        node: egui_snarl::NodeId,
+        _inputs: &[InPin],
+        _outputs: &[OutPin],
+        snarl: &Snarl<NodeId>,
+    ) -> egui::Frame {
+        // A reroute is a small dot-like node: its two pins and a grip between them.
+        if self.is_reroute(snarl[node]) {
+            default.inner_margin(egui::Margin::same(1))
+        } else {
+            default
+        }
+    }
+
+    fn draw_background(
+        &mut self,
+        background: Option<&egui_snarl::ui::BackgroundPattern>,
+        viewport: &egui::Rect,
+        snarl_style: &SnarlStyle,
+        style: &egui::Style,
+        painter: &egui::Painter,
+        _snarl: &Snarl<NodeId>,
+    ) {
+        if let Some(b) = background {
+            b.draw(viewport, snarl_style, style, painter);
+        }
+        let graph = self.data.graph;
+        let rects = super::frames::frame_rects(graph, |id| {
+            super::frames::node_rect(graph, self.measured, id)
+        });
+        super::frames::paint(painter, graph, &rects);
     }
 
     fn header_frame(
@@ -398,6 +506,10 @@ impl SnarlViewer<NodeId> for Viewer<'_, '_> {
         snarl: &mut Snarl<NodeId>,
     ) {
         let id = snarl[node];
+        if self.is_reroute(id) {
+            ui.add_space(6.0);
+            return;
+        }
         let title = self.title(&id);
         let r = ui.label(RichText::new(title).strong());
         if let Some(n) = self.data.graph.nodes.get(&id) {
@@ -425,6 +537,9 @@ impl SnarlViewer<NodeId> for Viewer<'_, '_> {
         let Some(p) = self.ports(id).and_then(|p| p.inputs.get(pin.id.input)) else {
             return PinInfo::circle();
         };
+        if self.is_reroute(id) {
+            return PinInfo::circle().with_fill(type_color(p.ty));
+        }
         let text = if p.optional {
             format!("{} (optional)", p.name)
         } else {
@@ -450,6 +565,9 @@ impl SnarlViewer<NodeId> for Viewer<'_, '_> {
         else {
             return PinInfo::circle();
         };
+        if self.is_reroute(id) {
+            return PinInfo::circle().with_fill(type_color(p.ty));
+        }
         let viewed = self.data.viewed == Some(id) && self.data.viewed_port == Some(p.name.as_str());
         let text = if viewed {
             RichText::new(&p.name).underline()
@@ -467,6 +585,9 @@ impl SnarlViewer<NodeId> for Viewer<'_, '_> {
     }
 
     fn has_body(&mut self, node: &NodeId) -> bool {
+        if self.is_reroute(*node) {
+            return self.data.errors.contains_key(node);
+        }
         self.data.thumbs.contains_key(node)
             || self.data.errors.contains_key(node)
             || self.data.green.contains_key(node)
@@ -527,8 +648,28 @@ impl SnarlViewer<NodeId> for Viewer<'_, '_> {
         });
     }
 
-    fn disconnect(&mut self, _from: &OutPin, to: &InPin, snarl: &mut Snarl<NodeId>) {
-        self.disconnect_input(snarl[to.id.node], to.id.input);
+    /// Right-click on a wire disconnects it; Shift + right-click puts a reroute there.
+    fn disconnect(&mut self, from: &OutPin, to: &InPin, snarl: &mut Snarl<NodeId>) {
+        let (fid, tid) = (snarl[from.id.node], snarl[to.id.node]);
+        if let (true, Some(p)) = (self.shift, self.pointer) {
+            let (Some(fp), Some(tp)) = (
+                self.ports(fid).and_then(|p| p.outputs.get(from.id.output)),
+                self.ports(tid).and_then(|p| p.inputs.get(to.id.input)),
+            ) else {
+                return;
+            };
+            // The reroute's centre under the pointer (its pin sits a little left of it).
+            let at = self.transform.inverse() * p;
+            self.actions.push(Action::InsertReroute {
+                from: fid,
+                from_port: fp.name.clone(),
+                to: tid,
+                port: tp.name.clone(),
+                pos: [at.x - 12.0, at.y - 12.0],
+            });
+            return;
+        }
+        self.disconnect_input(tid, to.id.input);
     }
 
     fn drop_inputs(&mut self, pin: &InPin, snarl: &mut Snarl<NodeId>) {
@@ -573,6 +714,7 @@ impl SnarlViewer<NodeId> for Viewer<'_, '_> {
         to_global: &mut egui::emath::TSTransform,
         snarl: &mut Snarl<NodeId>,
     ) {
+        self.transform = *to_global;
         let Some(view) = self.frame else { return };
         let mut bb = egui::Rect::NOTHING;
         for n in snarl.nodes_info() {
@@ -589,6 +731,7 @@ impl SnarlViewer<NodeId> for Viewer<'_, '_> {
             scaling,
             translation: view.center().to_vec2() - bb.center().to_vec2() * scaling,
         };
+        self.transform = *to_global;
     }
 
     fn has_graph_menu(&mut self, _pos: Pos2, _snarl: &mut Snarl<NodeId>) -> bool {
@@ -634,5 +777,10 @@ impl SnarlViewer<NodeId> for Viewer<'_, '_> {
             self.actions.push(Action::Delete(vec![id]));
             ui.close();
         }
+        let selected: Vec<NodeId> = egui_snarl::ui::get_selected_nodes(Id::new(SNARL_ID), ui.ctx())
+            .into_iter()
+            .filter_map(|s| snarl.get_node(s).copied())
+            .collect();
+        super::structure_ui::node_menu_ui(ui, self.data.graph, id, &selected, &mut self.actions);
     }
 }

@@ -226,6 +226,10 @@ impl EditorApp {
                     self.show_ops = true;
                     ui.close();
                 }
+                if ui.button("Keyboard shortcuts…").clicked() {
+                    self.structure.show_keys = true;
+                    ui.close();
+                }
                 if ui.button("About rgbn").clicked() {
                     self.dialog = Some(Dialog::About);
                     ui.close();

@@ -15,7 +15,8 @@
 //! by concern: [`files`] (file dialog, open / save / export, autosave and recovery),
 //! [`images`] (open an image or drop a file: a `load` node wired into the viewed chain; where
 //! new nodes go, with the pure geometry in [`placement`]), [`dialogs`] (modal dialogs),
-//! `menu` (menu bar, shortcuts); this file holds the frame layout, the panels and the graph
+//! `menu` (menu bar, shortcuts), [`structure_ui`] (frames, reroutes, groups entered in place;
+//! their commands in [`structure`], frames in the view in [`frames`]); this file holds the frame layout, the panels and the graph
 //! commands.
 //!
 //! Layout: menu bar; node graph | preview | inspector (resizable); status bar with evaluation
@@ -23,9 +24,11 @@
 
 pub mod dialogs;
 pub mod files;
+pub mod frames;
 pub mod graph_view;
 pub mod green_badge;
 pub mod images;
+pub mod keys;
 pub mod memory;
 mod menu;
 pub mod params_ui;
@@ -39,6 +42,8 @@ pub mod session;
 pub mod soak;
 pub mod start;
 pub mod state;
+pub mod structure;
+pub mod structure_ui;
 pub mod tools;
 pub mod tools_ui;
 pub mod worker;
@@ -138,6 +143,8 @@ pub struct EditorApp {
     pending_export: Option<(std::path::PathBuf, NodeId, String)>,
     /// The Help ▸ Operators window is open.
     show_ops: bool,
+    /// The frame and group dialogs, Help ▸ Keyboard shortcuts.
+    pub structure: structure_ui::StructureUi,
     /// Nodes the editor placed that it keeps clear of others until they are drawn evaluated
     /// (their size is known only then): position given, frames left once evaluated.
     placed: BTreeMap<NodeId, ([f32; 2], u8)>,
@@ -162,6 +169,7 @@ impl EditorApp {
             files: None,
             pending_export: None,
             show_ops: false,
+            structure: structure_ui::StructureUi::default(),
             placed: BTreeMap::new(),
             last_widget_selection: Vec::new(),
         }
@@ -306,6 +314,7 @@ impl EditorApp {
                 }
             }
             Action::BrowseParam(id, name) => self.browse(FilePurpose::Param(id, name)),
+            other => self.apply_structure(other),
         }
     }
 
@@ -395,10 +404,10 @@ impl EditorApp {
         let ctx = ui.ctx().clone();
         if ctx.input(|i| i.viewport().close_requested())
             && !self.runtime.allow_close
-            && self.session.doc.is_dirty()
+            && self.any_unsaved()
         {
             ctx.send_viewport_cmd(egui::ViewportCommand::CancelClose);
-            self.dialog = Some(Dialog::Unsaved(Then::Quit));
+            self.guarded(Then::Quit);
         }
         // Before `before`: moving a just-placed node off others is part of placing it, not
         // an edit of its own.
@@ -407,6 +416,7 @@ impl EditorApp {
         let (version, epoch) = (self.session.doc.history.version(), self.session.doc_epoch);
         let mut actions = Vec::new();
         self.shortcuts(&ctx);
+        self.structure_shortcuts(&ctx);
         self.dropped_files_ui(&ctx);
 
         // Panels are not filled: the frame is cleared to their colour (`clear_color`), and
@@ -436,6 +446,7 @@ impl EditorApp {
             .default_size(640.0)
             .size_range(300.0..=1400.0)
             .show(ui, |ui| {
+                self.breadcrumb_ui(ui);
                 let tex: BTreeMap<NodeId, TextureHandle> = self
                     .runtime
                     .thumbs
@@ -464,6 +475,7 @@ impl EditorApp {
             .frame(central)
             .show(ui, |ui| self.preview_ui(ui));
         self.dialogs_ui(&ctx);
+        self.structure_dialogs_ui(&ctx);
         self.file_dialog_ui(&ctx);
         if self.show_ops {
             let mut open = true;

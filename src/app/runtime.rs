@@ -194,7 +194,8 @@ impl EditorApp {
     /// view) changed since the last one. Runs when the frame starts ([`EditorApp::poll`]) and
     /// again when it ends, so that an edit made in a frame is evaluated at once.
     pub fn send_if_changed(&mut self) {
-        let want = eval_graph(&self.session.doc.graph);
+        let (graph, base_dir) = self.eval_context();
+        let want = eval_graph(&graph);
         let view = self.view_request();
         // The first request waits for the preview's first frame, which says what is on screen:
         // then the viewport comes first instead of a whole evaluation that cannot be cut short.
@@ -222,8 +223,8 @@ impl EditorApp {
             let cancel = Arc::new(AtomicBool::new(false));
             self.runtime.worker.send(EvalRequest {
                 generation: self.runtime.gens.new_request(),
-                graph: self.session.doc.graph.clone(),
-                base_dir: self.session.doc.base_dir(),
+                graph,
+                base_dir,
                 cancel: cancel.clone(),
                 view: view.clone(),
                 settings: Some(self.prefs.settings.clone()),
@@ -321,9 +322,10 @@ impl EditorApp {
     }
 }
 
-/// The graph as far as evaluation cares: positions do not matter.
+/// The graph as far as evaluation cares: positions and frames do not matter.
 pub(super) fn eval_graph(g: &Graph) -> Graph {
     let mut g = g.clone();
+    g.frames.clear();
     for n in g.nodes.values_mut() {
         n.pos = [0.0, 0.0];
     }
