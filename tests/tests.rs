@@ -28,6 +28,9 @@ mod structure;
 #[path = "it/cache.rs"]
 mod cache;
 
+#[path = "it/cancel.rs"]
+mod cancel;
+
 #[path = "it/combine.rs"]
 mod combine;
 
@@ -48,6 +51,10 @@ mod editor_images;
 #[cfg(feature = "gui")]
 #[path = "it/editor_start.rs"]
 mod editor_start;
+
+#[cfg(feature = "gui")]
+#[path = "it/editor_menu.rs"]
+mod editor_menu;
 
 #[path = "it/nodes.rs"]
 mod nodes;
@@ -72,6 +79,9 @@ mod views;
 
 #[path = "it/nan_ops.rs"]
 mod nan_ops;
+
+#[path = "it/sliders.rs"]
+mod sliders;
 
 #[path = "it/faults.rs"]
 mod faults;

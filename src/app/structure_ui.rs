@@ -50,8 +50,6 @@ pub struct StructureUi {
     pub group: Option<GroupDialog>,
     /// The frame dialog, when open.
     pub frame: Option<FrameDialog>,
-    /// Help ▸ Keyboard shortcuts is open.
-    pub show_keys: bool,
 }
 
 /// The node menu's entries for frames and groups: on the selection when the node is in it,
@@ -257,7 +255,7 @@ impl EditorApp {
         }
     }
 
-    /// The dialogs of this module and the keyboard shortcuts window.
+    /// The dialogs of this module.
     pub(super) fn structure_dialogs_ui(&mut self, ctx: &egui::Context) {
         if let Some(mut d) = self.structure.group.take() {
             let mut keep = true;
@@ -336,14 +334,6 @@ impl EditorApp {
             } else if keep {
                 self.structure.frame = Some(d);
             }
-        }
-        if self.structure.show_keys {
-            let mut open = true;
-            egui::Window::new("Keyboard shortcuts")
-                .open(&mut open)
-                .default_size([480.0, 520.0])
-                .show(ctx, super::keys::keys_ui);
-            self.structure.show_keys = open;
         }
     }
 

@@ -205,6 +205,9 @@ pub struct RunContext {
     /// The outputs the evaluation reads, bit `k` for port `k` ([`ALL_PORTS`] unless the
     /// operator declares [`OpSpec::lazy_outputs`]).
     pub wanted: u64,
+    /// The evaluation's cancellation token: the operator's kernels see it as
+    /// [`Cancel::current`](crate::cancel::Cancel::current) while it runs.
+    pub cancel: crate::cancel::Cancel,
 }
 
 impl Default for RunContext {
@@ -220,6 +223,7 @@ impl RunContext {
         Self {
             protected,
             wanted: ALL_PORTS,
+            cancel: crate::cancel::Cancel::never(),
         }
     }
     /// Whether output `port` (port order) is read. Ports past 63 always are.
@@ -233,7 +237,14 @@ impl RunContext {
         Self {
             protected: self.protected.clone(),
             wanted,
+            cancel: self.cancel.clone(),
         }
+    }
+    /// This context with cancellation token `cancel`.
+    #[must_use]
+    pub fn with_cancel(mut self, cancel: crate::cancel::Cancel) -> Self {
+        self.cancel = cancel;
+        self
     }
 }
 
@@ -676,7 +687,13 @@ impl<T: Operator> DynOp for Entry<T> {
             shifted = params::shifted(t, origin.0 as f64, origin.1 as f64);
             &shifted
         };
-        let mut out = T::run(t, T::In::from_values(inputs)?, ctx)?;
+        let out = {
+            let _current = ctx.cancel.enter();
+            T::run(t, T::In::from_values(inputs)?, ctx)
+        };
+        // A result finished after cancellation may be partial: never let it out.
+        ctx.cancel.check()?;
+        let mut out = out?;
         if scale > 1 {
             out = T::level_outputs(t, scale as f64, out);
         }
@@ -689,8 +706,12 @@ impl<T: Operator> DynOp for Entry<T> {
         win: Window,
         ctx: &RunContext,
     ) -> Result<Vec<Value>, RgbnError> {
-        let out = T::run_region(self.typed(p), T::In::from_values(inputs)?, win, ctx)?;
-        Ok(out.into_values())
+        let out = {
+            let _current = ctx.cancel.enter();
+            T::run_region(self.typed(p), T::In::from_values(inputs)?, win, ctx)
+        };
+        ctx.cancel.check()?;
+        Ok(out?.into_values())
     }
 }
 

@@ -114,11 +114,11 @@ crate::params! {
     pub struct BilateralParams {
         /// Spatial σ; the window has radius ⌈2σ⌉.
         pub sigma_spatial_px: f64 = 3.0
-            => float.unit("px").range(0.05, f64::from(MAX_BILATERAL_SIGMA_PX)),
+            => float.unit("px").range(0.05, f64::from(MAX_BILATERAL_SIGMA_PX)).soft(0.5, 16.0).log(),
         /// Colour σ (linear RGB distance); 0 ignores colour.
-        pub sigma_color: f64 = 0.0 => float.range(0.0, 1e6),
+        pub sigma_color: f64 = 0.0 => float.range(0.0, 1e6).soft(0.0, 0.5),
         /// Normal-similarity σ (radians for angle, unitless for one_minus_dot); 0 ignores normals.
-        pub sigma_normal: f64 = f64::from(0.3f32) => float.range(0.0, 1e6),
+        pub sigma_normal: f64 = f64::from(0.3f32) => float.range(0.0, 1e6).soft(0.0, 1.0),
         /// Normal similarity: the angle between the normals, or 1 − n·n′ (≈ angle²/2).
         pub normal_metric: NormalMetric = NormalMetric::Angle => choice,
         /// Every pixel of the disc, the disc sampled every ⌈σ_s/4⌉ px, or auto (sampled from σ_s = 8 px).

@@ -269,9 +269,14 @@ fn filter_with(input: &Input<'_>, spec: &Spec, twin: Twin) -> Output {
         .collect();
     // A few leaf jobs per thread, so the scratch (zeroed pages) is allocated only that often.
     let leaf = nb.div_ceil(4 * rayon::current_num_threads()).max(1);
+    // Cancelled: the remaining bands are skipped and the caller discards the output.
+    let cancel = crate::cancel::Cancel::current();
     bands.into_par_iter().with_min_len(leaf).for_each_init(
         || vec![0.0f32; kernel.scratch_len()],
         |scratch, (b, (((x, y), z), c))| {
+            if cancel.is_cancelled() {
+                return;
+            }
             let mut out = BandOut { n: [x, y, z], c };
             kernel.band(input, b * kernel.tile_h, &mut out, scratch);
         },

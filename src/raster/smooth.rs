@@ -120,6 +120,16 @@ pub fn smooth_normals<F: LineFilter>(
     };
     let mut park = [take_parked(parked_len(w, h)), take_parked(parked_len(w, h))];
     let (clamped, curl_before) = row_sweep(&sw, &mut park);
+    // Cancelled between the sweeps: zeros, which the caller discards (crate::cancel).
+    if crate::cancel::Cancel::current().is_cancelled() {
+        park.into_iter().for_each(give_parked);
+        return SmoothedNormals {
+            normal: [buf::zeroed_f32(n), buf::zeroed_f32(n), buf::zeroed_f32(n)],
+            clamped,
+            curl_before,
+            curl_after: CurlSums::default(),
+        };
+    }
     let curl_after = column_sweep(
         &sw,
         &park,

@@ -544,7 +544,7 @@ impl Evaluator {
             }
         }
         // 5. Compute, instance by instance in order, the tiles of each in parallel.
-        let ctx = RunContext::new(plan.protected.clone());
+        let ctx = RunContext::new(plan.protected.clone()).with_cancel(opts.token());
         let mut tiles = Vec::new();
         for i in 0..=root {
             if level_todo[i] {

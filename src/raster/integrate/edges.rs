@@ -427,6 +427,7 @@ fn pcg(
     mut pre: Preconditioner,
 ) -> (u32, f64, bool) {
     let n = b.len();
+    let cancel = crate::cancel::Cancel::current();
     let (w, spans) = (mg.levels[0].w, mg.levels[0].spans.clone());
     let mut ax = zeros::<f64>(n);
     let mut res = zeros::<f64>(n);
@@ -452,6 +453,10 @@ fn pcg(
     let mut restart = true;
     let mut restarted = false;
     while iterations < max_iterations && rel > tolerance {
+        // Cancelled: the caller discards whatever `x` holds (crate::cancel).
+        if cancel.is_cancelled() {
+            break;
+        }
         if best.is_some_and(|best| rel > 10.0 * best) {
             pre = Preconditioner::Jacobi;
             best = None;
