@@ -122,3 +122,7 @@ mod layers;
 
 #[path = "it/parse_once.rs"]
 mod parse_once;
+
+#[cfg(feature = "gui")]
+#[path = "it/editor_structure.rs"]
+mod editor_structure;

@@ -13,7 +13,7 @@ use std::collections::BTreeMap;
 use std::path::Path;
 
 /// Every bit of a value (floats by their bits, so -0 ≠ 0 and NaN = NaN of the same bits).
-fn bits(v: &Value) -> Vec<u32> {
+pub(crate) fn bits(v: &Value) -> Vec<u32> {
     let f = |p: &[f32]| p.iter().map(|x| x.to_bits()).collect::<Vec<u32>>();
     match v {
         Value::Rgbn(i) => {
@@ -37,7 +37,7 @@ fn bits(v: &Value) -> Vec<u32> {
 
 /// Every output of `lg` (inputs bound as the examples are) with a fresh evaluator: the
 /// outputs' bits and content keys by name, and the number of instances in the plan.
-fn outputs(lg: &LoadedGraph) -> (BTreeMap<String, Vec<u32>>, BTreeMap<String, String>, usize) {
+pub(crate) fn outputs(lg: &LoadedGraph) -> (BTreeMap<String, Vec<u32>>, BTreeMap<String, String>, usize) {
     let plan = Plan::new(lg, &example_bindings(lg), Path::new(".")).expect("plan");
     let ev = Evaluator::default();
     let keys = ev
@@ -55,7 +55,7 @@ fn outputs(lg: &LoadedGraph) -> (BTreeMap<String, Vec<u32>>, BTreeMap<String, St
     (values, keys, plan.instances.len())
 }
 
-fn read(p: &Path) -> Graph {
+pub(crate) fn read(p: &Path) -> Graph {
     let text = std::fs::read_to_string(p).unwrap();
     let name = p.display().to_string();
     Graph::from_file(file::parse(&text, &name).unwrap(), &At::file(&name)).unwrap()
