@@ -94,11 +94,11 @@ fn ctrl_j_frames_the_selection_and_dragging_the_frame_moves_its_nodes_as_one_und
     assert_eq!(g.frames.len(), 1, "Ctrl+J made a frame");
     assert_eq!(g.frames[0].nodes, vec![2, 3]);
     let before: Vec<[f32; 2]> = (1..=6).map(|id| g.nodes[&id].pos).collect();
+    let title = g.frames[0].title.clone();
     let undo_len = h.state().session.doc.history.undo_len();
     h.run_steps(2);
 
     // The frame's title bar (found by its accessible label) drags both nodes.
-    let title = g.frames[0].title.clone();
     let bar = h
         .get_by_label(&rgbn::app::frames::bar_label(&title))
         .rect();
