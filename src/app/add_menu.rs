@@ -62,7 +62,8 @@ pub struct Offer {
 /// The reroute's entry in the menu (a point on a wire, not an operator: see
 /// [`crate::graph::reroute`]).
 pub fn reroute_spec() -> &'static OpSpec {
-    static SPEC: std::sync::LazyLock<OpSpec> = std::sync::LazyLock::new(|| OpSpec {
+    static SPEC: std::sync::LazyLock<OpSpec> = std::sync::LazyLock::new(|| {
+        OpSpec {
         id: nodes::REROUTE_OP,
         title: "Reroute",
         category: "layout",
@@ -72,6 +73,7 @@ pub fn reroute_spec() -> &'static OpSpec {
         outputs: Vec::new(),
         side_effect: false,
         lazy_outputs: false,
+    }
     });
     &SPEC
 }

@@ -107,10 +107,22 @@ pub fn paint(painter: &egui::Painter, graph: &Graph, rects: &[(usize, FrameRects
             Stroke::new(1.0, bar),
             egui::StrokeKind::Inside,
         );
-        let title = if f.title.is_empty() { "frame" } else { &f.title };
-        let text = painter.layout_no_wrap(title.to_string(), FontId::proportional(14.0), Color32::WHITE);
-        let pos = Pos2::new(r.title.min.x + 8.0, r.title.center().y - text.size().y / 2.0);
-        painter.with_clip_rect(r.title.intersect(painter.clip_rect()))
+        let title = if f.title.is_empty() {
+            "frame"
+        } else {
+            &f.title
+        };
+        let text = painter.layout_no_wrap(
+            title.to_string(),
+            FontId::proportional(14.0),
+            Color32::WHITE,
+        );
+        let pos = Pos2::new(
+            r.title.min.x + 8.0,
+            r.title.center().y - text.size().y / 2.0,
+        );
+        painter
+            .with_clip_rect(r.title.intersect(painter.clip_rect()))
             .galley(pos, text, Color32::WHITE);
     }
 }

@@ -192,7 +192,13 @@ fn sources(g: &Graph, id: NodeId) -> impl Iterator<Item = NodeId> + '_ {
         })
 }
 
-fn embed(outer: &Graph, outer_base: &Path, node: NodeId, inner: &Graph, inner_base: &Path) -> Graph {
+fn embed(
+    outer: &Graph,
+    outer_base: &Path,
+    node: NodeId,
+    inner: &Graph,
+    inner_base: &Path,
+) -> Graph {
     let mut g = inner.clone();
     let Some(gn) = outer.nodes.get(&node) else {
         return g;

@@ -24,13 +24,19 @@ fn frame_commands_are_undo_steps() {
     assert_eq!(d.add_frame(&[3, 4], "light"), Some(1));
     assert_eq!(d.graph.frames[0].nodes, vec![2]);
     d.edit_frame(1, "relit", [200, 10, 10]);
-    assert_eq!((d.graph.frames[1].title.as_str(), d.graph.frames[1].color), ("relit", [200, 10, 10]));
+    assert_eq!(
+        (d.graph.frames[1].title.as_str(), d.graph.frames[1].color),
+        ("relit", [200, 10, 10])
+    );
     // Deleting the frame's last node removes the frame.
     d.delete(&[2]);
     assert_eq!(d.graph.frames.len(), 1);
     d.delete_frame(0);
     assert!(d.graph.frames.is_empty());
-    assert!(d.graph.nodes.contains_key(&3), "a deleted frame keeps its nodes");
+    assert!(
+        d.graph.nodes.contains_key(&3),
+        "a deleted frame keeps its nodes"
+    );
     assert_eq!(d.history.undo_len(), 5);
     for _ in 0..5 {
         assert!(d.undo());
@@ -43,19 +49,32 @@ fn frame_commands_are_undo_steps() {
 fn a_reroute_on_a_wire_keeps_the_evaluation() {
     let mut d = Document::demo();
     let g0 = d.graph.clone();
-    let r = d.insert_reroute(3, "image", 5, "image", [600.0, 40.0]).unwrap();
+    let r = d
+        .insert_reroute(3, "image", 5, "image", [600.0, 40.0])
+        .unwrap();
     assert_eq!(d.graph.nodes[&r].op, "reroute");
-    assert_eq!(d.graph.nodes[&r].inputs["in"], Source::Node(3, "image".into()));
-    assert_eq!(d.graph.nodes[&5].inputs["image"], Source::Node(r, "out".into()));
+    assert_eq!(
+        d.graph.nodes[&r].inputs["in"],
+        Source::Node(3, "image".into())
+    );
+    assert_eq!(
+        d.graph.nodes[&5].inputs["image"],
+        Source::Node(r, "out".into())
+    );
     // No such wire: refused, nothing changed.
     let before = d.graph.clone();
-    assert!(d.insert_reroute(2, "image", 5, "image", [0.0, 0.0]).is_err());
+    assert!(d
+        .insert_reroute(2, "image", 5, "image", [0.0, 0.0])
+        .is_err());
     assert_eq!(d.graph, before);
     // The plan reads node 3 directly: the same instances and keys as without the reroute.
     let keys = |g: &Graph| {
         let lg = LoadedGraph::from_graph(g.clone(), None, ".".into()).unwrap();
         let plan = Plan::new(&lg, &BTreeMap::new(), Path::new(".")).unwrap();
-        (plan.instances.len(), Evaluator::default().output_keys(&plan).unwrap())
+        (
+            plan.instances.len(),
+            Evaluator::default().output_keys(&plan).unwrap(),
+        )
     };
     assert_eq!(keys(&d.graph), keys(&g0));
     assert!(d.undo());
@@ -77,7 +96,10 @@ fn group_writes_a_new_library_file_and_undo_restores_the_graph() {
     assert_eq!(d.lib_path_for(" ?! "), "lib/group.ron");
     let (id, file) = d.group(&[2, 3, 4], "My group", &[]).unwrap();
     assert_eq!(file, dir.path().join("lib/my_group_2.ron"));
-    assert_eq!(std::fs::read_to_string(dir.path().join("lib/my_group.ron")).unwrap(), "keep me");
+    assert_eq!(
+        std::fs::read_to_string(dir.path().join("lib/my_group.ron")).unwrap(),
+        "keep me"
+    );
     assert_eq!(d.graph.nodes[&id].op, "graph");
     assert_eq!(d.graph.nodes[&id].name.as_deref(), Some("My group"));
     LoadedGraph::from_graph(d.graph.clone(), None, dir.path().into()).unwrap();
@@ -116,7 +138,10 @@ fn inside_a_group_the_inner_graph_is_fed_from_outside() {
     let ctx = context_graph(&stack, &inner.graph, &inner.base_dir());
     // The inner nodes keep their ids; node 1 (the demo source) comes in above them.
     assert!(ctx.nodes.contains_key(&2) && ctx.nodes.contains_key(&4));
-    assert_eq!(ctx.nodes[&2].inputs["image"], Source::Node(1 + 5, "image".into()));
+    assert_eq!(
+        ctx.nodes[&2].inputs["image"],
+        Source::Node(1 + 5, "image".into())
+    );
     assert_eq!(ctx.nodes[&6].op, "demo");
     assert_eq!(ctx.nodes.len(), 4, "only what feeds the group comes in");
     // Its relit output is the demo's: the same content key.

@@ -100,7 +100,10 @@ pub fn node_menu_ui(
             ui.close();
         }
         if ui
-            .add(egui::Button::new("Ungroup").shortcut_text(key(Modifiers::COMMAND | Modifiers::SHIFT, Key::G)))
+            .add(
+                egui::Button::new("Ungroup")
+                    .shortcut_text(key(Modifiers::COMMAND | Modifiers::SHIFT, Key::G)),
+            )
             .on_hover_text("Put the group's nodes back in its place")
             .clicked()
         {
@@ -157,8 +160,14 @@ impl EditorApp {
                 to,
                 port,
                 pos,
-            } => match self.session.doc.insert_reroute(from, &from_port, to, &port, pos) {
-                Ok(id) => self.say(format!("reroute #{id} on #{from}.{from_port} → #{to}.{port}")),
+            } => match self
+                .session
+                .doc
+                .insert_reroute(from, &from_port, to, &port, pos)
+            {
+                Ok(id) => self.say(format!(
+                    "reroute #{id} on #{from}.{from_port} → #{to}.{port}"
+                )),
                 Err(e) => self.fail(format!("no reroute: {e}")),
             },
             Action::Group(ids) => self.open_group_dialog(ids),
@@ -189,7 +198,10 @@ impl EditorApp {
 
     fn open_group_dialog(&mut self, ids: Vec<NodeId>) {
         let g = &self.session.doc.graph;
-        let ids: Vec<NodeId> = ids.into_iter().filter(|id| g.nodes.contains_key(id)).collect();
+        let ids: Vec<NodeId> = ids
+            .into_iter()
+            .filter(|id| g.nodes.contains_key(id))
+            .collect();
         if ids.is_empty() {
             self.fail("nothing to group: select nodes first");
             return;
@@ -238,7 +250,12 @@ impl EditorApp {
         match self.session.doc.group(&d.ids, &d.name, &expose) {
             Ok((id, file)) => {
                 self.session.selected = Some(id);
-                if self.session.viewed.as_ref().is_some_and(|v| d.ids.contains(&v.0)) {
+                if self
+                    .session
+                    .viewed
+                    .as_ref()
+                    .is_some_and(|v| d.ids.contains(&v.0))
+                {
                     self.session.viewed = None;
                 }
                 self.say(format!(
@@ -392,7 +409,10 @@ impl EditorApp {
         groups.push(outer);
         self.new_doc(inner);
         self.session.groups = groups;
-        self.say(format!("inside {} (the bar above the graph leads back)", file.display()));
+        self.say(format!(
+            "inside {} (the bar above the graph leads back)",
+            file.display()
+        ));
     }
 
     /// Leaves the innermost group, saving its graph when changed. False (and still inside)

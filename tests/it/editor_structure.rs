@@ -76,10 +76,16 @@ fn hover_graph(h: &mut H) {
 fn double_click(h: &mut H, p: Pos2) {
     h.hover_at(p);
     h.step();
-    for _ in 0..2 {
-        button(h, p, PointerButton::Primary, true, Modifiers::NONE);
-        button(h, p, PointerButton::Primary, false, Modifiers::NONE);
+    // (The harness gives each event a frame of its own: see `demo_in_tempdir` for their length.)
+    for pressed in [true, false, true, false] {
+        h.event(Event::PointerButton {
+            pos: p,
+            button: PointerButton::Primary,
+            pressed,
+            modifiers: Modifiers::NONE,
+        });
     }
+    h.step();
     h.step();
 }
 
@@ -99,9 +105,9 @@ fn ctrl_j_frames_the_selection_and_dragging_the_frame_moves_its_nodes_as_one_und
     h.run_steps(2);
 
     // The frame's title bar (found by its accessible label) drags both nodes.
-    let bar = h
-        .get_by_label(&rgbn::app::frames::bar_label(&title))
-        .rect();
+    // (The bar lives in the graph's layer: its accessible rectangle is in graph units.)
+    let xf = h.state().graph_view().to_global();
+    let bar = xf.mul_rect(h.get_by_label(&rgbn::app::frames::bar_label(&title)).rect());
     let r2 = screen_rect(&h, 2);
     assert!(
         bar.bottom() <= r2.top() && bar.left() <= r2.left(),
@@ -116,7 +122,13 @@ fn ctrl_j_frames_the_selection_and_dragging_the_frame_moves_its_nodes_as_one_und
         h.hover_at(from + d * (k as f32 / 6.0));
         h.step();
     }
-    button(&mut h, from + d, PointerButton::Primary, false, Modifiers::NONE);
+    button(
+        &mut h,
+        from + d,
+        PointerButton::Primary,
+        false,
+        Modifiers::NONE,
+    );
     h.run_steps(2);
     let scale = h.state().graph_view().to_global().scaling;
     let g = &h.state().session.doc.graph;
@@ -133,10 +145,11 @@ fn ctrl_j_frames_the_selection_and_dragging_the_frame_moves_its_nodes_as_one_und
         }
     }
     // The frame followed (it is drawn around its nodes) and is saved with the graph.
-    let bar2 = h
-        .get_by_label(&rgbn::app::frames::bar_label(&title))
-        .rect();
-    assert!((bar2.min - (bar.min + d)).length() < 1.5, "{bar2:?} vs {bar:?}");
+    let bar2 = xf.mul_rect(h.get_by_label(&rgbn::app::frames::bar_label(&title)).rect());
+    assert!(
+        (bar2.min - (bar.min + d)).length() < 1.5,
+        "{bar2:?} vs {bar:?}"
+    );
     let text = g.to_text();
     assert!(text.contains("frames:"), "{text}");
 
@@ -146,7 +159,11 @@ fn ctrl_j_frames_the_selection_and_dragging_the_frame_moves_its_nodes_as_one_und
     key(&mut h, Modifiers::COMMAND, Key::Z);
     let g = &h.state().session.doc.graph;
     for id in 1..=6u64 {
-        assert_eq!(g.nodes[&id].pos, before[id as usize - 1], "node {id} after undo");
+        assert_eq!(
+            g.nodes[&id].pos,
+            before[id as usize - 1],
+            "node {id} after undo"
+        );
     }
     assert_eq!(g.frames.len(), 1);
 }
@@ -157,7 +174,12 @@ fn demo_in_tempdir() -> (tempfile::TempDir, H) {
     let src = Path::new(env!("CARGO_MANIFEST_DIR")).join("graphs/demo.ron");
     std::fs::copy(src, dir.path().join("demo.ron")).unwrap();
     let doc = Document::open(&dir.path().join("demo.ron")).unwrap();
-    let mut h = harness(doc);
+    // Frames of 1/60 s (the default 1/4 s would put the two clicks of a double-click, each
+    // event in a frame of its own, further apart than egui's 0.3 s).
+    let mut h = Harness::builder()
+        .with_size([1500.0, 900.0])
+        .with_step_dt(1.0 / 60.0)
+        .build_ui_state(crate::editor::frame, EditorApp::new(doc));
     settle(&mut h);
     (dir, h)
 }
@@ -175,7 +197,12 @@ fn group_three_demo_nodes_and_ungroup_in_the_editor_outputs_bit_identical_files_
     select(&mut h, &[2, 3, 4]);
     hover_graph(&mut h);
     key(&mut h, Modifiers::COMMAND, Key::G);
-    let dialog = h.state().structure.group.clone().expect("Ctrl+G opened the dialog");
+    let dialog = h
+        .state()
+        .structure
+        .group
+        .clone()
+        .expect("Ctrl+G opened the dialog");
     assert_eq!(dialog.ids, vec![2, 3, 4]);
     // Expose detail's amount: tick it, then Group.
     let label = format!("{} · amount", node_title(&g0, 3));
@@ -266,7 +293,12 @@ fn double_click_opens_a_group_in_place_and_the_breadcrumb_leads_back() {
     // Double-click the group node's header: its subgraph is the document edited.
     let r = screen_rect(&h, gid);
     double_click(&mut h, Pos2::new(r.center().x, r.top() + 8.0));
-    assert_eq!(h.state().session.groups.len(), 1, "inside the group");
+    assert_eq!(
+        h.state().session.groups.len(),
+        1,
+        "inside the group; status: {}",
+        h.state().status.text
+    );
     assert_eq!(
         h.state().session.doc.path.as_deref(),
         Some(dir.path().join("lib/group.ron").as_path())

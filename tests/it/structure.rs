@@ -37,7 +37,9 @@ pub(crate) fn bits(v: &Value) -> Vec<u32> {
 
 /// Every output of `lg` (inputs bound as the examples are) with a fresh evaluator: the
 /// outputs' bits and content keys by name, and the number of instances in the plan.
-pub(crate) fn outputs(lg: &LoadedGraph) -> (BTreeMap<String, Vec<u32>>, BTreeMap<String, String>, usize) {
+pub(crate) fn outputs(
+    lg: &LoadedGraph,
+) -> (BTreeMap<String, Vec<u32>>, BTreeMap<String, String>, usize) {
     let plan = Plan::new(lg, &example_bindings(lg), Path::new(".")).expect("plan");
     let ev = Evaluator::default();
     let keys = ev
