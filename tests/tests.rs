@@ -13,6 +13,9 @@ mod real_data;
 #[path = "it/graphs.rs"]
 mod graphs;
 
+#[path = "it/op_versions.rs"]
+mod op_versions;
+
 #[path = "it/gallery.rs"]
 mod gallery;
 

@@ -160,7 +160,7 @@ fn score(spec: &OpSpec, q: &str) -> Option<u8> {
 
 /// The offers matching `query`, in the order the menu lists them (the first is the one Enter
 /// adds): with no query, by category (alphabetical) then menu order; with one, by how well they
-/// match ([`score`]), then category, then menu order.
+/// match (`score`), then category, then menu order.
 #[must_use]
 pub fn ranked(query: &str, offers: &[Offer]) -> Vec<usize> {
     let q = query.trim().to_lowercase();

@@ -2,7 +2,8 @@
 //! only module that uses egui.
 //!
 //! - [`state`]: the document (graph, file, undo history) and edit commands — no egui;
-//! - [`worker`]: evaluation on a worker thread, generations, thumbnails — no egui;
+//! - [`worker`]: evaluation on a worker thread, generations, thumbnails; of egui it uses only
+//!   `egui::ColorImage`, the rendered picture it hands the UI thread (no widgets, no context);
 //! - [`graph_view`]: the node graph (egui-snarl as a view of the graph); [`green_badge`]: the
 //!   `load` nodes' OpenGL / DirectX verdicts, checked off the UI thread;
 //! - [`params_ui`]: the inspector; [`preview`]: the relit preview;

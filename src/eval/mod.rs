@@ -39,7 +39,7 @@ pub use plan::{port_key, Conn, Instance, Plan};
 
 use crate::graph::{At, GraphError, NodeId};
 use crate::nodes::{RunContext, Value, ALL_PORTS};
-use crate::params::{nearest, ParamKind, ParamValue};
+use crate::params::{ParamKind, ParamValue};
 use crate::raster::gradient::GradientField;
 use rayon::prelude::*;
 use std::collections::{BTreeMap, HashMap, HashSet};
@@ -346,17 +346,7 @@ impl Evaluator {
         };
         let mut roots = Vec::new();
         for name in &names {
-            match plan.outputs.get(name) {
-                Some(c) => roots.push(c.clone()),
-                None => {
-                    return Err(GraphError::Unknown {
-                        what: "graph output",
-                        name: name.clone(),
-                        suggestion: nearest(name, plan.outputs.keys().map(String::as_str)),
-                        at: plan.at.clone(),
-                    })
-                }
-            }
+            roots.push(plan.output(name)?.clone());
         }
         let mut slots = Vec::new();
         let mut asked = Vec::new();

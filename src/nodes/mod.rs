@@ -577,34 +577,32 @@ impl<T: Operator> Entry<T> {
     /// Wraps typed parameters with their canonical map and hash.
     fn wrap(&self, typed: T::Params) -> Parsed {
         let values = params::to_values(&typed);
-        let mut h = xxhash_rust::xxh3::Xxh3::new();
-        for (name, value) in &values {
-            h.update(&(name.len() as u64).to_le_bytes());
-            h.update(name.as_bytes());
-            let input_file = self
-                .params
+        // Input files are keyed by their bytes elsewhere, not by their path here.
+        let hash = map_hash(&values, |name| {
+            self.params
                 .iter()
-                .any(|i| i.name == name && i.kind == params::ParamKind::Path && !i.meta.output);
-            if input_file {
-                h.update(b"input-file");
-            } else {
-                value.hash_into(&mut h);
-            }
-        }
+                .any(|i| i.name == name && i.kind == params::ParamKind::Path && !i.meta.output)
+        });
         Parsed {
             typed: Arc::new(typed),
             values: Arc::new(values),
-            hash: h.digest128(),
+            hash,
         }
     }
 }
 
-fn map_hash(values: &BTreeMap<String, ParamValue>) -> u128 {
+/// The hash of a parameter map: each name, then its value, or only the marker `input-file`
+/// for the names `input_file` picks.
+fn map_hash(values: &BTreeMap<String, ParamValue>, input_file: impl Fn(&str) -> bool) -> u128 {
     let mut h = xxhash_rust::xxh3::Xxh3::new();
     for (name, value) in values {
         h.update(&(name.len() as u64).to_le_bytes());
         h.update(name.as_bytes());
-        value.hash_into(&mut h);
+        if input_file(name) {
+            h.update(b"input-file");
+        } else {
+            value.hash_into(&mut h);
+        }
     }
     h.digest128()
 }
@@ -621,7 +619,7 @@ impl<T: Operator> DynOp for Entry<T> {
         &self.params
     }
     fn parse(&self, values: &BTreeMap<String, ParamValue>) -> Result<Parsed, ParamError> {
-        let key = map_hash(values);
+        let key = map_hash(values, |_| false);
         if let Some(p) = lock(&self.memo).get(&key) {
             return Ok(p.clone());
         }

@@ -25,6 +25,7 @@ fn graph(op: &str, params: &str, out: &str) -> LoadedGraph {
     LoadedGraph::from_text(&text, "cancel.ron", root().join("graphs")).unwrap()
 }
 
+#[allow(clippy::result_large_err)] // the library's own error type, as its API returns it
 fn eval(ev: &Evaluator, lg: &LoadedGraph, cancel: Cancel) -> Result<EvalResult, GraphError> {
     let plan = Plan::new(lg, &BTreeMap::new(), Path::new(".")).unwrap();
     ev.eval(

@@ -18,7 +18,7 @@
 //!    the image, so a crop edge is either a real image edge, where the border mode applies as
 //!    on the whole image, or at least a halo away), global inputs are passed whole, and the
 //!    operator runs on the crop with its positional parameters shifted
-//!    ([`crate::nodes::Operator::shifted`]); the tile is cut out of the result. Tiles of one
+//!    ([`crate::params::shifted`]); the tile is cut out of the result. Tiles of one
 //!    instance run in parallel.
 //! 4. **Caching.** Tiles live in the evaluator's byte-budgeted memory cache under
 //!    (content key, level, tile size, tile position); an edit changes the content key of what

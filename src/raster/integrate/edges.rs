@@ -26,7 +26,7 @@
 //! The V-cycle: one red-black Gauss–Seidel sweep (red, then black), residual restricted by
 //! summing the four children (`Pᵀ`), the coarse correction from the next level, added back to
 //! the four children (`P`), one sweep in the reverse order (black, then red), so the cycle is a
-//! symmetric linear operator. The **coarsest level (≤ [`COARSEST_NODES`] nodes) is solved
+//! symmetric linear operator. The **coarsest level (≤ `COARSEST_NODES` nodes) is solved
 //! exactly**: per connected component the right-hand side's mean is projected out (a pure
 //! Neumann component is singular and only consistent right-hand sides have a solution), one
 //! node per component is pinned, the rest solved by a dense Cholesky factorisation (`f64`),
