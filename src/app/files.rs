@@ -162,7 +162,8 @@ impl EditorApp {
         self.runtime.last_sent = None;
         self.runtime.in_flight = None; // its result will be stale
         self.placed.clear();
-        self.view.frame_pending = 3;
+        self.view.new_document();
+        self.last_widget_selection.clear();
     }
 
     /// Opens a graph file (no unsaved-changes check).

@@ -6,7 +6,7 @@
 //! a [`TITLE_HEIGHT`] bar above: it follows its nodes. Everything here is in graph coordinates
 //! (the snarl layer's transform maps them to the screen).
 
-use super::graph_view::{Action, SNARL_ID};
+use super::graph_view::Action;
 use super::placement::{self, Rect as PlaceRect};
 use crate::graph::{Graph, NodeId};
 use egui::emath::TSTransform;
@@ -136,16 +136,17 @@ pub fn bar_label(title: &str) -> String {
 /// The title bars' interaction, in the snarl's layer above its nodes: a drag moves the frame's
 /// nodes (returned as a delta per frame, applied to the widget's node positions); a
 /// right-click opens the frame's menu, a double-click its rename dialog. `to_global` is the
-/// view's transform, `view` the panel's screen rectangle.
+/// view's transform, `view` the panel's screen rectangle, `snarl_id` the graph widget's id.
 pub fn bars_ui(
     ui: &mut Ui,
+    snarl_id: Id,
     graph: &Graph,
     rects: &[(usize, FrameRects)],
     to_global: TSTransform,
     view: Rect,
     actions: &mut Vec<Action>,
 ) -> Vec<(usize, egui::Vec2)> {
-    let layer = LayerId::new(ui.layer_id().order, Id::new(SNARL_ID));
+    let layer = LayerId::new(ui.layer_id().order, snarl_id);
     let mut fui = ui.new_child(UiBuilder::new().layer_id(layer).max_rect(Rect::EVERYTHING));
     fui.set_clip_rect(to_global.inverse() * view);
     let mut moves = Vec::new();

@@ -156,6 +156,9 @@ pub struct GraphView {
     /// Each drawn node's rectangle relative to its position (offset of the top-left corner,
     /// size), as the widget last drew it.
     measured: BTreeMap<NodeId, ([f32; 2], [f32; 2])>,
+    /// Which document the widget shows ([`Self::new_document`]): its state (selection, view)
+    /// is kept in egui under an id of its own per document.
+    doc_scope: u64,
 }
 
 impl Default for GraphView {
@@ -176,11 +179,29 @@ impl Default for GraphView {
             to_global: TSTransform::IDENTITY,
             panel: None,
             measured: BTreeMap::new(),
+            doc_scope: 0,
         }
     }
 }
 
 impl GraphView {
+    /// Starts over for another document (opened, or a group entered or left): no node of the
+    /// old one stays in the widget, and its selection, kept by the widget's node indices, does
+    /// not carry over to the nodes of the new one that reuse them. The view is fitted again.
+    pub fn new_document(&mut self) {
+        self.snarl = Snarl::new();
+        self.by_id.clear();
+        self.measured.clear();
+        self.frame_only = None;
+        self.frame_pending = 3;
+        self.doc_scope += 1;
+    }
+
+    /// The widget's egui id for the current document.
+    fn snarl_id(&self) -> Id {
+        Id::new(SNARL_ID).with(self.doc_scope)
+    }
+
     /// Mirrors `graph` into the snarl: adds and removes nodes, moves them, fixes wires.
     pub fn sync(&mut self, graph: &Graph, ports: &BTreeMap<NodeId, NodePorts>) {
         let gone: Vec<NodeId> = self
@@ -266,7 +287,7 @@ impl GraphView {
     /// Graph ids of the nodes selected in the widget.
     #[must_use]
     pub fn selected(&self, ctx: &egui::Context) -> Vec<NodeId> {
-        egui_snarl::ui::get_selected_nodes(Id::new(SNARL_ID), ctx)
+        egui_snarl::ui::get_selected_nodes(self.snarl_id(), ctx)
             .into_iter()
             .filter_map(|sid| self.snarl.get_node(sid).copied())
             .collect()
@@ -387,6 +408,7 @@ impl GraphView {
         let frame = (self.frame_pending > 0).then_some(panel);
         self.frame_pending = self.frame_pending.saturating_sub(1);
         let (pointer, shift) = ui.input(|i| (i.pointer.latest_pos(), i.modifiers.shift));
+        let snarl_id = self.snarl_id();
         let mut viewer = Viewer {
             data,
             actions: Vec::new(),
@@ -397,11 +419,13 @@ impl GraphView {
             request: None,
             pointer,
             shift,
+            snarl_id,
         };
-        let resp = SnarlWidget::new()
-            .id(Id::new(SNARL_ID))
-            .style(self.style)
-            .show(&mut self.snarl, &mut viewer, ui);
+        let resp = SnarlWidget::new().id(snarl_id).style(self.style).show(
+            &mut self.snarl,
+            &mut viewer,
+            ui,
+        );
         let (mut actions, request, to_global) = (viewer.actions, viewer.request, viewer.to_global);
         self.to_global = to_global;
         if self.frame_pending == 0 {
@@ -412,9 +436,15 @@ impl GraphView {
         let rects = super::frames::frame_rects(data.graph, |id| {
             super::frames::node_rect(data.graph, &self.measured, id)
         });
-        for (i, delta) in
-            super::frames::bars_ui(ui, data.graph, &rects, to_global, resp.rect, &mut actions)
-        {
+        for (i, delta) in super::frames::bars_ui(
+            ui,
+            snarl_id,
+            data.graph,
+            &rects,
+            to_global,
+            resp.rect,
+            &mut actions,
+        ) {
             for id in &data.graph.frames[i].nodes {
                 if let Some(info) = self
                     .by_id
@@ -499,6 +529,8 @@ struct Viewer<'a, 'd> {
     pointer: Option<Pos2>,
     /// Shift is held (Shift + right-click on a wire inserts a reroute).
     shift: bool,
+    /// The widget's egui id.
+    snarl_id: Id,
 }
 
 impl Viewer<'_, '_> {
@@ -956,7 +988,7 @@ impl SnarlViewer<NodeId> for Viewer<'_, '_> {
             self.actions.push(Action::Delete(vec![id]));
             ui.close();
         }
-        let selected: Vec<NodeId> = egui_snarl::ui::get_selected_nodes(Id::new(SNARL_ID), ui.ctx())
+        let selected: Vec<NodeId> = egui_snarl::ui::get_selected_nodes(self.snarl_id, ui.ctx())
             .into_iter()
             .filter_map(|s| snarl.get_node(s).copied())
             .collect();

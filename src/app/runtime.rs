@@ -90,11 +90,13 @@ impl Runtime {
 }
 
 impl EditorApp {
-    /// True while an evaluation is running or a newer graph waits to be sent.
+    /// True while an evaluation is running or a newer graph waits to be sent. The graph
+    /// compared is the one [`send_if_changed`](Self::send_if_changed) sends: inside a group,
+    /// the subgraph in its context (`eval_context`), not the document alone.
     #[must_use]
     pub fn evaluating(&self) -> bool {
         self.runtime.in_flight.is_some()
-            || self.runtime.last_sent.as_ref() != Some(&eval_graph(&self.session.doc.graph))
+            || self.runtime.last_sent.as_ref() != Some(&eval_graph(&self.eval_context().0))
     }
 
     /// Takes worker messages, accepts current results, sends a new request when the graph

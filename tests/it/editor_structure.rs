@@ -321,4 +321,8 @@ fn double_click_opens_a_group_in_place_and_the_breadcrumb_leads_back() {
     assert!(h.state().session.groups.is_empty(), "left the group");
     assert_eq!(h.state().session.doc.graph, outer);
     assert_eq!(h.state().session.selected, Some(gid));
+    // The widget's selection does not carry over to other nodes: its node indices are reused
+    // by the other document's nodes.
+    let widget = h.state().graph_view().selected(&h.ctx);
+    assert!(widget.iter().all(|id| *id == gid), "{widget:?}");
 }
