@@ -204,10 +204,7 @@ fn check_refuses_bad_frames_and_reroutes_naming_file_and_node() {
         assert_eq!(o.status.code(), Some(2), "{name}");
         let err = stderr(&o);
         assert!(err.contains(want), "{name}: {err}");
-        assert!(
-            err.trim_end().ends_with(&format!("{name}")),
-            "{name}: {err}"
-        );
+        assert!(err.trim_end().ends_with(name), "{name}: {err}");
         assert_eq!(err.trim_end().lines().count(), 1, "{err}");
     }
     // A newer version is refused with what to do.
