@@ -6,7 +6,7 @@
 //! so the evaluator, the content keys and the region engine never see it, and a graph
 //! evaluates the same with or without reroutes.
 //!
-//! Validation ([`type_reroutes`], run by [`LoadedGraph`]) refuses a reroute with nothing
+//! Validation (`type_reroutes`, run by [`LoadedGraph`]) refuses a reroute with nothing
 //! connected, one whose wire comes from a missing node or port, and a loop of reroutes. In the
 //! editor's unfinished graphs ([`Graph::node_ports`]) a reroute fed by nothing yet takes the
 //! type its users expect.
