@@ -25,6 +25,9 @@ mod golden;
 #[path = "it/graph_errors.rs"]
 mod graph_errors;
 
+#[path = "it/structure.rs"]
+mod structure;
+
 #[path = "it/cache.rs"]
 mod cache;
 
@@ -122,3 +125,7 @@ mod layers;
 
 #[path = "it/parse_once.rs"]
 mod parse_once;
+
+#[cfg(feature = "gui")]
+#[path = "it/editor_structure.rs"]
+mod editor_structure;

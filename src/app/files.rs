@@ -152,6 +152,7 @@ impl EditorApp {
         self.cancel();
         self.session.doc_epoch += 1;
         self.session.doc = doc;
+        self.session.groups.clear();
         self.session.autosaved = None;
         self.session.viewed = default_view(&self.session.doc.graph);
         self.session.selected = self.session.viewed.as_ref().map(|v| v.0);
@@ -161,7 +162,8 @@ impl EditorApp {
         self.runtime.last_sent = None;
         self.runtime.in_flight = None; // its result will be stale
         self.placed.clear();
-        self.view.frame_pending = 3;
+        self.view.new_document();
+        self.last_widget_selection.clear();
     }
 
     /// Opens a graph file (no unsaved-changes check).

@@ -258,6 +258,12 @@ impl Plan {
                         }
                     }
                 }
+                // A reroute is a wire: its users read its source directly, so no instance,
+                // key or region ever sees it.
+                NodeKind::Reroute => {
+                    let c = inputs.into_iter().next().unwrap_or(Conn::None);
+                    outs.insert((*id, crate::graph::reroute::OUT.to_string()), c);
+                }
             }
         }
         outs

@@ -797,6 +797,11 @@ pub fn bound_op(ty: PortType) -> Option<&'static dyn DynOp> {
 /// The id of the reusable-graph node (a graph file used as a node; see `crate::graph`).
 pub const GRAPH_NODE_OP: &str = "graph";
 
+/// The id of the reroute node: a point on a wire, one input `in` and one output `out` of the
+/// type of what feeds it (see `crate::graph::reroute`). It runs nothing: the plan connects
+/// its users straight to its source.
+pub const REROUTE_OP: &str = "reroute";
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -809,6 +814,7 @@ mod tests {
         ids.dedup();
         assert_eq!(ids.len(), n, "duplicate operator ids");
         assert!(!ids.contains(&GRAPH_NODE_OP));
+        assert!(!ids.contains(&REROUTE_OP));
         for op in registry() {
             let s = op.spec();
             for ports in [&s.inputs, &s.outputs] {
