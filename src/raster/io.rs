@@ -23,6 +23,7 @@ mod openexr;
 mod png_normals;
 pub mod stream;
 pub mod targets;
+pub mod zarr;
 
 pub use exr_write::ExrFormat;
 pub mod temp;

@@ -260,7 +260,7 @@ impl Window<'_> {
 /// `(0, 0, 1)`) and counts what needed it. The loop is branch-free (selects and mask counts),
 /// so it vectorises; a pixel at a time through three zipped parallel iterators was a tenth of
 /// a streamed 4K graph's CPU time.
-fn repair_normals([nx, ny, nz]: [&mut [f32]; 3]) -> Validation {
+pub(crate) fn repair_normals([nx, ny, nz]: [&mut [f32]; 3]) -> Validation {
     let (mut zero, mut non_unit, mut back) = (0usize, 0usize, 0usize);
     for ((x, y), z) in nx.iter_mut().zip(ny.iter_mut()).zip(nz.iter_mut()) {
         let len = (*x * *x + *y * *y + *z * *z).sqrt();
