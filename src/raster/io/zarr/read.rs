@@ -47,6 +47,7 @@ enum ChunkData {
 /// An OME-Zarr image opened for reading: its metadata and one array per level.
 pub struct ZarrImage {
     path: PathBuf,
+    store: Arc<Store>,
     levels: Vec<Level>,
     labels: Vec<String>,
     roles: Vec<Role>,
@@ -305,6 +306,7 @@ impl ZarrImage {
         };
         Ok(Self {
             path: path.to_path_buf(),
+            store,
             levels,
             labels,
             roles,
@@ -372,6 +374,12 @@ impl ZarrImage {
             }
         }
         v
+    }
+
+    /// Chunks (or shards) read from this store so far (by every reader of it).
+    #[must_use]
+    pub fn chunks_read(&self) -> u64 {
+        self.store.reads()
     }
 
     /// How many chunks (or shards) reading `rect` of level `k` decodes: those that cover it.

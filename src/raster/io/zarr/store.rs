@@ -41,6 +41,8 @@ fn is_metadata(key: &StoreKey) -> bool {
 pub struct Store {
     fs: FilesystemStore,
     root: PathBuf,
+    /// Chunks read through this store.
+    reads: AtomicU64,
 }
 
 impl Store {
@@ -50,7 +52,13 @@ impl Store {
         Ok(Self {
             fs,
             root: root.to_path_buf(),
+            reads: AtomicU64::new(0),
         })
+    }
+
+    /// Chunks read through this store so far.
+    pub fn reads(&self) -> u64 {
+        self.reads.load(Ordering::Relaxed)
     }
 
     /// The file of `key`.
@@ -86,6 +94,7 @@ impl ReadableStorageTraits for Store {
     ) -> Result<MaybeBytesIterator<'a>, StorageError> {
         if !is_metadata(key) {
             CHUNKS_READ.fetch_add(1, Ordering::Relaxed);
+            self.reads.fetch_add(1, Ordering::Relaxed);
         }
         self.fs.get_partial_many(key, byte_ranges)
     }
