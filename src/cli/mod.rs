@@ -19,7 +19,9 @@ mod exr;
 mod graph;
 mod image;
 pub mod interrupt;
+mod ops;
 pub mod out;
+mod png_sink;
 mod publish;
 mod serve;
 
@@ -190,8 +192,8 @@ pub fn run_command(command: Command, out: &mut Out<'_>) -> Result<(), CliError> 
         Command::Serve(a) => serve::serve_cmd(&a, out),
         Command::Eval(a) => graph::eval_cmd(&a, out),
         Command::Batch(a) => graph::batch_cmd(&a, out),
-        Command::Check(a) => graph::check_cmd(&a, out),
-        Command::Ops => graph::ops_cmd(out),
+        Command::Check(a) => ops::check_cmd(&a, out),
+        Command::Ops => ops::ops_cmd(out),
         Command::Capture(a) => capture::capture_cmd(&a, out),
         Command::Completions(a) => docs::completions_cmd(&a, out),
         Command::Man(a) => docs::man_cmd(&a, out),
