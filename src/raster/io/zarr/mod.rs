@@ -359,6 +359,96 @@ fn store_error(path: &Path, detail: impl Into<String>) -> RgbnError {
     }
 }
 
+/// A store named where a colour image, a photo or a normal-map file is expected, or as the
+/// target of a colour or normal-map file.
+pub fn not_a_raster(path: &Path) -> RgbnError {
+    RgbnError::UnsupportedFormat {
+        format: "zarr (an OME-Zarr store holds a whole RGBN image, picture, mask or field: read it as the image or mask, write it with save or -o)".into(),
+        path: path.into(),
+    }
+}
+
+/// The RGBN image of the store at `path` (level 0), its normals repaired as
+/// [`super::load`] repairs a file's, refused under `strict` when any needed it.
+pub fn load(path: &Path, opts: &super::LoadOptions) -> Result<super::Loaded, RgbnError> {
+    let z = ZarrImage::open(path)?;
+    let (image, repaired) = z.read_rgbn(0, crate::raster::window::Rect::full(z.size()))?;
+    if opts.strict {
+        if let Some(e) = repaired.strict_error(path) {
+            return Err(e);
+        }
+    }
+    Ok(super::Loaded { image, repaired })
+}
+
+/// The linear colour of an RGBN store (or a picture's sRGB bytes, made linear) at `path`.
+pub fn load_color(path: &Path) -> Result<(usize, usize, [Vec<f32>; 3]), RgbnError> {
+    let z = ZarrImage::open(path)?;
+    let (w, h) = z.size();
+    let mut planes = z.read(0, crate::raster::window::Rect::full((w, h)))?;
+    let find = |k: usize| z.labels().iter().position(|l| Role::of(l) == Role::Color(k));
+    let (Some(r), Some(g), Some(b)) = (find(0), find(1), find(2)) else {
+        return Err(store_error(path, format!("no colour channels R, G, B (it has {})", z.labels().join(", "))));
+    };
+    let mut take = |i: usize| std::mem::take(&mut planes[i]);
+    let mut rgb = [take(r), take(g), take(b)];
+    if z.content() == Content::Picture {
+        let lut = crate::raster::srgb::srgb8_lut();
+        for p in &mut rgb {
+            p.iter_mut().for_each(|v| *v = lut[(*v as usize).min(255)]);
+        }
+    }
+    Ok((w, h, rgb))
+}
+
+/// The `mask` channel of the store at `path` (a mask store, or an RGBN one with a mask).
+pub fn load_mask(path: &Path) -> Result<(usize, usize, Vec<f32>), RgbnError> {
+    let z = ZarrImage::open(path)?;
+    let (w, h) = z.size();
+    match z.read_channel(Role::Mask)? {
+        Some(m) => Ok((w, h, m)),
+        None => Err(store_error(path, format!("no mask channel (it has {})", z.labels().join(", ")))),
+    }
+}
+
+/// The content key of the store at `path` without reading its chunks: the XXH3-128 of its
+/// metadata files' bytes and of every file's relative path, size and modification time
+/// (a chunk rewritten, even with the same bytes, changes it; an unchanged store keeps it).
+pub fn stamp(path: &Path) -> std::io::Result<u128> {
+    let mut files = Vec::new();
+    let mut todo = vec![path.to_path_buf()];
+    while let Some(d) = todo.pop() {
+        for e in std::fs::read_dir(&d)? {
+            let e = e?;
+            let m = e.metadata()?;
+            if m.is_dir() {
+                todo.push(e.path());
+            } else {
+                let rel = e.path().strip_prefix(path).unwrap_or(&e.path()).to_path_buf();
+                let t = m
+                    .modified()
+                    .ok()
+                    .and_then(|t| t.duration_since(std::time::UNIX_EPOCH).ok())
+                    .map_or(0, |d| d.as_nanos());
+                files.push((rel, m.len(), t));
+            }
+        }
+    }
+    files.sort();
+    let mut h = xxhash_rust::xxh3::Xxh3::new();
+    h.update(b"rgbn-zarr-stamp-1\0");
+    for (rel, len, t) in &files {
+        let name = rel.to_string_lossy();
+        h.update(name.as_bytes());
+        h.update(&len.to_le_bytes());
+        h.update(&t.to_le_bytes());
+        if name.ends_with("zarr.json") || name.ends_with(".zarray") || name.ends_with(".zattrs") {
+            h.update(&std::fs::read(path.join(rel))?);
+        }
+    }
+    Ok(h.digest128())
+}
+
 /// The pixel size of the image in the store at `path` (its metadata only), or `None` if it is
 /// not one rgbn reads.
 #[must_use]
