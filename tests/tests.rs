@@ -109,3 +109,6 @@ mod layers;
 
 #[path = "it/parse_once.rs"]
 mod parse_once;
+
+#[path = "it/zarr.rs"]
+mod zarr;
