@@ -115,20 +115,16 @@ def main():
                 shutil.rmtree(p, ignore_errors=True)
             o = outs("w")
             t["whole"].append(rgbn_cli(["eval", g, "--input", f"image={store}", "-o", f"image={o['image']}", "-o", f"relit={o['relit']}"], env=env2))
-            client.run(lambda: None)
-            before = time.time()
-            t0 = time.perf_counter()
-            rd.evaluate(g, {"image": store}, outs("d"), chunks=a.chunks)
-            t["dask"].append(time.perf_counter() - t0)
             # Task compute times from the scheduler's task stream (seconds inside each task).
-            durs = client.run_on_scheduler(
-                lambda dask_scheduler, since=before: [
-                    sum(s["stop"] - s["start"] for s in ts.get("startstops", ()) if s["action"] == "compute")
-                    for ts in dask_scheduler.get_task_stream(start=since)
-                    if str(ts.get("key", "")).find("rgbn-chunk") >= 0
-                ]
-            )
-            stats.append(durs)
+            with distributed.get_task_stream(client) as ts:
+                t0 = time.perf_counter()
+                rd.evaluate(g, {"image": store}, outs("d"), chunks=a.chunks)
+                t["dask"].append(time.perf_counter() - t0)
+            stats.append([
+                sum(s["stop"] - s["start"] for s in d.get("startstops", ()) if s["action"] == "compute")
+                for d in ts.data
+                if "rgbn-chunk" in str(d.get("key", ""))
+            ])
             shutil.rmtree(os.path.join(a.dir, "peer.zarr"), ignore_errors=True)
             t0 = time.perf_counter()
             peer(store, os.path.join(a.dir, "peer.zarr"))

@@ -200,8 +200,9 @@ def evaluate(graph, inputs, outputs, *, chunks=None, level=0, set=None, zarr_chu
 
         w, h = _common_size(sizes)
         task = dask.delayed(_task, pure=True)
+        token = _token(src, paths, outs, level, side, zarr_chunk)
         tasks = [
-            task(src, paths, outs, r, int(level), zarr_chunk, TILE, threads, dask_key_name=f"rgbn-chunk-{r[0]}-{r[1]}-{_token(src, paths, outs, level, side)}")
+            task(src, paths, outs, r, int(level), zarr_chunk, TILE, threads, dask_key_name=f"rgbn-chunk-{r[0]}-{r[1]}-{token}")
             for r in _regions(w, h, side)
         ]
         client = _client()
@@ -245,8 +246,14 @@ def _block(value, ty):
     return np.asarray(value, dtype=np.float32)[None]
 
 
-def _pick(values, name, ty):
-    return _block(values[name], ty)
+def _task_blocks(graph, inputs, types, region, level, zarr_chunk, tile, threads):
+    """One Dask task of the lazy form: ``{name: (C, h, w) array}`` over ``region``."""
+    values = _task(graph, inputs, list(types), region, level, zarr_chunk, tile, threads)
+    return {n: _block(values[n], ty) for n, ty in types.items()}
+
+
+def _pick(blocks, name):
+    return blocks[name]
 
 
 def arrays(graph, inputs, outputs=None, *, chunks=None, level=0, set=None, threads=1):
@@ -265,8 +272,9 @@ def arrays(graph, inputs, outputs=None, *, chunks=None, level=0, set=None, threa
     names = list(sizes)
     w, h = _common_size(sizes)
     regions = _regions(w, h, side)
+    types = {n: sizes[n][2] for n in names}
     per = {
-        r: dask.delayed(_task, pure=True)(src, paths, names, r, int(level), ZARR_CHUNK, TILE, threads)
+        r: dask.delayed(_task_blocks, pure=True)(src, paths, types, r, int(level), ZARR_CHUNK, TILE, threads)
         for r in regions
     }
     out = {}
@@ -278,7 +286,7 @@ def arrays(graph, inputs, outputs=None, *, chunks=None, level=0, set=None, threa
             row = []
             for x in range(0, w, side):
                 r = (x, y, min(side, w - x), min(side, h - y))
-                blk = dask.delayed(_pick, pure=True)(per[r], name, ty)
+                blk = dask.delayed(_pick, pure=True)(per[r], name)
                 row.append(da.from_delayed(blk, shape=(nc, r[3], r[2]), dtype=dtype))
             rows.append(row)
         out[name] = da.block(rows)

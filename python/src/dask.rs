@@ -168,7 +168,7 @@ fn on_pool<T: Send>(
         .thread_name(|i| format!("rgbn-task-{i}"))
         .build()
         .map_err(|e| crate::error::EvalError::new_err(format!("cannot start threads: {e}")))?;
-    Ok(py.detach(|| pool.install(f)))
+    Ok(py.detach(move || pool.install(f)))
 }
 
 /// One task: the graph over `region` (x, y, w, h, in the level's pixels) at `level`. With

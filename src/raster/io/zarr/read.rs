@@ -6,6 +6,7 @@ use super::store::Store;
 use super::{store_error, Content, Role};
 use crate::error::RgbnError;
 use crate::raster::io::DEFAULT_ALBEDO;
+use crate::raster::par::SharedMut;
 use crate::raster::window::Rect;
 use crate::raster::{RgbnImage, Validation};
 use rayon::prelude::*;
@@ -507,39 +508,44 @@ impl ZarrImage {
         let (sc, sy, sx) = (c_ax.map_or(0, |c| strides[c]), strides[y_ax], strides[x_ax]);
         let nc = self.labels.len();
         let maps: Vec<_> = (0..nc).map(|ch| self.map_fn(ch)).collect();
-        // Decode in parallel; each chunk gives the part of the rectangle it covers.
-        type Part = (Rect, usize, Vec<Vec<f32>>);
-        let parts: Vec<Result<Part, RgbnError>> = jobs
-            .par_iter()
-            .map(|&[ci, gy, gx]| {
-                let data = self.decode(k, [ci, gy, gx])?;
-                let cell = Rect::new(gx * cx, gy * cy, cx, cy);
-                let r = cell.intersect(&rect);
-                let c0 = ci * cc;
-                let planes = (c0..(c0 + cc).min(nc))
-                    .map(|ch| {
-                        let f = &maps[ch];
-                        let mut p = Vec::with_capacity(r.w * r.h);
-                        for y in r.y..r.bottom() {
-                            let base = (ch - c0) * sc + (y - cell.y) * sy;
-                            p.extend((r.x..r.right()).map(|x| f(&data, base + (x - cell.x) * sx)));
-                        }
-                        p
-                    })
-                    .collect();
-                Ok((r, c0, planes))
+        // Decode in parallel; each chunk writes the part of the rectangle it covers straight
+        // into the output planes.
+        let ptrs: Vec<SharedMut<f32>> = out
+            .iter_mut()
+            .map(|o| {
+                assert_eq!(o.len(), rect.w * rect.h);
+                SharedMut(o.as_mut_ptr())
             })
             .collect();
-        for part in parts {
-            let (r, c0, planes) = part?;
-            for (j, p) in planes.iter().enumerate() {
-                let o = &mut out[c0 + j];
-                for row in 0..r.h {
-                    let d = (r.y - rect.y + row) * rect.w + (r.x - rect.x);
-                    o[d..d + r.w].copy_from_slice(&p[row * r.w..(row + 1) * r.w]);
+        let floats = self.dtype == Dtype::F32;
+        jobs.par_iter().try_for_each(|&[ci, gy, gx]| {
+            let data = self.decode(k, [ci, gy, gx])?;
+            let cell = Rect::new(gx * cx, gy * cy, cx, cy);
+            let r = cell.intersect(&rect);
+            let c0 = ci * cc;
+            for ch in c0..(c0 + cc).min(nc) {
+                let f = &maps[ch];
+                for y in r.y..r.bottom() {
+                    let base = (ch - c0) * sc + (y - cell.y) * sy + (r.x - cell.x) * sx;
+                    let d = (y - rect.y) * rect.w + (r.x - rect.x);
+                    // SAFETY: row y of channel ch, columns r.x..r.right() of the rectangle lie
+                    // inside the plane (r is within rect); the chunks' rectangles are disjoint,
+                    // so no other task writes these elements, and `out` outlives the tasks.
+                    let dst = unsafe { std::slice::from_raw_parts_mut(ptrs[ch].get().add(d), r.w) };
+                    match &data {
+                        ChunkData::F32(v) if floats && sx == 1 => {
+                            dst.copy_from_slice(&v[base..base + r.w]);
+                        }
+                        _ => {
+                            for (i, o) in dst.iter_mut().enumerate() {
+                                *o = f(&data, base + i * sx);
+                            }
+                        }
+                    }
                 }
             }
-        }
+            Ok::<(), RgbnError>(())
+        })?;
         Ok(())
     }
 
