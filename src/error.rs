@@ -102,6 +102,11 @@ pub enum RgbnError {
     /// Planes that do not form a valid image (wrong lengths); a programming or data error.
     #[error("invalid image: {0}")]
     InvalidImage(String),
+
+    /// The work was cancelled (Ctrl-C, the editor's Cancel or a newer edit); nothing it
+    /// computed is kept.
+    #[error("cancelled")]
+    Cancelled,
 }
 
 impl RgbnError {

@@ -6,7 +6,7 @@
 //! reports integrability as curl everywhere.
 //!
 //! Modules:
-//! - [`params`]: parameters declared once ([`params!`], [`choice_enum!`]): the visitor every
+//! - [`params`](mod@params): parameters declared once ([`params!`], [`choice_enum!`]): the visitor every
 //!   consumer (files, `--set`, `rgbn ops`, the editor's widgets) walks.
 //! - [`raster`]: the image model ([`RgbnImage`]), file I/O, gradient maths and curl,
 //!   convolution kernels, built-in sample and analytic surfaces.
@@ -20,6 +20,7 @@
 //! - [`render`]: relighting and the diagnostic views.
 //! - [`gallery`]: the paper's figures as graphs, their pictures and numbers (`docs/gallery.md`).
 //! - [`cli`]: the command line (used by the `rgbn` binary).
+//! - [`cancel`]: the cancellation token long kernels check ([`cancel::Cancel`]).
 //! - [`recycle`]: the global allocator the binary installs (reuses image-sized blocks).
 //! - `app` (feature `gui`): the egui editor, the only module that uses egui.
 //!
@@ -31,11 +32,12 @@
 //! listed before it (`tests/it/layers.rs` checks every `crate::` path in `src/` against it):
 //!
 //! ```text
-//! layers: error test_data recycle params raster capture render ops nodes graph eval gallery app cli
+//! layers: error cancel test_data recycle params raster capture render ops nodes graph eval gallery app cli
 //! ```
 
 #[cfg(feature = "gui")]
 pub mod app;
+pub mod cancel;
 pub mod capture;
 pub mod cli;
 pub mod error;

@@ -29,8 +29,10 @@ use std::cell::Cell;
 use std::collections::BTreeMap;
 use std::fmt;
 
+mod meta;
 mod nearest;
 mod paths;
+pub use meta::{Meta, Slider};
 pub use nearest::{edit_distance, nearest};
 pub use paths::{apply_own, parse_paths, paths_text, visit_except, PathValue};
 
@@ -130,59 +132,6 @@ impl fmt::Display for ParamValue {
             }
             ParamValue::Paths(p) => write!(f, "{}", paths_text(p)),
         }
-    }
-}
-
-/// Metadata of one parameter: documentation, unit and (for numbers) the accepted range.
-#[derive(Clone, Debug, Default, PartialEq)]
-pub struct Meta {
-    /// One-sentence documentation.
-    pub doc: &'static str,
-    /// Unit shown after the value (e.g. `px`, `rad`, `EV`); empty when unitless.
-    pub unit: &'static str,
-    /// Inclusive range for numbers (each element for vectors and lists).
-    pub range: Option<(f64, f64)>,
-    /// For paths: true when the file is written (an output), false when it is read.
-    pub output: bool,
-    /// For paths and texts: an empty value is allowed (meaning "none").
-    pub optional: bool,
-}
-
-impl Meta {
-    /// Metadata with a doc line.
-    #[must_use]
-    pub const fn new(doc: &'static str) -> Self {
-        Self {
-            doc,
-            unit: "",
-            range: None,
-            output: false,
-            optional: false,
-        }
-    }
-    /// Sets the unit.
-    #[must_use]
-    pub const fn unit(mut self, unit: &'static str) -> Self {
-        self.unit = unit;
-        self
-    }
-    /// Sets the inclusive range.
-    #[must_use]
-    pub const fn range(mut self, min: f64, max: f64) -> Self {
-        self.range = Some((min, max));
-        self
-    }
-    /// Marks a path as written rather than read.
-    #[must_use]
-    pub const fn output(mut self) -> Self {
-        self.output = true;
-        self
-    }
-    /// Allows an empty path or text.
-    #[must_use]
-    pub const fn optional(mut self) -> Self {
-        self.optional = true;
-        self
     }
 }
 
@@ -404,8 +353,8 @@ macro_rules! choice_enum {
 
 /// Declares a params struct, its [`Default`] and its [`Params::visit`] from one field list:
 /// each field's doc comment is its documentation (inspector tooltip, `rgbn ops`), then
-/// `name: type = default => kind` with the [`Meta`] builder calls (`unit`, `range`, `output`,
-/// `optional`). `kind` is a [`ParamVisitor`] method (`float`, `int`, `bool`, `text`, `path`,
+/// `name: type = default => kind` with the [`Meta`] builder calls (`unit`, `range`, `soft`,
+/// `log`, `output`, `optional`). `kind` is a [`ParamVisitor`] method (`float`, `int`, `bool`, `text`, `path`,
 /// `vec3`, `floats`, `profile`, `points`, `paths`), `choice` for a [`Choice`] enum, or `flatten` for a
 /// field that is itself a params struct (its parameters appear as the parent's, unprefixed:
 /// one declaration shared by several operators).
@@ -416,13 +365,16 @@ macro_rules! choice_enum {
 ///     #[derive(Clone, Debug, PartialEq)]
 ///     pub struct Blur {
 ///         /// Gaussian σ.
-///         pub sigma_px: f64 = 2.0 => float.unit("px").range(0.01, 4096.0),
+///         pub sigma_px: f64 = 2.0 => float.unit("px").range(0.01, 4096.0).soft(0.1, 64.0).log(),
 ///         /// Filter inside the mask only.
 ///         pub mask_aware: bool = false => bool,
 ///     }
 /// }
 /// let info = rgbn::params::describe::<Blur>();
 /// assert_eq!((info[0].name, info[0].meta.doc, info[0].meta.unit), ("sigma_px", "Gaussian σ.", "px"));
+/// // Files and `--set` may give any σ in [0.01, 4096]; the editor's slider runs over [0.1, 64].
+/// let slider = info[0].meta.slider().unwrap();
+/// assert_eq!((slider.lo, slider.hi, slider.log), (0.1, 64.0, true));
 /// ```
 #[macro_export]
 macro_rules! params {

@@ -13,6 +13,9 @@ mod real_data;
 #[path = "it/graphs.rs"]
 mod graphs;
 
+#[path = "it/op_versions.rs"]
+mod op_versions;
+
 #[path = "it/gallery.rs"]
 mod gallery;
 
@@ -24,6 +27,9 @@ mod graph_errors;
 
 #[path = "it/cache.rs"]
 mod cache;
+
+#[path = "it/cancel.rs"]
+mod cancel;
 
 #[path = "it/combine.rs"]
 mod combine;
@@ -45,6 +51,10 @@ mod editor_images;
 #[cfg(feature = "gui")]
 #[path = "it/editor_start.rs"]
 mod editor_start;
+
+#[cfg(feature = "gui")]
+#[path = "it/editor_menu.rs"]
+mod editor_menu;
 
 #[path = "it/nodes.rs"]
 mod nodes;
@@ -69,6 +79,9 @@ mod views;
 
 #[path = "it/nan_ops.rs"]
 mod nan_ops;
+
+#[path = "it/sliders.rs"]
+mod sliders;
 
 #[path = "it/faults.rs"]
 mod faults;

@@ -53,7 +53,7 @@ fn class_of(e: &RgbnError) -> fn(String) -> PyErr {
         | RgbnError::MissingDir { .. }
         | RgbnError::OutputIsInput { .. }
         | RgbnError::Write { .. } => FileError::new_err,
-        RgbnError::InvalidImage(_) => EvalError::new_err,
+        RgbnError::InvalidImage(_) | RgbnError::Cancelled => EvalError::new_err,
         _ => InputError::new_err,
     }
 }

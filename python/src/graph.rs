@@ -228,7 +228,7 @@ impl Graph {
         let names = outputs.unwrap_or_default();
         let cancel = Arc::new(AtomicBool::new(false));
         let opts = EvalOptions {
-            cancel: Some(cancel.clone()),
+            cancel: rgbn::cancel::Cancel::from_flag(cancel.clone()),
             ..EvalOptions::default()
         };
         let ev = self.ev.clone();

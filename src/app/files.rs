@@ -226,8 +226,13 @@ impl EditorApp {
             // The whole-graph refresh keeps only what is shown: an output evaluated but not
             // kept, or not evaluated yet, is asked for and written when it arrives.
             let failed = self.runtime.outcome.node_errors.get(&id);
+            let waiting = self.runtime.outcome.waiting.get(&id);
             if let Some(e) = failed {
                 self.fail(format!("nothing to export: node #{id} failed: {e}"));
+            } else if let Some(port) = waiting {
+                self.fail(format!(
+                    "nothing to export: node #{id} waits for input {port} (connect it)"
+                ));
             } else if self.session.doc.graph.nodes.contains_key(&id) {
                 self.pending_export = Some((path.to_path_buf(), id, port.to_string()));
                 self.say(format!(
@@ -276,6 +281,7 @@ impl EditorApp {
         let out = &self.runtime.outcome;
         let evaluated = out.values.contains_key(&(id, port.clone()))
             || out.node_errors.contains_key(&id)
+            || out.waiting.contains_key(&id)
             || !self.session.doc.graph.nodes.contains_key(&id);
         if evaluated {
             self.export(&path, id, &port);

@@ -6,13 +6,17 @@
 //! the snarl (incrementally, so the widget keeps its selection). Egui-snarl's own node ids are
 //! reused slab indices: they are never persisted nor used as keys outside this module.
 
+use super::add_menu::{self, AddMenu, Wire};
+use super::crisp;
 use super::placement::{self, Rect as PlaceRect};
 use crate::graph::{Graph, NodeId, NodePorts};
 use crate::nodes::{self, PortType};
+use egui::emath::TSTransform;
 use egui::{Color32, Id, Pos2, RichText, TextureHandle, Ui};
-use egui_snarl::ui::{PinInfo, SnarlPin, SnarlStyle, SnarlViewer, SnarlWidget};
+use egui_snarl::ui::{AnyPins, PinInfo, SnarlPin, SnarlStyle, SnarlViewer, SnarlWidget};
 use egui_snarl::{InPin, InPinId, OutPin, OutPinId, Snarl};
 use std::collections::{BTreeMap, BTreeSet};
+use std::path::Path;
 
 /// The snarl widget's id (selection is read back through it).
 pub const SNARL_ID: &str = "rgbn-graph";
@@ -26,6 +30,17 @@ pub enum Action {
         op: String,
         /// Graph position.
         pos: [f32; 2],
+    },
+    /// Add a node of this operator at a dropped wire's end, connected to it.
+    AddWired {
+        /// Operator id.
+        op: String,
+        /// The wire's end (graph position).
+        pos: [f32; 2],
+        /// The wire.
+        wire: Wire,
+        /// The new node's port it connects.
+        port: String,
     },
     /// Connect an output to an input.
     Connect {
@@ -81,6 +96,8 @@ pub struct ViewData<'a> {
     pub thumbs: &'a BTreeMap<NodeId, TextureHandle>,
     /// Errors by node.
     pub errors: &'a BTreeMap<NodeId, String>,
+    /// Nodes waiting for an input (the port), shown as waiting, not failed.
+    pub waiting: &'a BTreeMap<NodeId, String>,
     /// Non-integrable fraction F of each node's RGBN output.
     pub fraction: &'a BTreeMap<NodeId, f64>,
     /// Green-convention badges of the `load` nodes ([`super::green_badge`]).
@@ -89,6 +106,8 @@ pub struct ViewData<'a> {
     pub viewed: Option<NodeId>,
     /// Its output port shown in the preview.
     pub viewed_port: Option<&'a str>,
+    /// The folder relative paths are resolved in (connections are checked against it).
+    pub base_dir: &'a Path,
 }
 
 /// The mirror of the graph in egui-snarl.
@@ -96,11 +115,19 @@ pub struct GraphView {
     snarl: Snarl<NodeId>,
     by_id: BTreeMap<NodeId, egui_snarl::NodeId>,
     style: SnarlStyle,
-    /// The text typed in the add-node menu's search field.
-    pub search: String,
-    /// Frames left during which the view is fitted to the whole graph (panels settle in the
-    /// first frames, so fitting lasts a few).
+    /// The search of the menu bar's Add menu.
+    pub bar_search: add_menu::Search,
+    /// The add-node menu of the graph (right-click, Tab, Shift+A, a dropped wire).
+    pub menu: AddMenu,
+    /// Frames left during which the view is fitted to the graph (panels settle in the first
+    /// frames, so fitting lasts a few).
     pub frame_pending: u32,
+    /// Fit the view to these nodes rather than to all of them ("Frame selected").
+    frame_only: Option<BTreeSet<NodeId>>,
+    /// The view's graph-to-screen transform, as last drawn.
+    to_global: TSTransform,
+    /// The graph panel's screen rectangle, as last drawn.
+    panel: Option<egui::Rect>,
     /// Each drawn node's rectangle relative to its position (offset of the top-left corner,
     /// size), as the widget last drew it.
     measured: BTreeMap<NodeId, ([f32; 2], [f32; 2])>,
@@ -117,8 +144,12 @@ impl Default for GraphView {
             snarl: Snarl::new(),
             by_id: BTreeMap::new(),
             style,
-            search: String::new(),
+            bar_search: add_menu::Search::default(),
+            menu: AddMenu::default(),
             frame_pending: 3,
+            frame_only: None,
+            to_global: TSTransform::IDENTITY,
+            panel: None,
             measured: BTreeMap::new(),
         }
     }
@@ -268,76 +299,154 @@ impl GraphView {
         self.snarl.wires().count()
     }
 
-    /// Draws the graph; returns the actions asked for.
+    /// The graph-to-screen transform of the view, as last drawn.
+    #[must_use]
+    pub fn to_global(&self) -> TSTransform {
+        self.to_global
+    }
+
+    /// The graph panel's screen rectangle, as last drawn.
+    #[must_use]
+    pub fn panel(&self) -> Option<egui::Rect> {
+        self.panel
+    }
+
+    /// Fits the view to `ids` (all nodes when empty) over the next frames.
+    pub fn frame_nodes(&mut self, ids: &[NodeId]) {
+        self.frame_only = (!ids.is_empty()).then(|| ids.iter().copied().collect());
+        self.frame_pending = 2;
+    }
+
+    /// The graph's keys, at the start of a frame (before any widget takes Tab for focus):
+    /// Tab or Shift+A with the pointer over the graph opens the add menu there; F frames the
+    /// nodes selected in the graph (else the `inspected` node, else all), Home all of them.
+    /// Not while `typing` in a field.
+    pub fn keys(&mut self, ctx: &egui::Context, typing: bool, inspected: Option<NodeId>) {
+        if typing || self.menu.is_open() {
+            return;
+        }
+        let over_graph = ctx.pointer_hover_pos().filter(|p| {
+            self.panel.is_some_and(|r| r.contains(*p))
+                && ctx
+                    .layer_id_at(*p)
+                    .is_none_or(|l| l.order == egui::Order::Background)
+        });
+        if let Some(p) = over_graph {
+            if let Some(typed) = add_menu::take_open_keys(ctx) {
+                self.menu.open_at(p, self.to_global);
+                self.menu.swallow(typed);
+                return;
+            }
+        }
+        let (f, home) = ctx.input_mut(|i| {
+            (
+                i.consume_key(egui::Modifiers::NONE, egui::Key::F),
+                i.consume_key(egui::Modifiers::NONE, egui::Key::Home),
+            )
+        });
+        if f {
+            let mut sel = self.selected(ctx);
+            if sel.is_empty() {
+                sel.extend(inspected);
+            }
+            self.frame_nodes(&sel);
+        } else if home {
+            self.frame_nodes(&[]);
+        }
+    }
+
+    /// Draws the graph and the add menu; returns the actions asked for.
     pub fn show_ui(&mut self, ui: &mut Ui, data: &ViewData<'_>) -> Vec<Action> {
-        let frame = (self.frame_pending > 0).then(|| ui.available_rect_before_wrap());
+        let panel = ui.available_rect_before_wrap();
+        self.panel = Some(panel);
+        let frame = (self.frame_pending > 0).then_some(panel);
         self.frame_pending = self.frame_pending.saturating_sub(1);
         let mut viewer = Viewer {
             data,
-            search: &mut self.search,
             actions: Vec::new(),
             frame,
+            frame_only: self.frame_only.as_ref(),
             measured: &mut self.measured,
+            to_global: self.to_global,
+            request: None,
         };
         SnarlWidget::new()
             .id(Id::new(SNARL_ID))
             .style(self.style)
             .show(&mut self.snarl, &mut viewer, ui);
-        viewer.actions
+        let (mut actions, request, to_global) = (viewer.actions, viewer.request, viewer.to_global);
+        self.to_global = to_global;
+        if self.frame_pending == 0 {
+            self.frame_only = None;
+        }
+        let ctx = ui.ctx().clone();
+        if let Some(req) = request {
+            let screen = ctx
+                .input(|i| i.pointer.interact_pos().or(i.pointer.latest_pos()))
+                .unwrap_or(panel.center());
+            match req {
+                MenuRequest::Graph => self.menu.open_at(screen, to_global),
+                MenuRequest::Wire(w) => {
+                    self.menu
+                        .open_for_wire(screen, to_global, w, data.graph, data.base_dir);
+                }
+            }
+        }
+        if let Some(pick) = self.menu.show(&ctx) {
+            let op = pick.op.to_string();
+            actions.push(match pick.wire {
+                None => Action::AddNode { op, pos: pick.at },
+                Some((wire, port)) => Action::AddWired {
+                    op,
+                    pos: pick.at,
+                    wire,
+                    port,
+                },
+            });
+        }
+        actions
     }
 }
 
-/// A menu of every operator by category, with a search field; returns the chosen op id.
-pub fn add_node_menu_ui(ui: &mut Ui, search: &mut String) -> Option<&'static str> {
-    let mut chosen = None;
-    ui.horizontal(|ui| {
-        ui.label("🔍");
-        ui.add(
-            egui::TextEdit::singleline(search)
-                .hint_text("search operators")
-                .desired_width(160.0),
-        );
-    });
-    let q = search.to_lowercase();
-    let mut cats: BTreeMap<&str, Vec<&'static dyn nodes::DynOp>> = BTreeMap::new();
-    for op in nodes::registry() {
-        let s = op.spec();
-        let hit = q.is_empty()
-            || s.id.to_lowercase().contains(&q)
-            || s.title.to_lowercase().contains(&q)
-            || s.category.contains(&q);
-        if hit {
-            cats.entry(s.category).or_default().push(op.as_ref());
-        }
-    }
-    if cats.is_empty() {
-        ui.weak("no operator matches");
-    }
-    for (cat, list) in cats {
-        ui.separator();
-        ui.label(RichText::new(cat).small().weak());
-        for op in list {
-            let s = op.spec();
-            if ui.button(s.title).on_hover_text(s.doc).clicked() {
-                chosen = Some(s.id);
-                ui.close();
-            }
-        }
-    }
-    chosen
+/// What the widget asked the menu for this frame.
+enum MenuRequest {
+    /// A right-click on empty space.
+    Graph,
+    /// A wire dropped in empty space.
+    Wire(Wire),
 }
 
 struct Viewer<'a, 'd> {
     data: &'a ViewData<'d>,
-    search: &'a mut String,
     actions: Vec<Action>,
     /// Fit the view to the graph in this screen rectangle.
     frame: Option<egui::Rect>,
+    /// Fit it to these nodes only.
+    frame_only: Option<&'a BTreeSet<NodeId>>,
     /// Drawn node rectangles (see [`GraphView::node_rects`]).
     measured: &'a mut BTreeMap<NodeId, ([f32; 2], [f32; 2])>,
+    /// The view's transform this frame.
+    to_global: TSTransform,
+    /// The menu asked for.
+    request: Option<MenuRequest>,
 }
 
 impl Viewer<'_, '_> {
+    /// The view's zoom this frame.
+    fn zoom(&self) -> f32 {
+        self.to_global.scaling
+    }
+
+    /// The font and colour of text `style`, weak or not.
+    fn text_style(&self, ui: &Ui, style: egui::TextStyle, weak: bool) -> (egui::FontId, Color32) {
+        let color = if weak {
+            ui.visuals().weak_text_color()
+        } else {
+            ui.visuals().text_color()
+        };
+        (style.resolve(ui.style()), color)
+    }
+
     fn ports(&self, id: NodeId) -> Option<&NodePorts> {
         self.data.ports.get(&id)
     }
@@ -399,7 +508,17 @@ impl SnarlViewer<NodeId> for Viewer<'_, '_> {
     ) {
         let id = snarl[node];
         let title = self.title(&id);
-        let r = ui.label(RichText::new(title).strong());
+        let font = egui::TextStyle::Body.resolve(ui.style());
+        let color = ui.visuals().strong_text_color();
+        let r = crisp::label_ui(
+            ui,
+            &title,
+            &font,
+            color,
+            self.zoom(),
+            false,
+            egui::Sense::hover(),
+        );
         if let Some(n) = self.data.graph.nodes.get(&id) {
             if let Some(op) = nodes::find(&n.op) {
                 r.on_hover_text(op.spec().doc);
@@ -430,8 +549,17 @@ impl SnarlViewer<NodeId> for Viewer<'_, '_> {
         } else {
             p.name.clone()
         };
-        ui.label(text)
-            .on_hover_text(format!("{} — {}", p.ty.name(), p.doc));
+        let (font, color) = self.text_style(ui, egui::TextStyle::Body, false);
+        crisp::label_ui(
+            ui,
+            &text,
+            &font,
+            color,
+            self.zoom(),
+            false,
+            egui::Sense::hover(),
+        )
+        .on_hover_text(format!("{} — {}", p.ty.name(), p.doc));
         PinInfo::circle().with_fill(type_color(p.ty))
     }
 
@@ -451,15 +579,19 @@ impl SnarlViewer<NodeId> for Viewer<'_, '_> {
             return PinInfo::circle();
         };
         let viewed = self.data.viewed == Some(id) && self.data.viewed_port == Some(p.name.as_str());
-        let text = if viewed {
-            RichText::new(&p.name).underline()
-        } else {
-            RichText::new(&p.name)
-        };
-        if ui
-            .add(egui::Label::new(text).sense(egui::Sense::click()))
-            .on_hover_text(format!("{} — {} (click to preview)", p.ty.name(), p.doc))
-            .clicked()
+        let (font, color) = self.text_style(ui, egui::TextStyle::Body, false);
+        let zoom = self.zoom();
+        if crisp::label_ui(
+            ui,
+            &p.name,
+            &font,
+            color,
+            zoom,
+            viewed,
+            egui::Sense::click(),
+        )
+        .on_hover_text(format!("{} — {} (click to preview)", p.ty.name(), p.doc))
+        .clicked()
         {
             self.actions.push(Action::ViewPort(id, p.name.clone()));
         }
@@ -469,6 +601,7 @@ impl SnarlViewer<NodeId> for Viewer<'_, '_> {
     fn has_body(&mut self, node: &NodeId) -> bool {
         self.data.thumbs.contains_key(node)
             || self.data.errors.contains_key(node)
+            || self.data.waiting.contains_key(node)
             || self.data.green.contains_key(node)
     }
 
@@ -487,18 +620,25 @@ impl SnarlViewer<NodeId> for Viewer<'_, '_> {
                 let scale = (72.0 / size.x.max(size.y)).min(1.0);
                 ui.add(egui::Image::new((t.id(), size * scale)));
             }
+            let (small, weak) = self.text_style(ui, egui::TextStyle::Small, true);
             if let Some(f) = self.data.fraction.get(&id) {
-                ui.label(RichText::new(format!("F {f:.2e}")).small().weak())
+                let zoom = self.zoom();
+                crisp::label_ui(ui, &format!("F {f:.2e}"), &small, weak, zoom, false, egui::Sense::hover())
                     .on_hover_text("Non-integrable fraction of this node's normals: 0 for a surface, √(2/π) ≈ 0.80 for noise");
             }
             if let Some(b) = self.data.green.get(&id) {
-                let text = RichText::new(&b.text).small();
-                let text = if b.mismatch {
-                    text.color(Color32::from_rgb(0xe0, 0xb0, 0x40))
+                let color = if b.mismatch {
+                    Color32::from_rgb(0xe0, 0xb0, 0x40)
                 } else {
-                    text.weak()
+                    weak
                 };
-                ui.label(text).on_hover_text(&b.hover);
+                crisp::label_ui(ui, &b.text, &small, color, self.zoom(), false, egui::Sense::hover())
+                    .on_hover_text(&b.hover);
+            }
+            if let Some(port) = self.data.waiting.get(&id) {
+                let text = format!("waits for input {port}");
+                crisp::label_ui(ui, &text, &small, weak, self.zoom(), false, egui::Sense::hover())
+                    .on_hover_text("Connect this input (drag a wire to it) to evaluate the node");
             }
             if let Some(e) = self.data.errors.get(&id) {
                 ui.set_min_width(170.0);
@@ -568,40 +708,74 @@ impl SnarlViewer<NodeId> for Viewer<'_, '_> {
         }
     }
 
-    fn current_transform(
-        &mut self,
-        to_global: &mut egui::emath::TSTransform,
-        snarl: &mut Snarl<NodeId>,
-    ) {
-        let Some(view) = self.frame else { return };
-        let mut bb = egui::Rect::NOTHING;
-        for n in snarl.nodes_info() {
-            // Node sizes are not known here: a typical node with a thumbnail.
-            bb.extend_with(n.pos);
-            bb.extend_with(n.pos + egui::vec2(250.0, 150.0));
+    fn current_transform(&mut self, to_global: &mut TSTransform, snarl: &mut Snarl<NodeId>) {
+        if let Some(view) = self.frame {
+            let mut bb = egui::Rect::NOTHING;
+            for (_, pos, id) in snarl.nodes_pos_ids() {
+                if self.frame_only.is_some_and(|only| !only.contains(id)) {
+                    continue;
+                }
+                // As last drawn; a node not drawn yet as a typical node with a thumbnail.
+                let (off, size) = self
+                    .measured
+                    .get(id)
+                    .copied()
+                    .unwrap_or(([0.0, 0.0], [250.0, 150.0]));
+                let min = pos + egui::vec2(off[0], off[1]);
+                bb = bb.union(egui::Rect::from_min_size(min, egui::vec2(size[0], size[1])));
+            }
+            if bb.is_finite() && view.is_finite() && view.width() >= 10.0 {
+                let bb = bb.expand(30.0);
+                let scaling = (view.size() / bb.size()).min_elem().clamp(0.2, 1.0);
+                *to_global = TSTransform {
+                    scaling,
+                    translation: view.center().to_vec2() - bb.center().to_vec2() * scaling,
+                };
+            }
         }
-        if !bb.is_finite() || !view.is_finite() || view.width() < 10.0 {
-            return;
-        }
-        let bb = bb.expand(30.0);
-        let scaling = (view.size() / bb.size()).min_elem().clamp(0.2, 1.0);
-        *to_global = egui::emath::TSTransform {
-            scaling,
-            translation: view.center().to_vec2() - bb.center().to_vec2() * scaling,
-        };
+        self.to_global = *to_global;
     }
 
     fn has_graph_menu(&mut self, _pos: Pos2, _snarl: &mut Snarl<NodeId>) -> bool {
         true
     }
 
-    fn show_graph_menu(&mut self, pos: Pos2, ui: &mut Ui, _snarl: &mut Snarl<NodeId>) {
-        ui.label(RichText::new("Add node").strong());
-        if let Some(op) = add_node_menu_ui(ui, self.search) {
-            self.actions.push(Action::AddNode {
-                op: op.to_string(),
-                pos: [pos.x, pos.y],
-            });
+    /// The widget's own popup is closed at once: the menu is [`AddMenu`], which keeps the
+    /// point clicked (the popup moves to fit on screen) and takes the keyboard.
+    fn show_graph_menu(&mut self, _pos: Pos2, ui: &mut Ui, _snarl: &mut Snarl<NodeId>) {
+        self.request = Some(MenuRequest::Graph);
+        ui.close();
+    }
+
+    fn has_dropped_wire_menu(&mut self, src_pins: AnyPins, _snarl: &mut Snarl<NodeId>) -> bool {
+        match src_pins {
+            AnyPins::Out(p) => !p.is_empty(),
+            AnyPins::In(p) => !p.is_empty(),
+        }
+    }
+
+    fn show_dropped_wire_menu(
+        &mut self,
+        _pos: Pos2,
+        ui: &mut Ui,
+        src_pins: AnyPins,
+        snarl: &mut Snarl<NodeId>,
+    ) {
+        ui.close();
+        let wire = match src_pins {
+            AnyPins::Out(pins) => pins.first().and_then(|pin| {
+                let node = *snarl.get_node(pin.node)?;
+                let port = self.ports(node)?.outputs.get(pin.output)?.name.clone();
+                Some(Wire::Out { node, port })
+            }),
+            AnyPins::In(pins) => pins.first().and_then(|pin| {
+                let node = *snarl.get_node(pin.node)?;
+                let port = self.ports(node)?.inputs.get(pin.input)?.name.clone();
+                Some(Wire::In { node, port })
+            }),
+        };
+        if let Some(w) = wire {
+            self.request = Some(MenuRequest::Wire(w));
         }
     }
 

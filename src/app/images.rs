@@ -1,6 +1,6 @@
 //! Opening images directly: File ▸ Open image… and files dropped on the window add a `load`
 //! node wired into the viewed chain; and where new nodes go (never on top of existing ones,
-//! see [`placement`](super::placement)).
+//! see [`placement`]).
 
 use super::dialogs::Then;
 use super::placement::{self, Rect};
@@ -95,7 +95,9 @@ impl EditorApp {
             }
             let out = &self.runtime.outcome;
             let evaluated = !evaluating
-                && (out.node_errors.contains_key(&id) || out.keys.keys().any(|k| k.0 == id));
+                && (out.node_errors.contains_key(&id)
+                    || out.waiting.contains_key(&id)
+                    || out.keys.keys().any(|k| k.0 == id));
             if evaluated {
                 if let Some(w) = self.placed.get_mut(&id) {
                     w.1 = w.1.saturating_sub(1);

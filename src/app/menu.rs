@@ -1,8 +1,9 @@
 //! The menu bar, keyboard shortcuts and the Help ▸ Operators window.
 
+use super::add_menu;
 use super::dialogs::{Dialog, Then};
 use super::files::FilePurpose;
-use super::graph_view::{self, Action};
+use super::graph_view::Action;
 use super::preview;
 use super::EditorApp;
 use crate::graph::NodeId;
@@ -11,6 +12,9 @@ use egui::{Key, KeyboardShortcut, Modifiers, RichText};
 impl EditorApp {
     pub(super) fn shortcuts(&mut self, ctx: &egui::Context) {
         let typing = ctx.egui_wants_keyboard_input();
+        if self.dialog.is_none() && self.files.is_none() {
+            self.view.keys(ctx, typing, self.session.selected);
+        }
         let sc = |m, k| KeyboardShortcut::new(m, k);
         let hit = |s: KeyboardShortcut| ctx.input_mut(|i| i.consume_shortcut(&s));
         if hit(sc(Modifiers::COMMAND | Modifiers::SHIFT, Key::Z))
@@ -185,8 +189,11 @@ impl EditorApp {
                 }
             });
             ui.menu_button("Add", |ui| {
-                if let Some(op) = graph_view::add_node_menu_ui(ui, &mut self.view.search) {
-                    self.add_node_after_selection(op);
+                let offers = add_menu::all_offers();
+                if let Some(k) = add_menu::list_ui(ui, &mut self.view.bar_search, &offers, true) {
+                    self.add_node_after_selection(offers[k].spec.id);
+                    self.view.bar_search = add_menu::Search::default();
+                    ui.close();
                 }
             });
             ui.menu_button("View", |ui| {
@@ -200,8 +207,19 @@ impl EditorApp {
                     }
                 }
                 ui.separator();
-                if ui.button("Frame graph").clicked() {
-                    self.view.frame_pending = 2;
+                if ui
+                    .add(egui::Button::new("Frame selected (graph)").shortcut_text("F"))
+                    .clicked()
+                {
+                    let sel = self.view.selected(ui.ctx());
+                    self.view.frame_nodes(&sel);
+                    ui.close();
+                }
+                if ui
+                    .add(egui::Button::new("Frame all (graph)").shortcut_text("Home"))
+                    .clicked()
+                {
+                    self.view.frame_nodes(&[]);
                     ui.close();
                 }
                 let uictx = ui.ctx().clone();
@@ -224,6 +242,10 @@ impl EditorApp {
             ui.menu_button("Help", |ui| {
                 if ui.button("Operators…").clicked() {
                     self.show_ops = true;
+                    ui.close();
+                }
+                if ui.button("Keyboard shortcuts…").clicked() {
+                    self.show_keys = true;
                     ui.close();
                 }
                 if ui.button("About rgbn").clicked() {
@@ -253,11 +275,7 @@ pub(super) fn ops_doc_ui(ui: &mut egui::Ui) {
                         ui.label(format!("out {} : {} — {}", p.name, p.ty.name(), p.doc));
                     }
                     for p in op.params() {
-                        let range = p
-                            .meta
-                            .range
-                            .map(|(a, b)| format!(" [{a}, {b}]"))
-                            .unwrap_or_default();
+                        let range = p.meta.ranges_text();
                         ui.label(format!(
                             "param {} = {}{} {}{} — {}",
                             p.name, p.default, "", p.meta.unit, range, p.meta.doc

@@ -2,7 +2,8 @@
 //! only module that uses egui.
 //!
 //! - [`state`]: the document (graph, file, undo history) and edit commands — no egui;
-//! - [`worker`]: evaluation on a worker thread, generations, thumbnails — no egui;
+//! - [`worker`]: evaluation on a worker thread, generations, thumbnails; of egui it uses only
+//!   `egui::ColorImage`, the rendered picture it hands the UI thread (no widgets, no context);
 //! - [`graph_view`]: the node graph (egui-snarl as a view of the graph); [`green_badge`]: the
 //!   `load` nodes' OpenGL / DirectX verdicts, checked off the UI thread;
 //! - [`params_ui`]: the inspector; [`preview`]: the relit preview;
@@ -21,6 +22,8 @@
 //! Layout: menu bar; node graph | preview | inspector (resizable); status bar with evaluation
 //! progress, cache memory and the viewed node's curl.
 
+pub mod add_menu;
+pub mod crisp;
 pub mod dialogs;
 pub mod files;
 pub mod graph_view;
@@ -36,6 +39,7 @@ pub mod recent;
 pub mod refresh;
 pub mod runtime;
 pub mod session;
+pub mod shortcuts;
 pub mod soak;
 pub mod start;
 pub mod state;
@@ -138,6 +142,8 @@ pub struct EditorApp {
     pending_export: Option<(std::path::PathBuf, NodeId, String)>,
     /// The Help ▸ Operators window is open.
     show_ops: bool,
+    /// The Help ▸ Keyboard shortcuts window is open.
+    show_keys: bool,
     /// Nodes the editor placed that it keeps clear of others until they are drawn evaluated
     /// (their size is known only then): position given, frames left once evaluated.
     placed: BTreeMap<NodeId, ([f32; 2], u8)>,
@@ -162,9 +168,21 @@ impl EditorApp {
             files: None,
             pending_export: None,
             show_ops: false,
+            show_keys: false,
             placed: BTreeMap::new(),
             last_widget_selection: Vec::new(),
         }
+    }
+
+    /// The graph view (its add menu, transform, drawn node rectangles).
+    #[must_use]
+    pub fn graph_view(&self) -> &GraphView {
+        &self.view
+    }
+
+    /// Fits the graph view to `ids` (all nodes when empty), as F and Home do.
+    pub fn frame_graph_nodes(&mut self, ids: &[NodeId]) {
+        self.view.frame_nodes(ids);
     }
 
     /// Copies nodes to the editor's clipboard (and their RON text to the system clipboard).
@@ -253,6 +271,14 @@ impl EditorApp {
                 self.watch_placed(id);
                 self.session.selected = Some(id);
                 self.say(format!("added {op} (#{id})"));
+            }
+            Action::AddWired {
+                op,
+                pos,
+                wire,
+                port,
+            } => {
+                self.add_wired(&op, pos, &wire, &port);
             }
             Action::Connect {
                 from,
@@ -442,20 +468,21 @@ impl EditorApp {
                     .iter()
                     .map(|(k, (_, t))| (*k, t.clone()))
                     .collect();
-                let green = self.green.update(
-                    &self.session.doc.graph,
-                    &self.session.doc.base_dir(),
-                    ui.ctx(),
-                );
+                let base_dir = self.session.doc.base_dir();
+                let green = self
+                    .green
+                    .update(&self.session.doc.graph, &base_dir, ui.ctx());
                 let data = ViewData {
                     graph: &self.session.doc.graph,
                     ports: &self.runtime.ports,
                     thumbs: &tex,
                     errors: &self.runtime.outcome.node_errors,
+                    waiting: &self.runtime.outcome.waiting,
                     fraction: &self.runtime.outcome.fraction,
                     green: &green,
                     viewed: self.session.viewed.as_ref().map(|v| v.0),
                     viewed_port: self.session.viewed.as_ref().map(|v| v.1.as_str()),
+                    base_dir: &base_dir,
                 };
                 actions.extend(self.view.show_ui(ui, &data));
             });
@@ -472,6 +499,14 @@ impl EditorApp {
                 .default_size([520.0, 600.0])
                 .show(&ctx, ops_doc_ui);
             self.show_ops = open;
+        }
+        if self.show_keys {
+            let mut open = true;
+            egui::Window::new("Keyboard shortcuts")
+                .open(&mut open)
+                .resizable(false)
+                .show(&ctx, shortcuts::shortcuts_ui);
+            self.show_keys = open;
         }
 
         // Selection drives the inspector and the preview.
@@ -606,7 +641,7 @@ impl EditorApp {
             .filter(|s| self.session.doc.graph.nodes.contains_key(s))
         else {
             ui.weak("Select a node to edit its parameters.");
-            ui.weak("Right-click the graph (or use the Add menu) to add nodes.");
+            ui.weak("Right-click the graph, or press Tab over it, to add nodes (the Add menu adds after the selected node).");
             return;
         };
         let base = self.session.doc.base_dir();
@@ -616,6 +651,11 @@ impl EditorApp {
         if let Some(e) = self.runtime.outcome.node_errors.get(&id) {
             ui.separator();
             ui.colored_label(Color32::from_rgb(255, 110, 110), e);
+        } else if let Some(port) = self.runtime.outcome.waiting.get(&id) {
+            ui.separator();
+            ui.label(format!(
+                "Waits for input {port}: connect it to evaluate this node."
+            ));
         }
         ui.separator();
         ui.horizontal(|ui| {
@@ -757,6 +797,10 @@ impl EditorApp {
             (_, None) => "Click a node to view its output.".to_string(),
             (None, Some((id, _))) => match self.runtime.outcome.node_errors.get(id) {
                 Some(e) => format!("error: {e}"),
+                None if self.runtime.outcome.waiting.contains_key(id) => format!(
+                    "node #{id} waits for input {}: connect it",
+                    self.runtime.outcome.waiting[id]
+                ),
                 None if self.runtime.in_flight.is_some() => "evaluating…".into(),
                 None if self.runtime.outcome.viewport_only => format!(
                     "viewport only: the output is larger than the editor evaluates whole ({} Mpx); pan and zoom evaluate what is shown, rgbn eval computes all of it",

@@ -35,32 +35,43 @@ pub fn param_ui(
                 .changed();
         }
         (ParamKind::Int, ParamValue::Int(i)) => {
-            let r = match meta.range {
-                Some((lo, hi)) => {
-                    let log = lo >= 1.0 && hi / lo > 100.0;
-                    ui.add(
-                        egui::Slider::new(i, lo as i64..=hi as i64)
-                            .logarithmic(log)
-                            .suffix(&suffix),
-                    )
+            let r = match meta.slider() {
+                Some(sl) => {
+                    let mut s = egui::Slider::new(i, sl.lo as i64..=sl.hi as i64)
+                        .logarithmic(sl.log)
+                        .clamping(egui::SliderClamping::Never)
+                        .suffix(&suffix);
+                    if sl.log && sl.lo == 0.0 {
+                        s = s.smallest_positive(sl.smallest_positive(true));
+                    }
+                    ui.add(s)
                 }
                 None => ui.add(egui::DragValue::new(i).suffix(&suffix)),
             };
+            // Beyond the slider, typed values are kept up to the hard range.
+            if let Some((lo, hi)) = meta.range {
+                *i = (*i).clamp(lo as i64, hi as i64);
+            }
             changed |= r.labelled_by(label).on_hover_text(meta.doc).changed();
         }
         (ParamKind::Float, ParamValue::Float(x)) => {
-            let r = match meta.range {
-                Some((lo, hi)) => {
-                    let log = lo > 0.0 && hi / lo > 100.0;
-                    ui.add(
-                        egui::Slider::new(x, lo..=hi)
-                            .logarithmic(log)
-                            .suffix(&suffix)
-                            .max_decimals(4),
-                    )
+            let r = match meta.slider() {
+                Some(sl) => {
+                    let mut s = egui::Slider::new(x, sl.lo..=sl.hi)
+                        .logarithmic(sl.log)
+                        .clamping(egui::SliderClamping::Never)
+                        .suffix(&suffix)
+                        .custom_formatter(|v, decimals| number_text(v, *decimals.start()));
+                    if sl.log && sl.lo == 0.0 {
+                        s = s.smallest_positive(sl.smallest_positive(false));
+                    }
+                    ui.add(s)
                 }
                 None => ui.add(egui::DragValue::new(x).speed(0.01).suffix(&suffix)),
             };
+            if let Some((lo, hi)) = meta.range {
+                *x = x.clamp(lo, hi);
+            }
             changed |= r.labelled_by(label).on_hover_text(meta.doc).changed();
         }
         (ParamKind::Choice(options), ParamValue::Choice(s)) => {
@@ -164,6 +175,53 @@ pub fn param_ui(
     }
     ui.end_row();
     changed
+}
+
+/// The first sentence of an operator's doc (the inspector's line under the title): up to the
+/// first full stop followed by a space that is outside parentheses and does not end an
+/// abbreviation (`et al.`, `e.g.`, `i.e.`, `cf.`, `Fig.`, `vs.`) — "RGBN bilateral filter
+/// (Toler-Franklin et al. 2007; …): base = …" is one sentence. The whole doc when it has one
+/// sentence.
+#[must_use]
+pub fn doc_summary(doc: &str) -> &str {
+    const ABBREVIATIONS: [&str; 6] = ["et al", "e.g", "i.e", "cf", "Fig", "vs"];
+    let mut depth = 0i32;
+    for (k, c) in doc.char_indices() {
+        match c {
+            '(' | '[' => depth += 1,
+            ')' | ']' => depth -= 1,
+            '.' if depth <= 0 && doc[k + 1..].starts_with(' ') => {
+                let before = &doc[..k];
+                if !ABBREVIATIONS.iter().any(|a| before.ends_with(a)) {
+                    return &doc[..=k];
+                }
+            }
+            _ => {}
+        }
+    }
+    doc
+}
+
+/// A slider's number: at most 4 decimals (at least `min_decimals`), and small magnitudes
+/// (tolerances of 10⁻⁶) in scientific notation rather than as `0.0000`.
+#[must_use]
+pub fn number_text(v: f64, min_decimals: usize) -> String {
+    if v != 0.0 && v.abs() < 1e-3 {
+        return format!("{v:.2e}");
+    }
+    let s = format!("{v:.4}");
+    let s = if s.contains('.') {
+        s.trim_end_matches('0').to_string()
+    } else {
+        s
+    };
+    let s = s.trim_end_matches('.').to_string();
+    let decimals = s.split_once('.').map_or(0, |(_, d)| d.len());
+    if decimals < min_decimals {
+        format!("{v:.min_decimals$}")
+    } else {
+        s
+    }
 }
 
 /// A list of points as rows of x and y, each removable, and a button that adds one.
@@ -484,8 +542,8 @@ pub fn inspector_ui(ui: &mut Ui, graph: &mut Graph, id: NodeId, base_dir: &Path)
     ui.label(RichText::new(format!("#{id} · {}", n.op)).small().weak());
     if let Some(op) = op {
         let doc = op.spec().doc;
-        let summary = doc.split(". ").next().unwrap_or(doc);
-        ui.label(summary).on_hover_text(doc);
+        ui.add(egui::Label::new(doc_summary(doc)).wrap())
+            .on_hover_text(doc);
     }
     ui.separator();
     let mut name = n.name.clone().unwrap_or_default();

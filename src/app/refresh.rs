@@ -218,7 +218,7 @@ pub fn readouts(
     plan: &Plan,
 ) -> Option<Readouts> {
     let opts = EvalOptions {
-        cancel: Some(req.cancel.clone()),
+        cancel: crate::cancel::Cancel::from_flag(req.cancel.clone()),
         progress: None,
         curl_stats: true,
     };

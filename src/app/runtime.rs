@@ -291,6 +291,13 @@ impl EditorApp {
                 "{} node(s) failed; #{id}: {e}",
                 out.node_errors.len()
             ));
+        } else if let Some((id, port)) = out.waiting.iter().next() {
+            // Not a failure: a node just added waits for its input until it is wired.
+            let more = match out.waiting.len() {
+                1 => String::new(),
+                n => format!(" ({} more node(s) wait for inputs)", n - 1),
+            };
+            self.say(format!("#{id} waits for input {port}{more}"));
         } else if self.status.error {
             self.status = Status::default();
         }

@@ -147,6 +147,9 @@ pub struct EvalOutcome {
     pub thumbs: BTreeMap<NodeId, Arc<Picture>>,
     /// Errors by node.
     pub node_errors: BTreeMap<NodeId, String>,
+    /// Nodes waiting for an input: a required input (this port) is not connected yet. Not a
+    /// failure: a node just added is in this state until it is wired.
+    pub waiting: BTreeMap<NodeId, String>,
     /// Errors not attributable to a node of this graph.
     pub error: Option<String>,
     /// Relative RMS curl of each node's RGBN output.
@@ -432,7 +435,7 @@ pub fn evaluate_view(
     let v = req.view.as_ref()?;
     let (plan, name) = view_plan(req, v).ok()?;
     let opts = EvalOptions {
-        cancel: Some(req.cancel.clone()),
+        cancel: crate::cancel::Cancel::from_flag(req.cancel.clone()),
         progress: None,
         curl_stats: false,
     };
@@ -638,7 +641,7 @@ pub fn evaluate_memo(
                     ports.insert(id, names);
                 }
                 Err(e) => {
-                    failed = Some((id, e.to_string()));
+                    failed = Some((id, Left::Failed(e.to_string())));
                     break;
                 }
             }
@@ -651,7 +654,7 @@ pub fn evaluate_memo(
                 Ok(p) => {
                     // The readouts come after, apart ([`readouts`]): they never delay values.
                     let opts = EvalOptions {
-                        cancel: Some(req.cancel.clone()),
+                        cancel: crate::cancel::Cancel::from_flag(req.cancel.clone()),
                         progress: progress.clone(),
                         curl_stats: false,
                     };
@@ -664,27 +667,24 @@ pub fn evaluate_memo(
                             out.cancelled = true;
                             return (out, None);
                         }
-                        Err(e) => match error_node(&e, TOP_LABEL) {
-                            Some(id) => Some((id, e.to_string())),
-                            None => {
-                                out.error = Some(e.to_string());
-                                None
-                            }
-                        },
+                        Err(e) => left_out(&e).or_else(|| {
+                            out.error = Some(e.to_string());
+                            None
+                        }),
                     }
                 }
-                Err(e) => match error_node(&e, TOP_LABEL) {
-                    Some(id) => Some((id, e.to_string())),
-                    None => {
-                        out.error = Some(e.to_string());
-                        None
-                    }
-                },
+                Err(e) => left_out(&e).or_else(|| {
+                    out.error = Some(e.to_string());
+                    None
+                }),
             },
         };
         match err {
-            Some((id, msg)) => {
-                out.node_errors.insert(id, short_error(&msg));
+            Some((id, left)) => {
+                match left {
+                    Left::Failed(msg) => out.node_errors.insert(id, short_error(&msg)),
+                    Left::Waiting(port) => out.waiting.insert(id, port),
+                };
                 for d in descendants(&g, id) {
                     g.nodes.remove(&d);
                 }
@@ -711,6 +711,26 @@ pub fn memory_use(ev: &Evaluator, memo: &Memo, out: &EvalOutcome) -> MemoryUse {
         thumbs: memo.bytes(),
         pool: crate::recycle::kept_bytes(),
     }
+}
+
+/// Why a node was left out of an evaluation.
+enum Left {
+    /// It failed (the message).
+    Failed(String),
+    /// A required input (this port) is not connected: it waits for it.
+    Waiting(String),
+}
+
+/// The node an error is about and why it is left out, if the error is about one node.
+fn left_out(e: &GraphError) -> Option<(NodeId, Left)> {
+    let id = error_node(e, TOP_LABEL)?;
+    Some((
+        id,
+        match e {
+            GraphError::MissingInput { port, .. } => Left::Waiting(port.clone()),
+            _ => Left::Failed(e.to_string()),
+        },
+    ))
 }
 
 /// An error message without its trailing location (`: node 7 "name" in <memory>`), which the

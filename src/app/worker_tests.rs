@@ -43,15 +43,24 @@ fn evaluates_every_node_and_reports_errors_on_their_nodes() {
     let lonely = d.add_node("normalize", [0.0, 0.0]); // required input missing
     let below = d.add_node("curl", [0.0, 0.0]);
     d.connect(lonely, "image", below, "image").unwrap();
+    let broken = d.add_node("load", [0.0, 0.0]);
+    d.set_param(broken, "path", ParamValue::Path("no-such-file.png".into()));
     let ev = Evaluator::default();
     let req = request(&d.graph, 7);
     let (out, plan) = evaluate_with_plan(&ev, &req, None);
     assert_eq!(out.generation, 7);
     assert!(out.error.is_none(), "{:?}", out.error);
-    assert_eq!(
-        out.node_errors[&lonely],
-        "required input \"image\" is not connected"
+    // A node whose required input is not connected waits for it: not a failure.
+    assert_eq!(out.waiting.get(&lonely).map(String::as_str), Some("image"));
+    assert!(
+        !out.node_errors.contains_key(&lonely),
+        "{:?}",
+        out.node_errors
     );
+    // A node that cannot run fails, with its error.
+    let e = &out.node_errors[&broken];
+    assert!(e.contains("no-such-file.png"), "{e}");
+    assert!(!out.waiting.contains_key(&broken));
     assert!(!out.values.contains_key(&(below, "relative_rms".into())));
     for id in 1..=6 {
         assert!(

@@ -125,7 +125,7 @@ impl CliError {
         };
         match library_error {
             // An operator met an image it cannot process (inconsistent sizes, …).
-            RgbnError::InvalidImage(_) => Exit::Failed,
+            RgbnError::InvalidImage(_) | RgbnError::Cancelled => Exit::Failed,
             // Everything else is about the user's files, parameters or targets.
             _ => Exit::Usage,
         }

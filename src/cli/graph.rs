@@ -392,7 +392,7 @@ pub fn eval_cmd(a: &EvalArgs, out: &mut Out<'_>) -> Result<(), CliError> {
     let pb = progress_bar(0);
     let pb2 = pb.clone();
     let opts = EvalOptions {
-        cancel: super::interrupt::flag(),
+        cancel: super::interrupt::token(),
         progress: Some(Arc::new(move |p| {
             pb2.set_length(p.total as u64);
             pb2.set_position(p.done as u64);
@@ -507,13 +507,13 @@ fn stream_plan<'p>(
 fn stream_strips(
     sp: StreamPlan<'_>,
     strip_rows: Option<usize>,
-    cancelled: impl Fn() -> bool,
+    cancel: &crate::cancel::Cancel,
     exrs: &mut [Option<ExrTarget>],
     zarrs: &mut [Option<ZarrSink>],
     mut sinks: Vec<Option<PngSink<'_, '_>>>,
 ) -> Result<(), CliError> {
     let mut stopped = false;
-    let r = sp.run(strip_rows, cancelled, |_, values, core| {
+    let r = sp.run(strip_rows, cancel, |_, values, core| {
         super::interrupt::check()?;
         for (((s, e), z), v) in sinks
             .iter_mut()
@@ -592,12 +592,7 @@ fn eval_stream(
             _ => Some(PngTarget::create(path, w, h, SaveOptions::default().bits)?),
         });
     }
-    let cancel = super::interrupt::flag();
-    let cancelled = || {
-        cancel
-            .as_ref()
-            .is_some_and(|c| c.load(std::sync::atomic::Ordering::Relaxed))
-    };
+    let cancel = super::interrupt::token();
     let encoding = RowEncoding::Normal(NormalConvention::OpenGl);
     let pipelined = crate::raster::par::pipelined();
     // Outside the pool, the PNG outputs are written by tasks on it; a worker of a pool (`--jobs`)
@@ -613,7 +608,7 @@ fn eval_stream(
                     None => None,
                 });
             }
-            stream_strips(sp, strip_rows, cancelled, &mut exrs, &mut zarrs, sinks)
+            stream_strips(sp, strip_rows, &cancel, &mut exrs, &mut zarrs, sinks)
         })?;
     } else {
         std::thread::scope(|scope| -> Result<(), CliError> {
@@ -628,7 +623,7 @@ fn eval_stream(
                     None => None,
                 });
             }
-            stream_strips(sp, strip_rows, cancelled, &mut exrs, &mut zarrs, sinks)
+            stream_strips(sp, strip_rows, &cancel, &mut exrs, &mut zarrs, sinks)
         })?;
     }
     // Each file is synced and renamed into place; with more than one thread, side by side
@@ -848,7 +843,7 @@ pub fn batch_cmd(a: &BatchArgs, out: &mut Out<'_>) -> Result<(), CliError> {
             a.streaming.stream.allows(why.as_deref())?;
         }
         let opts = EvalOptions {
-            cancel: super::interrupt::flag(),
+            cancel: super::interrupt::token(),
             ..EvalOptions::default()
         };
         let r = ev.eval(&plan, &[], &opts)?;

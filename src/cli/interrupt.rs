@@ -1,16 +1,17 @@
 //! Ctrl-C (SIGINT) and SIGTERM in the command line.
 //!
 //! [`install`] replaces the default action (die at once) with a flag: the evaluator's
-//! cancellation ([`EvalOptions::cancel`](crate::eval::EvalOptions)) stops before the next node,
-//! and each command calls [`check`] before it writes, so an interrupted run writes nothing more
+//! cancellation token ([`EvalOptions::cancel`](crate::eval::EvalOptions), seen by every
+//! operator as [`crate::cancel::Cancel`]) stops the running operator within milliseconds (its
+//! kernels check it between bands and iterations) and no further node starts, and each command calls [`check`] before it writes, so an interrupted run writes nothing more
 //! — every output already reported as written is complete (writes are atomic), nothing is left
 //! half-written — and exits with 130 (SIGINT) or 143 (SIGTERM), as a shell reports a process
 //! killed by that signal. The first signal also prints one line; the handler is then reset to
 //! the default action, so a second Ctrl-C ends the process at once (its temporary files, if any,
 //! are cleaned by the next run).
 //!
-//! Operators check no flag while they run, so a long node would delay the stop. A watcher
-//! thread therefore ends the process [`GRACE`] after the signal if the command is still going,
+//! Should some step not check the token (a file being decoded, say), a watcher thread ends the
+//! process [`GRACE`] after the signal if the command is still going,
 //! as soon as no atomic write is under way ([`writes_in_flight`]): the unfinished node's result
 //! is lost, which costs nothing (it was never going to be written), and every file on disk is
 //! an old one or a complete new one.
@@ -120,4 +121,12 @@ pub fn check() -> Result<(), CliError> {
 #[must_use]
 pub fn flag() -> Option<Arc<AtomicBool>> {
     FLAG.get().cloned()
+}
+
+/// [`flag`] as a cancellation token (never set when no handler is installed).
+pub fn token() -> crate::cancel::Cancel {
+    flag().map_or_else(
+        crate::cancel::Cancel::never,
+        crate::cancel::Cancel::from_flag,
+    )
 }

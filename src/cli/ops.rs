@@ -74,11 +74,7 @@ pub fn ops_cmd(out: &mut Out<'_>) -> Result<(), CliError> {
             }
         }
         for p in op.params() {
-            let range = p
-                .meta
-                .range
-                .map(|(a, b)| format!(" in [{a}, {b}]"))
-                .unwrap_or_default();
+            let range = p.meta.ranges_text();
             let default = match &p.default {
                 ParamValue::Path(s) | ParamValue::Text(s) if s.is_empty() => "none".into(),
                 v => v.to_string(),

@@ -92,22 +92,13 @@ impl Evaluator {
         on_value: Option<&ValueFn>,
     ) -> Result<EvalResult, GraphError> {
         let slot = |name: &str| -> Result<Option<(usize, usize)>, GraphError> {
-            match plan.outputs.get(name) {
-                Some(Conn::Slot(i, p)) => Ok(Some((*i, *p))),
-                Some(Conn::Unbound { name, at }) => Err(GraphError::UnboundInput {
+            match plan.output(name)? {
+                Conn::Slot(i, p) => Ok(Some((*i, *p))),
+                Conn::Unbound { name, at } => Err(GraphError::UnboundInput {
                     name: name.clone(),
                     at: at.clone(),
                 }),
-                Some(Conn::None) => Ok(None),
-                None => Err(GraphError::Unknown {
-                    what: "graph output",
-                    name: name.to_string(),
-                    suggestion: crate::params::nearest(
-                        name,
-                        plan.outputs.keys().map(String::as_str),
-                    ),
-                    at: plan.at.clone(),
-                }),
+                Conn::None => Ok(None),
             }
         };
         let mut kept = Vec::new();

@@ -14,7 +14,9 @@
 //! - **Memory**: before anything runs, the plan's peak memory is estimated from the output
 //!   sizes every operator states ([`memory`]); over the budget (`RGBN_MEMORY_LIMIT`) the
 //!   evaluation is refused with an error naming the nodes that need the most.
-//! - **Cancellation and progress**: [`EvalOptions::cancel`] is checked before each node;
+//! - **Cancellation and progress**: [`EvalOptions::cancel`] is checked before each node and,
+//!   as the [`crate::cancel::Cancel`] token of [`RunContext`], by long operators while they run;
+//!   a cancelled node's result is never cached;
 //!   [`EvalOptions::progress`] is called after each node that ran.
 
 // Graph errors carry their location (file, node, names) by value; they are cold paths.
@@ -37,12 +39,12 @@ pub use plan::{port_key, Conn, Instance, Plan};
 
 use crate::graph::{At, GraphError, NodeId};
 use crate::nodes::{RunContext, Value, ALL_PORTS};
-use crate::params::{nearest, ParamKind, ParamValue};
+use crate::params::{ParamKind, ParamValue};
 use crate::raster::gradient::GradientField;
 use rayon::prelude::*;
 use std::collections::{BTreeMap, HashMap, HashSet};
 use std::path::{Path, PathBuf};
-use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
+use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant, SystemTime};
 
@@ -65,8 +67,9 @@ pub type ProgressFn = Arc<dyn Fn(&Progress) + Send + Sync>;
 /// Options of one evaluation.
 #[derive(Clone, Default)]
 pub struct EvalOptions {
-    /// Set to `true` (from any thread) to stop before the next node.
-    pub cancel: Option<Arc<AtomicBool>>,
+    /// The evaluation's cancellation token: set it (from any thread) to stop the running
+    /// operators and start no other (`crate::cancel`).
+    pub cancel: crate::cancel::Cancel,
     /// Called after each node that ran.
     pub progress: Option<ProgressFn>,
     /// Measure the integrability of each node's RGBN output: its relative RMS curl and its
@@ -78,12 +81,15 @@ pub struct EvalOptions {
 }
 
 impl EvalOptions {
+    /// [`EvalOptions::cancel`], the token operators see ([`RunContext::cancel`]).
+    #[must_use]
+    pub fn token(&self) -> crate::cancel::Cancel {
+        self.cancel.clone()
+    }
     /// Whether [`EvalOptions::cancel`] is set.
     #[must_use]
     pub fn cancelled(&self) -> bool {
-        self.cancel
-            .as_ref()
-            .is_some_and(|c| c.load(Ordering::Relaxed))
+        self.cancel.is_cancelled()
     }
 }
 
@@ -345,17 +351,7 @@ impl Evaluator {
         };
         let mut roots = Vec::new();
         for name in &names {
-            match plan.outputs.get(name) {
-                Some(c) => roots.push(c.clone()),
-                None => {
-                    return Err(GraphError::Unknown {
-                        what: "graph output",
-                        name: name.clone(),
-                        suggestion: nearest(name, plan.outputs.keys().map(String::as_str)),
-                        at: plan.at.clone(),
-                    })
-                }
-            }
+            roots.push(plan.output(name)?.clone());
         }
         let mut slots = Vec::new();
         let mut asked = Vec::new();
@@ -461,7 +457,7 @@ impl Evaluator {
         }
         let total = to_run.len();
         let done = AtomicUsize::new(0);
-        let ctx = RunContext::new(plan.protected.clone());
+        let ctx = RunContext::new(plan.protected.clone()).with_cancel(opts.token());
         for l in 0..depth {
             let batch: Vec<usize> = to_run.iter().copied().filter(|i| level[i] == l).collect();
             let ran: Vec<Result<Ran, GraphError>> = batch
@@ -594,14 +590,23 @@ impl Evaluator {
             .map(|(i, e)| (*i, e.clone()))
             .collect();
         type Read = Result<(usize, Arc<CacheEntry>, Duration), GraphError>;
+        let token = opts.token();
         let done: Vec<Read> = todo
             .into_par_iter()
             .map(|(i, e)| {
-                if opts.cancelled() {
+                if token.is_cancelled() {
                     return Err(GraphError::Cancelled);
                 }
                 let t0 = Instant::now();
-                let (curl, fraction) = integrability_of(&e);
+                // The readout's solver sees this evaluation's token (not one a pool worker
+                // may have entered for another job) and a cancelled readout is not kept.
+                let (curl, fraction) = {
+                    let _current = token.enter();
+                    integrability_of(&e)
+                };
+                if token.is_cancelled() {
+                    return Err(GraphError::Cancelled);
+                }
                 let mut c = (*e).clone();
                 (c.curl, c.fraction) = (curl, fraction);
                 Ok((i, Arc::new(c), t0.elapsed()))
@@ -654,11 +659,7 @@ impl Evaluator {
         let values = inst
             .op
             .run(&inst.params, inputs, ctx)
-            .map_err(|source| GraphError::Node {
-                op: spec.id.to_string(),
-                source,
-                at: inst.at.clone(),
-            })?;
+            .map_err(|source| GraphError::node(spec.id, source, inst.at.clone()))?;
         let time = t0.elapsed();
         let entry = Arc::new(CacheEntry {
             values,

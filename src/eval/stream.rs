@@ -187,7 +187,7 @@ impl<'p> StreamPlan<'p> {
     pub fn run<E: From<GraphError>>(
         mut self,
         strip: Option<usize>,
-        cancelled: impl Fn() -> bool,
+        cancel: &crate::cancel::Cancel,
         mut out: impl FnMut(usize, &[Value], std::ops::Range<usize>) -> Result<(), E>,
     ) -> Result<(), E> {
         let (w, _) = self.input.size();
@@ -206,7 +206,7 @@ impl<'p> StreamPlan<'p> {
         });
         let plan = self.plan;
         // Each instance told which of its outputs are read (a lazy operator skips the rest).
-        let ctx = RunContext::new(plan.protected.clone());
+        let ctx = RunContext::new(plan.protected.clone()).with_cancel(cancel.clone());
         let ctxs: Vec<RunContext> = self
             .demand
             .iter()
@@ -220,15 +220,17 @@ impl<'p> StreamPlan<'p> {
             })
             .collect();
         let source_at = plan.instances[self.source].at.clone();
-        let node_err = |i: usize, source: RgbnError| GraphError::Node {
-            op: plan.instances[i].op.spec().id.to_string(),
-            source,
-            at: plan.instances[i].at.clone(),
+        let node_err = |i: usize, source: RgbnError| {
+            GraphError::node(
+                plan.instances[i].op.spec().id,
+                source,
+                plan.instances[i].at.clone(),
+            )
         };
         let (order, outputs, src) = (&self.order, &self.outputs, self.source);
         let mut failed: Option<E> = None;
         let r = strips::for_each_strip_image(&mut self.input, halo, strip, |img, y0, core| {
-            if cancelled() {
+            if cancel.is_cancelled() {
                 return Err(Fail::Graph(GraphError::Cancelled));
             }
             let mut values: Vec<Option<Vec<Value>>> = vec![None; plan.instances.len()];
@@ -266,12 +268,7 @@ impl<'p> StreamPlan<'p> {
             Ok(_) => Ok(()),
             Err(Fail::Out) => Err(failed.expect("set with Fail::Out")),
             Err(Fail::Graph(e)) => Err(e.into()),
-            Err(Fail::Read(source)) => Err(GraphError::Node {
-                op: "load".into(),
-                source,
-                at: source_at,
-            }
-            .into()),
+            Err(Fail::Read(source)) => Err(GraphError::node("load", source, source_at).into()),
         }
     }
 }

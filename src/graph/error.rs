@@ -296,3 +296,19 @@ pub enum GraphError {
         detail: String,
     },
 }
+
+impl GraphError {
+    /// Operator `op` at `at` failed with `source`; a cancelled operator is
+    /// [`GraphError::Cancelled`], whichever node saw it.
+    #[must_use]
+    pub fn node(op: impl Into<String>, source: RgbnError, at: At) -> Self {
+        match source {
+            RgbnError::Cancelled => GraphError::Cancelled,
+            source => GraphError::Node {
+                op: op.into(),
+                source,
+                at,
+            },
+        }
+    }
+}

@@ -1,4 +1,4 @@
-//! Graphs of operator nodes: the data model ([`Graph`]), its file format ([`file`]), and
+//! Graphs of operator nodes: the data model ([`Graph`]), its file format ([`file`](mod@file)), and
 //! validation ([`LoadedGraph`]): operators and parameters resolved, edges type-checked, cycles
 //! refused, graph files used as nodes loaded (their inputs, outputs and exposed parameters
 //! become the node's ports and parameters).

@@ -106,15 +106,15 @@ crate::params! {
         /// orthographic: parallel projection (heights in pixels; mesh vertices at (x·pixel_size, −row·pixel_size, height·z_scale)); pinhole: a pinhole camera (focal_px, principal point): integration works on the log-depth and its height is −Z for a depth Z up to scale (geometric mean focal_px over the domain), and a mesh places the 3-D points z_scale·((x − cx)·Z/fx, −(row − cy)·Z/fy, −Z) (camera at the origin looking along −z); k_file: the same camera from a 3×3 K matrix in a text file.
         pub camera: CameraModel = CameraModel::Orthographic => choice,
         /// Pinhole focal length (x; also y unless focal_y_px is set).
-        pub focal_px: f64 = 1000.0 => float.unit("px").range(-1e9, 1e9),
+        pub focal_px: f64 = 1000.0 => float.unit("px").range(-1e9, 1e9).soft(100.0, 1e4).log(),
         /// Pinhole focal length along y; 0 = the same as focal_px.
-        pub focal_y_px: f64 = 0.0 => float.unit("px").range(-1e9, 1e9),
+        pub focal_y_px: f64 = 0.0 => float.unit("px").range(-1e9, 1e9).soft(0.0, 1e4).log(),
         /// Principal point at the image centre ((W−1)/2, (H−1)/2); off: principal_x, principal_y.
         pub principal_centred: bool = true => bool,
         /// Principal point column (pixel centres at integers), when principal_centred is off.
-        pub principal_x: f64 = 0.0 => float.unit("px").range(-1e9, 1e9),
+        pub principal_x: f64 = 0.0 => float.unit("px").range(-1e9, 1e9).soft(-1024.0, 4096.0),
         /// Principal point row (downwards, pixel centres at integers), when principal_centred is off.
-        pub principal_y: f64 = 0.0 => float.unit("px").range(-1e9, 1e9),
+        pub principal_y: f64 = 0.0 => float.unit("px").range(-1e9, 1e9).soft(-1024.0, 4096.0),
         /// Text file with the 3×3 intrinsic matrix K (rows of numbers, NumPy savetxt form) for camera k_file.
         pub k_file: String = String::new() => path.optional(),
     }
@@ -213,19 +213,19 @@ crate::params! {
         pub method: IntegrationMethod = IntegrationMethod::PoissonDct => choice,
         /// Conjugate-gradient iteration cap (masked_poisson only).
         pub max_iterations: i64 = i64::from(IntegrateParams::default().max_iterations)
-            => int.range(1.0, 1e7),
+            => int.range(1.0, 1e7).soft(10.0, 1e5).log(),
         /// Stop when ‖b − Lz‖ ≤ tolerance·‖b‖ (masked_poisson only).
-        pub tolerance: f64 = IntegrateParams::default().tolerance => float.range(1e-12, 0.5),
+        pub tolerance: f64 = IntegrateParams::default().tolerance => float.range(1e-12, 0.5).soft(1e-9, 1e-2).log(),
         /// averaged: an edge's slope is the average of its two pixel samples (normals sampled at pixel centres; heights registered at pixel centres); forward: one pixel's sample per edge (exact for forward differences of a height; half a pixel staggered otherwise). Graphs that do not name it get averaged.
         pub differences: Differences = Differences::Averaged => choice,
         /// The camera.
         pub camera: CameraSettings = CameraSettings::default() => flatten,
         /// Bilateral: sigmoid sharpness k (larger keeps discontinuities more easily; 0 = least squares).
-        pub sharpness: f64 = 2.0 => float.range(0.0, 1e3),
+        pub sharpness: f64 = 2.0 => float.range(0.0, 1e3).soft(0.0, 10.0),
         /// Bilateral: cap on reweighting iterations.
-        pub irls_iterations: i64 = 150 => int.range(1.0, 1e6),
+        pub irls_iterations: i64 = 150 => int.range(1.0, 1e6).soft(10.0, 1000.0).log(),
         /// Bilateral: stop when the relative energy change is below this.
-        pub irls_tolerance: f64 = 1e-4 => float.range(1e-12, 0.5),
+        pub irls_tolerance: f64 = 1e-4 => float.range(1e-12, 0.5).soft(1e-9, 1e-2).log(),
         /// Bilateral: each reweighting step's change is taken this many times over when that lowers the energy (1 = the reference's plain steps).
         pub over_relaxation: f64 = 2.0 => float.range(1.0, 10.0),
     }
@@ -302,9 +302,9 @@ crate::params! {
         /// ply (binary little-endian), ply_ascii, or obj (v x y z r g b, vn, f).
         pub format: MeshFormat = MeshFormat::PlyBinary => choice,
         /// Multiplies the height (relief exaggeration; not 0).
-        pub z_scale: f64 = 1.0 => float.range(-1e6, 1e6),
+        pub z_scale: f64 = 1.0 => float.range(-1e6, 1e6).soft(-4.0, 4.0),
         /// World size of one pixel.
-        pub pixel_size: f64 = 1.0 => float.range(1e-9, 1e9),
+        pub pixel_size: f64 = 1.0 => float.range(1e-9, 1e9).soft(0.01, 100.0).log(),
         /// The camera (use the integrate node's).
         pub camera: CameraSettings = CameraSettings::default() => flatten,
     }

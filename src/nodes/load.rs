@@ -40,17 +40,17 @@ crate::params! {
         /// Which analytic surface (gaussians: three bumps scaled to the image).
         pub shape: SurfaceShape = SurfaceShape::Sphere => choice,
         /// Image size.
-        pub width: i64 = 128 => int.unit("px").range(1.0, 16384.0),
+        pub width: i64 = 128 => int.unit("px").range(1.0, 16384.0).soft(16.0, 2048.0).log(),
         /// Image size.
-        pub height: i64 = 128 => int.unit("px").range(1.0, 16384.0),
+        pub height: i64 = 128 => int.unit("px").range(1.0, 16384.0).soft(16.0, 2048.0).log(),
         /// Sphere radius.
-        pub radius_px: f64 = 48.0 => float.unit("px").range(0.5, 1e5),
+        pub radius_px: f64 = 48.0 => float.unit("px").range(0.5, 1e5).soft(1.0, 1024.0).log(),
         /// Paraboloid z = −curvature·(u² + v²).
-        pub curvature: f64 = 0.005 => float.unit("1/px").range(-10.0, 10.0),
+        pub curvature: f64 = 0.005 => float.unit("1/px").range(-10.0, 10.0).soft(-0.05, 0.05),
         /// Sinusoid amplitude.
-        pub amplitude_px: f64 = 4.0 => float.unit("px").range(-1e4, 1e4),
+        pub amplitude_px: f64 = 4.0 => float.unit("px").range(-1e4, 1e4).soft(-16.0, 16.0),
         /// Sinusoid period.
-        pub period_px: f64 = 32.0 => float.unit("px").range(0.5, 1e5),
+        pub period_px: f64 = 32.0 => float.unit("px").range(0.5, 1e5).soft(2.0, 512.0).log(),
         /// Normals from the analytic derivative at each pixel centre (not exactly integrable on
         /// the pixel grid) instead of the differences of the height sampled at the pixel corners
         /// (the default: exactly a surface, curl 0, as a capture of a real surface would be).
@@ -83,7 +83,7 @@ crate::params! {
     #[derive(Clone, Debug, PartialEq)]
     pub struct DemoParams {
         /// Side of the square image.
-        pub size: i64 = 256 => int.unit("px").range(16.0, 16384.0),
+        pub size: i64 = 256 => int.unit("px").range(16.0, 16384.0).soft(16.0, 4096.0).log(),
     }
 }
 

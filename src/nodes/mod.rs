@@ -205,6 +205,9 @@ pub struct RunContext {
     /// The outputs the evaluation reads, bit `k` for port `k` ([`ALL_PORTS`] unless the
     /// operator declares [`OpSpec::lazy_outputs`]).
     pub wanted: u64,
+    /// The evaluation's cancellation token: the operator's kernels see it as
+    /// [`Cancel::current`](crate::cancel::Cancel::current) while it runs.
+    pub cancel: crate::cancel::Cancel,
 }
 
 impl Default for RunContext {
@@ -220,6 +223,7 @@ impl RunContext {
         Self {
             protected,
             wanted: ALL_PORTS,
+            cancel: crate::cancel::Cancel::never(),
         }
     }
     /// Whether output `port` (port order) is read. Ports past 63 always are.
@@ -233,7 +237,14 @@ impl RunContext {
         Self {
             protected: self.protected.clone(),
             wanted,
+            cancel: self.cancel.clone(),
         }
+    }
+    /// This context with cancellation token `cancel`.
+    #[must_use]
+    pub fn with_cancel(mut self, cancel: crate::cancel::Cancel) -> Self {
+        self.cancel = cancel;
+        self
     }
 }
 
@@ -566,34 +577,32 @@ impl<T: Operator> Entry<T> {
     /// Wraps typed parameters with their canonical map and hash.
     fn wrap(&self, typed: T::Params) -> Parsed {
         let values = params::to_values(&typed);
-        let mut h = xxhash_rust::xxh3::Xxh3::new();
-        for (name, value) in &values {
-            h.update(&(name.len() as u64).to_le_bytes());
-            h.update(name.as_bytes());
-            let input_file = self
-                .params
+        // Input files are keyed by their bytes elsewhere, not by their path here.
+        let hash = map_hash(&values, |name| {
+            self.params
                 .iter()
-                .any(|i| i.name == name && i.kind == params::ParamKind::Path && !i.meta.output);
-            if input_file {
-                h.update(b"input-file");
-            } else {
-                value.hash_into(&mut h);
-            }
-        }
+                .any(|i| i.name == name && i.kind == params::ParamKind::Path && !i.meta.output)
+        });
         Parsed {
             typed: Arc::new(typed),
             values: Arc::new(values),
-            hash: h.digest128(),
+            hash,
         }
     }
 }
 
-fn map_hash(values: &BTreeMap<String, ParamValue>) -> u128 {
+/// The hash of a parameter map: each name, then its value, or only the marker `input-file`
+/// for the names `input_file` picks.
+fn map_hash(values: &BTreeMap<String, ParamValue>, input_file: impl Fn(&str) -> bool) -> u128 {
     let mut h = xxhash_rust::xxh3::Xxh3::new();
     for (name, value) in values {
         h.update(&(name.len() as u64).to_le_bytes());
         h.update(name.as_bytes());
-        value.hash_into(&mut h);
+        if input_file(name) {
+            h.update(b"input-file");
+        } else {
+            value.hash_into(&mut h);
+        }
     }
     h.digest128()
 }
@@ -610,7 +619,7 @@ impl<T: Operator> DynOp for Entry<T> {
         &self.params
     }
     fn parse(&self, values: &BTreeMap<String, ParamValue>) -> Result<Parsed, ParamError> {
-        let key = map_hash(values);
+        let key = map_hash(values, |_| false);
         if let Some(p) = lock(&self.memo).get(&key) {
             return Ok(p.clone());
         }
@@ -676,7 +685,13 @@ impl<T: Operator> DynOp for Entry<T> {
             shifted = params::shifted(t, origin.0 as f64, origin.1 as f64);
             &shifted
         };
-        let mut out = T::run(t, T::In::from_values(inputs)?, ctx)?;
+        let out = {
+            let _current = ctx.cancel.enter();
+            T::run(t, T::In::from_values(inputs)?, ctx)
+        };
+        // A result finished after cancellation may be partial: never let it out.
+        ctx.cancel.check()?;
+        let mut out = out?;
         if scale > 1 {
             out = T::level_outputs(t, scale as f64, out);
         }
@@ -689,8 +704,12 @@ impl<T: Operator> DynOp for Entry<T> {
         win: Window,
         ctx: &RunContext,
     ) -> Result<Vec<Value>, RgbnError> {
-        let out = T::run_region(self.typed(p), T::In::from_values(inputs)?, win, ctx)?;
-        Ok(out.into_values())
+        let out = {
+            let _current = ctx.cancel.enter();
+            T::run_region(self.typed(p), T::In::from_values(inputs)?, win, ctx)
+        };
+        ctx.cancel.check()?;
+        Ok(out?.into_values())
     }
 }
 

@@ -20,7 +20,9 @@
 //! - T. Pereira, L. Velho, "RGBN image editing", SIBGRAPI 2011, §III–IV.
 //! - D. Marr, E. Hildreth, "Theory of edge detection", Proc. R. Soc. B 207 (1980) (LoG, DoG).
 
-use super::filter::{check_sigma, filter_gradients, FilterOptions, Kernel, SIGMA_RANGE};
+use super::filter::{
+    check_sigma, filter_gradients, FilterOptions, Kernel, SIGMA_RANGE, SIGMA_SOFT,
+};
 use crate::error::RgbnError;
 use crate::raster::convolve::BorderMode;
 use crate::raster::gradient::{CurlStats, GradientField};
@@ -171,9 +173,9 @@ crate::params! {
         /// Which band: lowpass G_σ, highpass I − G_σ, bandpass G_σ − G_coarse (DoG), log −σ²∇²G_σ.
         pub band: BandKind = BandKind::BandPass => choice,
         /// σ of the band (low-pass, high-pass, LoG), or the finer σ of a band-pass.
-        pub sigma_px: f64 = 1.0 => float.unit("px").range(SIGMA_RANGE.0, SIGMA_RANGE.1),
+        pub sigma_px: f64 = 1.0 => float.unit("px").range(SIGMA_RANGE.0, SIGMA_RANGE.1).soft(SIGMA_SOFT.0, SIGMA_SOFT.1).log(),
         /// The coarser σ of a band-pass (must exceed sigma_px); unused by the others.
-        pub sigma_coarse_px: f64 = 4.0 => float.unit("px").range(SIGMA_RANGE.0, SIGMA_RANGE.1),
+        pub sigma_coarse_px: f64 = 4.0 => float.unit("px").range(SIGMA_RANGE.0, SIGMA_RANGE.1).soft(SIGMA_SOFT.0, SIGMA_SOFT.1).log(),
         /// keep: B * g (the band only); remove: g − B * g (everything but the band).
         pub op: BandOp = BandOp::Keep => choice,
         /// How the image is extended beyond its border.

@@ -114,11 +114,11 @@ crate::params! {
     pub struct BilateralParams {
         /// Spatial σ; the window has radius ⌈2σ⌉.
         pub sigma_spatial_px: f64 = 3.0
-            => float.unit("px").range(0.05, f64::from(MAX_BILATERAL_SIGMA_PX)),
+            => float.unit("px").range(0.05, f64::from(MAX_BILATERAL_SIGMA_PX)).soft(0.5, 16.0).log(),
         /// Colour σ (linear RGB distance); 0 ignores colour.
-        pub sigma_color: f64 = 0.0 => float.range(0.0, 1e6),
+        pub sigma_color: f64 = 0.0 => float.range(0.0, 1e6).soft(0.0, 0.5),
         /// Normal-similarity σ (radians for angle, unitless for one_minus_dot); 0 ignores normals.
-        pub sigma_normal: f64 = f64::from(0.3f32) => float.range(0.0, 1e6),
+        pub sigma_normal: f64 = f64::from(0.3f32) => float.range(0.0, 1e6).soft(0.0, 1.0),
         /// Normal similarity: the angle between the normals, or 1 − n·n′ (≈ angle²/2).
         pub normal_metric: NormalMetric = NormalMetric::Angle => choice,
         /// Every pixel of the disc, the disc sampled every ⌈σ_s/4⌉ px, or auto (sampled from σ_s = 8 px).
@@ -153,28 +153,16 @@ impl BilateralParams {
         self
     }
 
-    /// Checks every parameter.
+    /// The window's radius in pixels, ⌈2σ⌉ (the node's halo too).
+    #[must_use]
+    pub fn radius_px(&self) -> usize {
+        (2.0 * self.sigma_spatial_px as f32).ceil() as usize
+    }
+
+    /// Checks every parameter: the ranges `params!` declares (σs finite and in range, 0 for
+    /// the range σs meaning "ignore"), then the detail frame.
     pub fn validate(&self) -> Result<(), RgbnError> {
-        let s = self.sigma_spatial_px as f32;
-        if !(s.is_finite() && s > 0.0 && s <= MAX_BILATERAL_SIGMA_PX) {
-            return Err(RgbnError::param(
-                "sigma_spatial_px",
-                format!("{s} must be in (0, {MAX_BILATERAL_SIGMA_PX}] pixels"),
-            ));
-        }
-        for (name, v) in [
-            ("sigma_color", self.color_sigma()),
-            ("sigma_normal", self.normal_sigma()),
-        ] {
-            if let Some(v) = v {
-                if !(v.is_finite() && v > 0.0 && v <= 1e6) {
-                    return Err(RgbnError::param(
-                        name,
-                        format!("{v} must be in (0, 1e6] (or 0 to ignore)"),
-                    ));
-                }
-            }
-        }
+        crate::params::check_ranges(self)?;
         self.detail_frame().validate()
     }
 }
@@ -203,7 +191,7 @@ pub fn filtered(img: &RgbnImage, params: &BilateralParams) -> Result<RgbnImage, 
     let sigma_spatial = params.sigma_spatial_px as f32;
     let spec = kernel::Spec {
         sigma_spatial,
-        radius: (2.0 * sigma_spatial).ceil() as usize,
+        radius: params.radius_px(),
         stride: 1,
         sigma_color: params.color_sigma(),
         sigma_normal: params.normal_sigma(),
@@ -790,7 +778,7 @@ mod tests {
                     sigma_normal: -1.0,
                     ..BilateralParams::default()
                 },
-                "(0, 1e6]",
+                "sigma_normal",
             ),
         ] {
             let e = bilateral(&img, &p).unwrap_err().to_string();

@@ -21,7 +21,7 @@
 //! - T. Pereira, L. Velho, "RGBN image editing", SIBGRAPI 2011, §III, Fig. 1.
 
 use super::combine::check_weight;
-use super::filter::{filter_gradients, FilterOptions, Kernel, SIGMA_RANGE};
+use super::filter::{filter_gradients, FilterOptions, Kernel, SIGMA_RANGE, SIGMA_SOFT};
 use super::geom::{check_points, smoothstep, Polyline};
 use crate::error::RgbnError;
 use crate::raster::convolve::BorderMode;
@@ -144,19 +144,19 @@ crate::params! {
         /// The linear filter painted with the brush (as the filter.* nodes): gaussian, box, sharpen, edge, highpass, dog, log, scale.
         pub kernel: BrushKernel = BrushKernel::Gaussian => choice,
         /// σ of the kernel (the finer σ of edge and dog).
-        pub sigma_px: f64 = 3.0 => float.unit("px").range(SIGMA_RANGE.0, SIGMA_RANGE.1),
+        pub sigma_px: f64 = 3.0 => float.unit("px").range(SIGMA_RANGE.0, SIGMA_RANGE.1).soft(SIGMA_SOFT.0, SIGMA_SOFT.1).log(),
         /// Coarser σ of edge and dog (must exceed sigma_px).
-        pub sigma_coarse_px: f64 = 6.0 => float.unit("px").range(SIGMA_RANGE.0, SIGMA_RANGE.1),
+        pub sigma_coarse_px: f64 = 6.0 => float.unit("px").range(SIGMA_RANGE.0, SIGMA_RANGE.1).soft(SIGMA_SOFT.0, SIGMA_SOFT.1).log(),
         /// Amount of sharpen and edge; the depth factor of scale.
-        pub amount: f64 = 1.0 => float.range(-100.0, 100.0),
+        pub amount: f64 = 1.0 => float.range(-100.0, 100.0).soft(-2.0, 4.0),
         /// Half-width of the box kernel.
-        pub box_radius_px: i64 = 2 => int.unit("px").range(1.0, 4096.0),
+        pub box_radius_px: i64 = 2 => int.unit("px").range(1.0, 4096.0).soft(1.0, 32.0).log(),
         /// The stroke: a polyline in pixels (x, row); one point is a dab; empty when only the mask input paints the region.
         pub points: Vec<[f64; 2]> = vec![[32.0, 32.0]] => points.unit("px"),
         /// Full-strength radius around the stroke.
-        pub radius_px: f64 = 8.0 => float.unit("px").range(0.0, 10_000.0),
+        pub radius_px: f64 = 8.0 => float.unit("px").range(0.0, 10_000.0).soft(0.0, 64.0),
         /// Width of the smooth (quintic) fade beyond the radius.
-        pub feather_px: f64 = 4.0 => float.unit("px").range(0.0, 10_000.0),
+        pub feather_px: f64 = 4.0 => float.unit("px").range(0.0, 10_000.0).soft(0.0, 32.0),
         /// How the image is extended beyond its border.
         pub border: BorderMode = BorderMode::Mirror => choice,
         /// Filter inside the image's own mask only (normalised convolution).

@@ -25,7 +25,7 @@
 //! - C. Barré-Brisebois, S. Hill, "Blending in Detail", 2012.
 
 use super::band::{apply_band, Band, BandKind, BandOp};
-use super::filter::SIGMA_RANGE;
+use super::filter::{SIGMA_RANGE, SIGMA_SOFT};
 use crate::error::RgbnError;
 use crate::params::Choice;
 use crate::raster::convolve::BorderMode;
@@ -71,14 +71,14 @@ crate::params! {
     #[derive(Clone, Debug, PartialEq)]
     pub struct LinearCombineParams {
         /// Amount of detail α (1 = as is, negative inverts the detail's relief).
-        pub alpha: f64 = 1.0 => float.range(-1000.0, 1000.0),
+        pub alpha: f64 = 1.0 => float.range(-1000.0, 1000.0).soft(-2.0, 4.0),
         /// none: w = ∇b + α·m·∇h; otherwise the base loses this band where the detail goes and
         /// gets the detail's band: w = ∇b − m·B(∇b) + α·m·B(∇h).
         pub replace_band: ReplaceBand = ReplaceBand::None => choice,
         /// σ of the band (low-pass, high-pass, LoG), or the finer σ of a band-pass.
-        pub sigma_px: f64 = 1.0 => float.unit("px").range(SIGMA_RANGE.0, SIGMA_RANGE.1),
+        pub sigma_px: f64 = 1.0 => float.unit("px").range(SIGMA_RANGE.0, SIGMA_RANGE.1).soft(SIGMA_SOFT.0, SIGMA_SOFT.1).log(),
         /// The coarser σ of a band-pass (must exceed sigma_px); unused by the others.
-        pub sigma_coarse_px: f64 = 4.0 => float.unit("px").range(SIGMA_RANGE.0, SIGMA_RANGE.1),
+        pub sigma_coarse_px: f64 = 4.0 => float.unit("px").range(SIGMA_RANGE.0, SIGMA_RANGE.1).soft(SIGMA_SOFT.0, SIGMA_SOFT.1).log(),
         /// How the image is extended beyond its border.
         pub border: BorderMode = BorderMode::Mirror => choice,
     }

@@ -41,6 +41,8 @@ pub const MAX_SIGMA_PX: f32 = 4096.0;
 pub const MIN_SIGMA_PX: f64 = 0.05;
 /// [`MIN_SIGMA_PX`] and [`MAX_SIGMA_PX`] as a parameter's range.
 pub const SIGMA_RANGE: (f64, f64) = (MIN_SIGMA_PX, MAX_SIGMA_PX as f64);
+/// The σ sliders' range (logarithmic): σ = 2 px sits at a third of it; larger σ can be typed.
+pub const SIGMA_SOFT: (f64, f64) = (0.1, 64.0);
 /// Largest side of a user kernel.
 pub const MAX_USER_KERNEL: usize = 63;
 
@@ -710,7 +712,7 @@ crate::params! {
     #[derive(Clone, Debug, PartialEq)]
     pub struct GaussianParams {
         /// Standard deviation of the Gaussian.
-        pub sigma_px: f64 = 2.0 => float.unit("px").range(SIGMA_RANGE.0, SIGMA_RANGE.1),
+        pub sigma_px: f64 = 2.0 => float.unit("px").range(SIGMA_RANGE.0, SIGMA_RANGE.1).soft(SIGMA_SOFT.0, SIGMA_SOFT.1).log(),
     }
 }
 
@@ -728,7 +730,7 @@ crate::params! {
     #[derive(Clone, Debug, PartialEq)]
     pub struct BoxParams {
         /// Half-width: the mean over a (2r+1)² window.
-        pub radius_px: i64 = 2 => int.unit("px").range(1.0, 4096.0),
+        pub radius_px: i64 = 2 => int.unit("px").range(1.0, 4096.0).soft(1.0, 32.0).log(),
     }
 }
 
@@ -746,9 +748,9 @@ crate::params! {
     #[derive(Clone, Debug, PartialEq)]
     pub struct SharpenParams {
         /// σ of the Gaussian whose residual is added.
-        pub sigma_px: f64 = 2.0 => float.unit("px").range(SIGMA_RANGE.0, SIGMA_RANGE.1),
+        pub sigma_px: f64 = 2.0 => float.unit("px").range(SIGMA_RANGE.0, SIGMA_RANGE.1).soft(SIGMA_SOFT.0, SIGMA_SOFT.1).log(),
         /// How much of the high-pass is added.
-        pub amount: f64 = 1.0 => float.range(-100.0, 100.0),
+        pub amount: f64 = 1.0 => float.range(-100.0, 100.0).soft(-2.0, 4.0),
     }
 }
 
@@ -767,11 +769,11 @@ crate::params! {
     #[derive(Clone, Debug, PartialEq)]
     pub struct EdgeParams {
         /// σ of the finer Gaussian.
-        pub sigma_fine_px: f64 = 1.0 => float.unit("px").range(SIGMA_RANGE.0, SIGMA_RANGE.1),
+        pub sigma_fine_px: f64 = 1.0 => float.unit("px").range(SIGMA_RANGE.0, SIGMA_RANGE.1).soft(SIGMA_SOFT.0, SIGMA_SOFT.1).log(),
         /// σ of the coarser Gaussian.
-        pub sigma_coarse_px: f64 = 4.0 => float.unit("px").range(SIGMA_RANGE.0, SIGMA_RANGE.1),
+        pub sigma_coarse_px: f64 = 4.0 => float.unit("px").range(SIGMA_RANGE.0, SIGMA_RANGE.1).soft(SIGMA_SOFT.0, SIGMA_SOFT.1).log(),
         /// How much of the band-pass is added.
-        pub amount: f64 = 1.0 => float.range(-100.0, 100.0),
+        pub amount: f64 = 1.0 => float.range(-100.0, 100.0).soft(-2.0, 4.0),
     }
 }
 
@@ -791,7 +793,7 @@ crate::params! {
     #[derive(Clone, Debug, PartialEq)]
     pub struct HighPassParams {
         /// σ of the Gaussian removed.
-        pub sigma_px: f64 = 4.0 => float.unit("px").range(SIGMA_RANGE.0, SIGMA_RANGE.1),
+        pub sigma_px: f64 = 4.0 => float.unit("px").range(SIGMA_RANGE.0, SIGMA_RANGE.1).soft(SIGMA_SOFT.0, SIGMA_SOFT.1).log(),
     }
 }
 
@@ -809,9 +811,9 @@ crate::params! {
     #[derive(Clone, Debug, PartialEq)]
     pub struct DogParams {
         /// σ of the finer Gaussian.
-        pub sigma_fine_px: f64 = 1.0 => float.unit("px").range(SIGMA_RANGE.0, SIGMA_RANGE.1),
+        pub sigma_fine_px: f64 = 1.0 => float.unit("px").range(SIGMA_RANGE.0, SIGMA_RANGE.1).soft(SIGMA_SOFT.0, SIGMA_SOFT.1).log(),
         /// σ of the coarser Gaussian.
-        pub sigma_coarse_px: f64 = 4.0 => float.unit("px").range(SIGMA_RANGE.0, SIGMA_RANGE.1),
+        pub sigma_coarse_px: f64 = 4.0 => float.unit("px").range(SIGMA_RANGE.0, SIGMA_RANGE.1).soft(SIGMA_SOFT.0, SIGMA_SOFT.1).log(),
     }
 }
 
@@ -830,7 +832,7 @@ crate::params! {
     #[derive(Clone, Debug, PartialEq)]
     pub struct LogParams {
         /// σ of the Gaussian.
-        pub sigma_px: f64 = 2.0 => float.unit("px").range(SIGMA_RANGE.0, SIGMA_RANGE.1),
+        pub sigma_px: f64 = 2.0 => float.unit("px").range(SIGMA_RANGE.0, SIGMA_RANGE.1).soft(SIGMA_SOFT.0, SIGMA_SOFT.1).log(),
     }
 }
 
@@ -848,7 +850,7 @@ crate::params! {
     #[derive(Clone, Debug, PartialEq)]
     pub struct ScaleParams {
         /// Factor on the gradients.
-        pub scale: f64 = 2.0 => float.range(-100.0, 100.0),
+        pub scale: f64 = 2.0 => float.range(-100.0, 100.0).soft(-4.0, 8.0),
     }
 }
 
@@ -887,9 +889,9 @@ crate::params! {
     #[derive(Clone, Debug, PartialEq)]
     pub struct DenseParams {
         /// Kernel size (odd).
-        pub width: i64 = 3 => int.unit("px").range(1.0, 63.0),
+        pub width: i64 = 3 => int.unit("px").range(1.0, 63.0).soft(1.0, 15.0),
         /// Kernel size (odd).
-        pub height: i64 = 3 => int.unit("px").range(1.0, 63.0),
+        pub height: i64 = 3 => int.unit("px").range(1.0, 63.0).soft(1.0, 15.0),
         /// width × height weights, row-major, row 0 at the top.
         pub weights: Vec<f64> = vec![0.0, 0.125, 0.0, 0.125, 0.5, 0.125, 0.0, 0.125, 0.0]
             => floats.range(-1e6, 1e6),

@@ -29,7 +29,7 @@ crate::params! {
         /// Lift normals with n_z < min_z to n_z = min_z, keeping their azimuth.
         pub lift_back_facing: bool = false => bool,
         /// Threshold on n_z for lift_back_facing.
-        pub min_z: f64 = f64::from(0.05f32) => float.range(0.0, 0.999),
+        pub min_z: f64 = f64::from(0.05f32) => float.range(0.0, 0.999).soft(0.0, 0.5),
     }
 }
 

@@ -291,27 +291,27 @@ crate::params! {
         /// Join the last point back to the first; the profile's inside is then the enclosed region.
         pub closed: bool = false => bool,
         /// Full stroke width (u = ±1 at ±width/2).
-        pub width_px: f64 = 8.0 => float.unit("px").range(0.01, 10_000.0),
+        pub width_px: f64 = 8.0 => float.unit("px").range(0.01, 10_000.0).soft(0.5, 128.0).log(),
         /// Height across the stroke, u ∈ [−1, 1]: bump A(1+cos πu)/2, ridge A(1−|u|), crease −D(1−|u|), scratch (groove with lips), step A·S((u+1)/2) (closed paths only: raises the inside), custom (samples_px).
         pub profile: ProfileKind = ProfileKind::Bump => choice,
         /// Amplitude: the height A of bump, ridge and step, the depth D of crease and scratch (negative inverts).
-        pub height_px: f64 = 2.0 => float.unit("px").range(-10_000.0, 10_000.0),
+        pub height_px: f64 = 2.0 => float.unit("px").range(-10_000.0, 10_000.0).soft(-8.0, 8.0),
         /// Custom profile: heights at equally spaced u from −1 to 1 (≥ 2 samples, linearly interpolated); an open path needs equal first and last samples.
         pub samples_px: Vec<f64> = vec![0.0, 1.0, 0.0] => profile.unit("px"),
         /// Length over which an open path's relief fades in and out at its ends.
-        pub taper_px: f64 = 16.0 => float.unit("px").range(0.0, 10_000.0),
+        pub taper_px: f64 = 16.0 => float.unit("px").range(0.0, 10_000.0).soft(0.0, 128.0),
         /// integrable: the height at the pixel corners, each pixel's slope the averaged 2 × 2 difference of its corners (exactly a surface, curl 0); analytic: the analytic gradient at pixel centres (curl on medial axes); distance_transform: EDT of the rasterised path (integrable, no taper, no along-path variation).
         pub mode: PenMode = PenMode::Integrable => choice,
         /// Relief along the path (§VI normal textures: a stitched seam, beads, a knotted cord): factors at equally spaced points over one period, repeated along the path (periodic, linearly interpolated), multiplying the profile's relief; one value = the same relief all along.
         pub along: Vec<f64> = vec![1.0] => profile,
         /// Length of one period of along in pixels (on a closed path adjusted so that a whole number of periods fits).
-        pub along_period_px: f64 = 16.0 => float.unit("px").range(0.5, 10_000.0),
+        pub along_period_px: f64 = 16.0 => float.unit("px").range(0.5, 10_000.0).soft(2.0, 128.0).log(),
         /// A relief varying across and along the path, added to the profile (§VI normal textures): none, rope (twisted strands, one twist per along_period_px), texture (the texture input: columns across the stroke, rows over one period). Not in distance_transform mode.
         pub pattern: PenPattern = PenPattern::None => choice,
         /// Rope: depth of the grooves between strands (negative raises them). Texture: the height of a texture value of 1.
-        pub pattern_height_px: f64 = 0.5 => float.unit("px").range(-10_000.0, 10_000.0),
+        pub pattern_height_px: f64 = 0.5 => float.unit("px").range(-10_000.0, 10_000.0).soft(-4.0, 4.0),
         /// Rope: number of strands.
-        pub pattern_strands: i64 = 3 => int.range(1.0, 64.0),
+        pub pattern_strands: i64 = 3 => int.range(1.0, 64.0).soft(1.0, 12.0),
     }
 }
 

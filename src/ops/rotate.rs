@@ -319,7 +319,7 @@ crate::params! {
         /// saturated vector k).
         pub saturate: bool = true => bool,
         /// Saturation threshold on n_z.
-        pub min_z: f64 = f64::from(0.05f32) => float.range(0.0, 0.999),
+        pub min_z: f64 = f64::from(0.05f32) => float.range(0.0, 0.999).soft(0.0, 0.5),
         /// Return the nearest integrable result instead (§VII: a nonlinear combine is not a surface's normals): the change of the slopes is made the gradient of a height change that is 0 outside the edit's support (pixels of weight > 0, or changed), the support's border held at the unedited image's height (module docs, "Integrable").
         pub integrable: bool = false => bool,
     }

@@ -75,17 +75,17 @@ crate::params! {
         /// Where the stamp's centre goes, in pixels (x, row); at least one.
         pub positions: Vec<[f64; 2]> = vec![[64.0, 64.0]] => points.unit("px"),
         /// Scale along the stamp's own u axis (negative mirrors).
-        pub scale_x: f64 = 1.0 => float.range(-1e4, 1e4),
+        pub scale_x: f64 = 1.0 => float.range(-1e4, 1e4).soft(-4.0, 4.0),
         /// Scale along the stamp's own v axis (negative mirrors).
-        pub scale_y: f64 = 1.0 => float.range(-1e4, 1e4),
+        pub scale_y: f64 = 1.0 => float.range(-1e4, 1e4).soft(-4.0, 4.0),
         /// Rotation, counter-clockwise on screen.
-        pub angle_rad: f64 = 0.0 => float.range(-1e4, 1e4).unit("rad"),
+        pub angle_rad: f64 = 0.0 => float.range(-1e4, 1e4).soft(-std::f64::consts::PI, std::f64::consts::PI).unit("rad"),
         /// Shear u += shear·v in the stamp frame (before the rotation).
-        pub shear: f64 = 0.0 => float.range(-1e4, 1e4),
+        pub shear: f64 = 0.0 => float.range(-1e4, 1e4).soft(-2.0, 2.0),
         /// Multiplies the relief (−1 engraves instead of embossing).
-        pub height_scale: f64 = 1.0 => float.range(-1e4, 1e4),
+        pub height_scale: f64 = 1.0 => float.range(-1e4, 1e4).soft(-4.0, 4.0),
         /// Width of the fade at each stamp edge, in stamp pixels (0 = hard edge).
-        pub falloff_px: f64 = 4.0 => float.unit("px").range(0.0, 1e4),
+        pub falloff_px: f64 = 4.0 => float.unit("px").range(0.0, 1e4).soft(0.0, 32.0),
         /// Composite the stamp's colour over the image (else relief only).
         pub color: bool = true => bool,
         /// Opacity of the stamp's colour.
@@ -596,16 +596,16 @@ crate::params! {
     #[derive(Clone, Debug, PartialEq)]
     pub struct ExtractParams {
         /// Left column of the rectangle.
-        pub x: i64 = 0 => int.unit("px").range(0.0, 16384.0),
+        pub x: i64 = 0 => int.unit("px").range(0.0, 16384.0).soft(0.0, 4096.0),
         /// Top row of the rectangle (rows count downwards).
-        pub y: i64 = 0 => int.unit("px").range(0.0, 16384.0),
+        pub y: i64 = 0 => int.unit("px").range(0.0, 16384.0).soft(0.0, 4096.0),
         /// Width of the rectangle (ignored when a region mask is connected).
         pub width: i64 = 64 => int.unit("px").range(2.0, 512.0),
         /// Height of the rectangle (ignored when a region mask is connected).
         pub height: i64 = 64 => int.unit("px").range(2.0, 512.0),
         /// Remove the piece's low frequencies: a high-pass of this σ on its gradients, so only
         /// its detail is stamped (0 = keep everything).
-        pub highpass_sigma_px: f64 = 0.0 => float.unit("px").range(0.0, 4096.0),
+        pub highpass_sigma_px: f64 = 0.0 => float.unit("px").range(0.0, 4096.0).soft(0.0, 32.0),
     }
 }
 

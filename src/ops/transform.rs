@@ -47,13 +47,13 @@ crate::params! {
     #[derive(Clone, Debug, PartialEq)]
     pub struct TransformParams {
         /// First column of the crop.
-        pub crop_x: i64 = 0 => int.unit("px").range(0.0, 1e9),
+        pub crop_x: i64 = 0 => int.unit("px").range(0.0, 1e9).soft(0.0, 4096.0),
         /// First row of the crop (row 0 at the top).
-        pub crop_y: i64 = 0 => int.unit("px").range(0.0, 1e9),
+        pub crop_y: i64 = 0 => int.unit("px").range(0.0, 1e9).soft(0.0, 4096.0),
         /// Columns of the crop; 0 = to the right edge.
-        pub crop_width: i64 = 0 => int.unit("px").range(0.0, 1e9),
+        pub crop_width: i64 = 0 => int.unit("px").range(0.0, 1e9).soft(0.0, 4096.0),
         /// Rows of the crop; 0 = to the bottom edge.
-        pub crop_height: i64 = 0 => int.unit("px").range(0.0, 1e9),
+        pub crop_height: i64 = 0 => int.unit("px").range(0.0, 1e9).soft(0.0, 4096.0),
         /// Mirror left–right (n_x changes sign).
         pub mirror: bool = false => bool,
         /// Flip top–bottom (n_y changes sign).
@@ -61,9 +61,9 @@ crate::params! {
         /// Counter-clockwise rotation in degrees: 0, 90, 180 or 270 ((n_x, n_y) rotates with the image).
         pub rotate: QuarterTurn = QuarterTurn::None => choice,
         /// Width after resizing; 0 = keep (or follow resize_height, keeping the aspect ratio).
-        pub resize_width: i64 = 0 => int.unit("px").range(0.0, 1e6),
+        pub resize_width: i64 = 0 => int.unit("px").range(0.0, 1e6).soft(0.0, 4096.0),
         /// Height after resizing; 0 = keep (or follow resize_width, keeping the aspect ratio).
-        pub resize_height: i64 = 0 => int.unit("px").range(0.0, 1e6),
+        pub resize_height: i64 = 0 => int.unit("px").range(0.0, 1e6).soft(0.0, 4096.0),
     }
 }
 

@@ -18,6 +18,7 @@ pub(crate) mod par;
 pub mod ptm;
 pub mod pyramid;
 pub mod sample;
+pub mod simd;
 pub mod smooth;
 pub mod srgb;
 pub mod strips;

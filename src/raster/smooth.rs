@@ -5,7 +5,7 @@
 //! `filter_columns` → `curl_stats` → `to_normals` (what `ops::filter` runs for masks and
 //! compound kernels). Here:
 //!
-//! 1. **Row sweep** (bands of [`LANES`] rows), in chunks of [`GRADIENT_CHUNK`] columns that
+//! 1. **Row sweep** (bands of `LANES` rows), in chunks of `GRADIENT_CHUNK` columns that
 //!    stay in L1: each row's `(p, q)` is computed from the normals (same
 //!    [`gradient_of_normal`] and `n_z` clamp), its curl sums (averaged model) are taken with
 //!    the previous row's `p`, `q` (one extra row per band and one extra column per chunk are
@@ -13,9 +13,9 @@
 //!    row `k` of the band). `p` and `q` are filtered along x there (in L2), one after the
 //!    other (two recursions interleaved step by step measured slower: BENCHMARKS.md), then
 //!    *parked* in two planes laid out for the column sweep: each task's columns contiguous,
-//!    band after band ([`park_offset`]), written with non-temporal stores where the AVX-512
-//!    twin runs. The parked pair is kept between calls (see [`take_parked`]).
-//! 2. **Column sweep** (groups of [`LANES`] columns, [`TASK_GROUPS`] neighbouring groups a
+//!    band after band (`park_offset`), written with non-temporal stores where the AVX-512
+//!    twin runs. The parked pair is kept between calls (see `take_parked`).
+//! 2. **Column sweep** (groups of `LANES` columns, `TASK_GROUPS` neighbouring groups a
 //!    task): a task reads its columns in one sequential run per plane,
 //!    transposing each 16 × 16 block into rows; `p`, `q` are filtered along y, the curl sums
 //!    of the filtered field are taken from the lane buffers, and [`normal_of_gradient`] is
@@ -120,6 +120,16 @@ pub fn smooth_normals<F: LineFilter>(
     };
     let mut park = [take_parked(parked_len(w, h)), take_parked(parked_len(w, h))];
     let (clamped, curl_before) = row_sweep(&sw, &mut park);
+    // Cancelled between the sweeps: zeros, which the caller discards (crate::cancel).
+    if crate::cancel::Cancel::current().is_cancelled() {
+        park.into_iter().for_each(give_parked);
+        return SmoothedNormals {
+            normal: [buf::zeroed_f32(n), buf::zeroed_f32(n), buf::zeroed_f32(n)],
+            clamped,
+            curl_before,
+            curl_after: CurlSums::default(),
+        };
+    }
     let curl_after = column_sweep(
         &sw,
         &park,
@@ -244,12 +254,12 @@ impl<F: LineFilter> Sweep<'_, F> {
     ) -> (usize, CurlSums) {
         #[cfg(target_arch = "x86_64")]
         {
-            if std::arch::is_x86_feature_detected!("avx512f") {
-                // SAFETY: AVX-512F presence was just checked; the rest is the caller's contract.
+            if crate::raster::simd::Simd::Avx512.runs() {
+                // SAFETY: AVX-512F is present (`Simd::runs`); the rest is the caller's contract.
                 return unsafe { self.band_avx512(s, r0, park) };
             }
-            if std::arch::is_x86_feature_detected!("avx2") {
-                // SAFETY: AVX2 presence was just checked; the rest is the caller's contract.
+            if crate::raster::simd::Simd::Avx2.runs() {
+                // SAFETY: AVX2 is present (`Simd::runs`); the rest is the caller's contract.
                 return unsafe { self.band_avx2(s, r0, park) };
             }
         }
@@ -406,12 +416,12 @@ impl<F: LineFilter> Sweep<'_, F> {
     ) -> Vec<(CurlSums, Vec<Seam>)> {
         #[cfg(target_arch = "x86_64")]
         {
-            if std::arch::is_x86_feature_detected!("avx512f") {
-                // SAFETY: AVX-512F presence was just checked; the rest is the caller's contract.
+            if crate::raster::simd::Simd::Avx512.runs() {
+                // SAFETY: AVX-512F is present (`Simd::runs`); the rest is the caller's contract.
                 return unsafe { self.task_avx512(s, t, park, out) };
             }
-            if std::arch::is_x86_feature_detected!("avx2") {
-                // SAFETY: AVX2 presence was just checked; the rest is the caller's contract.
+            if crate::raster::simd::Simd::Avx2.runs() {
+                // SAFETY: AVX2 is present (`Simd::runs`); the rest is the caller's contract.
                 return unsafe { self.task_avx2(s, t, park, out) };
             }
         }

@@ -1,4 +1,4 @@
-//! Strip streaming: an image whose files are read row by row ([`io::stream`]) is processed in
+//! Strip streaming: an image whose files are read row by row ([`io::stream`](crate::raster::io::stream)) is processed in
 //! horizontal strips, each with `halo` rows of context above and below, and the strips' results
 //! are written row by row. Peak memory is a window of `strip + 2·halo` rows, whatever the
 //! image's height (issue 12, item 5; libvips' "sequential" access).

@@ -385,8 +385,8 @@ fn pow_unit(x: f32, s: f32) -> f32 {
 impl RelightKernel<'_> {
     fn row(&self, rows: &RelightRow<'_>, out: &mut [u8]) {
         #[cfg(target_arch = "x86_64")]
-        if std::arch::is_x86_feature_detected!("avx2") {
-            // SAFETY: `row_avx2` only requires AVX2, whose presence was just checked.
+        if crate::raster::simd::Simd::Avx2.runs() {
+            // SAFETY: `row_avx2` only requires AVX2, which is present (`Simd::runs`).
             return unsafe { self.row_avx2(rows, out) };
         }
         self.row_portable(rows, out);

@@ -11,15 +11,15 @@ crate::params! {
         pub light: [f64; 3] = Shading::default().lights[0].direction.map(f64::from)
             => vec3.range(-1e3, 1e3),
         /// Ambient light added to the diffuse term.
-        pub ambient: f64 = f64::from(Shading::default().ambient) => float.range(0.0, 10.0),
+        pub ambient: f64 = f64::from(Shading::default().ambient) => float.range(0.0, 10.0).soft(0.0, 1.0),
         /// Blinn-Phong specular strength (0 = Lambert only).
-        pub specular: f64 = f64::from(Shading::default().specular) => float.range(0.0, 10.0),
+        pub specular: f64 = f64::from(Shading::default().specular) => float.range(0.0, 10.0).soft(0.0, 2.0),
         /// Blinn-Phong exponent.
         pub shininess: f64 = f64::from(Shading::default().shininess)
-            => float.range(0.0, 10000.0),
+            => float.range(0.0, 10000.0).soft(1.0, 1000.0).log(),
         /// Exposure.
         pub exposure_ev: f64 = f64::from(Shading::default().exposure_ev)
-            => float.unit("EV").range(-32.0, 32.0),
+            => float.unit("EV").range(-32.0, 32.0).soft(-8.0, 8.0),
     }
 }
 

@@ -288,7 +288,7 @@ fn progress_is_reported_and_cancellation_stops() {
 
     let cancel = Arc::new(AtomicBool::new(true));
     let opts = EvalOptions {
-        cancel: Some(cancel),
+        cancel: rgbn::cancel::Cancel::from_flag(cancel),
         ..EvalOptions::default()
     };
     let e = Evaluator::default().eval(&plan, &[], &opts).unwrap_err();

@@ -213,6 +213,16 @@ fn ops_lists_every_operator_from_the_specs() {
             );
         }
     }
+    // Both ranges: the hard one (what a file or --set may hold) and the slider's.
+    for line in [
+        "param sigma_normal: float in [0, 1000000], slider [0, 1], default",
+        "param sigma_px: float (px) in [0.05, 4096], slider [0.1, 64] log, default 2",
+        "param angle_rad: float (rad) in [-10000, 10000], slider [-3.141592653589793, 3.141592653589793], default 0",
+        // A slider over the whole hard range says nothing more.
+        "param opacity: float in [0, 1], default 1",
+    ] {
+        assert!(out.contains(line), "{line}");
+    }
 }
 
 #[test]

@@ -18,7 +18,7 @@
 //!    the image, so a crop edge is either a real image edge, where the border mode applies as
 //!    on the whole image, or at least a halo away), global inputs are passed whole, and the
 //!    operator runs on the crop with its positional parameters shifted
-//!    ([`crate::nodes::Operator::shifted`]); the tile is cut out of the result. Tiles of one
+//!    ([`crate::params::shifted`]); the tile is cut out of the result. Tiles of one
 //!    instance run in parallel.
 //! 4. **Caching.** Tiles live in the evaluator's byte-budgeted memory cache under
 //!    (content key, level, tile size, tile position); an edit changes the content key of what
@@ -544,7 +544,7 @@ impl Evaluator {
             }
         }
         // 5. Compute, instance by instance in order, the tiles of each in parallel.
-        let ctx = RunContext::new(plan.protected.clone());
+        let ctx = RunContext::new(plan.protected.clone()).with_cancel(opts.token());
         let mut tiles = Vec::new();
         for i in 0..=root {
             if level_todo[i] {

@@ -137,11 +137,14 @@ pub fn publish(
     inputs: &[&Path],
 ) -> Result<Published, RgbnError> {
     let (w, h) = (img.width(), img.height());
+    let cancel = crate::cancel::Cancel::current();
     build(dir, opts, inputs, (w, h), img.mask().is_some(), |pyr| {
         // In bands, so the pyramid's own band stays small.
         let rows = pyramid::TILE * 2;
         let mut y = 0;
         while y < h {
+            // Cancelled: nothing is written (the folder is built aside and renamed at the end).
+            cancel.check()?;
             let e = (y + rows).min(h);
             pyr.push(&plane_rows(img, y * w, e * w))?;
             y = e;

@@ -251,7 +251,12 @@ pub(super) fn bilateral(
     );
     // Weights of the over-relaxed trial iterate.
     let mut trial = (p.over_relaxation > 1.0).then(|| (vec![0.0f32; n], vec![0.0f32; n]));
+    let cancel = crate::cancel::Cancel::current();
     for _ in 0..p.max_irls {
+        // Cancelled: the caller discards the iterate (crate::cancel).
+        if cancel.is_cancelled() {
+            break;
+        }
         // Edge system from the current weights.
         wx.par_chunks_mut(w)
             .zip(ex.par_chunks_mut(w))

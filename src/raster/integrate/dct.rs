@@ -22,7 +22,12 @@ pub(super) fn poisson_dct(g: &GradientField, domain: Option<&[f32]>, d: Differen
     let (w, h) = (g.width, g.height);
     let (dw, dh) = (dct_plan(w), dct_plan(h));
     let mut z = buf::zeroed_f32(w * h);
+    // Cancelled: every pass skips its work and the caller discards `z` (crate::cancel).
+    let cancel = crate::cancel::Cancel::current();
     for_row_pairs(&mut z, w, dw.scratch_len, |r, a, mut b, buf, s| {
+        if cancel.is_cancelled() {
+            return;
+        }
         divergence_row(g, domain, d, r, a);
         if let Some(b) = b.as_deref_mut() {
             divergence_row(g, domain, d, r + 1, b);
@@ -56,6 +61,9 @@ pub(super) fn poisson_dct(g: &GradientField, domain: Option<&[f32]>, d: Differen
             )
         },
         |(buf, scratch, x2), grp| {
+            if cancel.is_cancelled() {
+                return;
+            }
             let (c0, cols) = (grp.c0, grp.cols);
             let buf = &mut buf[..cols.div_ceil(2) * h];
             for (r, &pos) in dh.pos.iter().enumerate() {
@@ -94,7 +102,9 @@ pub(super) fn poisson_dct(g: &GradientField, domain: Option<&[f32]>, d: Differen
         },
     );
     for_row_pairs(&mut z, w, dw.scratch_len, |_, a, b, buf, s| {
-        dw.dct3_pair(a, b, buf, s);
+        if !cancel.is_cancelled() {
+            dw.dct3_pair(a, b, buf, s);
+        }
     });
     Plane::from_vec(w, h, z).expect("sizes match by construction")
 }

@@ -26,7 +26,7 @@
 //! The V-cycle: one red-black Gauss–Seidel sweep (red, then black), residual restricted by
 //! summing the four children (`Pᵀ`), the coarse correction from the next level, added back to
 //! the four children (`P`), one sweep in the reverse order (black, then red), so the cycle is a
-//! symmetric linear operator. The **coarsest level (≤ [`COARSEST_NODES`] nodes) is solved
+//! symmetric linear operator. The **coarsest level (≤ `COARSEST_NODES` nodes) is solved
 //! exactly**: per connected component the right-hand side's mean is projected out (a pure
 //! Neumann component is singular and only consistent right-hand sides have a solution), one
 //! node per component is pinned, the rest solved by a dense Cholesky factorisation (`f64`),
@@ -427,6 +427,7 @@ fn pcg(
     mut pre: Preconditioner,
 ) -> (u32, f64, bool) {
     let n = b.len();
+    let cancel = crate::cancel::Cancel::current();
     let (w, spans) = (mg.levels[0].w, mg.levels[0].spans.clone());
     let mut ax = zeros::<f64>(n);
     let mut res = zeros::<f64>(n);
@@ -452,6 +453,10 @@ fn pcg(
     let mut restart = true;
     let mut restarted = false;
     while iterations < max_iterations && rel > tolerance {
+        // Cancelled: the caller discards whatever `x` holds (crate::cancel).
+        if cancel.is_cancelled() {
+            break;
+        }
         if best.is_some_and(|best| rel > 10.0 * best) {
             pre = Preconditioner::Jacobi;
             best = None;

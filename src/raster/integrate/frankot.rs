@@ -25,12 +25,17 @@ pub(super) fn frankot_chellappa(g: &GradientField, differences: Differences) -> 
     let hw = w / 2 + 1;
     // (1) Row r of `spec`: [P_0, Q_0, P_1, Q_1, …, P_{hw−1}, Q_{hw−1}].
     let mut spec = vec![C_ZERO; h * 2 * hw];
+    // Cancelled: every pass skips its work and the caller discards `z` (crate::cancel).
+    let cancel = crate::cancel::Cancel::current();
     spec.par_chunks_mut(2 * hw)
         .zip(g.p.par_chunks(w).zip(g.q.par_chunks(w)))
         .with_min_len(4)
         .for_each_init(
             || (vec![C_ZERO; w], vec![C_ZERO; fw.get_inplace_scratch_len()]),
             |(buf, scratch), (s, (p, q))| {
+                if cancel.is_cancelled() {
+                    return;
+                }
                 for ((o, &pv), &qv) in buf.iter_mut().zip(p).zip(q) {
                     *o = Complex::new(pv, qv);
                 }
@@ -90,6 +95,9 @@ pub(super) fn frankot_chellappa(g: &GradientField, differences: Differences) -> 
         2 * g_max,
         || (vec![C_ZERO; 2 * g_max * h], vec![C_ZERO; scratch_len]),
         |(buf, scratch), grp| {
+            if cancel.is_cancelled() {
+                return;
+            }
             let (k0, bins) = (grp.c0 / 2, grp.cols / 2);
             let (pb, qb) = buf.split_at_mut(g_max * h);
             let (pb, qb) = (&mut pb[..bins * h], &mut qb[..bins * h]);
@@ -129,6 +137,9 @@ pub(super) fn frankot_chellappa(g: &GradientField, differences: Differences) -> 
         .for_each_init(
             || (vec![C_ZERO; w], vec![C_ZERO; iw.get_inplace_scratch_len()]),
             |(buf, scratch), (out, s)| {
+                if cancel.is_cancelled() {
+                    return;
+                }
                 let z1 = |k: usize| s[2 * k];
                 let z2 = |k: usize| s.get(2 * hw + 2 * k).copied().unwrap_or(C_ZERO);
                 // Ẑ_0 and (W even) Ẑ_{W/2} are real by symmetry: drop their rounding.

@@ -10,7 +10,7 @@ use crate::raster::par::OrderedReduce;
 use crate::raster::Plane;
 use rayon::prelude::*;
 
-/// Masked Poisson by multigrid-preconditioned CG ([`solve_edges`]) from the DCT warm start.
+/// Masked Poisson by multigrid-preconditioned CG (`solve_edges`) from the DCT warm start.
 /// Returns the height (isolated domain pixels 0, zero mean over the rest of the domain, each
 /// component keeping the warm start's mean before that shift; outside the warm start, shifted
 /// by the same constant), iterations and final relative residual.
