@@ -100,6 +100,16 @@ pub fn _dask_plan(
     level: u32,
 ) -> PyResult<BTreeMap<String, (usize, usize, &'static str, usize)>> {
     let (text, label, base) = graph;
+    // Each OME-Zarr input is opened here, on the client, so a store that is not one (a plain
+    // Zarr array, a missing folder) is an error naming the store before any task is built.
+    for path in inputs.values() {
+        if matches!(
+            rgbn::raster::io::Format::of(path),
+            Ok(rgbn::raster::io::Format::Zarr)
+        ) {
+            rgbn::raster::io::zarr::ZarrImage::open(path).map_err(rgbn_err)?;
+        }
+    }
     let lg = loaded(&text, &label, &base).map_err(graph_err)?;
     let plan = plan_of(&lg, &inputs, &base).map_err(graph_err)?;
     let outputs: Vec<String> = if outputs.is_empty() {
