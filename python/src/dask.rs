@@ -24,7 +24,7 @@ use rgbn::eval::region::RegionOptions;
 use rgbn::eval::plan::Conn;
 use rgbn::eval::{EvalOptions, Evaluator, Plan};
 use rgbn::graph::{GraphError, LoadedGraph};
-use rgbn::nodes::{DynOp, Kind, PortType, Value};
+use rgbn::nodes::{Kind, PortType, Value};
 use rgbn::raster::io::zarr::ZarrOptions;
 use rgbn::raster::window::Rect;
 use std::collections::BTreeMap;
