@@ -129,3 +129,6 @@ mod parse_once;
 #[cfg(feature = "gui")]
 #[path = "it/editor_structure.rs"]
 mod editor_structure;
+
+#[path = "it/zarr.rs"]
+mod zarr;

@@ -24,6 +24,7 @@ pub mod out;
 mod png_sink;
 mod publish;
 mod serve;
+mod zarr_sink;
 
 pub use capture::CaptureArgs;
 pub use docs::{CompletionsArgs, ManArgs};

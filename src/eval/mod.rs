@@ -272,6 +272,11 @@ impl Evaluator {
                 e.to_string()
             })
         })?;
+        if meta.is_dir() {
+            // An OME-Zarr store: keyed by its metadata and its files' names, sizes and times,
+            // not by reading every chunk (a region reads only its own).
+            return crate::raster::io::zarr::stamp(path).map_err(|e| err(e.to_string()));
+        }
         let (mtime, len) = (meta.modified().ok(), meta.len());
         if let Some(s) = lock(&self.files).get(path) {
             if s.mtime.is_some() && s.mtime == mtime && s.len == len {

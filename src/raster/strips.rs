@@ -85,7 +85,22 @@ impl StreamInput {
             Ok(Rows::open(p)?.map_err(|why| format!("the {what} is {why}")))
         };
         let (mut exr_color, mut exr_mask) = (None, None);
-        let normal = if Format::of(normal_path)? == Format::Exr {
+        let normal = if Format::of(normal_path)? == Format::Zarr {
+            if spec.color.is_some() || spec.mask.is_some() {
+                return Ok(Opened::Whole(
+                    "a colour or mask file is named beside the store (read whole)".into(),
+                ));
+            }
+            let z = std::sync::Arc::new(super::io::zarr::ZarrImage::open(normal_path)?);
+            if !matches!(z.content(), super::io::zarr::Content::Rgbn { .. }) {
+                // Read whole: the loader says what the store holds.
+                return Ok(Opened::Whole("the store holds no RGBN image".into()));
+            }
+            let (n, c, m) = z.rows();
+            exr_color = c.map(|r| Rows::Zarr(Box::new(r)));
+            exr_mask = m.map(|r| Rows::Zarr(Box::new(r)));
+            Rows::Zarr(Box::new(n))
+        } else if Format::of(normal_path)? == Format::Exr {
             let p = normal_path.as_path();
             let names = if opts.exr_rgb_is_normal {
                 ["R", "G", "B"]
@@ -260,7 +275,7 @@ impl Window<'_> {
 /// `(0, 0, 1)`) and counts what needed it. The loop is branch-free (selects and mask counts),
 /// so it vectorises; a pixel at a time through three zipped parallel iterators was a tenth of
 /// a streamed 4K graph's CPU time.
-fn repair_normals([nx, ny, nz]: [&mut [f32]; 3]) -> Validation {
+pub(crate) fn repair_normals([nx, ny, nz]: [&mut [f32]; 3]) -> Validation {
     let (mut zero, mut non_unit, mut back) = (0usize, 0usize, 0usize);
     for ((x, y), z) in nx.iter_mut().zip(ny.iter_mut()).zip(nz.iter_mut()) {
         let len = (*x * *x + *y * *y + *z * *z).sqrt();
