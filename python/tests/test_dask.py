@@ -231,18 +231,19 @@ def test_a_global_operator_is_refused_naming_the_node(tmp_path, big_store):
     assert not (tmp_path / "h.zarr").exists()
 
 
-def test_bad_stores_raise_input_error_naming_the_store_and_chunk(tmp_path):
+def test_bad_stores_raise_file_error_naming_the_store_and_chunk(tmp_path):
     g = GRAPHS / "input_image.ron"
     # Not OME: a plain Zarr array.
     plain = tmp_path / "plain.zarr"
     zarr.create_array(str(plain), shape=(6, 64, 64), chunks=(6, 32, 32), dtype="float32")
-    with pytest.raises(rgbn.InputError) as e:
+    # The same class `rgbn.read` raises for a file it cannot decode.
+    with pytest.raises(rgbn.FileError) as e:
         rd.evaluate(g, {"image": plain}, {"relit": tmp_path / "a.zarr"}, threads=1)
     assert "plain.zarr" in str(e.value)
     # A missing chunk: found by the task that reads it, which names its chunk.
     store = make_store(tmp_path, 1024, name="holed.zarr")
     os.remove(store / "0" / "c" / "0" / "1" / "1")
-    with pytest.raises(rgbn.InputError) as e:
+    with pytest.raises(rgbn.FileError) as e:
         rd.evaluate(g, {"image": store}, {"relit": tmp_path / "b.zarr"}, chunks=512)
     msg = str(e.value)
     # The chunk of the task that met it (the missing chunk or a neighbour reading its halo).

@@ -371,14 +371,7 @@ pub fn eval_cmd(a: &EvalArgs, out: &mut Out<'_>) -> Result<(), CliError> {
         match stream_plan(&plan, &requested)? {
             Err(why) => Some(why),
             Ok(sp) if a.streaming.stream.streams_graph(sp.size()) => {
-                return eval_stream(
-                    &plan,
-                    sp,
-                    &requested,
-                    a.streaming.strip_rows,
-                    &a.exr,
-                    out,
-                );
+                return eval_stream(&plan, sp, &requested, a.streaming.strip_rows, &a.exr, out);
             }
             Ok(_) => None,
         }

@@ -63,7 +63,14 @@ impl ZarrSink {
             Value::Picture(p) => {
                 let bytes = &p.rgba[rows.start * 4..rows.end * 4];
                 let planes: Vec<Vec<f32>> = (0..4)
-                    .map(|c| bytes.iter().skip(c).step_by(4).map(|&v| f32::from(v)).collect())
+                    .map(|c| {
+                        bytes
+                            .iter()
+                            .skip(c)
+                            .step_by(4)
+                            .map(|&v| f32::from(v))
+                            .collect()
+                    })
                     .collect();
                 let refs: Vec<&[f32]> = planes.iter().map(Vec::as_slice).collect();
                 writer.write(&refs)

@@ -7,8 +7,8 @@
 
 use super::{Kind, OpSpec, Operator, RunContext, Value};
 use crate::error::RgbnError;
-use crate::raster::io::{self, Format, SaveOptions};
 use crate::raster::io::zarr::{Content, ZarrCompression, ZarrDtype, ZarrOptions};
+use crate::raster::io::{self, Format, SaveOptions};
 use crate::raster::io::{ExrCompression, ExrPrecision, NormalConvention};
 use crate::raster::window::Rect;
 use crate::raster::Plane;
@@ -142,7 +142,14 @@ pub fn write_value_zarr(
         }
         Value::Picture(pic) => {
             bytes = (0..4)
-                .map(|c| pic.rgba.iter().skip(c).step_by(4).map(|&v| f32::from(v)).collect())
+                .map(|c| {
+                    pic.rgba
+                        .iter()
+                        .skip(c)
+                        .step_by(4)
+                        .map(|&v| f32::from(v))
+                        .collect()
+                })
                 .collect();
             let p = bytes.iter().map(Vec::as_slice).collect();
             (Content::Picture, p, (pic.width, pic.height))

@@ -21,8 +21,8 @@ pub mod ahead;
 mod exr_write;
 mod openexr;
 mod png_normals;
-pub mod stream;
 mod raster_write;
+pub mod stream;
 pub mod targets;
 pub mod zarr;
 
@@ -176,9 +176,7 @@ pub fn load(spec: &InputSpec, opts: &LoadOptions) -> Result<Loaded, RgbnError> {
                 Format::Zarr if spec.color.is_none() && spec.mask.is_none() => {
                     return zarr::load(p, opts)
                 }
-                Format::Zarr => {
-                    (zarr::load(p, opts)?.image, None)
-                }
+                Format::Zarr => (zarr::load(p, opts)?.image, None),
                 Format::Exr => (load_exr(p, opts)?, None),
                 Format::Ptm => (super::ptm::load_ptm(p)?, None),
                 _ => load_normal_map_counted(p, opts)?,

@@ -306,6 +306,24 @@ impl Surface {
     pub fn render_sampled_window(&self, full: (usize, usize), win: Window) -> (RgbnImage, Plane) {
         let (width, height) = (win.w, win.h);
         let zc = corner_heights(full, win, |u, v| self.height(u, v));
+        // Cancelled while sampling: a flat image of the right size, which the caller discards
+        // (crate::cancel); the mask's passes below are skipped.
+        let cancel = crate::cancel::Cancel::current();
+        if cancel.is_cancelled() {
+            let n = width * height;
+            let img = RgbnImage::new(
+                width,
+                height,
+                [vec![0.8; n], vec![0.8; n], vec![0.8; n]],
+                [vec![0.0; n], vec![0.0; n], vec![1.0; n]],
+                None,
+            )
+            .expect("sizes match by construction");
+            return (
+                img,
+                Plane::from_vec(width, height, vec![0.0; n]).expect("sizes match"),
+            );
+        }
         let (mut g, z) = GradientField::from_corner_heights(width, height, &zc);
         let mask = self.undefined_somewhere(full).then(|| {
             let defined = corner_heights(full, win, |u, v| {

@@ -62,10 +62,24 @@ fn four_region_processes_fill_one_store_equal_to_one_whole_eval() {
     input_store(d.path());
     let g = graph_path("input_image.ron").display().to_string();
     let common = [
-        "eval", &g, "--input", "image=in.zarr", "--chunk", "64", "--tile", "64",
+        "eval",
+        &g,
+        "--input",
+        "image=in.zarr",
+        "--chunk",
+        "64",
+        "--tile",
+        "64",
     ];
     let mut whole: Vec<&str> = common.to_vec();
-    whole.extend(["--stream", "always", "-o", "image=whole.zarr", "-o", "relit=whole_relit.zarr"]);
+    whole.extend([
+        "--stream",
+        "always",
+        "-o",
+        "image=whole.zarr",
+        "-o",
+        "relit=whole_relit.zarr",
+    ]);
     let o = run(d.path(), &whole);
     assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
     assert!(stdout(&o).contains("streamed"), "{}", stdout(&o));
@@ -75,7 +89,14 @@ fn four_region_processes_fill_one_store_equal_to_one_whole_eval() {
         .iter()
         .map(|q| {
             let mut args: Vec<&str> = common.to_vec();
-            args.extend(["--region", q, "-o", "image=parts.zarr", "-o", "relit=parts_relit.zarr"]);
+            args.extend([
+                "--region",
+                q,
+                "-o",
+                "image=parts.zarr",
+                "-o",
+                "relit=parts_relit.zarr",
+            ]);
             Command::new(env!("CARGO_BIN_EXE_rgbn"))
                 .current_dir(d.path())
                 .args(&args)
@@ -86,7 +107,10 @@ fn four_region_processes_fill_one_store_equal_to_one_whole_eval() {
         let o = c.unwrap();
         assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
     }
-    assert_eq!(files(&d.path().join("parts.zarr")), files(&d.path().join("whole.zarr")));
+    assert_eq!(
+        files(&d.path().join("parts.zarr")),
+        files(&d.path().join("whole.zarr"))
+    );
     assert_eq!(
         files(&d.path().join("parts_relit.zarr")),
         files(&d.path().join("whole_relit.zarr"))
@@ -96,7 +120,11 @@ fn four_region_processes_fill_one_store_equal_to_one_whole_eval() {
     args.extend(["--region", "10,0,64,64", "-o", "image=other.zarr"]);
     let o = run(d.path(), &args);
     assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
-    assert!(stderr(&o).contains("not aligned to the 64-pixel chunks"), "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains("not aligned to the 64-pixel chunks"),
+        "{}",
+        stderr(&o)
+    );
     assert!(!d.path().join("other.zarr").exists());
 }
 
@@ -110,23 +138,51 @@ fn a_region_reads_only_the_chunks_covering_it_and_its_halo() {
     let o = run(
         d.path(),
         &[
-            "eval", &g, "--input", "image=in.zarr", "--region", "64,64,64,64", "--tile", "64",
-            "--stats", "-o", "image=part.exr",
+            "eval",
+            &g,
+            "--input",
+            "image=in.zarr",
+            "--region",
+            "64,64,64,64",
+            "--tile",
+            "64",
+            "--stats",
+            "-o",
+            "image=part.exr",
         ],
     );
     assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
-    assert!(stdout(&o).contains("zarr chunks read: 9\n"), "{}", stdout(&o));
+    assert!(
+        stdout(&o).contains("zarr chunks read: 9\n"),
+        "{}",
+        stdout(&o)
+    );
     // At level 1 the store's level 1 is read (32-pixel chunks of the same cells), not level 0.
     let o = run(
         d.path(),
         &[
-            "eval", &g, "--input", "image=in.zarr", "--level", "1", "--region", "0,0,32,32",
-            "--tile", "32", "--stats", "-o", "image=part1.exr",
+            "eval",
+            &g,
+            "--input",
+            "image=in.zarr",
+            "--level",
+            "1",
+            "--region",
+            "0,0,32,32",
+            "--tile",
+            "32",
+            "--stats",
+            "-o",
+            "image=part1.exr",
         ],
     );
     assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
     // Rows and columns 0–1 of level 1's 32-pixel chunks.
-    assert!(stdout(&o).contains("zarr chunks read: 4\n"), "{}", stdout(&o));
+    assert!(
+        stdout(&o).contains("zarr chunks read: 4\n"),
+        "{}",
+        stdout(&o)
+    );
 }
 
 #[test]
@@ -170,7 +226,14 @@ fn bad_stores_exit_2_naming_the_store_and_nothing_is_written_over_an_input() {
         ),
         (
             "channels",
-            Box::new(move |p: &Path| edit(p, "zarr.json", "\"label\": \"B\",", "\"label\": \"B\"}, {\"label\": \"extra\",")),
+            Box::new(move |p: &Path| {
+                edit(
+                    p,
+                    "zarr.json",
+                    "\"label\": \"B\",",
+                    "\"label\": \"B\"}, {\"label\": \"extra\",",
+                )
+            }),
             "wrong channel count",
         ),
         (
@@ -188,20 +251,40 @@ fn bad_stores_exit_2_naming_the_store_and_nothing_is_written_over_an_input() {
             let o = run(
                 d.path(),
                 &[
-                    "eval", &g, "--input", &input, "--stream", stream, "-o", "image=out.zarr",
+                    "eval",
+                    &g,
+                    "--input",
+                    &input,
+                    "--stream",
+                    stream,
+                    "-o",
+                    "image=out.zarr",
                 ],
             );
             let err = stderr(&o);
             assert_eq!(o.status.code(), Some(2), "{name} {stream}: {err}");
             assert!(err.contains(what), "{name} {stream}: {err}");
-            assert!(err.contains(&format!("{name}.zarr")), "{name}: names the store: {err}");
+            assert!(
+                err.contains(&format!("{name}.zarr")),
+                "{name}: names the store: {err}"
+            );
             assert_eq!(err.trim().lines().count(), 1, "{name}: one line: {err}");
-            assert!(!d.path().join("out.zarr").exists(), "{name}: nothing written");
+            assert!(
+                !d.path().join("out.zarr").exists(),
+                "{name}: nothing written"
+            );
         }
         // The input as the output: refused, the store untouched.
         let o = run(
             d.path(),
-            &["eval", &g, "--input", &input, "-o", &format!("image={name}.zarr")],
+            &[
+                "eval",
+                &g,
+                "--input",
+                &input,
+                "-o",
+                &format!("image={name}.zarr"),
+            ],
         );
         assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
         assert_eq!(files(&p), before, "{name}: the input is untouched");

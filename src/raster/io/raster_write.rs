@@ -118,7 +118,9 @@ fn encode_raster(
             Format::Jpeg => image::codecs::jpeg::JpegEncoder::new_with_quality(out, 95)
                 .write_image(bytes, w as u32, h as u32, ct),
             Format::Png | Format::Exr | Format::Ptm | Format::Zarr => {
-                unreachable!("PNG: encode_png; EXR: the exr crate; PTM, Zarr: refused by the callers")
+                unreachable!(
+                    "PNG: encode_png; EXR: the exr crate; PTM, Zarr: refused by the callers"
+                )
             }
         };
         r.map_err(|e| e.to_string())

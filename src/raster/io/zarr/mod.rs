@@ -386,9 +386,19 @@ pub fn load_color(path: &Path) -> Result<(usize, usize, [Vec<f32>; 3]), RgbnErro
     let z = ZarrImage::open(path)?;
     let (w, h) = z.size();
     let mut planes = z.read(0, crate::raster::window::Rect::full((w, h)))?;
-    let find = |k: usize| z.labels().iter().position(|l| Role::of(l) == Role::Color(k));
+    let find = |k: usize| {
+        z.labels()
+            .iter()
+            .position(|l| Role::of(l) == Role::Color(k))
+    };
     let (Some(r), Some(g), Some(b)) = (find(0), find(1), find(2)) else {
-        return Err(store_error(path, format!("no colour channels R, G, B (it has {})", z.labels().join(", "))));
+        return Err(store_error(
+            path,
+            format!(
+                "no colour channels R, G, B (it has {})",
+                z.labels().join(", ")
+            ),
+        ));
     };
     let mut take = |i: usize| std::mem::take(&mut planes[i]);
     let mut rgb = [take(r), take(g), take(b)];
@@ -407,7 +417,10 @@ pub fn load_mask(path: &Path) -> Result<(usize, usize, Vec<f32>), RgbnError> {
     let (w, h) = z.size();
     match z.read_channel(Role::Mask)? {
         Some(m) => Ok((w, h, m)),
-        None => Err(store_error(path, format!("no mask channel (it has {})", z.labels().join(", ")))),
+        None => Err(store_error(
+            path,
+            format!("no mask channel (it has {})", z.labels().join(", ")),
+        )),
     }
 }
 
@@ -424,7 +437,11 @@ pub fn stamp(path: &Path) -> std::io::Result<u128> {
             if m.is_dir() {
                 todo.push(e.path());
             } else {
-                let rel = e.path().strip_prefix(path).unwrap_or(&e.path()).to_path_buf();
+                let rel = e
+                    .path()
+                    .strip_prefix(path)
+                    .unwrap_or(&e.path())
+                    .to_path_buf();
                 let t = m
                     .modified()
                     .ok()

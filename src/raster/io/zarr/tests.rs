@@ -142,7 +142,10 @@ fn levels_are_the_engines_block_means_and_each_levels_chunks_cover_level_0s() {
             // Level 1 adds what reduce_rgbn adds in its order; level 2 sums 2 × 2 sums.
             let tol = if k == 1 { 0.0 } else { 2e-7 };
             for c in 0..3 {
-                assert!(max_diff(&got.color()[c], &want.color()[c]) <= tol, "level {k}");
+                assert!(
+                    max_diff(&got.color()[c], &want.color()[c]) <= tol,
+                    "level {k}"
+                );
                 // Renormalised once more on reading.
                 assert!(max_diff(&got.normal()[c], &want.normal()[c]) <= tol + 2e-7);
             }
@@ -193,19 +196,32 @@ fn pictures_masks_and_fields_have_their_own_channels_and_exact_levels() {
     for (i, v) in want.iter().enumerate() {
         assert_eq!(got[i % 4][i / 4], f32::from(*v));
     }
-    assert!(z.read_rgbn(0, Rect::full((w, h))).is_err(), "a picture is no RGBN image");
+    assert!(
+        z.read_rgbn(0, Rect::full((w, h))).is_err(),
+        "a picture is no RGBN image"
+    );
 
     let field: Vec<f32> = (0..w * h).map(|i| (i as f32 * 0.37).sin() * 40.0).collect();
     let p = d.join("height.zarr");
     save_planes_zarr(&p, (w, h), Content::Scalar, &[&field], &o, None).unwrap();
     let z = ZarrImage::open(&p).unwrap();
-    assert_eq!((z.labels(), z.content()), (&["value".to_string()][..], Content::Scalar));
+    assert_eq!(
+        (z.labels(), z.content()),
+        (&["value".to_string()][..], Content::Scalar)
+    );
     assert_eq!(z.read(0, Rect::full((w, h))).unwrap()[0], field);
     let want = reduce_plane(&Plane::from_vec(w, h, field.clone()).unwrap(), 2);
     assert_eq!(z.read(1, Rect::full((45, 35))).unwrap()[0], want.data());
     let u16 = opts(ZarrDtype::U16, 64);
-    let e = save_planes_zarr(&d.join("h16.zarr"), (w, h), Content::Scalar, &[&field], &u16, None)
-        .unwrap_err();
+    let e = save_planes_zarr(
+        &d.join("h16.zarr"),
+        (w, h),
+        Content::Scalar,
+        &[&field],
+        &u16,
+        None,
+    )
+    .unwrap_err();
     assert!(e.to_string().contains("float32 or float16"), "{e}");
 
     let m: Vec<f32> = (0..w * h).map(|i| (i % 3) as f32 / 2.0).collect();
@@ -330,7 +346,10 @@ fn four_concurrent_region_writers_make_the_whole_store_byte_for_byte() {
     });
     assert_eq!(files(&parts), files(&whole));
     // No temporary file or folder is left beside them.
-    let left: Vec<_> = std::fs::read_dir(&d).unwrap().map(|e| e.unwrap().file_name()).collect();
+    let left: Vec<_> = std::fs::read_dir(&d)
+        .unwrap()
+        .map(|e| e.unwrap().file_name())
+        .collect();
     assert_eq!(left.len(), 2, "{left:?}");
 
     // A region off the grid, and a store of another shape, are refused by name.
@@ -339,11 +358,25 @@ fn four_concurrent_region_writers_make_the_whole_store_byte_for_byte() {
     let [x, y, z] = crop.normal();
     let planes: Vec<&[f32]> = vec![r, g, b, x, y, z, crop.mask().unwrap()];
     let c = Content::Rgbn { mask: true };
-    let e = save_planes_zarr(&parts, (w, h), c, &planes, &o, Some(Rect::new(10, 0, 32, 32)))
-        .unwrap_err();
+    let e = save_planes_zarr(
+        &parts,
+        (w, h),
+        c,
+        &planes,
+        &o,
+        Some(Rect::new(10, 0, 32, 32)),
+    )
+    .unwrap_err();
     assert!(e.to_string().contains("not aligned"), "{e}");
-    let e = save_planes_zarr(&parts, (w + 1, h), c, &planes, &o, Some(Rect::new(0, 0, 32, 32)))
-        .unwrap_err();
+    let e = save_planes_zarr(
+        &parts,
+        (w + 1, h),
+        c,
+        &planes,
+        &o,
+        Some(Rect::new(0, 0, 32, 32)),
+    )
+    .unwrap_err();
     assert!(e.to_string().contains("other metadata"), "{e}");
     std::fs::remove_dir_all(&d).unwrap();
 }
@@ -408,7 +441,10 @@ fn an_ngff_0_4_store_on_zarr_v2_is_read() {
         std::fs::write(p.join(format!("0/0.0.{gx}")), bytes).unwrap();
     }
     let z = ZarrImage::open(&p).unwrap();
-    assert_eq!((z.size(), z.content()), ((w, h), Content::Rgbn { mask: false }));
+    assert_eq!(
+        (z.size(), z.content()),
+        ((w, h), Content::Rgbn { mask: false })
+    );
     let (img, _) = z.read_rgbn(0, Rect::full((w, h))).unwrap();
     for y in 0..h {
         for x in 0..w {
@@ -449,14 +485,20 @@ fn bad_stores_each_get_one_error_naming_the_store_and_the_fault() {
     let p = fresh("missing");
     std::fs::remove_file(p.join("0/c/0/1/2")).unwrap();
     let e = error_of(&p);
-    assert!(e.contains("chunk 0/c/0/1/2 of level 0") && e.contains("missing"), "{e}");
+    assert!(
+        e.contains("chunk 0/c/0/1/2 of level 0") && e.contains("missing"),
+        "{e}"
+    );
 
     let p = fresh("truncated");
     let f = p.join("0/c/0/2/1");
     let b = std::fs::read(&f).unwrap();
     std::fs::write(&f, &b[..b.len() / 2]).unwrap();
     let e = error_of(&p);
-    assert!(e.contains("chunk 0/c/0/2/1") && e.contains("truncated or corrupt"), "{e}");
+    assert!(
+        e.contains("chunk 0/c/0/2/1") && e.contains("truncated or corrupt"),
+        "{e}"
+    );
 
     let p = fresh("corrupt");
     std::fs::write(p.join("0/c/0/0/0"), b"not zstd at all").unwrap();
@@ -464,14 +506,27 @@ fn bad_stores_each_get_one_error_naming_the_store_and_the_fault() {
 
     let p = fresh("dtype");
     edit(&p, "0/zarr.json", "\"float32\"", "\"int32\"");
-    edit(&p, "0/zarr.json", "\"fill_value\": 0.0", "\"fill_value\": 0");
+    edit(
+        &p,
+        "0/zarr.json",
+        "\"fill_value\": 0.0",
+        "\"fill_value\": 0",
+    );
     let e = error_of(&p);
     assert!(e.contains("wrong data type") && e.contains("int32"), "{e}");
 
     let p = fresh("channels");
-    edit(&p, "zarr.json", "\"label\": \"nz\"", "\"label\": \"nz\"}, {\"label\": \"extra\"");
+    edit(
+        &p,
+        "zarr.json",
+        "\"label\": \"nz\"",
+        "\"label\": \"nz\"}, {\"label\": \"extra\"",
+    );
     let e = error_of(&p);
-    assert!(e.contains("wrong channel count") && e.contains("6 channels"), "{e}");
+    assert!(
+        e.contains("wrong channel count") && e.contains("6 channels"),
+        "{e}"
+    );
 
     let p = fresh("not-ome");
     edit(&p, "zarr.json", "\"multiscales\"", "\"not_multiscales\"");
@@ -482,9 +537,19 @@ fn bad_stores_each_get_one_error_naming_the_store_and_the_fault() {
     std::fs::create_dir(&p).unwrap();
     assert!(error_of(&p).contains("not a Zarr store"));
     assert!(error_of(&d.join("absent.zarr")).contains("not found"));
-    for e in ["missing", "truncated", "dtype", "channels", "not-ome", "plain"] {
+    for e in [
+        "missing",
+        "truncated",
+        "dtype",
+        "channels",
+        "not-ome",
+        "plain",
+    ] {
         let p = d.join(format!("{e}.zarr"));
-        assert!(error_of(&p).contains(&p.display().to_string()), "{e}: names the store");
+        assert!(
+            error_of(&p).contains(&p.display().to_string()),
+            "{e}: names the store"
+        );
     }
     std::fs::remove_dir_all(&d).unwrap();
 }
