@@ -83,7 +83,7 @@ impl SaveParams {
 /// mask → `.png`/`.tif` (16-bit grey) or `.exr`; scalar field → `.exr` (`Y` channel, f32);
 /// number → a text file with the value.
 pub fn write_value(value: &Value, path: &Path, opts: &SaveOptions) -> Result<(), RgbnError> {
-    if Format::of(path)? == Format::Zarr {
+    if matches!(Format::of(path), Ok(Format::Zarr)) {
         return write_value_zarr(value, path, &opts.zarr, None);
     }
     match value {
