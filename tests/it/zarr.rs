@@ -201,6 +201,7 @@ fn bad_stores_exit_2_naming_the_store_and_nothing_is_written_over_an_input() {
         assert!(s.contains(from), "{file}: {from}");
         std::fs::write(&f, s.replacen(from, to, 1)).unwrap();
     };
+    #[allow(clippy::type_complexity)] // (name, how to break the store, what the error says)
     let cases: Vec<(&str, Box<dyn Fn(&Path)>, &str)> = vec![
         (
             "missing",

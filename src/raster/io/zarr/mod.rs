@@ -291,7 +291,7 @@ impl Layout {
                 opts.chunk
             )));
         }
-        if opts.shard != 0 && (opts.shard < opts.chunk || opts.shard % opts.chunk != 0) {
+        if opts.shard != 0 && (opts.shard < opts.chunk || !opts.shard.is_multiple_of(opts.chunk)) {
             return Err(bad(format!(
                 "shard side {} is not a multiple of the chunk side {}",
                 opts.shard, opts.chunk
@@ -311,7 +311,9 @@ impl Layout {
         while levels < most {
             let s = 1usize << levels;
             let (lw, lh) = crate::raster::pyramid::reduced_size((width, height), s);
-            if opts.chunk % s != 0 || opts.chunk / s < MIN_LEVEL_SIDE || lw.max(lh) < MIN_LEVEL_SIDE
+            if !opts.chunk.is_multiple_of(s)
+                || opts.chunk / s < MIN_LEVEL_SIDE
+                || lw.max(lh) < MIN_LEVEL_SIDE
             {
                 break;
             }

@@ -57,9 +57,7 @@ fn metadata_files(layout: &Layout, path: &Path) -> Result<Vec<(String, Vec<u8>)>
     let channels: Vec<_> = labels
         .iter()
         .map(|l| {
-            let (min, max) = if Role::of(l) == Role::Value {
-                (-1.0, 1.0)
-            } else if matches!(Role::of(l), Role::Normal(_)) {
+            let (min, max) = if matches!(Role::of(l), Role::Value | Role::Normal(_)) {
                 (-1.0, 1.0)
             } else {
                 (lo, hi)
@@ -298,7 +296,7 @@ impl ZarrWriter {
         let g = layout.cell();
         let (w, h) = (layout.width, layout.height);
         let edge_ok = |start: usize, len: usize, size: usize| {
-            start % g == 0 && (len % g == 0 || start + len == size)
+            start.is_multiple_of(g) && (len.is_multiple_of(g) || start + len == size)
         };
         if region.is_empty()
             || region.right() > w
@@ -374,7 +372,10 @@ impl ZarrWriter {
         let g = self.layout.cell();
         let (w, h) = (self.layout.width, self.layout.height);
         debug_assert_eq!(planes.len(), self.layout.channels());
-        if rect.intersect(&self.area) != rect || rect.x % g != 0 || rect.y % g != 0 {
+        if rect.intersect(&self.area) != rect
+            || !rect.x.is_multiple_of(g)
+            || !rect.y.is_multiple_of(g)
+        {
             return Err(write_error(
                 &self.path,
                 format!(
