@@ -27,6 +27,7 @@ graph before that node.
 import os
 import shutil
 import tempfile
+import weakref
 
 from . import _rgbn
 from ._rgbn import Error
@@ -139,22 +140,43 @@ def _store_dask_input(name, arr, root, zarr_chunk):
     return path
 
 
+class _Scratch:
+    """The folder holding dask-array inputs written as stores, for as long as a task graph that
+    reads them exists: the lazy form's arrays hold this object in their tasks' arguments, and
+    the folder is removed when the last of them is collected (or when the process exits). It
+    lives in the working directory, which a cluster's workers share more often than a local
+    temporary directory. A copy sent to a worker is only its path, which removes nothing."""
+
+    def __init__(self, path):
+        self.path = path
+        self._remove = weakref.finalize(self, shutil.rmtree, path, True)
+
+    def remove(self):
+        self._remove()
+
+    def __reduce__(self):
+        return (str, (self.path,))
+
+    def __dask_tokenize__(self):
+        return self.path
+
+
 def _prepare(graph, inputs, outputs, level, set, zarr_chunk):
-    """(graph source, input paths, temporary folder or None, output sizes)."""
+    """(graph source, input paths, temporary folder (:class:`_Scratch`) or None, output sizes)."""
     src = _rgbn._dask_graph(graph, _sets(set))
     paths, tmp = {}, None
     for name, v in dict(inputs or {}).items():
         if hasattr(v, "dask") and hasattr(v, "chunks"):
             if tmp is None:
-                tmp = tempfile.mkdtemp(prefix=".rgbn-dask-", dir=os.getcwd())
-            paths[name] = _store_dask_input(name, v, tmp, zarr_chunk)
+                tmp = _Scratch(tempfile.mkdtemp(prefix=".rgbn-dask-", dir=os.getcwd()))
+            paths[name] = _store_dask_input(name, v, tmp.path, zarr_chunk)
         else:
             paths.update(_paths({name: v}, "inputs"))
     try:
         sizes = _rgbn._dask_plan(src, paths, list(outputs), int(level))
     except BaseException:
         if tmp:
-            shutil.rmtree(tmp, ignore_errors=True)
+            tmp.remove()
         raise
     return src, paths, tmp, sizes
 
@@ -213,7 +235,7 @@ def evaluate(graph, inputs, outputs, *, chunks=None, level=0, set=None, zarr_chu
             dask.compute(*tasks, scheduler="threads")
     finally:
         if tmp:
-            shutil.rmtree(tmp, ignore_errors=True)
+            tmp.remove()
     return outs
 
 
@@ -246,8 +268,9 @@ def _block(value, ty):
     return np.asarray(value, dtype=np.float32)[None]
 
 
-def _task_blocks(graph, inputs, types, region, level, zarr_chunk, tile, threads):
-    """One Dask task of the lazy form: ``{name: (C, h, w) array}`` over ``region``."""
+def _task_blocks(graph, inputs, types, region, level, zarr_chunk, tile, threads, scratch=None):
+    """One Dask task of the lazy form: ``{name: (C, h, w) array}`` over ``region``. ``scratch``
+    (the inputs' temporary folder, unused here) keeps that folder alive while tasks need it."""
     values = _task(graph, inputs, list(types), region, level, zarr_chunk, tile, threads)
     return {n: _block(values[n], ty) for n, ty in types.items()}
 
@@ -268,13 +291,13 @@ def arrays(graph, inputs, outputs=None, *, chunks=None, level=0, set=None, threa
     import numpy as np
 
     side = _chunk_side(chunks, 16)
-    src, paths, _tmp, sizes = _prepare(graph, inputs, list(outputs or []), level, set, ZARR_CHUNK)
+    src, paths, scratch, sizes = _prepare(graph, inputs, list(outputs or []), level, set, ZARR_CHUNK)
     names = list(sizes)
     w, h = _common_size(sizes)
     regions = _regions(w, h, side)
     types = {n: sizes[n][2] for n in names}
     per = {
-        r: dask.delayed(_task_blocks, pure=True)(src, paths, types, r, int(level), ZARR_CHUNK, TILE, threads)
+        r: dask.delayed(_task_blocks, pure=True)(src, paths, types, r, int(level), ZARR_CHUNK, TILE, threads, scratch)
         for r in regions
     }
     out = {}

@@ -173,11 +173,37 @@ fn on_pool<T: Send>(
     threads: usize,
     f: impl FnOnce() -> T + Send,
 ) -> PyResult<T> {
-    let pool = rayon::ThreadPoolBuilder::new()
-        .num_threads(threads.max(1))
-        .thread_name(|i| format!("rgbn-task-{i}"))
-        .build()
-        .map_err(|e| crate::error::EvalError::new_err(format!("cannot start threads: {e}")))?;
+    // One pool per thread count for the life of the worker process: a task starts no threads,
+    // and the pool's threads keep their scratch buffers from one task to the next.
+    static POOLS: std::sync::OnceLock<
+        parking_lot::Mutex<BTreeMap<usize, std::sync::Arc<rayon::ThreadPool>>>,
+    > = std::sync::OnceLock::new();
+    // A Dask worker's allocator is set to hand freed memory back at once (its nanny sets
+    // MALLOC_TRIM_THRESHOLD_=65536, which also pins glibc's mmap threshold at 128 KiB): every
+    // chunk buffer of every task was then a fresh mapping, page-faulted and zero-filled, a
+    // third of a task's time (BENCHMARKS.md, "rgbn.dask"). A task keeps freed memory for the
+    // next, as the command line does (`recycle::keep_freed_memory`); the peak is unchanged.
+    static KEEP: std::sync::Once = std::sync::Once::new();
+    KEEP.call_once(rgbn::recycle::keep_freed_memory);
+    let threads = threads.max(1);
+    let pool = {
+        let mut pools = POOLS.get_or_init(Default::default).lock();
+        match pools.get(&threads) {
+            Some(p) => p.clone(),
+            None => {
+                let p = rayon::ThreadPoolBuilder::new()
+                    .num_threads(threads)
+                    .thread_name(|i| format!("rgbn-task-{i}"))
+                    .build()
+                    .map_err(|e| {
+                        crate::error::EvalError::new_err(format!("cannot start threads: {e}"))
+                    })?;
+                let p = std::sync::Arc::new(p);
+                pools.insert(threads, p.clone());
+                p
+            }
+        }
+    };
     Ok(py.detach(move || pool.install(f)))
 }
 

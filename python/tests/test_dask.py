@@ -263,3 +263,25 @@ def test_dask_array_inputs_equal_store_inputs(tmp_path):
     b = rd.arrays(g, {"image": arr}, ["relit"], chunks=256)["relit"].compute(scheduler="threads")
     assert a.shape == (4, 600, 600) and a.dtype == np.uint8
     assert np.array_equal(a, b)
+
+
+def test_the_lazy_form_keeps_its_scratch_store_while_its_arrays_live(tmp_path, monkeypatch):
+    # A dask-array input is written as a store in the working directory for the tasks to read;
+    # it must outlive the call (the arrays are lazy) and go when the arrays are collected.
+    import gc
+
+    import dask.array as da
+
+    store = make_store(tmp_path, 600)
+    work = tmp_path / "work"
+    work.mkdir()
+    monkeypatch.chdir(work)
+    arr = da.from_zarr(str(store / "0"))
+    relit = rd.arrays(GRAPHS / "input_image.ron", {"image": arr}, ["relit"], chunks=256)["relit"]
+    assert len(list(work.glob(".rgbn-dask-*"))) == 1
+    gc.collect()
+    want = rd.arrays(GRAPHS / "input_image.ron", {"image": store}, ["relit"], chunks=256)["relit"]
+    assert np.array_equal(relit.compute(scheduler="threads"), want.compute(scheduler="threads"))
+    del relit
+    gc.collect()
+    assert list(work.glob(".rgbn-dask-*")) == []

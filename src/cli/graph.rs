@@ -18,9 +18,10 @@ use crate::raster::io::{self, SaveOptions};
 use crate::raster::io::{Format, NormalConvention};
 use crate::raster::window::Rect;
 use clap::{Args, ValueEnum};
+use parking_lot::Mutex;
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
-use std::sync::{Arc, Mutex};
+use std::sync::Arc;
 
 /// `rgbn eval`.
 #[derive(Args, Debug)]
@@ -417,6 +418,8 @@ pub fn eval_cmd(a: &EvalArgs, out: &mut Out<'_>) -> Result<(), CliError> {
     let r = r?;
     super::interrupt::check()?;
     let written = write_all(&r.outputs, &requested, &a.exr.save_options());
+    // Interrupted while writing: the unfinished files were not put in place.
+    super::interrupt::check()?;
     for ((name, path), done) in requested.iter().zip(written) {
         done?;
         out.line(format_args!(
@@ -445,8 +448,12 @@ fn write_all(
     requested: &[(String, PathBuf)],
     save: &SaveOptions,
 ) -> Vec<Result<(), RgbnError>> {
+    // Ctrl-C stops a write under way (an EXR between its batches of blocks): its temporary
+    // file is removed, and the caller reports the interruption.
+    let token = super::interrupt::token();
     if !crate::raster::par::pipelined() {
         // One thread: one file after the other.
+        let _current = token.enter();
         return requested
             .iter()
             .map(|(name, path)| write_value(&outputs[name], path, save))
@@ -457,7 +464,11 @@ fn write_all(
             .iter()
             .map(|(name, path)| {
                 let v = &outputs[name];
-                s.spawn(move || write_value(v, path, save))
+                let token = token.clone();
+                s.spawn(move || {
+                    let _current = token.enter();
+                    write_value(v, path, save)
+                })
             })
             .collect();
         writes
@@ -864,19 +875,14 @@ pub fn batch_cmd(a: &BatchArgs, out: &mut Out<'_>) -> Result<(), CliError> {
                         return;
                     }
                     pb.suspend(|| eprintln!("{}", message(&e)));
-                    failures
-                        .lock()
-                        .unwrap_or_else(std::sync::PoisonError::into_inner)
-                        .push(file.clone());
+                    failures.lock().push(file.clone());
                 }
                 pb.inc(1);
             });
         }
     });
     pb.finish_and_clear();
-    let mut failures = failures
-        .into_inner()
-        .unwrap_or_else(std::sync::PoisonError::into_inner);
+    let mut failures = failures.into_inner();
     failures.sort();
     let streamed = streamed.load(std::sync::atomic::Ordering::Relaxed);
     out.line(format_args!(

@@ -157,16 +157,16 @@ impl Evaluator {
         &self,
         values: impl IntoIterator<Item = &'a crate::nodes::Value>,
     ) -> usize {
-        let seen = super::lock(&self.seen);
+        let seen = self.seen.lock();
         let mut all: Vec<&crate::nodes::Value> = values.into_iter().collect();
         all.extend(seen.last_value());
-        let bytes = super::lock(&self.mem).outside(all);
+        let bytes = self.mem.lock().outside(all);
         bytes
     }
 
     /// The memory cache's byte budget.
     #[must_use]
     pub fn mem_budget(&self) -> usize {
-        super::lock(&self.mem).budget()
+        self.mem.lock().budget()
     }
 }

@@ -109,11 +109,12 @@ pub use value::{Picture, PortType, Value};
 use crate::error::RgbnError;
 use crate::params::{self, Meta, ParamError, ParamInfo, ParamValue, Params};
 use crate::raster::window::Window;
+use parking_lot::Mutex;
 use std::any::Any;
 use std::collections::{BTreeMap, HashMap};
 use std::marker::PhantomData;
 use std::path::PathBuf;
-use std::sync::{Arc, Mutex, OnceLock};
+use std::sync::{Arc, OnceLock};
 
 /// What an operator is: identity, documentation, ports.
 #[derive(Clone, Debug, PartialEq)]
@@ -607,10 +608,6 @@ fn map_hash(values: &BTreeMap<String, ParamValue>, input_file: impl Fn(&str) -> 
     h.digest128()
 }
 
-fn lock<T>(m: &Mutex<T>) -> std::sync::MutexGuard<'_, T> {
-    m.lock().unwrap_or_else(std::sync::PoisonError::into_inner)
-}
-
 impl<T: Operator> DynOp for Entry<T> {
     fn spec(&self) -> &OpSpec {
         &self.spec
@@ -620,7 +617,7 @@ impl<T: Operator> DynOp for Entry<T> {
     }
     fn parse(&self, values: &BTreeMap<String, ParamValue>) -> Result<Parsed, ParamError> {
         let key = map_hash(values, |_| false);
-        if let Some(p) = lock(&self.memo).get(&key) {
+        if let Some(p) = self.memo.lock().get(&key) {
             return Ok(p.clone());
         }
         let typed: T::Params = params::from_values(values)?;
@@ -633,7 +630,7 @@ impl<T: Operator> DynOp for Entry<T> {
             },
         })?;
         let p = self.wrap(typed);
-        let mut memo = lock(&self.memo);
+        let mut memo = self.memo.lock();
         if memo.len() >= MEMO {
             memo.clear();
         }

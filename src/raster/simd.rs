@@ -19,9 +19,10 @@
 //! Results: a twin computes the same arithmetic as the portable one, so most are bit-identical
 //! to it; where a twin uses fused multiply-adds (the bilateral filter) results differ by
 //! rounding only (to [`super::bilateral::TWIN_TOLERANCE`]). The tests compare every twin this
-//! CPU runs with the portable one for the bilateral filter (`bilateral::tests`) and the
-//! recursive Gaussian (`convolve_tests`); the smoothing and relighting twins are the portable
-//! code compiled with wider instructions and no FMA.
+//! CPU runs with the portable one, for every kernel with twins: the bilateral filter
+//! (`bilateral::tests`, within that tolerance), the recursive Gaussian (`convolve_tests`), the
+//! fused normal smoothing (`smooth::tests`) and the relit preview (`render::tests`), these
+//! three bit for bit (the portable code compiled with wider instructions and no FMA).
 //!
 //! Tests choose a twin per call (the kernels take a [`Simd`] internally), never through the
 //! environment, which is read once per process.

@@ -698,7 +698,7 @@ fn decode_on_pool<E: From<RgbnError>>(
         &mut dyn FnMut(Option<Band>) -> Result<Band, RgbnError>,
     ) -> Result<Validation, E>,
 ) -> Result<Validation, E> {
-    use std::sync::{Condvar, Mutex};
+    use parking_lot::{Condvar, Mutex};
     let state = Mutex::new(Decoded {
         ready: std::collections::VecDeque::new(),
         spare: Vec::new(),
@@ -708,20 +708,13 @@ fn decode_on_pool<E: From<RgbnError>>(
     });
     let cv = Condvar::new();
     let reader = Mutex::new((input, bands));
-    let lock = || {
-        state
-            .lock()
-            .unwrap_or_else(std::sync::PoisonError::into_inner)
-    };
+    let lock = || state.lock();
     // Marks the task ended however it ends (a panic included: the consumer then sees the
     // bands end, and the scope re-raises the panic).
     struct Ended<'a>(&'a Mutex<Decoded>, &'a Condvar);
     impl Drop for Ended<'_> {
         fn drop(&mut self) {
-            let mut q = self
-                .0
-                .lock()
-                .unwrap_or_else(std::sync::PoisonError::into_inner);
+            let mut q = self.0.lock();
             q.running = false;
             // A panic while reading: no more bands (the consumer stops waiting for them).
             q.finished |= std::thread::panicking();
@@ -730,9 +723,7 @@ fn decode_on_pool<E: From<RgbnError>>(
     }
     let task = || {
         let _ended = Ended(&state, &cv);
-        let mut r = reader
-            .lock()
-            .unwrap_or_else(std::sync::PoisonError::into_inner);
+        let mut r = reader.lock();
         loop {
             let spare = {
                 let mut q = lock();
@@ -781,9 +772,7 @@ fn decode_on_pool<E: From<RgbnError>>(
                         path: path.to_path_buf(),
                     });
                 }
-                q = cv
-                    .wait(q)
-                    .unwrap_or_else(std::sync::PoisonError::into_inner);
+                cv.wait(&mut q);
             }
         });
         lock().stop = true;

@@ -457,6 +457,10 @@ fn integrate_field(
     } else {
         None
     };
+    // Cancelled: the result is discarded, its residual not measured (crate::cancel).
+    if crate::cancel::Cancel::current().is_cancelled() {
+        return Ok((z, report));
+    }
     report.rms_residual = edge_rms(Some(z.data()), g, dom, d);
     Ok((z, report))
 }

@@ -9,11 +9,12 @@ use crate::raster::io::DEFAULT_ALBEDO;
 use crate::raster::par::SharedMut;
 use crate::raster::window::Rect;
 use crate::raster::{RgbnImage, Validation};
+use parking_lot::Mutex;
 use rayon::prelude::*;
 use serde_json::Value as Json;
 use std::collections::VecDeque;
 use std::path::{Path, PathBuf};
-use std::sync::{Arc, Mutex};
+use std::sync::Arc;
 use zarrs::array::data_type::{Float16DataType, Float32DataType, UInt16DataType, UInt8DataType};
 use zarrs::array::Array;
 
@@ -627,13 +628,9 @@ impl ZarrImage {
         let normal = reader((0..3).map(|i| find(Role::Normal(i))).collect());
         let color = reader((0..3).map(|i| find(Role::Color(i))).collect());
         let mask = reader(find(Role::Mask).map(|i| vec![i]));
-        lock(&shared).positions = vec![0; readers];
+        shared.lock().positions = vec![0; readers];
         (normal.expect("an RGBN store has normals"), color, mask)
     }
-}
-
-fn lock(m: &Mutex<RowBlocks>) -> std::sync::MutexGuard<'_, RowBlocks> {
-    m.lock().unwrap_or_else(std::sync::PoisonError::into_inner)
 }
 
 /// Level 0's size.
@@ -696,7 +693,7 @@ impl ZarrRows {
             p.clear();
             p.reserve((y1 - y0) * w);
         }
-        let mut s = lock(&self.shared);
+        let mut s = self.shared.lock();
         let cy = self.image.levels[0].chunk[1];
         while s.next < y1 {
             let r = Rect::new(0, s.next, w, cy.min(h - s.next));
