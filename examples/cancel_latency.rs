@@ -90,6 +90,8 @@ fn whole_process(after: Duration) -> (f64, Option<i32>, bool) {
         .arg(root.join("graphs/integrate.ron"))
         .args(["--set", "1.size=4096", "-o"])
         .arg(format!("height={}", out.display()))
+        // The graph's own save nodes write beside it: in the temporary folder, not here.
+        .current_dir(dir.path())
         .stdout(std::process::Stdio::null())
         .stderr(std::process::Stdio::null())
         .spawn()

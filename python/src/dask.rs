@@ -180,9 +180,9 @@ fn on_pool<T: Send>(
     > = std::sync::OnceLock::new();
     // A Dask worker's allocator is set to hand freed memory back at once (its nanny sets
     // MALLOC_TRIM_THRESHOLD_=65536, which also pins glibc's mmap threshold at 128 KiB): every
-    // chunk buffer of every task was then a fresh mapping, page-faulted and zero-filled, a
-    // third of a task's time (BENCHMARKS.md, "rgbn.dask"). A task keeps freed memory for the
-    // next, as the command line does (`recycle::keep_freed_memory`); the peak is unchanged.
+    // chunk buffer of every task was then a fresh mapping, page-faulted and zero-filled (half
+    // the workers' time was system time; BENCHMARKS.md, "rgbn.dask on 16384²"). A task keeps
+    // freed memory for the next, as the command line does (`recycle::keep_freed_memory`).
     static KEEP: std::sync::Once = std::sync::Once::new();
     KEEP.call_once(rgbn::recycle::keep_freed_memory);
     let threads = threads.max(1);

@@ -419,7 +419,7 @@ mod tests {
                 if x == 7 {
                     return Err(crate::error::RgbnError::InvalidImage(format!("item {x}")));
                 }
-                handled.lock().unwrap().push(x);
+                handled.lock().push(x);
                 Ok(())
             });
             let refused = (0..100).filter(|&i| stage.push(i).is_err()).count();
@@ -429,7 +429,7 @@ mod tests {
             };
             (refused, err)
         });
-        assert_eq!(*handled.lock().unwrap(), (0..7).collect::<Vec<_>>());
+        assert_eq!(*handled.lock(), (0..7).collect::<Vec<_>>());
         assert!(err.contains("item 7"), "{err}");
         // Items 0..7 handled, 7 failed; of the rest, at most the `cap` queued behind it were
         // accepted before the failure was known.
