@@ -61,17 +61,8 @@ impl ZarrSink {
                 writer.write(&planes)
             }
             Value::Picture(p) => {
-                let bytes = &p.rgba[rows.start * 4..rows.end * 4];
-                let planes: Vec<Vec<f32>> = (0..4)
-                    .map(|c| {
-                        bytes
-                            .iter()
-                            .skip(c)
-                            .step_by(4)
-                            .map(|&v| f32::from(v))
-                            .collect()
-                    })
-                    .collect();
+                let planes =
+                    crate::raster::io::zarr::rgba_planes(&p.rgba[rows.start * 4..rows.end * 4]);
                 let refs: Vec<&[f32]> = planes.iter().map(Vec::as_slice).collect();
                 writer.write(&refs)
             }

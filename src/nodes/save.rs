@@ -141,16 +141,7 @@ pub fn write_value_zarr(
             (c, p, (img.width(), img.height()))
         }
         Value::Picture(pic) => {
-            bytes = (0..4)
-                .map(|c| {
-                    pic.rgba
-                        .iter()
-                        .skip(c)
-                        .step_by(4)
-                        .map(|&v| f32::from(v))
-                        .collect()
-                })
-                .collect();
+            bytes = crate::raster::io::zarr::rgba_planes(&pic.rgba);
             let p = bytes.iter().map(Vec::as_slice).collect();
             (Content::Picture, p, (pic.width, pic.height))
         }

@@ -127,6 +127,16 @@ fn encode_raster(
     })
 }
 
+/// A PTM or an OME-Zarr store is not written from interleaved samples: the error naming the
+/// writer to use instead.
+fn refuse_non_raster(fmt: Format, path: &Path) -> Result<(), RgbnError> {
+    match fmt {
+        Format::Ptm => Err(ptm_not_a_raster(path)),
+        Format::Zarr => Err(super::zarr::not_a_raster(path)),
+        _ => Ok(()),
+    }
+}
+
 /// Writes interleaved 8-bit samples (1, 3 or 4 channels) as PNG/TIFF/JPEG.
 pub fn write_raster8(
     data: &[u8],
@@ -136,12 +146,7 @@ pub fn write_raster8(
     fmt: Format,
     path: &Path,
 ) -> Result<(), RgbnError> {
-    if fmt == Format::Ptm {
-        return Err(ptm_not_a_raster(path));
-    }
-    if fmt == Format::Zarr {
-        return Err(super::zarr::not_a_raster(path));
-    }
+    refuse_non_raster(fmt, path)?;
     if fmt == Format::Png {
         return encode_png(data, w, h, channels, false, path);
     }
@@ -157,12 +162,7 @@ pub fn write_raster16(
     fmt: Format,
     path: &Path,
 ) -> Result<(), RgbnError> {
-    if fmt == Format::Ptm {
-        return Err(ptm_not_a_raster(path));
-    }
-    if fmt == Format::Zarr {
-        return Err(super::zarr::not_a_raster(path));
-    }
+    refuse_non_raster(fmt, path)?;
     if fmt == Format::Jpeg {
         return Err(RgbnError::UnsupportedFormat {
             format: "jpeg (8-bit only; use .png or .tif for 16 bit)".into(),

@@ -361,6 +361,21 @@ fn store_error(path: &Path, detail: impl Into<String>) -> RgbnError {
     }
 }
 
+/// A picture's interleaved RGBA bytes as four planes of values 0–255 (the picture channel
+/// set's samples).
+#[must_use]
+pub fn rgba_planes(rgba: &[u8]) -> Vec<Vec<f32>> {
+    (0..4)
+        .map(|c| {
+            rgba.iter()
+                .skip(c)
+                .step_by(4)
+                .map(|&v| f32::from(v))
+                .collect()
+        })
+        .collect()
+}
+
 /// A store named where a colour image, a photo or a normal-map file is expected, or as the
 /// target of a colour or normal-map file.
 pub fn not_a_raster(path: &Path) -> RgbnError {
