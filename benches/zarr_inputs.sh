@@ -8,6 +8,9 @@
 set -euo pipefail
 here="$(cd "$(dirname "$0")/.." && pwd)"
 size="$1"; base="$2"; rgbn="${3:-$here/target/release/rgbn}"
+# Above 8192² the pixel limit is raised for these runs only (the source streams: no image
+# is held whole).
+export RGBN_MAX_PIXELS="${RGBN_MAX_PIXELS:-$(( size * size > 134217728 ? size * size : 134217728 ))}"
 rm -rf "$base.zarr" "$base.exr"
 "$rgbn" eval "$here/benches/zarr_source.ron" --set "source.size=$size" -o "image=$base.exr"
 "$rgbn" eval "$here/benches/zarr_source.ron" --set "source.size=$size" -o "image=$base.zarr"

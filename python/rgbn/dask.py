@@ -34,11 +34,21 @@ from ._rgbn import Error
 
 __all__ = ["evaluate", "arrays", "DEFAULT_CHUNKS", "ZARR_CHUNK"]
 
-#: Side in pixels of one task's square of the outputs when ``chunks`` is not given: four
-#: 512-pixel store chunks, so that a task's work (tens of milliseconds and more per task on
-#: the graphs of ``graphs/``) outweighs Dask's per-task overhead (BENCHMARKS.md, "rgbn.dask")
-#: while its memory stays small (a few hundred MB at most per task).
+#: Side in pixels of one task's square of the outputs when ``chunks`` is not given and the
+#: tasks cannot stream (below): four 512-pixel store chunks, so that a task's work (tens of
+#: milliseconds and more per task on the graphs of ``graphs/``) outweighs Dask's per-task
+#: overhead (BENCHMARKS.md, "rgbn.dask") while its memory stays small (a few hundred MB at
+#: most per task).
 DEFAULT_CHUNKS = 1024
+#: Largest task side chosen when the tasks stream (every output an image or a picture that
+#: depends through local operators on one OME-Zarr store): a streamed task reads its window
+#: top to bottom, so its memory is a few strips whatever its side, and a larger task decodes
+#: fewer store chunks twice (the ring of chunks its halo touches: 2.25 times the chunks it
+#: writes at 2048, 1.56 at 4096, 4 at 1024).
+MAX_STREAMED_CHUNKS = 4096
+#: Tasks per worker thread at least, when the side is chosen: enough for Dask to even out
+#: the workers' load and to retry a lost task cheaply.
+TASKS_PER_THREAD = 4
 #: Chunk side of the output stores (rgbn's default, ``--chunk``).
 ZARR_CHUNK = 512
 #: The region engine's tile side (``rgbn eval --tile``).
@@ -62,7 +72,7 @@ def _sets(set):
 
 def _chunk_side(chunks, zarr_chunk):
     if chunks is None:
-        side = DEFAULT_CHUNKS
+        return None
     elif isinstance(chunks, int):
         side = chunks
     else:
@@ -76,6 +86,31 @@ def _chunk_side(chunks, zarr_chunk):
             f"(zarr_chunk), so that no two tasks write one chunk"
         )
     return side
+
+
+def _auto_side(w, h, zarr_chunk, streams, threads):
+    """The task side when ``chunks`` is not given: :data:`DEFAULT_CHUNKS` for tasks of the
+    region plan; for streamed tasks the largest of :data:`DEFAULT_CHUNKS` doubled up to
+    :data:`MAX_STREAMED_CHUNKS` (1024, 2048, 4096) that still gives every one of ``threads``
+    worker threads :data:`TASKS_PER_THREAD` tasks."""
+    if not streams:
+        return DEFAULT_CHUNKS
+    # Power-of-two multiples of the store's chunk: they cut a power-of-two image into equal
+    # squares (a ragged last row of tasks would waste a round).
+    floor = max(DEFAULT_CHUNKS // zarr_chunk, 1) * zarr_chunk
+    side = floor
+    while side * 2 <= MAX_STREAMED_CHUNKS and len(_regions(w, h, side * 2)) >= TASKS_PER_THREAD * max(threads, 1):
+        side *= 2
+    return side
+
+
+def _threads(client):
+    if client is not None:
+        try:
+            return sum(client.nthreads().values())
+        except Exception:  # noqa: BLE001 - a client that cannot say: the local machine's count
+            pass
+    return os.cpu_count() or 1
 
 
 def _regions(w, h, side):
@@ -199,8 +234,12 @@ def evaluate(graph, inputs, outputs, *, chunks=None, level=0, set=None, zarr_chu
     - ``inputs``: ``{name: path}`` of OME-Zarr stores (or of any image file, which each task
       then reads whole), or ``{name: dask array}`` in rgbn's channel layout ``(C, H, W)``.
     - ``outputs``: ``{name: path}``, each a ``.zarr`` store written at the output's whole size.
-    - ``chunks``: a task's square side in pixels (default :data:`DEFAULT_CHUNKS`), a multiple of
-      ``zarr_chunk`` (the stores' chunk side, default 512).
+    - ``chunks``: a task's square side in pixels, a multiple of ``zarr_chunk`` (the stores'
+      chunk side, default 512). By default :data:`DEFAULT_CHUNKS` (1024), or when the tasks
+      stream (every output an image or a picture computed by local operators from one OME-Zarr
+      store: a task then reads its window of the store top to bottom and its memory does not
+      grow with its side) the largest side up to :data:`MAX_STREAMED_CHUNKS` (4096) that gives
+      each worker thread :data:`TASKS_PER_THREAD` tasks.
     - ``level``: level of detail (``rgbn eval --level``): the outputs reduced ``2**level``
       times; input stores are read at that level directly.
     - ``set``: ``{"node.param": value}``, as ``rgbn eval --set``.
@@ -221,13 +260,16 @@ def evaluate(graph, inputs, outputs, *, chunks=None, level=0, set=None, zarr_chu
         import dask
 
         w, h = _common_size(sizes)
+        client = _client()
+        if side is None:
+            streams = int(level) == 0 and _rgbn._dask_streams(src, paths, list(outs))
+            side = _auto_side(w, h, zarr_chunk, streams, _threads(client))
         task = dask.delayed(_task, pure=True)
         token = _token(src, paths, outs, level, side, zarr_chunk)
         tasks = [
             task(src, paths, outs, r, int(level), zarr_chunk, TILE, threads, dask_key_name=f"rgbn-chunk-{r[0]}-{r[1]}-{token}")
             for r in _regions(w, h, side)
         ]
-        client = _client()
         if client is not None:
             futures = client.compute(tasks)
             client.gather(futures)
@@ -290,7 +332,7 @@ def arrays(graph, inputs, outputs=None, *, chunks=None, level=0, set=None, threa
     import dask.array as da
     import numpy as np
 
-    side = _chunk_side(chunks, 16)
+    side = _chunk_side(chunks, 16) or DEFAULT_CHUNKS
     src, paths, scratch, sizes = _prepare(graph, inputs, list(outputs or []), level, set, ZARR_CHUNK)
     names = list(sizes)
     w, h = _common_size(sizes)

@@ -22,6 +22,8 @@ use pyo3::prelude::*;
 use pyo3::types::PyDict;
 use rgbn::eval::region::RegionOptions;
 use rgbn::eval::plan::Conn;
+use rgbn::eval::stream::{StreamPlan, Streamable};
+use rgbn::eval::zarr_sink::stream_region_into_stores;
 use rgbn::eval::{EvalOptions, Evaluator, Plan};
 use rgbn::graph::{GraphError, LoadedGraph};
 use rgbn::nodes::{Kind, PortType, Value};
@@ -207,6 +209,48 @@ fn on_pool<T: Send>(
     Ok(py.detach(move || pool.install(f)))
 }
 
+/// Client side: whether the tasks of `outputs` stream ([`stream_region_into_stores`]): then a task's memory
+/// does not grow with its side, and the client picks large tasks.
+#[pyfunction]
+pub fn _dask_streams(
+    py: Python<'_>,
+    graph: (String, String, PathBuf),
+    inputs: BTreeMap<String, PathBuf>,
+    outputs: Vec<String>,
+) -> PyResult<bool> {
+    let (text, label, base) = graph;
+    py.detach(|| {
+        let lg = loaded(&text, &label, &base).map_err(graph_err)?;
+        let plan = plan_of(&lg, &inputs, &base).map_err(graph_err)?;
+        let asked: Vec<&str> = outputs.iter().map(String::as_str).collect();
+        Ok(match StreamPlan::check(&plan, &asked).map_err(graph_err)? {
+            Streamable::Yes(mut sp) => {
+                let full = Rect::full(sp.size());
+                sp.set_window(full).is_ok()
+            }
+            Streamable::No(_) => false,
+        })
+    })
+}
+
+/// What stops a streamed task: the graph's error, or writing its chunks.
+enum TaskError {
+    Graph(GraphError),
+    Py(PyErr),
+}
+
+impl From<GraphError> for TaskError {
+    fn from(e: GraphError) -> Self {
+        TaskError::Graph(e)
+    }
+}
+
+impl From<rgbn::RgbnError> for TaskError {
+    fn from(e: rgbn::RgbnError) -> Self {
+        TaskError::Py(rgbn_err(e))
+    }
+}
+
 /// One task: the graph over `region` (x, y, w, h, in the level's pixels) at `level`. With
 /// `outputs` mapping names to store paths, each output's chunks of the region are written
 /// (chunk side `chunk`) and `None` is returned; with `outputs` a list of names, returns
@@ -246,6 +290,22 @@ pub fn _dask_region<'py>(
             let protected: Vec<&Path> = plan.protected.iter().map(PathBuf::as_path).collect();
             for p in files.values() {
                 rgbn::raster::io::check_output(p, &protected).map_err(rgbn_err)?;
+            }
+        }
+        if let Some(files) = &files {
+            // Streamed when it can be (`stream_region_into_stores`): a task's memory is then a
+            // few strips of its window, whatever its side.
+            let outs: Vec<(String, PathBuf)> =
+                names.iter().map(|n| (n.clone(), files[n].clone())).collect();
+            let cancel = rgbn::cancel::Cancel::default();
+            if level == 0
+                && stream_region_into_stores::<TaskError>(&plan, &outs, rect, &zopts, &cancel)
+                    .map_err(|e| match e {
+                        TaskError::Graph(g) => graph_err(g),
+                        TaskError::Py(p) => p,
+                    })?
+            {
+                return Ok(Vec::new());
             }
         }
         let ev = Evaluator::default();

@@ -54,6 +54,7 @@ fn _rgbn(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(dask::_dask_graph, m)?)?;
     m.add_function(wrap_pyfunction!(dask::_dask_plan, m)?)?;
     m.add_function(wrap_pyfunction!(dask::_dask_region, m)?)?;
+    m.add_function(wrap_pyfunction!(dask::_dask_streams, m)?)?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     Ok(())
 }

@@ -153,6 +153,38 @@ def test_input_image_on_a_local_cluster_equals_the_whole_eval(cluster, big_store
     assert_same_store(tmp_path / "d_relit.zarr", tmp_path / "w_relit.zarr")
 
 
+GAUSS8 = """(
+    version: 2,
+    next_id: 2,
+    inputs: { "image": (ty: Rgbn) },
+    outputs: { "image": (node: 1, port: "image") },
+    nodes: [ (id: 1, op: "filter.gaussian", name: Some("gauss8"), pos: (0.0, 0.0),
+              params: { "sigma_px": Float(8.0) }, inputs: { "image": Input("image") }) ],
+)
+"""
+
+
+def test_a_streamed_gaussian_whose_halo_crosses_chunks_equals_the_whole_eval(cluster, big_store, tmp_path):
+    # A store input and a local operator: the tasks stream their windows (the σ 8 px Gaussian's
+    # halo reaches into the next chunk row and column of every task).
+    g = tmp_path / "gauss8.ron"
+    g.write_text(GAUSS8)
+    assert rgbn._rgbn._dask_streams(rgbn._rgbn._dask_graph(str(g)), {"image": str(big_store)}, ["image"])
+    rgbn_cli(["eval", g, "--input", f"image={big_store}", "-o", f"image={tmp_path / 'w.zarr'}"])
+    rd.evaluate(g, {"image": big_store}, {"image": tmp_path / "d.zarr"}, chunks=1024)
+    assert_same_store(tmp_path / "d.zarr", tmp_path / "w.zarr")
+
+
+def test_the_task_side_grows_for_streamed_tasks_and_shrinks_with_the_workers():
+    # Streamed tasks: the largest of 1024, 2048, 4096 leaving 4 tasks per worker thread.
+    assert rd._auto_side(16384, 16384, 512, True, 2) == 4096  # 16 tasks
+    assert rd._auto_side(16384, 16384, 512, True, 16) == 2048  # 64 tasks
+    assert rd._auto_side(16384, 16384, 512, True, 64) == 1024  # 256 tasks
+    assert rd._auto_side(4096, 4096, 512, True, 2) == 1024  # 16 tasks (2048 would give 4)
+    # Tasks of the region plan keep the default side, whose memory is bounded.
+    assert rd._auto_side(16384, 16384, 512, False, 2) == rd.DEFAULT_CHUNKS == 1024
+
+
 def test_pen_stamp_bilateral_on_a_local_cluster_equals_the_whole_eval(cluster, tmp_path):
     w, h = 1300, 1100  # not multiples of the chunks: partial chunks at the right and bottom
     store = make_store(tmp_path, 1400, cut=(w, h))

@@ -4,7 +4,7 @@ use super::error::{message, usage, CliError};
 use super::image::StreamMode;
 use super::out::Out;
 use super::png_sink::{PngBand, PngSink};
-use super::zarr_sink::ZarrSink;
+use crate::eval::zarr_sink::ZarrSink;
 use super::ExrArgs;
 use crate::error::RgbnError;
 use crate::eval::region::{RegionOptions, DEFAULT_TILE};

@@ -24,7 +24,6 @@ pub mod out;
 mod png_sink;
 mod publish;
 mod serve;
-mod zarr_sink;
 
 pub use capture::CaptureArgs;
 pub use docs::{CompletionsArgs, ManArgs};

@@ -30,6 +30,7 @@ pub mod memory;
 pub mod plan;
 pub mod region;
 pub mod stream;
+pub mod zarr_sink;
 
 pub use cache::{CacheEntry, CacheKey, MemCache};
 pub use disk::DiskCache;

@@ -189,6 +189,20 @@ impl StreamInput {
         self.normal.size()
     }
 
+    /// Reads only `window` of the image from now on, before the first strip (only OME-Zarr
+    /// stores: [`Rows::set_window`]); the strips are then the window's, whose edges the
+    /// operators take for the image's (a caller keeps only what lies a halo inside them).
+    pub fn set_window(&mut self, window: crate::raster::window::Rect) -> Result<(), String> {
+        self.normal.set_window(window)?;
+        if let Some(c) = &mut self.color {
+            c.set_window(window)?;
+        }
+        if let Some(m) = &mut self.mask {
+            m.set_window(window)?;
+        }
+        Ok(())
+    }
+
     /// Whether a colour image is read (else the colour is [`DEFAULT_ALBEDO`]).
     #[must_use]
     pub fn has_color(&self) -> bool {

@@ -18,16 +18,7 @@ fn run(dir: &Path, args: &[&str]) -> Output {
 
 /// A 200 × 150 RGBN store (the demo medallion, cut) with 64-pixel chunks at `dir/in.zarr`.
 fn input_store(dir: &Path) -> PathBuf {
-    let full = rgbn::raster::sample::demo_medallion(200);
-    let cut = |p: &[f32]| p[..200 * 150].to_vec();
-    let img = rgbn::RgbnImage::new(
-        200,
-        150,
-        full.color().clone().map(|p| cut(&p)),
-        full.normal().clone().map(|p| cut(&p)),
-        None,
-    )
-    .unwrap();
+    let img = demo_cut();
     let p = dir.join("in.zarr");
     let o = ZarrOptions {
         chunk: 64,
@@ -35,6 +26,20 @@ fn input_store(dir: &Path) -> PathBuf {
     };
     save_zarr(&img, &p, &o).unwrap();
     p
+}
+
+/// The demo medallion cut to 200 × 150.
+fn demo_cut() -> rgbn::RgbnImage {
+    let full = rgbn::raster::sample::demo_medallion(200);
+    let cut = |p: &[f32]| p[..200 * 150].to_vec();
+    rgbn::RgbnImage::new(
+        200,
+        150,
+        full.color().clone().map(|p| cut(&p)),
+        full.normal().clone().map(|p| cut(&p)),
+        None,
+    )
+    .unwrap()
 }
 
 /// Every file of a store (relative path, bytes), sorted.
@@ -290,4 +295,100 @@ fn bad_stores_exit_2_naming_the_store_and_nothing_is_written_over_an_input() {
         assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
         assert_eq!(files(&p), before, "{name}: the input is untouched");
     }
+}
+
+/// `rgbn.dask`'s streamed task (`stream_region_into_stores`): each chunk-aligned quarter read
+/// in a window of the store (the quarter grown by the halo) and written into one store equals
+/// one whole streamed `rgbn eval` byte for byte — a sharpen and relight (a 9-pixel halo, inside
+/// one 64-pixel chunk) and a σ 8 px Gaussian (whose halo reaches past the next chunk) — and a
+/// graph whose input is read in whole rows (an EXR) is left to the region plan.
+#[test]
+fn streamed_windows_of_a_store_fill_one_store_equal_to_one_whole_eval() {
+    use rgbn::eval::zarr_sink::stream_region_into_stores;
+    use rgbn::raster::window::Rect;
+    let d = tempfile::tempdir().unwrap();
+    let store = input_store(d.path());
+    let gauss = d.path().join("gauss.ron");
+    std::fs::write(
+        &gauss,
+        r#"(
+    version: 2,
+    next_id: 2,
+    inputs: { "image": (ty: Rgbn) },
+    outputs: { "image": (node: 1, port: "image") },
+    nodes: [ (id: 1, op: "filter.gaussian", pos: (0.0, 0.0),
+              params: { "sigma_px": Float(8.0) }, inputs: { "image": Input("image") }) ],
+)"#,
+    )
+    .unwrap();
+    let opts = ZarrOptions {
+        chunk: 64,
+        ..ZarrOptions::default()
+    };
+    for (g, names) in [
+        (graph_path("input_image.ron"), vec!["image", "relit"]),
+        (gauss, vec!["image"]),
+    ] {
+        let tag = g.file_stem().unwrap().to_string_lossy().into_owned();
+        let mut args = vec![
+            "eval".to_string(),
+            g.display().to_string(),
+            "--input".into(),
+            "image=in.zarr".into(),
+            "--chunk".into(),
+            "64".into(),
+            "--stream".into(),
+            "always".into(),
+        ];
+        for n in &names {
+            args.extend(["-o".into(), format!("{n}=whole_{tag}_{n}.zarr")]);
+        }
+        let args: Vec<&str> = args.iter().map(String::as_str).collect();
+        let o = run(d.path(), &args);
+        assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+        let lg = rgbn::graph::LoadedGraph::load(&g).unwrap();
+        let inputs = [("image".to_string(), store.clone())].into_iter().collect();
+        let plan = rgbn::eval::Plan::new(&lg, &inputs, d.path()).unwrap();
+        let outs: Vec<(String, PathBuf)> = names
+            .iter()
+            .map(|n| (n.to_string(), d.path().join(format!("parts_{tag}_{n}.zarr"))))
+            .collect();
+        let cancel = rgbn::cancel::Cancel::default();
+        for q in [
+            Rect::new(0, 0, 128, 64),
+            Rect::new(128, 0, 72, 64),
+            Rect::new(0, 64, 128, 86),
+            Rect::new(128, 64, 72, 86),
+        ] {
+            let streamed =
+                stream_region_into_stores::<Box<dyn std::error::Error>>(&plan, &outs, q, &opts, &cancel)
+                    .unwrap();
+            assert!(streamed, "{tag}: a store input streams");
+        }
+        for n in &names {
+            assert_eq!(
+                files(&d.path().join(format!("parts_{tag}_{n}.zarr"))),
+                files(&d.path().join(format!("whole_{tag}_{n}.zarr"))),
+                "{tag} {n}"
+            );
+        }
+    }
+    // An EXR input is read in whole rows: not streamed in a window (the caller uses the region
+    // plan), and nothing is written.
+    let exr = d.path().join("in.exr");
+    rgbn::raster::io::save_exr(&demo_cut(), &exr, Default::default()).unwrap();
+    let lg = rgbn::graph::LoadedGraph::load(&graph_path("input_image.ron")).unwrap();
+    let inputs = [("image".to_string(), exr)].into_iter().collect();
+    let plan = rgbn::eval::Plan::new(&lg, &inputs, d.path()).unwrap();
+    let outs = vec![("image".to_string(), d.path().join("exr_part.zarr"))];
+    let streamed = stream_region_into_stores::<Box<dyn std::error::Error>>(
+        &plan,
+        &outs,
+        Rect::new(0, 0, 64, 64),
+        &opts,
+        &rgbn::cancel::Cancel::default(),
+    )
+    .unwrap();
+    assert!(!streamed);
+    assert!(!d.path().join("exr_part.zarr").exists());
 }

@@ -253,6 +253,18 @@ impl Rows {
         })
     }
 
+    /// Reads only `window` of the image from now on (before the first read): only an OME-Zarr
+    /// store's rows can be cut to a window (its chunks cover it); a file is read whole rows.
+    pub fn set_window(&mut self, window: crate::raster::window::Rect) -> Result<(), String> {
+        match self {
+            Rows::Zarr(r) => r.set_window(window),
+            _ => Err(format!(
+                "{} is read in whole rows (only OME-Zarr stores are read in windows)",
+                self.path().display()
+            )),
+        }
+    }
+
     /// Width and height in pixels.
     #[must_use]
     pub fn size(&self) -> (usize, usize) {

@@ -622,6 +622,7 @@ impl ZarrImage {
                     id: readers - 1,
                     channels: c,
                     row: 0,
+                    window: Rect::full(self.size()),
                 }
             })
         };
@@ -661,14 +662,40 @@ pub struct ZarrRows {
     shared: Arc<Mutex<RowBlocks>>,
     id: usize,
     channels: Vec<usize>,
+    /// The next row (of the level).
     row: usize,
+    /// The part of level 0 read ([`ZarrRows::set_window`]; the whole level unless set).
+    window: Rect,
 }
 
 impl ZarrRows {
-    /// Width and height.
+    /// Width and height of what is read (the window).
     #[must_use]
     pub fn size(&self) -> (usize, usize) {
-        self.image.size()
+        (self.window.w, self.window.h)
+    }
+
+    /// Reads only `window` of level 0 from now on: its rows top to bottom, each cut to the
+    /// window's columns (only the chunks that cover it are decoded). Set before the first read,
+    /// on every reader of the store that shares chunk rows ([`ZarrImage::rows`]), to the same
+    /// window.
+    pub fn set_window(&mut self, window: Rect) -> Result<(), String> {
+        let full = Rect::full(self.image.size());
+        if window.is_empty() || window.intersect(&full) != window {
+            return Err(format!(
+                "window {},{},{},{} is not inside the store's {}×{}",
+                window.x, window.y, window.w, window.h, full.w, full.h
+            ));
+        }
+        let mut s = self.shared.lock();
+        if self.row != self.window.y || !s.blocks.is_empty() {
+            return Err("rows were read already".into());
+        }
+        self.window = window;
+        self.row = window.y;
+        s.next = window.y;
+        s.positions[self.id] = window.y;
+        Ok(())
     }
 
     /// Channels read.
@@ -686,8 +713,9 @@ impl ZarrRows {
     /// The next `rows` rows of its channels into `planes` (one per channel, emptied first):
     /// chunk rows are decoded as the readers need them and dropped once every reader is past.
     pub fn read_rows(&mut self, rows: usize, planes: &mut Vec<Vec<f32>>) -> Result<(), RgbnError> {
-        let (w, h) = self.image.size();
-        let (y0, y1) = (self.row, (self.row + rows).min(h));
+        let win = self.window;
+        let (w, bottom) = (win.w, win.bottom());
+        let (y0, y1) = (self.row, (self.row + rows).min(bottom));
         planes.resize_with(self.channels.len(), Vec::new);
         for p in planes.iter_mut() {
             p.clear();
@@ -696,7 +724,8 @@ impl ZarrRows {
         let mut s = self.shared.lock();
         let cy = self.image.levels[0].chunk[1];
         while s.next < y1 {
-            let r = Rect::new(0, s.next, w, cy.min(h - s.next));
+            // To the end of the chunk row (a window's first may start inside one).
+            let r = Rect::new(win.x, s.next, w, (cy - s.next % cy).min(bottom - s.next));
             let planes = self.image.read(0, r)?;
             s.blocks.push_back((r.y, r.h, planes));
             s.next += r.h;

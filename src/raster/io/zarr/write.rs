@@ -550,40 +550,57 @@ pub fn save_planes_zarr(
     }
 }
 
-/// A whole store written row by row (the streamed `rgbn eval`): rows are kept until a row of
-/// chunk-grid cells is complete, which is then written ([`ZarrWriter::write_block`]).
+/// A store written row by row (the streamed `rgbn eval`; a region of one, an `rgbn.dask`
+/// task): rows are kept until a row of chunk-grid cells is complete, which is then written
+/// ([`ZarrWriter::write_block`]).
 pub struct ZarrRowWriter {
     writer: ZarrWriter,
     /// Rows not yet written, one plane per channel, from row `y0`.
     band: Vec<Vec<f32>>,
     y0: usize,
+    /// The level-0 pixels written: the whole image, or a region.
+    area: Rect,
 }
 
 impl ZarrRowWriter {
     /// Starts a whole store at `path`.
     pub fn create(path: &Path, layout: Layout) -> Result<Self, RgbnError> {
-        let nc = layout.channels();
-        Ok(Self {
-            writer: ZarrWriter::create(path, layout)?,
-            band: vec![Vec::new(); nc],
-            y0: 0,
-        })
+        let area = Rect::full((layout.width, layout.height));
+        Ok(Self::with(ZarrWriter::create(path, layout)?, area))
     }
 
-    /// Appends the next rows (one plane per channel, whole rows).
+    /// Writes `region` of the store at `path` in place, creating the store first if it does
+    /// not exist ([`ZarrWriter::create_region`]: a chunk-aligned region).
+    pub fn create_region(path: &Path, layout: Layout, region: Rect) -> Result<Self, RgbnError> {
+        Ok(Self::with(
+            ZarrWriter::create_region(path, layout, region)?,
+            region,
+        ))
+    }
+
+    fn with(writer: ZarrWriter, area: Rect) -> Self {
+        Self {
+            band: vec![Vec::new(); writer.layout.channels()],
+            writer,
+            y0: area.y,
+            area,
+        }
+    }
+
+    /// Appends the next rows (one plane per channel, rows as wide as the area).
     pub fn write(&mut self, planes: &[&[f32]]) -> Result<(), RgbnError> {
-        let (w, h) = (self.writer.layout.width, self.writer.layout.height);
+        let (w, bottom) = (self.area.w, self.area.bottom());
         let g = self.writer.layout.cell();
         for (b, p) in self.band.iter_mut().zip(planes) {
             b.extend_from_slice(p);
         }
         loop {
             let rows = self.band[0].len() / w;
-            let full = g.min(h - self.y0);
+            let full = g.min(bottom - self.y0);
             if rows < full || full == 0 {
                 return Ok(());
             }
-            let r = Rect::new(0, self.y0, w, full);
+            let r = Rect::new(self.area.x, self.y0, w, full);
             let parts: Vec<&[f32]> = self.band.iter().map(|b| &b[..full * w]).collect();
             self.writer.write_block(r, &parts)?;
             for b in &mut self.band {
@@ -593,12 +610,16 @@ impl ZarrRowWriter {
         }
     }
 
-    /// Finishes the store (every row must have been written).
+    /// Finishes the store (every row of the area must have been written).
     pub fn commit(self) -> Result<(), RgbnError> {
-        if self.y0 != self.writer.layout.height {
+        if self.y0 != self.area.bottom() {
             return Err(write_error(
                 &self.writer.path,
-                format!("{} of {} rows written", self.y0, self.writer.layout.height),
+                format!(
+                    "{} of {} rows written",
+                    self.y0 - self.area.y,
+                    self.area.h
+                ),
             ));
         }
         self.writer.commit()
