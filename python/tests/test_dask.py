@@ -172,7 +172,18 @@ def test_a_streamed_gaussian_whose_halo_crosses_chunks_equals_the_whole_eval(clu
     assert rgbn._rgbn._dask_streams(rgbn._rgbn._dask_graph(str(g)), {"image": str(big_store)}, ["image"])
     rgbn_cli(["eval", g, "--input", f"image={big_store}", "-o", f"image={tmp_path / 'w.zarr'}"])
     rd.evaluate(g, {"image": big_store}, {"image": tmp_path / "d.zarr"}, chunks=1024)
-    assert_same_store(tmp_path / "d.zarr", tmp_path / "w.zarr")
+    # The recursive Gaussian is cut at 4σ where a task's window ends, as the whole run's strips
+    # are: the same files, every level within the documented truncation (per pass the tail's
+    # mass, < 3.5e-4, times twice the largest gradient; 2e-3 over two passes for gradients up
+    # to 1.4 — tests/it/region.rs).
+    fa, fb = files(tmp_path / "d.zarr"), files(tmp_path / "w.zarr")
+    assert sorted(fa) == sorted(fb)
+    k = 0
+    while (tmp_path / "w.zarr" / str(k)).exists():
+        a = zarr.open_array(str(tmp_path / "d.zarr" / str(k)))[:]
+        b = zarr.open_array(str(tmp_path / "w.zarr" / str(k)))[:]
+        assert a.shape == b.shape and np.abs(a - b).max() <= 2e-3, (k, np.abs(a - b).max())
+        k += 1
 
 
 def test_the_task_side_grows_for_streamed_tasks_and_shrinks_with_the_workers():

@@ -615,11 +615,7 @@ impl ZarrRowWriter {
         if self.y0 != self.area.bottom() {
             return Err(write_error(
                 &self.writer.path,
-                format!(
-                    "{} of {} rows written",
-                    self.y0 - self.area.y,
-                    self.area.h
-                ),
+                format!("{} of {} rows written", self.y0 - self.area.y, self.area.h),
             ));
         }
         self.writer.commit()
