@@ -13,8 +13,12 @@
      as a Dask user writes it today — `dask_image.ndfilters.gaussian_filter` on p and q read
      with `dask.array.from_zarr`, normals rebuilt, written with `to_zarr` — on the same cluster;
    - the same Gaussian in rgbn (`filter.gaussian`, σ 8 px) through rgbn.dask on the cluster.
-3. Peak RSS of each worker (its own ru_maxrss), and the per-task overhead: the scheduler's
-   task durations (compute time inside the task) against the wall time of the call.
+   rgbn's calls run on one LocalCluster, the peer on a second one of the same shape, used in
+   turn (never at once), so that each worker's memory is its own tool's.
+3. Peak RSS of each worker during each call (its VmHWM, reset before the call through
+   /proc/self/clear_refs, so the peer's memory and rgbn's are told apart; the process's
+   lifetime ru_maxrss is printed too), and the per-task overhead: the scheduler's task
+   durations (compute time inside the task) against the wall time of the call.
 """
 
 import argparse
@@ -90,6 +94,29 @@ def rss_of_workers(client):
     return client.run(lambda: resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024)
 
 
+def _reset_peak():
+    # Linux: "5" resets the process's peak resident set size (VmHWM) to its current one.
+    with open("/proc/self/clear_refs", "w") as f:
+        f.write("5")
+
+
+def _peak():
+    with open("/proc/self/status") as f:
+        for line in f:
+            if line.startswith("VmHWM:"):
+                return int(line.split()[1]) * 1024
+    return 0
+
+
+def peak_during(client, peaks, key, call):
+    """Runs ``call()`` and records each worker's peak RSS during it under ``peaks[key]``."""
+    client.run(_reset_peak)
+    out = call()
+    for w, v in client.run(_peak).items():
+        peaks.setdefault(key, {}).setdefault(w, []).append(v)
+    return out
+
+
 def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--size", type=int, default=16384)
@@ -109,7 +136,12 @@ def main():
     outs = lambda tag: {"image": os.path.join(a.dir, f"{tag}_image.zarr"), "relit": os.path.join(a.dir, f"{tag}_relit.zarr")}  # noqa: E731
     t = {"whole": [], "dask": [], "peer": [], "rgbn_gauss": [], "whole_gauss": []}
     stats = []
-    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None) as c, distributed.Client(c) as client:
+    peaks = {}
+    # Two clusters of the same shape, used one at a time: rgbn's tasks on one, the peer on the
+    # other, so each worker's memory is its own tool's (a worker keeps freed memory for its
+    # next task, and a peer's heap would show in rgbn's peak, and the reverse).
+    lc = lambda: distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None)  # noqa: E731
+    with lc() as c, lc() as pc, distributed.Client(pc, set_as_default=False) as peer_client, distributed.Client(c) as client:
         for run in range(a.runs):
             for p in list(outs("w").values()) + list(outs("d").values()):
                 shutil.rmtree(p, ignore_errors=True)
@@ -118,7 +150,7 @@ def main():
             # Task compute times from the scheduler's task stream (seconds inside each task).
             with distributed.get_task_stream(client) as ts:
                 t0 = time.perf_counter()
-                rd.evaluate(g, {"image": store}, outs("d"), chunks=a.chunks)
+                peak_during(client, peaks, "rgbn.dask input_image", lambda: rd.evaluate(g, {"image": store}, outs("d"), chunks=a.chunks))
                 t["dask"].append(time.perf_counter() - t0)
             stats.append([
                 sum(s["stop"] - s["start"] for s in d.get("startstops", ()) if s["action"] == "compute")
@@ -127,16 +159,18 @@ def main():
             ])
             shutil.rmtree(os.path.join(a.dir, "peer.zarr"), ignore_errors=True)
             t0 = time.perf_counter()
-            peer(store, os.path.join(a.dir, "peer.zarr"))
+            with peer_client.as_current():
+                peak_during(peer_client, peaks, "peer (dask-image)", lambda: peer(store, os.path.join(a.dir, "peer.zarr")))
             t["peer"].append(time.perf_counter() - t0)
             shutil.rmtree(os.path.join(a.dir, "gauss.zarr"), ignore_errors=True)
             t0 = time.perf_counter()
-            rd.evaluate(gg, {"image": store}, {"image": os.path.join(a.dir, "gauss.zarr")}, chunks=a.chunks)
+            peak_during(client, peaks, "rgbn.dask gauss8", lambda: rd.evaluate(gg, {"image": store}, {"image": os.path.join(a.dir, "gauss.zarr")}, chunks=a.chunks))
             t["rgbn_gauss"].append(time.perf_counter() - t0)
             shutil.rmtree(os.path.join(a.dir, "gauss_w.zarr"), ignore_errors=True)
             t["whole_gauss"].append(rgbn_cli(["eval", gg, "--input", f"image={store}", "-o", f"image={os.path.join(a.dir, 'gauss_w.zarr')}"], env=env2))
             print(f"run {run}: " + ", ".join(f"{k} {v[-1]:.2f}s" for k, v in t.items()), flush=True)
         rss = rss_of_workers(client)
+        peer_rss = rss_of_workers(peer_client)
     med = {k: statistics.median(v) for k, v in t.items()}
     ratios = [d / w for d, w in zip(t["dask"], t["whole"])]
     pr = [r / p for r, p in zip(t["rgbn_gauss"], t["peer"])]
@@ -152,7 +186,14 @@ def main():
         "median": med,
         "dask/whole median of per-run ratios": statistics.median(ratios),
         "rgbn_gauss/peer median of per-run ratios": statistics.median(pr),
-        "worker peak RSS GiB": {k: v / 2**30 for k, v in rss.items()},
+        "worker peak RSS GiB during each call (max over runs)": {
+            key: {w: max(v) / 2**30 for w, v in per.items()} for key, per in peaks.items()
+        },
+        "worker lifetime peak RSS GiB, rgbn's cluster": {k: v / 2**30 for k, v in rss.items()},
+        "worker lifetime peak RSS GiB, the peer's cluster": {k: v / 2**30 for k, v in peer_rss.items()},
+        "worker peak RSS GiB during each call, per run": {
+            key: {w: [round(x / 2**30, 3) for x in v] for w, v in per.items()} for key, per in peaks.items()
+        },
         "tasks": n_tasks,
         "task compute s (mean)": busy / max(n_tasks, 1),
         "overhead ms per task": overhead * 1e3,

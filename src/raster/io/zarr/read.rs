@@ -653,6 +653,10 @@ pub(crate) struct RowBlocks {
     next: usize,
     /// Each reader's next row.
     positions: Vec<usize>,
+    /// The planes of a chunk row every reader has passed, for the next one: a chunk row of a
+    /// 4096-wide window is 8 MB a channel, and fresh planes were new mappings, page-faulted
+    /// and zero-filled by the kernel row after row.
+    spare: Option<Vec<Vec<f32>>>,
 }
 
 /// Rows of some channels of a store's level 0, read top to bottom (the strip driver's
@@ -726,7 +730,17 @@ impl ZarrRows {
         while s.next < y1 {
             // To the end of the chunk row (a window's first may start inside one).
             let r = Rect::new(win.x, s.next, w, (cy - s.next % cy).min(bottom - s.next));
-            let planes = self.image.read(0, r)?;
+            let planes = match s.spare.take() {
+                Some(mut planes) => {
+                    // Every sample is overwritten (each chunk covering `r` writes its part).
+                    for p in &mut planes {
+                        p.resize(r.w * r.h, 0.0);
+                    }
+                    self.image.read_into(0, r, &mut planes)?;
+                    planes
+                }
+                None => self.image.read(0, r)?,
+            };
             s.blocks.push_back((r.y, r.h, planes));
             s.next += r.h;
         }
@@ -743,7 +757,9 @@ impl ZarrRows {
         s.positions[self.id] = y1;
         let done = s.positions.iter().copied().min().unwrap_or(0);
         while s.blocks.front().is_some_and(|(b0, bh, _)| b0 + bh <= done) {
-            s.blocks.pop_front();
+            if let Some((_, _, planes)) = s.blocks.pop_front() {
+                s.spare = Some(planes);
+            }
         }
         Ok(())
     }

@@ -25,7 +25,7 @@ use serde_json::json;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use zarrs::array::codec::{BloscCodec, ZstdCodec};
-use zarrs::array::{transmute_to_bytes_vec, Array, ArrayBuilder, ArrayMetadata, CodecOptions};
+use zarrs::array::{transmute_to_bytes, transmute_to_bytes_vec, Array, ArrayBuilder, ArrayMetadata, CodecOptions};
 
 /// zstd's level (1: fastest; levels above cost more time than they save bytes on float planes:
 /// BENCHMARKS.md, thirteenth session).
@@ -423,12 +423,19 @@ impl ZarrWriter {
         let g = self.layout.cell();
         let opts = CodecOptions::default().with_store_empty_chunks(true);
         let store = |k: usize, lw: usize, lh: usize, planes: &[Vec<f32>]| {
-            let bytes = encode(&self.layout, g >> k, lw, lh, planes);
-            self.arrays[k]
+            // The chunk's samples go through this thread's scratch buffer, kept from one chunk
+            // to the next: a fresh one was a new mapping per chunk, page-faulted and
+            // zero-filled by the kernel (6 MB for 512² × 6 float channels). Taken, not
+            // borrowed: a task the codec's threads steal onto this one finds it empty.
+            let mut scratch = SCRATCH.take();
+            let bytes = encode(&self.layout, g >> k, lw, lh, planes, &mut scratch);
+            let r = self.arrays[k]
                 .store_chunk_opt(&[0, gy as u64, gx as u64], bytes, &opts)
                 .map_err(|e| {
                     write_error(&self.path, format!("chunk ({gy}, {gx}) of level {k}: {e}"))
-                })
+                });
+            SCRATCH.set(scratch);
+            r
         };
         store(0, cw, ch, &level0)?;
         if self.layout.levels > 1 {
@@ -460,15 +467,21 @@ impl Drop for ZarrWriter {
     }
 }
 
+thread_local! {
+    /// A thread's buffer of one chunk's samples ([`encode`]), kept between chunks.
+    static SCRATCH: std::cell::Cell<Vec<f32>> = const { std::cell::Cell::new(Vec::new()) };
+}
+
 /// A cell's samples (`lw × lh` valid per channel) padded to `side × side` with zeros and
-/// converted to the store's type, channel after channel.
-fn encode(
+/// converted to the store's type, channel after channel; float32 samples are `all`'s, borrowed.
+fn encode<'a>(
     layout: &Layout,
     side: usize,
     lw: usize,
     lh: usize,
     planes: &[Vec<f32>],
-) -> zarrs::array::ArrayBytes<'static> {
+    all: &'a mut Vec<f32>,
+) -> zarrs::array::ArrayBytes<'a> {
     let labels = layout.content.channels();
     let n = side * side;
     let fill = |out: &mut [f32], p: &[f32]| {
@@ -476,14 +489,16 @@ fn encode(
             out[y * side..y * side + lw].copy_from_slice(&p[y * lw..(y + 1) * lw]);
         }
     };
-    let mut all = vec![0f32; n * planes.len()];
+    all.clear();
+    all.resize(n * planes.len(), 0.0);
     for (c, p) in planes.iter().enumerate() {
         fill(&mut all[c * n..(c + 1) * n], p);
     }
+    let all: &'a [f32] = all;
     let roles: Vec<Role> = labels.iter().map(|l| Role::of(l)).collect();
     match (layout.dtype, layout.opts.dtype) {
         ("uint8", _) => all.iter().map(|&v| v as u8).collect::<Vec<u8>>().into(),
-        (_, ZarrDtype::F32) => transmute_to_bytes_vec(all).into(),
+        (_, ZarrDtype::F32) => zarrs::array::ArrayBytes::from(transmute_to_bytes(all)),
         (_, ZarrDtype::F16) => {
             transmute_to_bytes_vec(all.iter().map(|&v| half::f16::from_f32(v)).collect()).into()
         }
