@@ -20,8 +20,8 @@ use crate::error::{graph_err, input, rgbn_err};
 use crate::graph::{output_value, Graph};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
-use rgbn::eval::region::RegionOptions;
 use rgbn::eval::plan::Conn;
+use rgbn::eval::region::RegionOptions;
 use rgbn::eval::stream::{StreamPlan, Streamable};
 use rgbn::eval::zarr_sink::stream_region_into_stores;
 use rgbn::eval::{EvalOptions, Evaluator, Plan};
@@ -44,9 +44,9 @@ pub fn _dask_graph(
     let mut lg = if let Ok(g) = graph.cast::<Graph>() {
         g.borrow().loaded().clone()
     } else {
-        let path: PathBuf = graph.extract().map_err(|_| {
-            input("graph: give a graph file path (.ron) or an rgbn.Graph")
-        })?;
+        let path: PathBuf = graph
+            .extract()
+            .map_err(|_| input("graph: give a graph file path (.ron) or an rgbn.Graph"))?;
         py.detach(|| LoadedGraph::load(&path)).map_err(graph_err)?
     };
     rgbn::cli::apply_sets(&mut lg, &sets).map_err(crate::error::cli_err)?;
@@ -88,6 +88,9 @@ fn upstream(plan: &Plan, name: &str) -> Vec<usize> {
     out
 }
 
+/// An output's `(width, height, type, channels)` at a level.
+type OutputShape = (usize, usize, &'static str, usize);
+
 /// Client side, before any task: `{output: (width, height, type, channels)}` at `level`, for
 /// the outputs named (every image-like output when none is). A graph whose outputs depend on a global operator (one that needs its input whole:
 /// integration, the integrability projection, statistics) is refused with an `InputError`
@@ -100,7 +103,7 @@ pub fn _dask_plan(
     inputs: BTreeMap<String, PathBuf>,
     outputs: Vec<String>,
     level: u32,
-) -> PyResult<BTreeMap<String, (usize, usize, &'static str, usize)>> {
+) -> PyResult<BTreeMap<String, OutputShape>> {
     let (text, label, base) = graph;
     // Each OME-Zarr input is opened here, on the client, so a store that is not one (a plain
     // Zarr array, a missing folder) is an error naming the store before any task is built.
@@ -153,7 +156,15 @@ pub fn _dask_plan(
         let ev = Evaluator::default();
         let ropts = RegionOptions { tile: 16, level };
         let r = py
-            .detach(|| ev.eval_region(&plan, name, Rect::new(0, 0, 1, 1), &ropts, &EvalOptions::default()))
+            .detach(|| {
+                ev.eval_region(
+                    &plan,
+                    name,
+                    Rect::new(0, 0, 1, 1),
+                    &ropts,
+                    &EvalOptions::default(),
+                )
+            })
             .map_err(graph_err)?;
         let channels = match &r.value {
             Value::Rgbn(img) => 6 + usize::from(img.mask().is_some()),
@@ -170,11 +181,7 @@ pub fn _dask_plan(
 
 /// Runs `f` on a rayon pool of `threads` threads (the task's share of its worker), without
 /// the interpreter's lock.
-fn on_pool<T: Send>(
-    py: Python<'_>,
-    threads: usize,
-    f: impl FnOnce() -> T + Send,
-) -> PyResult<T> {
+fn on_pool<T: Send>(py: Python<'_>, threads: usize, f: impl FnOnce() -> T + Send) -> PyResult<T> {
     // One pool per thread count for the life of the worker process: a task starts no threads,
     // and the pool's threads keep their scratch buffers from one task to the next.
     static POOLS: std::sync::OnceLock<
@@ -295,8 +302,10 @@ pub fn _dask_region<'py>(
         if let Some(files) = &files {
             // Streamed when it can be (`stream_region_into_stores`): a task's memory is then a
             // few strips of its window, whatever its side.
-            let outs: Vec<(String, PathBuf)> =
-                names.iter().map(|n| (n.clone(), files[n].clone())).collect();
+            let outs: Vec<(String, PathBuf)> = names
+                .iter()
+                .map(|n| (n.clone(), files[n].clone()))
+                .collect();
             let cancel = rgbn::cancel::Cancel::default();
             if level == 0
                 && stream_region_into_stores::<TaskError>(&plan, &outs, rect, &zopts, &cancel)

@@ -191,7 +191,7 @@ pub fn stream_region_into_stores<E: From<GraphError> + From<RgbnError>>(
     }
     let mut sinks: Vec<ZarrSink> = outputs
         .iter()
-        .map(|(_, p)| ZarrSink::region(p.clone(), (w, h), rect, opts.clone()))
+        .map(|(_, p)| ZarrSink::region(p.clone(), (w, h), rect, *opts))
         .collect();
     let cols = rect.x - x0..rect.right() - x0;
     sp.run(None, cancel, |first, values, core| -> Result<(), E> {

@@ -25,7 +25,9 @@ use serde_json::json;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use zarrs::array::codec::{BloscCodec, ZstdCodec};
-use zarrs::array::{transmute_to_bytes, transmute_to_bytes_vec, Array, ArrayBuilder, ArrayMetadata, CodecOptions};
+use zarrs::array::{
+    transmute_to_bytes, transmute_to_bytes_vec, Array, ArrayBuilder, ArrayMetadata, CodecOptions,
+};
 
 /// zstd's level (1: fastest; levels above cost more time than they save bytes on float planes:
 /// BENCHMARKS.md, thirteenth session).
