@@ -22,8 +22,7 @@ use pyo3::prelude::*;
 use pyo3::types::PyDict;
 use rgbn::eval::plan::Conn;
 use rgbn::eval::region::RegionOptions;
-use rgbn::eval::stream::{StreamPlan, Streamable};
-use rgbn::eval::zarr_sink::stream_region_into_stores;
+use rgbn::eval::zarr_sink::{stream_region_into_stores, streams_in_windows};
 use rgbn::eval::{EvalOptions, Evaluator, Plan};
 use rgbn::graph::{GraphError, LoadedGraph};
 use rgbn::nodes::{Kind, PortType, Value};
@@ -230,13 +229,7 @@ pub fn _dask_streams(
         let lg = loaded(&text, &label, &base).map_err(graph_err)?;
         let plan = plan_of(&lg, &inputs, &base).map_err(graph_err)?;
         let asked: Vec<&str> = outputs.iter().map(String::as_str).collect();
-        Ok(match StreamPlan::check(&plan, &asked).map_err(graph_err)? {
-            Streamable::Yes(mut sp) => {
-                let full = Rect::full(sp.size());
-                sp.set_window(full).is_ok()
-            }
-            Streamable::No(_) => false,
-        })
+        streams_in_windows(&plan, &asked).map_err(graph_err)
     })
 }
 
@@ -255,6 +248,15 @@ impl From<GraphError> for TaskError {
 impl From<rgbn::RgbnError> for TaskError {
     fn from(e: rgbn::RgbnError) -> Self {
         TaskError::Py(rgbn_err(e))
+    }
+}
+
+impl From<TaskError> for PyErr {
+    fn from(e: TaskError) -> Self {
+        match e {
+            TaskError::Graph(g) => graph_err(g),
+            TaskError::Py(p) => p,
+        }
     }
 }
 
@@ -308,11 +310,7 @@ pub fn _dask_region<'py>(
                 .collect();
             let cancel = rgbn::cancel::Cancel::default();
             if level == 0
-                && stream_region_into_stores::<TaskError>(&plan, &outs, rect, &zopts, &cancel)
-                    .map_err(|e| match e {
-                        TaskError::Graph(g) => graph_err(g),
-                        TaskError::Py(p) => p,
-                    })?
+                && stream_region_into_stores::<TaskError>(&plan, &outs, rect, &zopts, &cancel)?
             {
                 return Ok(Vec::new());
             }

@@ -162,9 +162,8 @@ pub fn stream_region_into_stores<E: From<GraphError> + From<RgbnError>>(
     cancel: &Cancel,
 ) -> Result<bool, E> {
     let asked: Vec<&str> = outputs.iter().map(|(n, _)| n.as_str()).collect();
-    let mut sp = match StreamPlan::check(plan, &asked)? {
-        Streamable::Yes(sp) => *sp,
-        Streamable::No(_) => return Ok(false),
+    let Some(mut sp) = windowable(plan, &asked)? else {
+        return Ok(false);
     };
     let (w, h) = sp.size();
     let halo = sp.halo();
@@ -185,10 +184,11 @@ pub fn stream_region_into_stores<E: From<GraphError> + From<RgbnError>>(
         (rect.right() + halo).min(w) - x0,
         (rect.bottom() + halo).min(h) - y0,
     );
-    if sp.set_window(window).is_err() {
-        // A file input, read in whole rows: the region plan reads only its tiles.
-        return Ok(false);
-    }
+    sp.set_window(window)
+        .map_err(|why| RgbnError::InvalidParam {
+            name: "region".into(),
+            detail: why,
+        })?;
     let mut sinks: Vec<ZarrSink> = outputs
         .iter()
         .map(|(_, p)| ZarrSink::region(p.clone(), (w, h), rect, *opts))
@@ -209,4 +209,22 @@ pub fn stream_region_into_stores<E: From<GraphError> + From<RgbnError>>(
         s.commit()?;
     }
     Ok(true)
+}
+
+/// Whether `outputs` stream in windows ([`stream_region_into_stores`] writes them): the
+/// client of `rgbn.dask` asks, to choose large tasks.
+pub fn streams_in_windows(plan: &Plan, outputs: &[&str]) -> Result<bool, GraphError> {
+    Ok(windowable(plan, outputs)?.is_some())
+}
+
+/// The streamed plan of `outputs` (its window the whole image) when they stream from an input
+/// that can be read in windows (an OME-Zarr store; files are read in whole rows).
+fn windowable<'p>(plan: &'p Plan, outputs: &[&str]) -> Result<Option<StreamPlan<'p>>, GraphError> {
+    let mut sp = match StreamPlan::check(plan, outputs)? {
+        Streamable::Yes(sp) => *sp,
+        Streamable::No(_) => return Ok(None),
+    };
+    // The whole image as the window: only tests that the input can be read in windows.
+    let full = Rect::full(sp.size());
+    Ok(sp.set_window(full).is_ok().then_some(sp))
 }
