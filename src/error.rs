@@ -18,7 +18,7 @@ pub enum RgbnError {
     },
 
     /// The extension (or content) is not a format rgbn reads or writes.
-    #[error("unsupported format {format:?} (use .exr, .png, .jpg/.jpeg or .tif/.tiff; .ptm to read): {}", .path.display())]
+    #[error("unsupported format {format:?} (use .exr, .zarr, .png, .jpg/.jpeg or .tif/.tiff; .ptm to read): {}", .path.display())]
     UnsupportedFormat { format: String, path: PathBuf },
 
     /// The file is truncated, corrupt, or lacks what is needed (e.g. normal channels).

@@ -4,7 +4,7 @@
 //! Every figure graph under `graphs/paper/` is evaluated with the integrability readout on; its
 //! picture outputs become `docs/gallery/STEM.OUTPUT.png` and its numbers fill the tables of
 //! `docs/gallery.md` between the markers `<!-- gallery: NAME -->` and `<!-- /gallery -->` (the
-//! prose around them is written by hand). [`generate`] computes everything, [`write`] puts it
+//! prose around them is written by hand). [`generate`] computes everything, [`write`](fn@write) puts it
 //! in place, [`check`] lists where the page or the pictures disagree with it: a number that
 //! differs from the recomputed one by more than half a unit of its last printed digit, a table
 //! whose words differ, a picture missing, extra, or differing by more than

@@ -6,7 +6,7 @@
 //! reports integrability as curl everywhere.
 //!
 //! Modules:
-//! - [`params`]: parameters declared once ([`params!`], [`choice_enum!`]): the visitor every
+//! - [`params`](mod@params): parameters declared once ([`params!`], [`choice_enum!`]): the visitor every
 //!   consumer (files, `--set`, `rgbn ops`, the editor's widgets) walks.
 //! - [`raster`]: the image model ([`RgbnImage`]), file I/O, gradient maths and curl,
 //!   convolution kernels, built-in sample and analytic surfaces.

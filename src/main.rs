@@ -21,6 +21,12 @@ fn main() -> ExitCode {
         rgbn::recycle::set_huge_pages(false);
     }
     init_logging();
+    // A bad `RGBN_SIMD` (an unknown twin, or one this CPU cannot run) stops here, before any
+    // work, rather than silently running another twin.
+    if let Err(e) = rgbn::raster::simd::from_env() {
+        eprintln!("rgbn: error: {e}");
+        return ExitCode::from(2);
+    }
     rgbn::cli::run(std::env::args_os()).into()
 }
 

@@ -29,6 +29,9 @@
 //! library itself does not, so a program embedding it keeps its own allocator.
 
 use std::alloc::{GlobalAlloc, Layout, System};
+// std's Mutex, not parking_lot's: this is the global allocator, and parking_lot allocates its
+// wait table on first contention (an allocation from inside the allocator). Its poisoned
+// lock is treated as "nothing kept" (the allocator falls through to the system).
 use std::sync::Mutex;
 
 /// Whether big blocks and image buffers ask for transparent huge pages (the default; see
@@ -51,10 +54,11 @@ pub fn set_huge_pages(on: bool) {
 /// the kernel on first touch — most of the system time of a 4K `rgbn eval` (BENCHMARKS.md,
 /// "Where the time goes"). Blocks of [`BIG`] bytes and more are [`Recycler`]'s. The command
 /// line calls it before running a command (not the editor, whose memory should follow what it
-/// holds).
+/// holds), and the Python package's Dask tasks on their worker's first task.
 pub fn keep_freed_memory() {
     #[cfg(all(target_os = "linux", target_env = "gnu"))]
-    // SAFETY: mallopt only sets allocator parameters; called before other threads exist.
+    // SAFETY: mallopt only sets allocator parameters (glibc takes its arena lock, so other
+    // threads may be allocating meanwhile).
     unsafe {
         libc::mallopt(libc::M_MMAP_THRESHOLD, 32 << 20);
         libc::mallopt(libc::M_TRIM_THRESHOLD, 1 << 30);

@@ -13,6 +13,9 @@ mod real_data;
 #[path = "it/graphs.rs"]
 mod graphs;
 
+#[path = "it/op_versions.rs"]
+mod op_versions;
+
 #[path = "it/gallery.rs"]
 mod gallery;
 
@@ -21,6 +24,9 @@ mod golden;
 
 #[path = "it/graph_errors.rs"]
 mod graph_errors;
+
+#[path = "it/structure.rs"]
+mod structure;
 
 #[path = "it/cache.rs"]
 mod cache;
@@ -119,3 +125,10 @@ mod layers;
 
 #[path = "it/parse_once.rs"]
 mod parse_once;
+
+#[cfg(feature = "gui")]
+#[path = "it/editor_structure.rs"]
+mod editor_structure;
+
+#[path = "it/zarr.rs"]
+mod zarr;

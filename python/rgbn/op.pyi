@@ -47,7 +47,7 @@ def load(*, path: str | os.PathLike[str] = '', color: str | os.PathLike[str] = '
     Loads an RGBN EXR, a PTM, or a normal map with an optional colour image and mask; bad normals are repaired (or refused with strict).
     
     Parameters:
-        path (path; default ''): RGBN EXR (R,G,B + N.X,N.Y,N.Z [+ A]), a normal map (PNG/TIFF/EXR) or a Polynomial Texture Map (.ptm, LRGB or RGB).
+        path (path; default ''): RGBN EXR (R,G,B + N.X,N.Y,N.Z [+ A]), an OME-Zarr store (.zarr: R,G,B, nx,ny,nz [, mask]; a region or level reads only its chunks), a normal map (PNG/TIFF/EXR) or a Polynomial Texture Map (.ptm, LRGB or RGB).
         color (path; default ''): Colour image (sRGB PNG/JPEG/TIFF or linear EXR); empty: none.
         mask (path; default ''): Coverage mask (greyscale); empty: none.
         dx (bool; default False): Normal maps use the DirectX convention (green = −y).
@@ -702,7 +702,7 @@ def integrate(image: Image, *, method: Literal['poisson_dct', 'frankot_chellappa
     The graph node 'integrate', run by rgbn.run_op.
     """
 
-def save(image: Image, *, path: str | os.PathLike[str] = '', bits: Literal['8', '16'] = '16', dx: bool = False, half: bool = False, exr_compression: Literal['none', 'rle', 'zips', 'zip', 'piz'] = 'zip') -> Image:
+def save(image: Image, *, path: str | os.PathLike[str] = '', bits: Literal['8', '16'] = '16', dx: bool = False, half: bool = False, exr_compression: Literal['none', 'rle', 'zips', 'zip', 'piz'] = 'zip', zarr_dtype: Literal['float32', 'float16', 'uint16'] = 'float32', zarr_chunk: int = 512, zarr_compression: Literal['zstd', 'blosc', 'none'] = 'zstd') -> Image:
     """Save image.
     
     Writes the image to a file (atomically; never over a file the graph reads) and passes it through; runs whenever its output is requested.
@@ -711,11 +711,14 @@ def save(image: Image, *, path: str | os.PathLike[str] = '', bits: Literal['8', 
         image (rgbn): Image to write.
     
     Parameters:
-        path (path; default ''): Output: .exr (colour + normals + mask) or .png/.tif (normal map).
+        path (path; default ''): Output: .exr or .zarr (an OME-Zarr store: colour + normals + mask, with its levels) or .png/.tif (normal map).
         bits (choice; default '16'): Bits per channel of PNG/TIFF normal maps.
         dx (bool; default False): Write normal maps in the DirectX convention (green = −y).
         half (bool; default False): Write EXR as 16-bit half floats (f16) instead of 32-bit floats.
         exr_compression (choice; default 'zip'): Compression of an EXR (lossless): zip (default: zlib over 16 lines, about OpenEXR's size for little more time than none), zips, rle, piz or none.
+        zarr_dtype (choice; default 'float32'): Data type of an OME-Zarr store: float32, float16, or uint16 over each channel's range.
+        zarr_chunk (int; px, in [16, 8192], default 512): Chunk side of an OME-Zarr store in pixels (level k's chunks are chunk / 2^k).
+        zarr_compression (choice; default 'zstd'): Compression of an OME-Zarr store's chunks: zstd (default), blosc or none.
     
     Returns the output 'image' (rgbn): The same image.
     

@@ -34,6 +34,13 @@ pub struct Graph {
     last: Option<EvalResult>,
 }
 
+impl Graph {
+    /// The validated graph with the parameters set on it.
+    pub fn loaded(&self) -> &LoadedGraph {
+        &self.lg
+    }
+}
+
 /// A Python value as a graph value for an input of type `ty`.
 fn input_value(
     py: Python<'_>,

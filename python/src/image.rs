@@ -615,12 +615,15 @@ impl Image {
     }
 }
 
-/// Reads an RGBN image: an RGBN EXR (colour, ``N.X/N.Y/N.Z``, mask ``A``), a normal map
-/// (PNG/TIFF/JPEG 8/16-bit or EXR) or a PTM, with optional separate ``color`` and ``mask`` files,
-/// exactly as the command line reads its input (``dx``: the normal map's green is −y;
-/// ``exr_rgb_is_normal``: an EXR's R,G,B is a normal pass; ``strict``: refuse instead of repair).
+/// Reads an RGBN image: an RGBN EXR (colour, ``N.X/N.Y/N.Z``, mask ``A``), an OME-Zarr store
+/// (``.zarr``: channels R, G, B, nx, ny, nz, mask; ``level``: one of its levels of detail, read
+/// directly), a normal map (PNG/TIFF/JPEG 8/16-bit or EXR) or a PTM, with optional separate
+/// ``color`` and ``mask`` files, exactly as the command line reads its input (``dx``: the normal
+/// map's green is −y; ``exr_rgb_is_normal``: an EXR's R,G,B is a normal pass; ``strict``: refuse
+/// instead of repair).
 #[pyfunction]
-#[pyo3(signature = (path, color=None, mask=None, *, dx=false, exr_rgb_is_normal=false, strict=false))]
+#[pyo3(signature = (path, color=None, mask=None, *, dx=false, exr_rgb_is_normal=false, strict=false, level=0))]
+#[allow(clippy::too_many_arguments)]
 pub fn read(
     py: Python<'_>,
     path: PathBuf,
@@ -629,7 +632,24 @@ pub fn read(
     dx: bool,
     exr_rgb_is_normal: bool,
     strict: bool,
+    level: usize,
 ) -> PyResult<Image> {
+    if level > 0 {
+        if !io::zarr::is_zarr(&path) || color.is_some() || mask.is_some() {
+            return Err(input(
+                "level: only an OME-Zarr store (.zarr, no separate color or mask) has levels",
+            ));
+        }
+        let (img, repaired) = py
+            .detach(|| {
+                let z = io::zarr::ZarrImage::open(&path)?;
+                let size = rgbn::raster::pyramid::reduced_size(z.size(), 1 << level.min(20));
+                z.read_rgbn(level.min(20), rgbn::raster::window::Rect::full(size))
+            })
+            .map_err(rgbn_err)?;
+        warn_repairs(py, &repaired, &path.display().to_string())?;
+        return Ok(Image::planar(img, repaired));
+    }
     let spec = InputSpec {
         rgbn: Some(path.clone()),
         color,
@@ -713,13 +733,16 @@ fn value_of(py: Python<'_>, obj: &Bound<'_, PyAny>, as_mask: bool) -> PyResult<V
 ///
 /// - an ``Image``: ``.exr`` holds colour, normals and mask (``half``: 16-bit floats;
 ///   ``exr_compression``: zip (default), zips, rle, piz or none);
-///   ``.png``/``.tif`` the normal map (``bits`` 8 or 16, ``dx``: DirectX green); with
+///   ``.zarr`` an OME-Zarr store of the same with its levels of detail (``zarr_dtype``: float32
+///   (default), float16 or uint16; ``chunk``: chunk side in pixels; ``zarr_compression``: zstd
+///   (default), blosc or none); ``.png``/``.tif`` the normal map (``bits`` 8 or 16, ``dx``:
+///   DirectX green); with
 ///   ``color=True`` the colour instead (PNG/TIFF sRGB, EXR linear) — ``rgbn filter --color-out``;
-/// - an H×W float32 array: a scalar field (``.exr``), or with ``mask=True`` a mask
-///   (``.png``/``.tif`` 16-bit, or ``.exr``);
-/// - an H×W×4 uint8 array: a picture (``.png``/``.tif``).
+/// - an H×W float32 array: a scalar field (``.exr``, ``.zarr``), or with ``mask=True`` a mask
+///   (``.png``/``.tif`` 16-bit, ``.exr`` or ``.zarr``);
+/// - an H×W×4 uint8 array: a picture (``.png``/``.tif``/``.zarr``).
 #[pyfunction]
-#[pyo3(signature = (obj, path, *, bits=16, dx=false, half=false, exr_compression="zip", color=false, mask=false))]
+#[pyo3(signature = (obj, path, *, bits=16, dx=false, half=false, exr_compression="zip", color=false, mask=false, zarr_dtype="float32", chunk=rgbn::raster::io::zarr::DEFAULT_CHUNK, zarr_compression="zstd"))]
 #[allow(clippy::too_many_arguments)]
 pub fn write(
     py: Python<'_>,
@@ -731,7 +754,24 @@ pub fn write(
     exr_compression: &str,
     color: bool,
     mask: bool,
+    zarr_dtype: &str,
+    chunk: usize,
+    zarr_compression: &str,
 ) -> PyResult<()> {
+    use rgbn::raster::io::zarr::{ZarrCompression, ZarrDtype, ZarrOptions};
+    let Some(dtype) = ZarrDtype::ALL.into_iter().find(|c| c.name() == zarr_dtype) else {
+        return Err(input(format!(
+            "\"{zarr_dtype}\": zarr_dtype must be one of float32, float16, uint16"
+        )));
+    };
+    let Some(zcomp) = ZarrCompression::ALL
+        .into_iter()
+        .find(|c| c.name() == zarr_compression)
+    else {
+        return Err(input(format!(
+            "\"{zarr_compression}\": zarr_compression must be one of zstd, blosc, none"
+        )));
+    };
     if bits != 8 && bits != 16 {
         return Err(input(format!("\"{bits}\": bits must be 8 or 16")));
     }
@@ -759,6 +799,12 @@ pub fn write(
             ExrPrecision::Full
         },
         compression,
+        zarr: ZarrOptions {
+            dtype,
+            compression: zcomp,
+            chunk,
+            ..ZarrOptions::default()
+        },
     };
     py.detach(|| {
         io::check_output(&path, &[])?;

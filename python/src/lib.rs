@@ -13,6 +13,7 @@
 
 use pyo3::prelude::*;
 
+mod dask;
 mod error;
 mod graph;
 mod image;
@@ -50,6 +51,10 @@ fn _rgbn(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(ops::info, m)?)?;
     m.add_function(wrap_pyfunction!(ops::main, m)?)?;
     m.add_function(wrap_pyfunction!(ops::_kernel_time, m)?)?;
+    m.add_function(wrap_pyfunction!(dask::_dask_graph, m)?)?;
+    m.add_function(wrap_pyfunction!(dask::_dask_plan, m)?)?;
+    m.add_function(wrap_pyfunction!(dask::_dask_region, m)?)?;
+    m.add_function(wrap_pyfunction!(dask::_dask_streams, m)?)?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     Ok(())
 }

@@ -59,15 +59,33 @@ pub struct Offer {
     pub port: Option<String>,
 }
 
-/// Every registered operator, in menu order.
+/// The reroute's entry in the menu (a point on a wire, not an operator: see
+/// [`crate::graph::reroute`]).
+pub fn reroute_spec() -> &'static OpSpec {
+    static SPEC: std::sync::LazyLock<OpSpec> = std::sync::LazyLock::new(|| {
+        OpSpec {
+        id: nodes::REROUTE_OP,
+        title: "Reroute",
+        category: "layout",
+        doc: "A point on a wire, to route it around nodes; its output fans out to any number of inputs. Evaluation does not see it.",
+        version: 1,
+        inputs: Vec::new(),
+        outputs: Vec::new(),
+        side_effect: false,
+        lazy_outputs: false,
+    }
+    });
+    &SPEC
+}
+
+/// Every registered operator, in menu order, then the reroute.
 #[must_use]
 pub fn all_offers() -> Vec<Offer> {
     nodes::registry()
         .iter()
-        .map(|o| Offer {
-            spec: o.spec(),
-            port: None,
-        })
+        .map(|o| o.spec())
+        .chain([reroute_spec()])
+        .map(|spec| Offer { spec, port: None })
         .collect()
 }
 
@@ -104,6 +122,15 @@ pub fn offers_for_wire(graph: &Graph, wire: &Wire, base_dir: &Path) -> Vec<Offer
             });
         }
     }
+    // A reroute takes any wire.
+    let port = match wire {
+        Wire::Out { .. } => crate::graph::reroute::IN,
+        Wire::In { .. } => crate::graph::reroute::OUT,
+    };
+    out.push(Offer {
+        spec: reroute_spec(),
+        port: Some(port.into()),
+    });
     out
 }
 
@@ -133,7 +160,7 @@ fn score(spec: &OpSpec, q: &str) -> Option<u8> {
 
 /// The offers matching `query`, in the order the menu lists them (the first is the one Enter
 /// adds): with no query, by category (alphabetical) then menu order; with one, by how well they
-/// match ([`score`]), then category, then menu order.
+/// match (`score`), then category, then menu order.
 #[must_use]
 pub fn ranked(query: &str, offers: &[Offer]) -> Vec<usize> {
     let q = query.trim().to_lowercase();

@@ -85,4 +85,8 @@ fn a_wire_offers_exactly_the_operators_the_core_connects() {
             s.id
         );
     }
+    // A reroute takes any wire.
+    assert!(offers
+        .iter()
+        .any(|o| o.spec.id == "reroute" && o.port.as_deref() == Some("out")));
 }

@@ -30,6 +30,10 @@ pub enum Then {
 
 impl EditorApp {
     pub(super) fn guarded(&mut self, then: Then) {
+        // Groups entered in place are left first (their graphs saved).
+        if !self.leave_all_groups() {
+            return;
+        }
         if self.session.doc.is_dirty() {
             self.dialog = Some(Dialog::Unsaved(then));
         } else {

@@ -66,12 +66,12 @@ impl EditorApp {
             FilePurpose::OpenImage => d
                 .title("Open image")
                 .add_file_filter(
-                    "Images (PNG, JPEG, TIFF, EXR, PTM)",
+                    "Images (PNG, JPEG, TIFF, EXR, PTM, OME-Zarr)",
                     egui_file_dialog::Filter::new(|p: &Path| {
-                        crate::raster::io::Format::of(p).is_ok()
+                        crate::raster::io::Format::of(p).is_ok() || zarr_store_of(p).is_some()
                     }),
                 )
-                .default_file_filter("Images (PNG, JPEG, TIFF, EXR, PTM)"),
+                .default_file_filter("Images (PNG, JPEG, TIFF, EXR, PTM, OME-Zarr)"),
             FilePurpose::SaveAs => {
                 let name = self
                     .session
@@ -109,8 +109,11 @@ impl EditorApp {
         self.files = Some((d, purpose));
     }
 
-    /// Acts on a file picked for `purpose`.
+    /// Acts on a file picked for `purpose` (an OME-Zarr store's `zarr.json`, `.zgroup` or
+    /// `.zattrs` stands for the store: the dialog picks files, a store is a folder).
     pub fn picked(&mut self, path: &Path, purpose: FilePurpose) {
+        let store = zarr_store_of(path);
+        let path = store.as_deref().unwrap_or(path);
         self.prefs.dialog_dir = path.parent().map(Path::to_path_buf);
         match purpose {
             FilePurpose::Open => self.open_path(path),
@@ -152,6 +155,7 @@ impl EditorApp {
         self.cancel();
         self.session.doc_epoch += 1;
         self.session.doc = doc;
+        self.session.groups.clear();
         self.session.autosaved = None;
         self.session.viewed = default_view(&self.session.doc.graph);
         self.session.selected = self.session.viewed.as_ref().map(|v| v.0);
@@ -161,7 +165,8 @@ impl EditorApp {
         self.runtime.last_sent = None;
         self.runtime.in_flight = None; // its result will be stale
         self.placed.clear();
-        self.view.frame_pending = 3;
+        self.view.new_document();
+        self.last_widget_selection.clear();
     }
 
     /// Opens a graph file (no unsaved-changes check).
@@ -320,3 +325,27 @@ impl EditorApp {
 
 /// How often unsaved work is written to the recovery file.
 pub const AUTOSAVE_INTERVAL: Duration = Duration::from_secs(30);
+
+/// The OME-Zarr store (a `.zarr` folder) whose metadata file `p` is, if it is one.
+fn zarr_store_of(p: &Path) -> Option<PathBuf> {
+    let name = p.file_name()?.to_str()?;
+    let dir = p.parent()?;
+    (matches!(name, "zarr.json" | ".zgroup" | ".zattrs") && crate::raster::io::zarr::is_zarr(dir))
+        .then(|| dir.to_path_buf())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::zarr_store_of;
+    use std::path::Path;
+
+    #[test]
+    fn a_stores_metadata_file_stands_for_the_store() {
+        let store = zarr_store_of(Path::new("/d/scan.zarr/zarr.json"));
+        assert_eq!(store.as_deref(), Some(Path::new("/d/scan.zarr")));
+        assert!(zarr_store_of(Path::new("/d/scan.ZARR/.zattrs")).is_some());
+        assert!(zarr_store_of(Path::new("/d/scan.zarr/0/zarr.json")).is_none());
+        assert!(zarr_store_of(Path::new("/d/plain/zarr.json")).is_none());
+        assert!(zarr_store_of(Path::new("/d/scan.exr")).is_none());
+    }
+}

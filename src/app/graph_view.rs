@@ -10,7 +10,7 @@ use super::add_menu::{self, AddMenu, Wire};
 use super::crisp;
 use super::placement::{self, Rect as PlaceRect};
 use crate::graph::{Graph, NodeId, NodePorts};
-use crate::nodes::{self, PortType};
+use crate::nodes::{self, PortType, GRAPH_NODE_OP, REROUTE_OP};
 use egui::emath::TSTransform;
 use egui::{Color32, Id, Pos2, RichText, TextureHandle, Ui};
 use egui_snarl::ui::{AnyPins, PinInfo, SnarlPin, SnarlStyle, SnarlViewer, SnarlWidget};
@@ -72,6 +72,31 @@ pub enum Action {
     Export(NodeId),
     /// Choose this path parameter of this node in the file dialog.
     BrowseParam(NodeId, String),
+    /// Put a new frame around these nodes.
+    FrameNodes(Vec<NodeId>),
+    /// Open the rename / recolour dialog of frame number `index`.
+    EditFrame(usize),
+    /// Remove frame number `index` (its nodes stay).
+    DeleteFrame(usize),
+    /// Put a reroute at `pos` on the wire from `from`'s `from_port` into `to`'s `port`.
+    InsertReroute {
+        /// Source node.
+        from: NodeId,
+        /// Its output port.
+        from_port: String,
+        /// Target node.
+        to: NodeId,
+        /// Its input port.
+        port: String,
+        /// Graph position.
+        pos: [f32; 2],
+    },
+    /// Group these nodes into a subgraph (opens the dialog choosing what to expose).
+    Group(Vec<NodeId>),
+    /// Inline this graph node.
+    Ungroup(NodeId),
+    /// Open this graph node in place.
+    EnterGroup(NodeId),
 }
 
 /// Colour of a port type (pins and wires).
@@ -131,6 +156,9 @@ pub struct GraphView {
     /// Each drawn node's rectangle relative to its position (offset of the top-left corner,
     /// size), as the widget last drew it.
     measured: BTreeMap<NodeId, ([f32; 2], [f32; 2])>,
+    /// Which document the widget shows ([`Self::new_document`]): its state (selection, view)
+    /// is kept in egui under an id of its own per document.
+    doc_scope: u64,
 }
 
 impl Default for GraphView {
@@ -151,11 +179,29 @@ impl Default for GraphView {
             to_global: TSTransform::IDENTITY,
             panel: None,
             measured: BTreeMap::new(),
+            doc_scope: 0,
         }
     }
 }
 
 impl GraphView {
+    /// Starts over for another document (opened, or a group entered or left): no node of the
+    /// old one stays in the widget, and its selection, kept by the widget's node indices, does
+    /// not carry over to the nodes of the new one that reuse them. The view is fitted again.
+    pub fn new_document(&mut self) {
+        self.snarl = Snarl::new();
+        self.by_id.clear();
+        self.measured.clear();
+        self.frame_only = None;
+        self.frame_pending = 3;
+        self.doc_scope += 1;
+    }
+
+    /// The widget's egui id for the current document.
+    fn snarl_id(&self) -> Id {
+        Id::new(SNARL_ID).with(self.doc_scope)
+    }
+
     /// Mirrors `graph` into the snarl: adds and removes nodes, moves them, fixes wires.
     pub fn sync(&mut self, graph: &Graph, ports: &BTreeMap<NodeId, NodePorts>) {
         let gone: Vec<NodeId> = self
@@ -241,7 +287,7 @@ impl GraphView {
     /// Graph ids of the nodes selected in the widget.
     #[must_use]
     pub fn selected(&self, ctx: &egui::Context) -> Vec<NodeId> {
-        egui_snarl::ui::get_selected_nodes(Id::new(SNARL_ID), ctx)
+        egui_snarl::ui::get_selected_nodes(self.snarl_id(), ctx)
             .into_iter()
             .filter_map(|sid| self.snarl.get_node(sid).copied())
             .collect()
@@ -361,6 +407,8 @@ impl GraphView {
         self.panel = Some(panel);
         let frame = (self.frame_pending > 0).then_some(panel);
         self.frame_pending = self.frame_pending.saturating_sub(1);
+        let (pointer, shift) = ui.input(|i| (i.pointer.latest_pos(), i.modifiers.shift));
+        let snarl_id = self.snarl_id();
         let mut viewer = Viewer {
             data,
             actions: Vec::new(),
@@ -369,15 +417,63 @@ impl GraphView {
             measured: &mut self.measured,
             to_global: self.to_global,
             request: None,
+            pointer,
+            shift,
+            snarl_id,
         };
-        SnarlWidget::new()
-            .id(Id::new(SNARL_ID))
-            .style(self.style)
-            .show(&mut self.snarl, &mut viewer, ui);
+        let resp = SnarlWidget::new().id(snarl_id).style(self.style).show(
+            &mut self.snarl,
+            &mut viewer,
+            ui,
+        );
         let (mut actions, request, to_global) = (viewer.actions, viewer.request, viewer.to_global);
         self.to_global = to_global;
         if self.frame_pending == 0 {
             self.frame_only = None;
+        }
+        // Frames: their title bars drag their nodes (moved in the widget, written back to the
+        // graph with the nodes' own moves).
+        let rects = super::frames::frame_rects(data.graph, |id| {
+            super::frames::node_rect(data.graph, &self.measured, id)
+        });
+        for (i, delta) in super::frames::bars_ui(
+            ui,
+            snarl_id,
+            data.graph,
+            &rects,
+            to_global,
+            resp.rect,
+            &mut actions,
+        ) {
+            for id in &data.graph.frames[i].nodes {
+                if let Some(info) = self
+                    .by_id
+                    .get(id)
+                    .and_then(|s| self.snarl.get_node_info_mut(*s))
+                {
+                    info.pos += delta;
+                }
+            }
+        }
+        // A double-click on a graph node opens it in place.
+        if let Some(p) = pointer.filter(|p| resp.rect.contains(*p)) {
+            // (egui counts a second quick click on the spot of a click made up to 0.6 s
+            // earlier anywhere else as a triple click.)
+            let b = egui::PointerButton::Primary;
+            if ui
+                .input(|i| i.pointer.button_double_clicked(b) || i.pointer.button_triple_clicked(b))
+            {
+                let at = to_global.inverse() * p;
+                let hit = self.drawn_rects(data.graph).into_iter().find(|(id, r)| {
+                    let max = r.max();
+                    data.graph.nodes[id].op == GRAPH_NODE_OP
+                        && (r.min[0]..=max[0]).contains(&at.x)
+                        && (r.min[1]..=max[1]).contains(&at.y)
+                });
+                if let Some((id, _)) = hit {
+                    actions.push(Action::EnterGroup(id));
+                }
+            }
         }
         let ctx = ui.ctx().clone();
         if let Some(req) = request {
@@ -429,6 +525,12 @@ struct Viewer<'a, 'd> {
     to_global: TSTransform,
     /// The menu asked for.
     request: Option<MenuRequest>,
+    /// The pointer on the screen.
+    pointer: Option<Pos2>,
+    /// Shift is held (Shift + right-click on a wire inserts a reroute).
+    shift: bool,
+    /// The widget's egui id.
+    snarl_id: Id,
 }
 
 impl Viewer<'_, '_> {
@@ -468,16 +570,61 @@ pub fn node_title(graph: &Graph, id: NodeId) -> String {
     let Some(n) = graph.nodes.get(&id) else {
         return format!("#{id}");
     };
-    let op_title = nodes::find(&n.op).map_or(n.op.as_str(), |o| o.spec().title);
+    let op_title = match n.op.as_str() {
+        REROUTE_OP => "Reroute",
+        GRAPH_NODE_OP => "Group",
+        op => nodes::find(op).map_or(op, |o| o.spec().title),
+    };
     match &n.name {
         Some(name) => format!("{name} · {op_title}"),
         None => op_title.to_string(),
     }
 }
 
+impl Viewer<'_, '_> {
+    fn is_reroute(&self, id: NodeId) -> bool {
+        self.data.graph.is_reroute(id)
+    }
+}
+
 impl SnarlViewer<NodeId> for Viewer<'_, '_> {
     fn title(&mut self, node: &NodeId) -> String {
         node_title(self.data.graph, *node)
+    }
+
+    fn node_frame(
+        &mut self,
+        default: egui::Frame,
+        node: egui_snarl::NodeId,
+        _inputs: &[InPin],
+        _outputs: &[OutPin],
+        snarl: &Snarl<NodeId>,
+    ) -> egui::Frame {
+        // A reroute is a small dot-like node: its two pins and a grip between them.
+        if self.is_reroute(snarl[node]) {
+            default.inner_margin(egui::Margin::same(1))
+        } else {
+            default
+        }
+    }
+
+    fn draw_background(
+        &mut self,
+        background: Option<&egui_snarl::ui::BackgroundPattern>,
+        viewport: &egui::Rect,
+        snarl_style: &SnarlStyle,
+        style: &egui::Style,
+        painter: &egui::Painter,
+        _snarl: &Snarl<NodeId>,
+    ) {
+        if let Some(b) = background {
+            b.draw(viewport, snarl_style, style, painter);
+        }
+        let graph = self.data.graph;
+        let rects = super::frames::frame_rects(graph, |id| {
+            super::frames::node_rect(graph, self.measured, id)
+        });
+        super::frames::paint(painter, graph, &rects);
     }
 
     fn header_frame(
@@ -507,6 +654,10 @@ impl SnarlViewer<NodeId> for Viewer<'_, '_> {
         snarl: &mut Snarl<NodeId>,
     ) {
         let id = snarl[node];
+        if self.is_reroute(id) {
+            ui.add_space(6.0);
+            return;
+        }
         let title = self.title(&id);
         let font = egui::TextStyle::Body.resolve(ui.style());
         let color = ui.visuals().strong_text_color();
@@ -544,6 +695,9 @@ impl SnarlViewer<NodeId> for Viewer<'_, '_> {
         let Some(p) = self.ports(id).and_then(|p| p.inputs.get(pin.id.input)) else {
             return PinInfo::circle();
         };
+        if self.is_reroute(id) {
+            return PinInfo::circle().with_fill(type_color(p.ty));
+        }
         let text = if p.optional {
             format!("{} (optional)", p.name)
         } else {
@@ -578,6 +732,9 @@ impl SnarlViewer<NodeId> for Viewer<'_, '_> {
         else {
             return PinInfo::circle();
         };
+        if self.is_reroute(id) {
+            return PinInfo::circle().with_fill(type_color(p.ty));
+        }
         let viewed = self.data.viewed == Some(id) && self.data.viewed_port == Some(p.name.as_str());
         let (font, color) = self.text_style(ui, egui::TextStyle::Body, false);
         let zoom = self.zoom();
@@ -599,6 +756,9 @@ impl SnarlViewer<NodeId> for Viewer<'_, '_> {
     }
 
     fn has_body(&mut self, node: &NodeId) -> bool {
+        if self.is_reroute(*node) {
+            return self.data.errors.contains_key(node);
+        }
         self.data.thumbs.contains_key(node)
             || self.data.errors.contains_key(node)
             || self.data.waiting.contains_key(node)
@@ -667,8 +827,28 @@ impl SnarlViewer<NodeId> for Viewer<'_, '_> {
         });
     }
 
-    fn disconnect(&mut self, _from: &OutPin, to: &InPin, snarl: &mut Snarl<NodeId>) {
-        self.disconnect_input(snarl[to.id.node], to.id.input);
+    /// Right-click on a wire disconnects it; Shift + right-click puts a reroute there.
+    fn disconnect(&mut self, from: &OutPin, to: &InPin, snarl: &mut Snarl<NodeId>) {
+        let (fid, tid) = (snarl[from.id.node], snarl[to.id.node]);
+        if let (true, Some(p)) = (self.shift, self.pointer) {
+            let (Some(fp), Some(tp)) = (
+                self.ports(fid).and_then(|p| p.outputs.get(from.id.output)),
+                self.ports(tid).and_then(|p| p.inputs.get(to.id.input)),
+            ) else {
+                return;
+            };
+            // The reroute's centre under the pointer (its pin sits a little left of it).
+            let at = self.to_global.inverse() * p;
+            self.actions.push(Action::InsertReroute {
+                from: fid,
+                from_port: fp.name.clone(),
+                to: tid,
+                port: tp.name.clone(),
+                pos: [at.x - 12.0, at.y - 12.0],
+            });
+            return;
+        }
+        self.disconnect_input(tid, to.id.input);
     }
 
     fn drop_inputs(&mut self, pin: &InPin, snarl: &mut Snarl<NodeId>) {
@@ -808,5 +988,10 @@ impl SnarlViewer<NodeId> for Viewer<'_, '_> {
             self.actions.push(Action::Delete(vec![id]));
             ui.close();
         }
+        let selected: Vec<NodeId> = egui_snarl::ui::get_selected_nodes(self.snarl_id, ui.ctx())
+            .into_iter()
+            .filter_map(|s| snarl.get_node(s).copied())
+            .collect();
+        super::structure_ui::node_menu_ui(ui, self.data.graph, id, &selected, &mut self.actions);
     }
 }

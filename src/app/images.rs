@@ -1,6 +1,6 @@
 //! Opening images directly: File ▸ Open image… and files dropped on the window add a `load`
 //! node wired into the viewed chain; and where new nodes go (never on top of existing ones,
-//! see [`placement`](super::placement)).
+//! see [`placement`]).
 
 use super::dialogs::Then;
 use super::placement::{self, Rect};

@@ -2,7 +2,8 @@
 //! only module that uses egui.
 //!
 //! - [`state`]: the document (graph, file, undo history) and edit commands — no egui;
-//! - [`worker`]: evaluation on a worker thread, generations, thumbnails — no egui;
+//! - [`worker`]: evaluation on a worker thread, generations, thumbnails; of egui it uses only
+//!   `egui::ColorImage`, the rendered picture it hands the UI thread (no widgets, no context);
 //! - [`graph_view`]: the node graph (egui-snarl as a view of the graph); [`green_badge`]: the
 //!   `load` nodes' OpenGL / DirectX verdicts, checked off the UI thread;
 //! - [`params_ui`]: the inspector; [`preview`]: the relit preview;
@@ -15,7 +16,8 @@
 //! by concern: [`files`] (file dialog, open / save / export, autosave and recovery),
 //! [`images`] (open an image or drop a file: a `load` node wired into the viewed chain; where
 //! new nodes go, with the pure geometry in [`placement`]), [`dialogs`] (modal dialogs),
-//! `menu` (menu bar, shortcuts); this file holds the frame layout, the panels and the graph
+//! `menu` (menu bar, shortcuts), [`structure_ui`] (frames, reroutes, groups entered in place;
+//! their commands in [`structure`], frames in the view in [`frames`]); this file holds the frame layout, the panels and the graph
 //! commands.
 //!
 //! Layout: menu bar; node graph | preview | inspector (resizable); status bar with evaluation
@@ -25,6 +27,7 @@ pub mod add_menu;
 pub mod crisp;
 pub mod dialogs;
 pub mod files;
+pub mod frames;
 pub mod graph_view;
 pub mod green_badge;
 pub mod images;
@@ -42,6 +45,8 @@ pub mod shortcuts;
 pub mod soak;
 pub mod start;
 pub mod state;
+pub mod structure;
+pub mod structure_ui;
 pub mod tools;
 pub mod tools_ui;
 pub mod worker;
@@ -143,6 +148,8 @@ pub struct EditorApp {
     show_ops: bool,
     /// The Help ▸ Keyboard shortcuts window is open.
     show_keys: bool,
+    /// The frame and group dialogs.
+    pub structure: structure_ui::StructureUi,
     /// Nodes the editor placed that it keeps clear of others until they are drawn evaluated
     /// (their size is known only then): position given, frames left once evaluated.
     placed: BTreeMap<NodeId, ([f32; 2], u8)>,
@@ -168,6 +175,7 @@ impl EditorApp {
             pending_export: None,
             show_ops: false,
             show_keys: false,
+            structure: structure_ui::StructureUi::default(),
             placed: BTreeMap::new(),
             last_widget_selection: Vec::new(),
         }
@@ -331,6 +339,7 @@ impl EditorApp {
                 }
             }
             Action::BrowseParam(id, name) => self.browse(FilePurpose::Param(id, name)),
+            other => self.apply_structure(other),
         }
     }
 
@@ -420,10 +429,10 @@ impl EditorApp {
         let ctx = ui.ctx().clone();
         if ctx.input(|i| i.viewport().close_requested())
             && !self.runtime.allow_close
-            && self.session.doc.is_dirty()
+            && self.any_unsaved()
         {
             ctx.send_viewport_cmd(egui::ViewportCommand::CancelClose);
-            self.dialog = Some(Dialog::Unsaved(Then::Quit));
+            self.guarded(Then::Quit);
         }
         // Before `before`: moving a just-placed node off others is part of placing it, not
         // an edit of its own.
@@ -432,6 +441,7 @@ impl EditorApp {
         let (version, epoch) = (self.session.doc.history.version(), self.session.doc_epoch);
         let mut actions = Vec::new();
         self.shortcuts(&ctx);
+        self.structure_shortcuts(&ctx);
         self.dropped_files_ui(&ctx);
 
         // Panels are not filled: the frame is cleared to their colour (`clear_color`), and
@@ -461,6 +471,7 @@ impl EditorApp {
             .default_size(640.0)
             .size_range(300.0..=1400.0)
             .show(ui, |ui| {
+                self.breadcrumb_ui(ui);
                 let tex: BTreeMap<NodeId, TextureHandle> = self
                     .runtime
                     .thumbs
@@ -490,6 +501,7 @@ impl EditorApp {
             .frame(central)
             .show(ui, |ui| self.preview_ui(ui));
         self.dialogs_ui(&ctx);
+        self.structure_dialogs_ui(&ctx);
         self.file_dialog_ui(&ctx);
         if self.show_ops {
             let mut open = true;

@@ -443,8 +443,9 @@ fn file_menu_ui(ui: &mut Ui, base_dir: &Path) -> Option<String> {
 /// A graph file loaded once per (path, modification time, size): the inspector draws every
 /// frame and must not re-read and re-validate the file each time.
 fn load_cached(path: &Path) -> Option<std::sync::Arc<crate::graph::LoadedGraph>> {
+    use parking_lot::Mutex;
     use std::collections::HashMap;
-    use std::sync::{Arc, Mutex, OnceLock};
+    use std::sync::{Arc, OnceLock};
     type Entry = (
         Option<std::time::SystemTime>,
         u64,
@@ -454,7 +455,7 @@ fn load_cached(path: &Path) -> Option<std::sync::Arc<crate::graph::LoadedGraph>>
     let meta = std::fs::metadata(path).ok()?;
     let stamp = (meta.modified().ok(), meta.len());
     let cache = CACHE.get_or_init(Mutex::default);
-    if let Some((t, len, g)) = cache.lock().ok()?.get(path) {
+    if let Some((t, len, g)) = cache.lock().get(path) {
         if (*t, *len) == stamp {
             return Some(g.clone());
         }
@@ -462,7 +463,6 @@ fn load_cached(path: &Path) -> Option<std::sync::Arc<crate::graph::LoadedGraph>>
     let g = Arc::new(crate::graph::LoadedGraph::load(path).ok()?);
     cache
         .lock()
-        .ok()?
         .insert(path.to_path_buf(), (stamp.0, stamp.1, g.clone()));
     Some(g)
 }

@@ -17,8 +17,9 @@ use super::worker::{thumbnail, EvalOutcome, EvalRequest, PortValue, Readouts};
 use crate::eval::{port_key, CacheKey, EvalOptions, Evaluator, Plan, ValueFn};
 use crate::graph::{Graph, GraphError, NodeId, Source};
 use crate::nodes::Picture;
+use parking_lot::Mutex;
 use std::collections::{BTreeMap, HashMap, HashSet};
-use std::sync::{Arc, Mutex};
+use std::sync::Arc;
 
 /// A node's integrability readouts: relative RMS curl and non-integrable fraction F.
 type Readout = (Option<f64>, Option<f64>);
@@ -159,9 +160,7 @@ pub fn whole(
             move |_i: usize, key: CacheKey, e: &Arc<crate::eval::CacheEntry>| {
                 if unseen.contains(&key) {
                     let t = e.values.first().and_then(thumbnail).map(Arc::new);
-                    made.lock()
-                        .unwrap_or_else(std::sync::PoisonError::into_inner)
-                        .push((key, t));
+                    made.lock().push((key, t));
                 }
             },
         )
@@ -169,11 +168,7 @@ pub fn whole(
     let keep_refs: Vec<&str> = keep.iter().map(String::as_str).collect();
     let r = ev.eval_kept(plan, &keep_refs, &visit, opts, Some(&on_value))?;
     out.computed += r.misses();
-    for (k, t) in made
-        .lock()
-        .unwrap_or_else(std::sync::PoisonError::into_inner)
-        .drain(..)
-    {
+    for (k, t) in made.lock().drain(..) {
         memo.thumbs.insert(k, t);
     }
     let live: HashSet<CacheKey> = nodes.values().map(|v| v[0].1 .0).collect();

@@ -90,11 +90,13 @@ impl Runtime {
 }
 
 impl EditorApp {
-    /// True while an evaluation is running or a newer graph waits to be sent.
+    /// True while an evaluation is running or a newer graph waits to be sent. The graph
+    /// compared is the one [`send_if_changed`](Self::send_if_changed) sends: inside a group,
+    /// the subgraph in its context (`eval_context`), not the document alone.
     #[must_use]
     pub fn evaluating(&self) -> bool {
         self.runtime.in_flight.is_some()
-            || self.runtime.last_sent.as_ref() != Some(&eval_graph(&self.session.doc.graph))
+            || self.runtime.last_sent.as_ref() != Some(&eval_graph(&self.eval_context().0))
     }
 
     /// Takes worker messages, accepts current results, sends a new request when the graph
@@ -194,7 +196,8 @@ impl EditorApp {
     /// view) changed since the last one. Runs when the frame starts ([`EditorApp::poll`]) and
     /// again when it ends, so that an edit made in a frame is evaluated at once.
     pub fn send_if_changed(&mut self) {
-        let want = eval_graph(&self.session.doc.graph);
+        let (graph, base_dir) = self.eval_context();
+        let want = eval_graph(&graph);
         let view = self.view_request();
         // The first request waits for the preview's first frame, which says what is on screen:
         // then the viewport comes first instead of a whole evaluation that cannot be cut short.
@@ -222,8 +225,8 @@ impl EditorApp {
             let cancel = Arc::new(AtomicBool::new(false));
             self.runtime.worker.send(EvalRequest {
                 generation: self.runtime.gens.new_request(),
-                graph: self.session.doc.graph.clone(),
-                base_dir: self.session.doc.base_dir(),
+                graph,
+                base_dir,
                 cancel: cancel.clone(),
                 view: view.clone(),
                 settings: Some(self.prefs.settings.clone()),
@@ -328,9 +331,10 @@ impl EditorApp {
     }
 }
 
-/// The graph as far as evaluation cares: positions do not matter.
+/// The graph as far as evaluation cares: positions and frames do not matter.
 pub(super) fn eval_graph(g: &Graph) -> Graph {
     let mut g = g.clone();
+    g.frames.clear();
     for n in g.nodes.values_mut() {
         n.pos = [0.0, 0.0];
     }

@@ -2,6 +2,7 @@
 //! and when it was last autosaved.
 
 use super::state::Document;
+use super::structure::Entered;
 use crate::graph::{Graph, NodeDef, NodeId};
 use std::time::Instant;
 
@@ -20,6 +21,8 @@ pub struct Session {
     pub(super) last_autosave: Instant,
     /// The graph last written to the recovery file (not written again until it changes).
     pub(super) autosaved: Option<Graph>,
+    /// Groups entered in place, outermost first ([`super::structure_ui`]); empty at the top.
+    pub groups: Vec<Entered>,
 }
 
 impl Session {
@@ -34,6 +37,7 @@ impl Session {
             clipboard: None,
             last_autosave: Instant::now(),
             autosaved: None,
+            groups: Vec::new(),
         }
     }
 }

@@ -29,6 +29,28 @@ pub const SHORTCUTS: &[(&str, &str)] = &[
     ("Ctrl+D", "Duplicate the selected nodes"),
     ("Ctrl+C / Ctrl+V", "Copy / paste nodes"),
     ("Ctrl+Z / Ctrl+Shift+Z", "Undo / redo (also Ctrl+Y)"),
+    (
+        "Ctrl+J",
+        "Put the selected nodes in a frame (a titled, coloured box)",
+    ),
+    ("Drag a frame's title", "Move the frame with its nodes"),
+    (
+        "Double-click a frame's title",
+        "Rename or recolour the frame (right-click: delete it)",
+    ),
+    (
+        "Shift+right-click a wire",
+        "Put a reroute point there (or add \"Reroute\" from the add menu)",
+    ),
+    (
+        "Ctrl+G",
+        "Group the selected nodes into a subgraph (choose the parameters to expose)",
+    ),
+    ("Ctrl+Shift+G", "Ungroup the selected group nodes"),
+    (
+        "Double-click a group node",
+        "Open the group in place; the bar above the graph leads back",
+    ),
     ("Ctrl+N", "New graph"),
     ("Ctrl+O", "Open a graph"),
     ("Ctrl+Shift+O", "Open an image"),

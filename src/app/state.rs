@@ -221,7 +221,8 @@ impl Document {
         self.graph.node_ports(id, &self.base_dir())
     }
 
-    fn edit<R>(&mut self, f: impl FnOnce(&mut Graph) -> R) -> R {
+    /// Applies `f` to the graph as one undo step (none if nothing changed).
+    pub(super) fn edit<R>(&mut self, f: impl FnOnce(&mut Graph) -> R) -> R {
         let before = self.graph.clone();
         let r = f(&mut self.graph);
         if self.graph != before {
@@ -235,7 +236,8 @@ impl Document {
         self.edit(|g| g.add_node(op, pos))
     }
 
-    /// Deletes nodes with their edges (and graph outputs or exposed parameters naming them).
+    /// Deletes nodes with their edges (and graph outputs or exposed parameters naming them, and
+    /// their places in frames).
     pub fn delete(&mut self, ids: &[NodeId]) {
         let ids: BTreeSet<NodeId> = ids.iter().copied().collect();
         self.edit(|g| {
@@ -248,6 +250,7 @@ impl Document {
             }
             g.outputs.retain(|_, r| !ids.contains(&r.node));
             g.exposed.retain(|_, e| !ids.contains(&e.node));
+            g.forget_in_frames(&ids);
         });
     }
 
@@ -440,7 +443,8 @@ pub fn error_node(e: &GraphError, file: &str) -> Option<NodeId> {
         | GraphError::Unknown { at, .. }
         | GraphError::InputFile { at, .. }
         | GraphError::UnboundInput { at, .. }
-        | GraphError::Node { at, .. } => at,
+        | GraphError::Node { at, .. }
+        | GraphError::Reroute { at, .. } => at,
         _ => return None,
     };
     if at.file == file {

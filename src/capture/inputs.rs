@@ -80,7 +80,7 @@ impl PhotoStack {
     }
 }
 
-/// Light directions (unit after [`photometric_stereo`] normalises them) and optional per-light
+/// Light directions (unit after [`photometric_stereo`](crate::capture::photometric::photometric_stereo) normalises them) and optional per-light
 /// RGB intensities, one row per photo.
 #[derive(Clone, Debug, Default, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Lights {

@@ -8,18 +8,20 @@ use super::ExrArgs;
 use crate::error::RgbnError;
 use crate::eval::region::{RegionOptions, DEFAULT_TILE};
 use crate::eval::stream::{StreamPlan, Streamable};
+use crate::eval::zarr_sink::ZarrSink;
 use crate::eval::{EvalOptions, EvalResult, Evaluator, Plan, Status, DEFAULT_BUDGET};
 use crate::graph::{GraphError, LoadedGraph};
-use crate::nodes::save::write_value;
+use crate::nodes::save::{write_value, write_value_zarr};
 use crate::nodes::{PortType, Value};
 use crate::raster::io::targets::{ExrTarget, PngTarget, RowEncoding};
-use crate::raster::io::{self, ExrFormat, SaveOptions};
+use crate::raster::io::{self, SaveOptions};
 use crate::raster::io::{Format, NormalConvention};
 use crate::raster::window::Rect;
 use clap::{Args, ValueEnum};
+use parking_lot::Mutex;
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
-use std::sync::{Arc, Mutex};
+use std::sync::Arc;
 
 /// `rgbn eval`.
 #[derive(Args, Debug)]
@@ -370,14 +372,7 @@ pub fn eval_cmd(a: &EvalArgs, out: &mut Out<'_>) -> Result<(), CliError> {
         match stream_plan(&plan, &requested)? {
             Err(why) => Some(why),
             Ok(sp) if a.streaming.stream.streams_graph(sp.size()) => {
-                return eval_stream(
-                    &plan,
-                    sp,
-                    &requested,
-                    a.streaming.strip_rows,
-                    a.exr.format(),
-                    out,
-                );
+                return eval_stream(&plan, sp, &requested, a.streaming.strip_rows, &a.exr, out);
             }
             Ok(_) => None,
         }
@@ -423,6 +418,8 @@ pub fn eval_cmd(a: &EvalArgs, out: &mut Out<'_>) -> Result<(), CliError> {
     let r = r?;
     super::interrupt::check()?;
     let written = write_all(&r.outputs, &requested, &a.exr.save_options());
+    // Interrupted while writing: the unfinished files were not put in place.
+    super::interrupt::check()?;
     for ((name, path), done) in requested.iter().zip(written) {
         done?;
         out.line(format_args!(
@@ -451,8 +448,12 @@ fn write_all(
     requested: &[(String, PathBuf)],
     save: &SaveOptions,
 ) -> Vec<Result<(), RgbnError>> {
+    // Ctrl-C stops a write under way (an EXR between its batches of blocks): its temporary
+    // file is removed, and the caller reports the interruption.
+    let token = super::interrupt::token();
     if !crate::raster::par::pipelined() {
         // One thread: one file after the other.
+        let _current = token.enter();
         return requested
             .iter()
             .map(|(name, path)| write_value(&outputs[name], path, save))
@@ -463,7 +464,11 @@ fn write_all(
             .iter()
             .map(|(name, path)| {
                 let v = &outputs[name];
-                s.spawn(move || write_value(v, path, save))
+                let token = token.clone();
+                s.spawn(move || {
+                    let _current = token.enter();
+                    write_value(v, path, save)
+                })
             })
             .collect();
         writes
@@ -482,11 +487,15 @@ fn stream_plan<'p>(
     let rows_ok = |(name, p): &&(String, PathBuf)| match Format::of(p).ok() {
         Some(Format::Png) => true,
         Some(Format::Exr) => plan.output_types.get(name) == Some(&PortType::Rgbn),
+        Some(Format::Zarr) => matches!(
+            plan.output_types.get(name),
+            Some(PortType::Rgbn | PortType::Picture)
+        ),
         _ => false,
     };
     if let Some((_, p)) = requested.iter().find(|r| !rows_ok(r)) {
         return Ok(Err(format!(
-            "{} is not written row by row (images: PNG or EXR; pictures: PNG)",
+            "{} is not written row by row (images: PNG, EXR or OME-Zarr; pictures: PNG or OME-Zarr)",
             p.display()
         )));
     }
@@ -504,12 +513,22 @@ fn stream_strips(
     strip_rows: Option<usize>,
     cancel: &crate::cancel::Cancel,
     exrs: &mut [Option<ExrTarget>],
+    zarrs: &mut [Option<ZarrSink>],
     mut sinks: Vec<Option<PngSink<'_, '_>>>,
 ) -> Result<(), CliError> {
     let mut stopped = false;
     let r = sp.run(strip_rows, cancel, |_, values, core| {
         super::interrupt::check()?;
-        for ((s, e), v) in sinks.iter_mut().zip(exrs.iter_mut()).zip(values) {
+        for (((s, e), z), v) in sinks
+            .iter_mut()
+            .zip(exrs.iter_mut())
+            .zip(zarrs.iter_mut())
+            .zip(values)
+        {
+            if let Some(z) = z {
+                z.write(v, core.clone())?;
+                continue;
+            }
             let band = match (v, s, e) {
                 (Value::Rgbn(img), _, Some(e)) => {
                     e.write(img, core.clone())?;
@@ -551,22 +570,28 @@ fn eval_stream(
     sp: StreamPlan<'_>,
     requested: &[(String, PathBuf)],
     strip_rows: Option<u64>,
-    exr_format: ExrFormat,
+    exr_args: &ExrArgs,
     out: &mut Out<'_>,
 ) -> Result<(), CliError> {
     let (w, h) = sp.size();
-    // Per output, a PNG or an EXR target (`None` in the other list).
+    // Per output, a PNG, an EXR or an OME-Zarr target (`None` in the other lists).
     let mut targets = Vec::new();
     let mut exrs = Vec::new();
+    let mut zarrs = Vec::new();
     for (name, path) in requested {
-        let exr = Format::of(path)? == Format::Exr;
+        let fmt = Format::of(path)?;
+        let exr = fmt == Format::Exr;
         exrs.push(if exr {
-            Some(ExrTarget::create(path, w, h, exr_format)?)
+            Some(ExrTarget::create(path, w, h, exr_args.format())?)
         } else {
             None
         });
+        zarrs.push(
+            (fmt == Format::Zarr)
+                .then(|| ZarrSink::new(path.clone(), (w, h), exr_args.zarr_options())),
+        );
         targets.push(match plan.output_types.get(name) {
-            _ if exr => None,
+            _ if exr || fmt == Format::Zarr => None,
             Some(PortType::Picture) => Some(PngTarget::create_rgba8(path, w, h)?),
             _ => Some(PngTarget::create(path, w, h, SaveOptions::default().bits)?),
         });
@@ -587,7 +612,7 @@ fn eval_stream(
                     None => None,
                 });
             }
-            stream_strips(sp, strip_rows, &cancel, &mut exrs, sinks)
+            stream_strips(sp, strip_rows, &cancel, &mut exrs, &mut zarrs, sinks)
         })?;
     } else {
         std::thread::scope(|scope| -> Result<(), CliError> {
@@ -602,7 +627,7 @@ fn eval_stream(
                     None => None,
                 });
             }
-            stream_strips(sp, strip_rows, &cancel, &mut exrs, sinks)
+            stream_strips(sp, strip_rows, &cancel, &mut exrs, &mut zarrs, sinks)
         })?;
     }
     // Each file is synced and renamed into place; with more than one thread, side by side
@@ -615,6 +640,12 @@ fn eval_stream(
             exrs.into_iter()
                 .flatten()
                 .map(|e| Box::new(move || e.commit()) as Box<dyn FnOnce() -> _ + Send>),
+        )
+        .chain(
+            zarrs
+                .into_iter()
+                .flatten()
+                .map(|z| Box::new(move || z.commit()) as Box<dyn FnOnce() -> _ + Send>),
         )
         .collect();
     let done: Vec<Result<(), RgbnError>> = if pipelined {
@@ -683,6 +714,12 @@ fn eval_region(
             r.rect
         );
         match path {
+            Some(path) if a.region.is_some() && Format::of(path)? == Format::Zarr => {
+                // Only the chunks of the rectangle, into a store of the output's whole size.
+                let region = Some((r.size, r.rect));
+                write_value_zarr(&r.value, path, &a.exr.zarr_options(), region)?;
+                out.line(format_args!("wrote {name} ({what}): {}", path.display()))?;
+            }
             Some(path) => {
                 write_value(&r.value, path, &a.exr.save_options())?;
                 out.line(format_args!("wrote {name} ({what}): {}", path.display()))?;
@@ -690,6 +727,10 @@ fn eval_region(
             None => out.line(format_args!("{name}: {what}"))?,
         }
         if a.stats {
+            out.line(format_args!(
+                "zarr chunks read: {}",
+                crate::raster::io::zarr::chunks_read()
+            ))?;
             out.line(format_args!(
                 "{:<28} {:<18} {:>9} {:>9} {:>12}",
                 "tiled node", "op", "computed", "cached", "pixels"
@@ -793,7 +834,7 @@ pub fn batch_cmd(a: &BatchArgs, out: &mut Out<'_>) -> Result<(), CliError> {
                         sp,
                         &requested,
                         a.streaming.strip_rows,
-                        a.exr.format(),
+                        &a.exr,
                         &mut Out::new(&mut sink),
                     )?;
                     written.fetch_add(requested.len(), std::sync::atomic::Ordering::Relaxed);
@@ -834,19 +875,14 @@ pub fn batch_cmd(a: &BatchArgs, out: &mut Out<'_>) -> Result<(), CliError> {
                         return;
                     }
                     pb.suspend(|| eprintln!("{}", message(&e)));
-                    failures
-                        .lock()
-                        .unwrap_or_else(std::sync::PoisonError::into_inner)
-                        .push(file.clone());
+                    failures.lock().push(file.clone());
                 }
                 pb.inc(1);
             });
         }
     });
     pb.finish_and_clear();
-    let mut failures = failures
-        .into_inner()
-        .unwrap_or_else(std::sync::PoisonError::into_inner);
+    let mut failures = failures.into_inner();
     failures.sort();
     let streamed = streamed.load(std::sync::atomic::Ordering::Relaxed);
     out.line(format_args!(

@@ -563,6 +563,7 @@ pub(super) fn filter_cmd(a: &FilterArgs, out: &mut Out<'_>) -> Result<(), CliErr
             a.exr.exr_type
         },
         compression: a.exr.exr_compression,
+        zarr: a.exr.zarr_options(),
     };
     super::interrupt::check()?;
     io::save(&filtered, &a.output, &save)?;

@@ -1,14 +1,18 @@
 //! The disk cache (`--cache-dir`): one file per node evaluation, named by its content key.
 //!
-//! Format (little-endian): magic `RGBNCACH`, format version `u32`, key `u128`, payload length
+//! Format (little-endian): magic `RGBNCACH`, format version `u32`, the producing crate
+//! (`rgbn` and its version, NUL-padded to 16 bytes), key `u128`, payload length
 //! `u64`, XXH3-64 of the payload `u64`, then the payload: value count `u32`; per value a tag
-//! byte and its data (RGBN: width, height `u32`, mask flag `u8`, then R,G,B,N.X,N.Y,N.Z[,A] as
+//! byte and its data (RGBN: width, height `u32`, mask flag `u8`, then R,G,B,N.X,N.Y,N.Z\[,A\] as
 //! raw `f32` planes; mask/scalar: width, height, one plane; picture: width, height, RGBA
 //! bytes; number: `f64`); finally a curl flag `u8` and `f64`, and a flag `u8` and `f64` for
 //! the non-integrable fraction F.
 //!
 //! Entries are written to a temporary file and renamed into place. An entry that is truncated,
-//! corrupt, of another format version or for another key is ignored (and recomputed).
+//! corrupt, of another format version, written by another version of the crate or for another
+//! key is ignored (and recomputed). Within one crate version an operator whose maths changes
+//! bumps its `OpSpec::version`, which is in the key: `tests/it/op_versions.rs` pins every
+//! operator's output with its version and fails, naming the operator, when one changes alone.
 
 use super::cache::{CacheEntry, CacheKey};
 use crate::nodes::{Picture, Value};
@@ -17,8 +21,23 @@ use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
 const MAGIC: &[u8; 8] = b"RGBNCACH";
-const FORMAT: u32 = 2;
-const HEADER: usize = 8 + 4 + 16 + 8 + 8;
+const FORMAT: u32 = 3;
+const HEADER: usize = 8 + 4 + 16 + 16 + 8 + 8;
+
+/// The crate that wrote an entry: `rgbn` and its version, NUL-padded.
+const PRODUCER: [u8; 16] = producer(concat!("rgbn ", env!("CARGO_PKG_VERSION")));
+
+const fn producer(s: &str) -> [u8; 16] {
+    let b = s.as_bytes();
+    assert!(b.len() <= 16, "crate version too long for the cache header");
+    let mut out = [0u8; 16];
+    let mut i = 0;
+    while i < b.len() {
+        out[i] = b[i];
+        i += 1;
+    }
+    out
+}
 
 /// A folder of cached node outputs.
 #[derive(Debug, Clone)]
@@ -202,7 +221,7 @@ impl DiskCache {
     pub fn get(&self, key: CacheKey) -> Option<CacheEntry> {
         let bytes = std::fs::read(self.path_of(key)).ok()?;
         let mut r = Reader(&bytes);
-        if r.take(8)? != MAGIC || r.u32()? != FORMAT {
+        if r.take(8)? != MAGIC || r.u32()? != FORMAT || r.take(16)? != PRODUCER {
             return None;
         }
         let k = u128::from_le_bytes(r.take(16)?.try_into().ok()?);
@@ -217,10 +236,20 @@ impl DiskCache {
     /// Stores `entry` under `key` (temporary file + rename). Failures are reported to the
     /// caller, who may ignore them: the cache is an optimisation.
     pub fn put(&self, key: CacheKey, entry: &CacheEntry) -> std::io::Result<()> {
+        self.put_as(key, entry, &PRODUCER)
+    }
+
+    fn put_as(
+        &self,
+        key: CacheKey,
+        entry: &CacheEntry,
+        producer: &[u8; 16],
+    ) -> std::io::Result<()> {
         let payload = encode(entry);
         let mut out = Vec::with_capacity(HEADER + payload.len());
         out.extend_from_slice(MAGIC);
         out.extend_from_slice(&FORMAT.to_le_bytes());
+        out.extend_from_slice(producer);
         out.extend_from_slice(&key.to_le_bytes());
         out.extend_from_slice(&(payload.len() as u64).to_le_bytes());
         out.extend_from_slice(&xxhash_rust::xxh3::xxh3_64(&payload).to_le_bytes());
@@ -262,7 +291,7 @@ mod tests {
             skipped: 0,
         };
         c.put(7, &e).unwrap();
-        assert_eq!(c.get(7), Some(e));
+        assert_eq!(c.get(7), Some(e.clone()));
         assert_eq!(c.get(8), None);
         // Truncated and bit-flipped files are ignored.
         let p = c.path_of(7);
@@ -276,5 +305,10 @@ mod tests {
         assert_eq!(c.get(7), None);
         std::fs::write(&p, b"garbage").unwrap();
         assert_eq!(c.get(7), None);
+        // An entry another version of the crate wrote is not served, though intact.
+        c.put_as(7, &e, &producer("rgbn 0.0.9")).unwrap();
+        assert_eq!(c.get(7), None);
+        c.put(7, &e).unwrap();
+        assert_eq!(c.get(7), Some(e));
     }
 }

@@ -92,22 +92,13 @@ impl Evaluator {
         on_value: Option<&ValueFn>,
     ) -> Result<EvalResult, GraphError> {
         let slot = |name: &str| -> Result<Option<(usize, usize)>, GraphError> {
-            match plan.outputs.get(name) {
-                Some(Conn::Slot(i, p)) => Ok(Some((*i, *p))),
-                Some(Conn::Unbound { name, at }) => Err(GraphError::UnboundInput {
+            match plan.output(name)? {
+                Conn::Slot(i, p) => Ok(Some((*i, *p))),
+                Conn::Unbound { name, at } => Err(GraphError::UnboundInput {
                     name: name.clone(),
                     at: at.clone(),
                 }),
-                Some(Conn::None) => Ok(None),
-                None => Err(GraphError::Unknown {
-                    what: "graph output",
-                    name: name.to_string(),
-                    suggestion: crate::params::nearest(
-                        name,
-                        plan.outputs.keys().map(String::as_str),
-                    ),
-                    at: plan.at.clone(),
-                }),
+                Conn::None => Ok(None),
             }
         };
         let mut kept = Vec::new();
@@ -166,16 +157,16 @@ impl Evaluator {
         &self,
         values: impl IntoIterator<Item = &'a crate::nodes::Value>,
     ) -> usize {
-        let seen = super::lock(&self.seen);
+        let seen = self.seen.lock();
         let mut all: Vec<&crate::nodes::Value> = values.into_iter().collect();
         all.extend(seen.last_value());
-        let bytes = super::lock(&self.mem).outside(all);
+        let bytes = self.mem.lock().outside(all);
         bytes
     }
 
     /// The memory cache's byte budget.
     #[must_use]
     pub fn mem_budget(&self) -> usize {
-        super::lock(&self.mem).budget()
+        self.mem.lock().budget()
     }
 }

@@ -30,6 +30,7 @@ pub mod memory;
 pub mod plan;
 pub mod region;
 pub mod stream;
+pub mod zarr_sink;
 
 pub use cache::{CacheEntry, CacheKey, MemCache};
 pub use disk::DiskCache;
@@ -39,13 +40,14 @@ pub use plan::{port_key, Conn, Instance, Plan};
 
 use crate::graph::{At, GraphError, NodeId};
 use crate::nodes::{RunContext, Value, ALL_PORTS};
-use crate::params::{nearest, ParamKind, ParamValue};
+use crate::params::{ParamKind, ParamValue};
 use crate::raster::gradient::GradientField;
+use parking_lot::Mutex;
 use rayon::prelude::*;
 use std::collections::{BTreeMap, HashMap, HashSet};
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicUsize, Ordering};
-use std::sync::{Arc, Mutex};
+use std::sync::Arc;
 use std::time::{Duration, Instant, SystemTime};
 
 /// A progress report, sent after each node that ran.
@@ -222,10 +224,6 @@ impl Default for Evaluator {
     }
 }
 
-fn lock<T>(m: &Mutex<T>) -> std::sync::MutexGuard<'_, T> {
-    m.lock().unwrap_or_else(std::sync::PoisonError::into_inner)
-}
-
 impl Evaluator {
     /// An evaluator whose memory cache holds at most `budget_bytes`.
     #[must_use]
@@ -250,13 +248,13 @@ impl Evaluator {
     /// Entries and bytes in the memory cache.
     #[must_use]
     pub fn mem_usage(&self) -> (usize, usize) {
-        let m = lock(&self.mem);
+        let m = self.mem.lock();
         (m.len(), m.bytes())
     }
 
     /// Empties the memory cache (the disk cache is kept).
     pub fn clear_memory(&self) {
-        lock(&self.mem).clear();
+        self.mem.lock().clear();
     }
 
     fn file_hash(&self, path: &Path, at: &At) -> Result<u128, GraphError> {
@@ -272,14 +270,21 @@ impl Evaluator {
                 e.to_string()
             })
         })?;
+        if meta.is_dir() {
+            // An OME-Zarr store: keyed by its metadata and its files' names, sizes and times,
+            // not by reading every chunk (a region reads only its own).
+            return crate::raster::io::zarr::stamp(path).map_err(|e| err(e.to_string()));
+        }
         let (mtime, len) = (meta.modified().ok(), meta.len());
-        if let Some(s) = lock(&self.files).get(path) {
+        if let Some(s) = self.files.lock().get(path) {
             if s.mtime.is_some() && s.mtime == mtime && s.len == len {
                 return Ok(s.hash);
             }
         }
         let hash = hash_file(path).map_err(|e| err(e.to_string()))?;
-        lock(&self.files).insert(path.to_path_buf(), FileStamp { mtime, len, hash });
+        self.files
+            .lock()
+            .insert(path.to_path_buf(), FileStamp { mtime, len, hash });
         Ok(hash)
     }
 
@@ -346,17 +351,7 @@ impl Evaluator {
         };
         let mut roots = Vec::new();
         for name in &names {
-            match plan.outputs.get(name) {
-                Some(c) => roots.push(c.clone()),
-                None => {
-                    return Err(GraphError::Unknown {
-                        what: "graph output",
-                        name: name.clone(),
-                        suggestion: nearest(name, plan.outputs.keys().map(String::as_str)),
-                        at: plan.at.clone(),
-                    })
-                }
-            }
+            roots.push(plan.output(name)?.clone());
         }
         let mut slots = Vec::new();
         let mut asked = Vec::new();
@@ -531,12 +526,12 @@ impl Evaluator {
         if !spec.side_effect {
             let mut status = None;
             // An entry that left out an output wanted now is no hit.
-            let mut entry = lock(&self.mem).get(key).filter(|e| e.has(want(i)));
+            let mut entry = self.mem.lock().get(key).filter(|e| e.has(want(i)));
             if entry.is_some() {
                 status = Some(Status::Hit);
             } else if let Some(e) = self.disk.as_ref().and_then(|d| d.get(key)) {
                 let e = Arc::new(e);
-                lock(&self.mem).insert(key, e.clone());
+                self.mem.lock().insert(key, e.clone());
                 entry = Some(e);
                 status = Some(Status::DiskHit);
             }
@@ -621,7 +616,7 @@ impl Evaluator {
             let (i, e, t) = d?;
             if !plan.instances[i].op.spec().side_effect {
                 if let Some(k) = keys.get(&i) {
-                    lock(&self.mem).insert(*k, e.clone());
+                    self.mem.lock().insert(*k, e.clone());
                 }
             }
             if let Some(st) = stats.get_mut(&i) {
@@ -673,7 +668,7 @@ impl Evaluator {
             skipped,
         });
         if !spec.side_effect {
-            lock(&self.mem).insert(key, entry.clone());
+            self.mem.lock().insert(key, entry.clone());
             // The disk keeps complete entries only.
             if let Some(d) = self.disk.as_ref().filter(|_| skipped == 0) {
                 if let Err(e) = d.put(key, &entry) {

@@ -61,6 +61,16 @@ pub struct Plan {
 }
 
 impl Plan {
+    /// The connection of graph output `name`, or the error naming the nearest output.
+    pub(crate) fn output(&self, name: &str) -> Result<&Conn, GraphError> {
+        self.outputs.get(name).ok_or_else(|| GraphError::Unknown {
+            what: "graph output",
+            name: name.to_string(),
+            suggestion: nearest(name, self.outputs.keys().map(String::as_str)),
+            at: self.at.clone(),
+        })
+    }
+
     /// The outputs read of each instance (bit `k`: port `k`) when `roots` are asked for
     /// (instance, port; `None`: every port): a root's port, and every port an instance read
     /// takes as input. Over-estimated where a cache cuts the graph short (an instance read
@@ -247,6 +257,12 @@ impl Plan {
                             outs.insert((*id, name.clone()), c.clone());
                         }
                     }
+                }
+                // A reroute is a wire: its users read its source directly, so no instance,
+                // key or region ever sees it.
+                NodeKind::Reroute => {
+                    let c = inputs.into_iter().next().unwrap_or(Conn::None);
+                    outs.insert((*id, crate::graph::reroute::OUT.to_string()), c);
                 }
             }
         }

@@ -35,6 +35,9 @@ pub struct StreamPlan<'p> {
     halo: usize,
     /// The outputs read of each instance ([`Plan::demand`]).
     demand: Vec<u64>,
+    /// The image pixel of the input's first (top-left) pixel: (0, 0) unless a window is read
+    /// ([`StreamPlan::set_window`]).
+    origin: (usize, usize),
 }
 
 /// What [`StreamPlan::check`] found.
@@ -165,6 +168,7 @@ impl<'p> StreamPlan<'p> {
             outputs: outs,
             halo: need[source].unwrap_or(0),
             input,
+            origin: (0, 0),
         })))
     }
 
@@ -174,10 +178,21 @@ impl<'p> StreamPlan<'p> {
         self.halo
     }
 
-    /// The image's width and height.
+    /// The image's width and height (the window's once one is set).
     #[must_use]
     pub fn size(&self) -> (usize, usize) {
         self.input.size()
+    }
+
+    /// Runs over `window` of the image only (an OME-Zarr input; else the reason it cannot):
+    /// the strips are the window's, positional parameters are shifted to it, and its edges
+    /// are taken for the image's, so only what lies [`StreamPlan::halo`] inside an edge that is
+    /// not the image's own is what a whole run gives (a caller asks for its rectangle grown by
+    /// the halo and keeps the rectangle: `rgbn.dask`'s tasks). Before [`StreamPlan::run`].
+    pub fn set_window(&mut self, window: crate::raster::window::Rect) -> Result<(), String> {
+        self.input.set_window(window)?;
+        self.origin = (window.x, window.y);
+        Ok(())
     }
 
     /// Runs the plan strip by strip (`strip` rows each, by default a window of planes under
@@ -228,6 +243,7 @@ impl<'p> StreamPlan<'p> {
             )
         };
         let (order, outputs, src) = (&self.order, &self.outputs, self.source);
+        let (ox, oy) = self.origin;
         let mut failed: Option<E> = None;
         let r = strips::for_each_strip_image(&mut self.input, halo, strip, |img, y0, core| {
             if cancel.is_cancelled() {
@@ -249,7 +265,7 @@ impl<'p> StreamPlan<'p> {
                     .collect();
                 let v = inst
                     .op
-                    .run_at(&inst.params, inputs, &ctxs[i], (0, y0), 1)
+                    .run_at(&inst.params, inputs, &ctxs[i], (ox, oy + y0), 1)
                     .map_err(|e| Fail::Graph(node_err(i, e)))?;
                 values[i] = Some(v);
             }
@@ -259,7 +275,7 @@ impl<'p> StreamPlan<'p> {
                 .collect();
             // Only the outputs live on while they are written.
             drop(values);
-            out(y0 + core.start, &got, core).map_err(|e| {
+            out(oy + y0 + core.start, &got, core).map_err(|e| {
                 failed = Some(e);
                 Fail::Out
             })

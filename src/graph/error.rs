@@ -215,6 +215,29 @@ pub enum GraphError {
         at: At,
     },
 
+    /// A frame names a node that does not exist, or a node another frame (or itself) already
+    /// holds.
+    #[error("frame {index} {title:?} {detail}: {at}")]
+    Frame {
+        /// The frame's place in the file's `frames` list (from 0).
+        index: usize,
+        /// Its title.
+        title: String,
+        /// What is wrong (`names node 9, which does not exist`).
+        detail: String,
+        /// The graph file.
+        at: At,
+    },
+
+    /// A reroute has nothing feeding it, or an input other than `in`.
+    #[error("reroute {detail}: {at}")]
+    Reroute {
+        /// What is wrong.
+        detail: String,
+        /// Where (the reroute node).
+        at: At,
+    },
+
     /// Graph files use each other as nodes in a loop.
     #[error("graph files use each other in a cycle: {chain}")]
     FileCycle {

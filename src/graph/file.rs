@@ -2,7 +2,7 @@
 //!
 //! ```ron
 //! (
-//!     version: 2,
+//!     version: 3,
 //!     next_id: 4,                        // ids are never reused
 //!     inputs: { "image": (ty: Rgbn, doc: "Image to edit.") },
 //!     outputs: { "relit": (node: 3, port: "picture") },
@@ -11,7 +11,9 @@
 //!         (id: 2, op: "filter.gaussian", name: Some("blur"), pos: (200.0, 0.0),
 //!          params: { "sigma_px": Float(2.0) }, inputs: { "image": Input("image") }),
 //!         (id: 3, op: "relight", pos: (400.0, 0.0), inputs: { "image": Node(2, "image") }),
+//!         (id: 4, op: "reroute", pos: (300.0, 80.0), inputs: { "in": Node(2, "image") }),
 //!     ],
+//!     frames: [ (title: "Detail", color: (70, 100, 140), nodes: [2, 4]) ],
 //! )
 //! ```
 //!
@@ -21,11 +23,19 @@
 //!
 //! **Versions.** [`CURRENT_VERSION`] is written. A newer version is refused with
 //! [`GraphError::UnsupportedVersion`]; older versions are read with their own schema and
-//! migrated one version at a time by functions ([`migrate_v0`], [`migrate_v1`]).
+//! migrated one version at a time by functions ([`migrate_v0`], [`migrate_v1`],
+//! [`migrate_v2`]).
 //!
 //! - 0 → 1: node positions `x`, `y` became `pos`; `next_id` and `exposed` were added.
 //! - 1 → 2: a pen node holds a list of paths (`paths`) instead of one path (`points` and
 //!   `closed`).
+//! - 2 → 3: `frames` (titled, coloured boxes around nodes) and reroute nodes (`op: "reroute"`,
+//!   one input `in`, one output `out`, typed by what feeds them) were added; a version-2 file
+//!   has neither, so it migrates unchanged ([`migrate_v2`]).
+//!
+//! **Frames** are drawn behind their nodes and move them; they do nothing to evaluation. A
+//! node is in at most one frame. **Reroutes** are wires with a point to drag: the plan resolves
+//! them to direct connections, so a graph evaluates (and keys) the same with or without them.
 
 // Graph errors carry their location (file, node, names) by value; they are cold paths.
 #![allow(clippy::result_large_err)]
@@ -37,7 +47,7 @@ use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 
 /// The version this rgbn writes.
-pub const CURRENT_VERSION: u32 = 2;
+pub const CURRENT_VERSION: u32 = 3;
 
 /// A graph file, current version.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -58,6 +68,34 @@ pub struct GraphFile {
     pub exposed: BTreeMap<String, ExposedDef>,
     /// The nodes, in id order.
     pub nodes: Vec<NodeDef>,
+    /// Frames: titled, coloured boxes drawn behind their nodes (editor only).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub frames: Vec<FrameDef>,
+}
+
+/// A frame: a titled, coloured box drawn behind a set of nodes, which moves them with it. It
+/// has no effect on evaluation. Its box is the bounding box of its nodes (with a margin and a
+/// title bar), so it follows them.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct FrameDef {
+    /// The title shown in its bar.
+    #[serde(default)]
+    pub title: String,
+    /// Its colour, sRGB `(r, g, b)`.
+    #[serde(default = "FrameDef::default_color")]
+    pub color: [u8; 3],
+    /// The nodes inside it (each node is in at most one frame).
+    pub nodes: Vec<u64>,
+}
+
+impl FrameDef {
+    /// The colour of a new frame: a muted blue-grey.
+    pub const DEFAULT_COLOR: [u8; 3] = [72, 96, 128];
+
+    fn default_color() -> [u8; 3] {
+        Self::DEFAULT_COLOR
+    }
 }
 
 /// A graph input.
@@ -95,7 +133,7 @@ pub struct ExposedDef {
 }
 
 /// Where an input port's value comes from.
-#[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[derive(Clone, Debug, PartialEq, Eq, PartialOrd, Ord, Serialize, Deserialize)]
 pub enum Source {
     /// Output `port` of node `id`.
     Node(u64, String),
@@ -172,12 +210,39 @@ pub mod v0 {
     }
 }
 
+/// Versions 1 and 2 (the same schema; 2 differs in the meaning of pen parameters): the
+/// current schema without `frames`.
+pub mod v2 {
+    use super::*;
+
+    /// A version-1 or version-2 file.
+    #[derive(Clone, Debug, PartialEq, Deserialize)]
+    #[serde(deny_unknown_fields)]
+    pub struct GraphFile {
+        /// 1 or 2.
+        pub version: u32,
+        /// The next node id to hand out.
+        pub next_id: u64,
+        /// Graph inputs.
+        #[serde(default)]
+        pub inputs: BTreeMap<String, InputDef>,
+        /// Graph outputs.
+        #[serde(default)]
+        pub outputs: BTreeMap<String, PortRef>,
+        /// Exposed parameters.
+        #[serde(default)]
+        pub exposed: BTreeMap<String, ExposedDef>,
+        /// Nodes.
+        pub nodes: Vec<NodeDef>,
+    }
+}
+
 /// Migrates a version-0 file to version 1: `pos = [x, y]`, `next_id = max id + 1`, no exposed
 /// parameters.
 #[must_use]
-pub fn migrate_v0(old: v0::GraphFile) -> GraphFile {
+pub fn migrate_v0(old: v0::GraphFile) -> v2::GraphFile {
     let next_id = old.nodes.iter().map(|n| n.id + 1).max().unwrap_or(1);
-    GraphFile {
+    v2::GraphFile {
         version: 1,
         next_id,
         inputs: old.inputs,
@@ -202,7 +267,7 @@ pub fn migrate_v0(old: v0::GraphFile) -> GraphFile {
 /// one path of its `paths` (the pen's old default path where `points` was not given). The
 /// schema is otherwise the same.
 #[must_use]
-pub fn migrate_v1(mut f: GraphFile) -> GraphFile {
+pub fn migrate_v1(mut f: v2::GraphFile) -> v2::GraphFile {
     use crate::params::PathValue;
     f.version = 2;
     for n in f.nodes.iter_mut().filter(|n| n.op == "pen") {
@@ -237,6 +302,21 @@ pub fn migrate_v1(mut f: GraphFile) -> GraphFile {
     f
 }
 
+/// Migrates a version-2 file to version 3: the schema gained `frames` (none in the migrated
+/// file) and the `reroute` node; nothing else changed.
+#[must_use]
+pub fn migrate_v2(f: v2::GraphFile) -> GraphFile {
+    GraphFile {
+        version: 3,
+        next_id: f.next_id,
+        inputs: f.inputs,
+        outputs: f.outputs,
+        exposed: f.exposed,
+        nodes: f.nodes,
+        frames: Vec::new(),
+    }
+}
+
 fn syntax(file: &str, e: &ron::error::SpannedError) -> GraphError {
     GraphError::Syntax {
         file: file.to_string(),
@@ -254,14 +334,16 @@ pub fn parse(text: &str, file: &str) -> Result<GraphFile, GraphError> {
         version: u32,
     }
     let probe: Probe = ron::from_str(text).map_err(|e| syntax(file, &e))?;
-    let read =
-        || -> Result<GraphFile, GraphError> { ron::from_str(text).map_err(|e| syntax(file, &e)) };
+    let v2 = || -> Result<v2::GraphFile, GraphError> {
+        ron::from_str(text).map_err(|e| syntax(file, &e))
+    };
     match probe.version {
-        0 => Ok(migrate_v1(migrate_v0(
+        0 => Ok(migrate_v2(migrate_v1(migrate_v0(
             ron::from_str(text).map_err(|e| syntax(file, &e))?,
-        ))),
-        1 => Ok(migrate_v1(read()?)),
-        CURRENT_VERSION => read(),
+        )))),
+        1 => Ok(migrate_v2(migrate_v1(v2()?))),
+        2 => Ok(migrate_v2(v2()?)),
+        CURRENT_VERSION => ron::from_str(text).map_err(|e| syntax(file, &e)),
         found => Err(GraphError::UnsupportedVersion {
             file: file.to_string(),
             found,
@@ -287,76 +369,5 @@ pub fn to_text(f: &GraphFile) -> String {
 }
 
 #[cfg(test)]
-mod tests {
-    use super::*;
-
-    const V1: &str = r#"(
-    version: 1,
-    next_id: 3,
-    outputs: { "out": (node: 2, port: "image") },
-    nodes: [
-        (id: 1, op: "demo", pos: (0.0, 0.0), params: { "size": Int(32) }),
-        (id: 2, op: "normalize", name: Some("n"), pos: (10.0, 5.0), inputs: { "image": Node(1, "image") }),
-    ],
-)"#;
-
-    #[test]
-    fn text_round_trip_is_stable() {
-        let f = parse(V1, "t.ron").unwrap();
-        let t = to_text(&f);
-        let g = parse(&t, "t.ron").unwrap();
-        assert_eq!(f, g);
-        assert_eq!(t, to_text(&g));
-        assert!(t.contains("\"size\": Int(32)"), "{t}");
-    }
-
-    #[test]
-    fn v0_migrates_to_v1() {
-        let v0 = r#"(version: 0, outputs: { "out": (node: 2, port: "image") }, nodes: [
-            (id: 1, op: "demo", x: 0.0, y: 0.0, params: { "size": Int(32) }),
-            (id: 2, op: "normalize", name: Some("n"), x: 10.0, y: 5.0, inputs: { "image": Node(1, "image") }),
-        ])"#;
-        assert_eq!(parse(v0, "old.ron").unwrap(), parse(V1, "new.ron").unwrap());
-    }
-
-    #[test]
-    fn v1_pen_points_become_one_path() {
-        use crate::params::PathValue;
-        let v1 = r#"(version: 1, next_id: 4, nodes: [
-            (id: 1, op: "pen", params: { "points": Points([(1.0, 2.0), (3.0, 4.0), (5.0, 1.0)]), "closed": Bool(true), "width_px": Float(6.0) }),
-            (id: 2, op: "pen", params: { "width_px": Float(6.0) }),
-            (id: 3, op: "brush", params: { "points": Points([(1.0, 2.0)]) }),
-        ])"#;
-        let f = parse(v1, "old.ron").unwrap();
-        assert_eq!(f.version, CURRENT_VERSION);
-        let p = &f.nodes[0].params;
-        assert_eq!(
-            p["paths"],
-            ParamValue::Paths(vec![PathValue::new(
-                vec![[1.0, 2.0], [3.0, 4.0], [5.0, 1.0]],
-                true
-            )])
-        );
-        assert!(!p.contains_key("points") && !p.contains_key("closed"));
-        assert_eq!(p["width_px"], ParamValue::Float(6.0));
-        // A pen at its default path keeps it by default; other operators' points stay.
-        assert!(!f.nodes[1].params.contains_key("paths"));
-        assert!(f.nodes[2].params.contains_key("points"));
-        // The migrated file is written in the current schema and reads back the same.
-        let t = to_text(&f);
-        assert!(t.contains("version: 2") && t.contains("paths"), "{t}");
-        assert_eq!(parse(&t, "new.ron").unwrap(), f);
-    }
-
-    #[test]
-    fn newer_version_refused_and_syntax_errors_located() {
-        let e = parse("(version: 7, next_id: 1, nodes: [])", "f.ron").unwrap_err();
-        assert!(matches!(e, GraphError::UnsupportedVersion { found: 7, .. }));
-        assert!(e.to_string().contains("f.ron"));
-        let e = parse("(\n  version: 1,\n  next_id: 1\n  nodes: [],\n)", "f.ron").unwrap_err();
-        match e {
-            GraphError::Syntax { line, .. } => assert_eq!(line, 4),
-            other => panic!("{other}"),
-        }
-    }
-}
+#[path = "file_tests.rs"]
+mod tests;

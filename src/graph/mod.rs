@@ -1,4 +1,4 @@
-//! Graphs of operator nodes: the data model ([`Graph`]), its file format ([`file`]), and
+//! Graphs of operator nodes: the data model ([`Graph`]), its file format ([`file`](mod@file)), and
 //! validation ([`LoadedGraph`]): operators and parameters resolved, edges type-checked, cycles
 //! refused, graph files used as nodes loaded (their inputs, outputs and exposed parameters
 //! become the node's ports and parameters).
@@ -11,11 +11,14 @@
 
 pub mod error;
 pub mod file;
+pub mod frame;
+pub mod group;
+pub mod reroute;
 
 pub use error::{At, GraphError};
-pub use file::{ExposedDef, InputDef, NodeDef, PortRef, Source};
+pub use file::{ExposedDef, FrameDef, InputDef, NodeDef, PortRef, Source};
 
-use crate::nodes::{self, DynOp, Parsed, PortSpec, PortType, GRAPH_NODE_OP};
+use crate::nodes::{self, DynOp, Parsed, PortSpec, PortType, GRAPH_NODE_OP, REROUTE_OP};
 use crate::params::{nearest, ParamInfo, ParamKind, ParamValue};
 use std::collections::{BTreeMap, BTreeSet};
 use std::path::{Path, PathBuf};
@@ -37,6 +40,8 @@ pub struct Graph {
     pub exposed: BTreeMap<String, ExposedDef>,
     /// Nodes by id.
     pub nodes: BTreeMap<NodeId, NodeDef>,
+    /// Frames around nodes (editor only; see [`frame`]).
+    pub frames: Vec<FrameDef>,
 }
 
 impl Default for Graph {
@@ -47,6 +52,7 @@ impl Default for Graph {
             outputs: BTreeMap::new(),
             exposed: BTreeMap::new(),
             nodes: BTreeMap::new(),
+            frames: Vec::new(),
         }
     }
 }
@@ -80,6 +86,7 @@ impl Graph {
             outputs: f.outputs,
             exposed: f.exposed,
             nodes,
+            frames: f.frames,
         })
     }
 
@@ -93,6 +100,7 @@ impl Graph {
             outputs: self.outputs.clone(),
             exposed: self.exposed.clone(),
             nodes: self.nodes.values().cloned().collect(),
+            frames: self.frames.clone(),
         }
     }
 
@@ -148,6 +156,13 @@ impl Graph {
             let sub = LoadedGraph::load(&base_dir.join(rel))?;
             return Ok(sub.ports_as_node());
         }
+        if node.op == REROUTE_OP {
+            let ty = self
+                .reroute_source_type(id, base_dir)
+                .or_else(|| self.reroute_sink_type(id, base_dir))
+                .unwrap_or(PortType::Rgbn);
+            return Ok(reroute::ports(ty));
+        }
         let op = find_op(&node.op, at)?;
         Ok(NodePorts {
             inputs: op.spec().inputs.clone(),
@@ -188,14 +203,29 @@ impl Graph {
                 at,
             });
         };
-        if out.ty != inp.ty {
-            return Err(GraphError::TypeMismatch {
-                port: port.into(),
-                expected: inp.ty.name(),
-                from: format!("node {from} output {from_port:?}"),
-                found: out.ty.name(),
-                at,
-            });
+        // A reroute takes the type of what feeds it; one fed by nothing yet takes any type its
+        // users accept.
+        let is_reroute = |id: NodeId| self.nodes[&id].op == REROUTE_OP;
+        let found = if is_reroute(from) {
+            self.reroute_source_type(from, base_dir)
+        } else {
+            Some(out.ty)
+        };
+        let expected = if is_reroute(to) {
+            self.reroute_sink_type(to, base_dir)
+        } else {
+            Some(inp.ty)
+        };
+        if let (Some(found), Some(expected)) = (found, expected) {
+            if found != expected {
+                return Err(GraphError::TypeMismatch {
+                    port: port.into(),
+                    expected: expected.name(),
+                    from: format!("node {from} output {from_port:?}"),
+                    found: found.name(),
+                    at,
+                });
+            }
         }
         // A cycle appears if `to` is `from` or one of its ancestors.
         let mut stack = vec![from];
@@ -272,7 +302,7 @@ fn find_op(id: &str, at: At) -> Result<&'static dyn DynOp, GraphError> {
         let ids = nodes::registry()
             .iter()
             .map(|o| o.spec().id)
-            .chain([GRAPH_NODE_OP]);
+            .chain([GRAPH_NODE_OP, REROUTE_OP]);
         GraphError::UnknownOp {
             op: id.to_string(),
             suggestion: nearest(id, ids),
@@ -293,6 +323,8 @@ pub enum NodeKind {
     },
     /// A graph file used as a node, loaded with this node's parameter overrides applied.
     Graph(Arc<LoadedGraph>),
+    /// A reroute: its output is its input (resolved to a direct connection by the plan).
+    Reroute,
 }
 
 /// A validated graph: every node resolved, every edge type-checked, no cycles.
@@ -412,8 +444,10 @@ impl LoadedGraph {
             lg.kinds.insert(*id, kind);
             lg.ports.insert(*id, ports);
         }
+        reroute::type_reroutes(&mut lg)?;
         lg.check_edges()?;
         lg.check_refs()?;
+        frame::check_frames(&lg.graph, &lg.at())?;
         lg.order = lg.topo_order()?;
         Ok(lg)
     }
@@ -427,6 +461,17 @@ impl LoadedGraph {
         let at = self.at_node(id);
         if node.op == GRAPH_NODE_OP {
             return self.resolve_graph_node(node, at, stack);
+        }
+        if node.op == REROUTE_OP {
+            if let Some(p) = node.params.keys().next() {
+                return Err(GraphError::Param {
+                    param: p.clone(),
+                    detail: format!("a reroute has no parameters (found {p:?})"),
+                    at,
+                });
+            }
+            // Typed once every other node is resolved (`reroute::type_reroutes`).
+            return Ok((NodeKind::Reroute, reroute::ports(PortType::Rgbn)));
         }
         let op = find_op(&node.op, at.clone())?;
         let params = op
@@ -706,7 +751,7 @@ impl LoadedGraph {
             Some(NodeKind::Graph(sub)) => std::iter::once("path".to_string())
                 .chain(sub.graph.exposed.keys().cloned())
                 .collect(),
-            None => Vec::new(),
+            Some(NodeKind::Reroute) | None => Vec::new(),
         }
     }
 
@@ -727,6 +772,7 @@ impl LoadedGraph {
                 let ex = sub.graph.exposed.get(param)?;
                 sub.param_info(ex.node, &ex.param)
             }
+            NodeKind::Reroute => None,
         }
     }
 
@@ -870,79 +916,5 @@ fn param_error(e: &crate::params::ParamError, at: At) -> GraphError {
 }
 
 #[cfg(test)]
-mod tests {
-    use super::*;
-
-    const G: &str = r#"(version: 1, next_id: 4, outputs: { "o": (node: 3, port: "image") }, nodes: [
-        (id: 1, op: "surface", params: { "width": Int(8), "height": Int(8) }),
-        (id: 2, op: "normalize", inputs: { "image": Node(1, "image") }),
-        (id: 3, op: "normalize", inputs: { "image": Node(2, "image") }),
-    ])"#;
-
-    #[test]
-    fn connect_checks_types_and_cycles_before_changing_the_graph() {
-        let mut lg = LoadedGraph::from_text(G, "g.ron", PathBuf::from(".")).unwrap();
-        let before = lg.graph.clone();
-        let e = lg
-            .connect(2, "image", Source::Node(1, "height".into()))
-            .unwrap_err();
-        assert!(matches!(e, GraphError::TypeMismatch { .. }), "{e}");
-        let e = lg
-            .connect(2, "image", Source::Node(3, "image".into()))
-            .unwrap_err();
-        assert!(matches!(e, GraphError::Cycle { .. }), "{e}");
-        let e = lg.disconnect(2, "image").unwrap_err();
-        assert!(matches!(e, GraphError::MissingInput { .. }), "{e}");
-        assert_eq!(lg.graph, before);
-        lg.connect(3, "image", Source::Node(1, "image".into()))
-            .unwrap();
-        assert_eq!(lg.order.last(), Some(&3));
-        assert_eq!(
-            lg.graph.nodes[&3].inputs["image"],
-            Source::Node(1, "image".into())
-        );
-    }
-
-    #[test]
-    fn editor_connect_on_an_unfinished_graph() {
-        let mut g = LoadedGraph::from_text(G, "g.ron", PathBuf::from("."))
-            .unwrap()
-            .graph;
-        let n = g.add_node("normalize", [0.0, 0.0]); // required input left unconnected
-        let before = g.clone();
-        let e = g
-            .connect(1, "height", n, "image", Path::new("."))
-            .unwrap_err();
-        assert!(matches!(e, GraphError::TypeMismatch { .. }), "{e}");
-        let e = g
-            .connect(3, "image", 2, "image", Path::new("."))
-            .unwrap_err();
-        assert!(matches!(e, GraphError::Cycle { .. }), "{e}");
-        let e = g
-            .connect(n, "image", n, "image", Path::new("."))
-            .unwrap_err();
-        assert!(matches!(e, GraphError::Cycle { .. }), "{e}");
-        let e = g
-            .connect(1, "imag", n, "image", Path::new("."))
-            .unwrap_err();
-        assert!(matches!(e, GraphError::UnknownPort { .. }), "{e}");
-        assert_eq!(g, before);
-        g.connect(3, "image", n, "image", Path::new(".")).unwrap();
-        assert_eq!(g.nodes[&n].inputs["image"], Source::Node(3, "image".into()));
-        let dir = tempfile::tempdir().unwrap();
-        let p = dir.path().join("g.ron");
-        g.save(&p).unwrap();
-        assert_eq!(LoadedGraph::load(&p).unwrap().graph, g);
-    }
-
-    #[test]
-    fn added_nodes_get_fresh_ids() {
-        let mut g = LoadedGraph::from_text(G, "g.ron", PathBuf::from("."))
-            .unwrap()
-            .graph;
-        g.nodes.remove(&3);
-        let id = g.add_node("demo", [0.0, 0.0]);
-        assert_eq!(id, 4, "ids are never reused");
-        assert_eq!(g.next_id, 5);
-    }
-}
+#[path = "graph_tests.rs"]
+mod tests;

@@ -1,5 +1,5 @@
 //! The RGBN bilateral filter of [`crate::ops::bilateral`] as a node, with the base/detail split
-//! ([`split`]) as its two outputs.
+//! ([`split`](crate::ops::bilateral::split)) as its two outputs.
 
 use super::{Coarse, Kind, OpSpec, Operator, RunContext};
 use crate::error::RgbnError;
@@ -50,7 +50,7 @@ impl Operator for BilateralNode {
     fn kind(p: &BilateralParams) -> Kind {
         // The range weights are not a linear filter: no coarse form.
         Kind::Area {
-            halo: (2.0 * p.sigma_spatial_px as f32).ceil() as usize,
+            halo: p.radius_px(),
             coarse: Coarse::None,
         }
     }

@@ -12,8 +12,9 @@
 use super::{InValue, Kind, Mask, NoInputs, OpSpec, Operator, PortType, RunContext, Scalar, Value};
 use crate::error::RgbnError;
 use crate::RgbnImage;
+use parking_lot::Mutex;
 use std::collections::HashMap;
-use std::sync::{Mutex, OnceLock};
+use std::sync::OnceLock;
 
 crate::params! {
     /// Parameters of a bound value: which value (by content), and its size.
@@ -34,10 +35,8 @@ fn table() -> &'static Mutex<HashMap<String, (Value, usize)>> {
     TABLE.get_or_init(|| Mutex::new(HashMap::new()))
 }
 
-fn lock() -> std::sync::MutexGuard<'static, HashMap<String, (Value, usize)>> {
-    table()
-        .lock()
-        .unwrap_or_else(std::sync::PoisonError::into_inner)
+fn lock() -> parking_lot::MutexGuard<'static, HashMap<String, (Value, usize)>> {
+    table().lock()
 }
 
 /// Keeps a value in the table of bound values while it lives (bindings of equal content share

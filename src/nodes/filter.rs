@@ -1,7 +1,7 @@
 //! The linear gradient filters of [`crate::ops::filter`] as graph nodes: one node type per
 //! [`crate::ops::filter::Kernel`] variant (`filter.gaussian`, `filter.sharpen`, …), each with the kernel's own
 //! parameters plus `border` and `mask_aware`. The node adds no maths: it calls
-//! [`filter_normals`] with a one-kernel list.
+//! [`filter_normals`](crate::ops::filter::filter_normals) with a one-kernel list.
 
 use super::kit::kernel_kind;
 use super::{Coarse, Kind, OpSpec, Operator, RunContext};

@@ -91,7 +91,7 @@ crate::params! {
     /// Parameters of the image loader ([`crate::raster::io::load`]).
     #[derive(Clone, Debug, PartialEq)]
     pub struct LoadParams {
-        /// RGBN EXR (R,G,B + N.X,N.Y,N.Z [+ A]), a normal map (PNG/TIFF/EXR) or a Polynomial Texture Map (.ptm, LRGB or RGB).
+        /// RGBN EXR (R,G,B + N.X,N.Y,N.Z [+ A]), an OME-Zarr store (.zarr: R,G,B, nx,ny,nz [, mask]; a region or level reads only its chunks), a normal map (PNG/TIFF/EXR) or a Polynomial Texture Map (.ptm, LRGB or RGB).
         pub path: String = String::new() => path,
         /// Colour image (sRGB PNG/JPEG/TIFF or linear EXR); empty: none.
         pub color: String = String::new() => path.optional(),
@@ -111,7 +111,11 @@ impl LoadParams {
     /// with the optional colour and mask.
     pub fn input_spec(&self) -> Result<InputSpec, crate::error::RgbnError> {
         let path = PathBuf::from(&self.path);
-        let is_rgbn = Format::of(&path)? == Format::Exr && !self.exr_rgb_is_normal;
+        let is_rgbn = match Format::of(&path)? {
+            Format::Exr => !self.exr_rgb_is_normal,
+            Format::Zarr => true,
+            _ => false,
+        };
         let opt = |s: &str| (!s.is_empty()).then(|| PathBuf::from(s));
         Ok(InputSpec {
             rgbn: is_rgbn.then(|| path.clone()),
@@ -119,6 +123,15 @@ impl LoadParams {
             color: opt(&self.color),
             mask: opt(&self.mask),
         })
+    }
+
+    /// Whether the image is a chunked store read window by window at any level: an OME-Zarr
+    /// store with no separate colour or mask file.
+    #[must_use]
+    pub fn is_store(&self) -> bool {
+        io::zarr::is_zarr(std::path::Path::new(&self.path))
+            && self.color.is_empty()
+            && self.mask.is_empty()
     }
 
     /// How to decode them.
@@ -276,9 +289,14 @@ impl Operator for Load {
             "Loads an RGBN EXR, a PTM, or a normal map with an optional colour image and mask; bad normals are repaired (or refused with strict).",
         )
     }
-    fn kind(_: &LoadParams) -> Kind {
-        // Reads files whole.
-        Kind::GLOBAL
+    fn kind(p: &LoadParams) -> Kind {
+        if p.is_store() {
+            // A chunked store: any window at any level, read from its chunks and levels.
+            Kind::Source
+        } else {
+            // Reads files whole.
+            Kind::GLOBAL
+        }
     }
     fn out_size(p: &LoadParams, _: &[Option<(usize, usize)>]) -> Option<(usize, usize)> {
         io::dimensions(std::path::Path::new(&p.path))
@@ -288,6 +306,29 @@ impl Operator for Load {
         Ok(LoadOut {
             image: io::load(&spec, &opts)?.image,
         })
+    }
+    fn run_region(
+        p: &LoadParams,
+        i: NoInputs,
+        win: Window,
+        ctx: &RunContext,
+    ) -> Result<LoadOut, RgbnError> {
+        if !p.is_store() {
+            return Self::run(p, i, ctx);
+        }
+        // The window at its level, read from the store's chunks that cover it (the level
+        // the store holds; a coarser one from its coarsest, reduced).
+        let path = std::path::Path::new(&p.path);
+        let z = io::zarr::ZarrImage::open(path)?;
+        let level = win.scale.max(1).trailing_zeros() as usize;
+        let rect = crate::raster::window::Rect::new(win.x, win.y, win.w, win.h);
+        let (image, repaired) = z.read_rgbn(level, rect)?;
+        if p.strict {
+            if let Some(e) = repaired.strict_error(path) {
+                return Err(e);
+            }
+        }
+        Ok(LoadOut { image })
     }
 }
 

@@ -109,11 +109,12 @@ pub use value::{Picture, PortType, Value};
 use crate::error::RgbnError;
 use crate::params::{self, Meta, ParamError, ParamInfo, ParamValue, Params};
 use crate::raster::window::Window;
+use parking_lot::Mutex;
 use std::any::Any;
 use std::collections::{BTreeMap, HashMap};
 use std::marker::PhantomData;
 use std::path::PathBuf;
-use std::sync::{Arc, Mutex, OnceLock};
+use std::sync::{Arc, OnceLock};
 
 /// What an operator is: identity, documentation, ports.
 #[derive(Clone, Debug, PartialEq)]
@@ -577,40 +578,34 @@ impl<T: Operator> Entry<T> {
     /// Wraps typed parameters with their canonical map and hash.
     fn wrap(&self, typed: T::Params) -> Parsed {
         let values = params::to_values(&typed);
-        let mut h = xxhash_rust::xxh3::Xxh3::new();
-        for (name, value) in &values {
-            h.update(&(name.len() as u64).to_le_bytes());
-            h.update(name.as_bytes());
-            let input_file = self
-                .params
+        // Input files are keyed by their bytes elsewhere, not by their path here.
+        let hash = map_hash(&values, |name| {
+            self.params
                 .iter()
-                .any(|i| i.name == name && i.kind == params::ParamKind::Path && !i.meta.output);
-            if input_file {
-                h.update(b"input-file");
-            } else {
-                value.hash_into(&mut h);
-            }
-        }
+                .any(|i| i.name == name && i.kind == params::ParamKind::Path && !i.meta.output)
+        });
         Parsed {
             typed: Arc::new(typed),
             values: Arc::new(values),
-            hash: h.digest128(),
+            hash,
         }
     }
 }
 
-fn map_hash(values: &BTreeMap<String, ParamValue>) -> u128 {
+/// The hash of a parameter map: each name, then its value, or only the marker `input-file`
+/// for the names `input_file` picks.
+fn map_hash(values: &BTreeMap<String, ParamValue>, input_file: impl Fn(&str) -> bool) -> u128 {
     let mut h = xxhash_rust::xxh3::Xxh3::new();
     for (name, value) in values {
         h.update(&(name.len() as u64).to_le_bytes());
         h.update(name.as_bytes());
-        value.hash_into(&mut h);
+        if input_file(name) {
+            h.update(b"input-file");
+        } else {
+            value.hash_into(&mut h);
+        }
     }
     h.digest128()
-}
-
-fn lock<T>(m: &Mutex<T>) -> std::sync::MutexGuard<'_, T> {
-    m.lock().unwrap_or_else(std::sync::PoisonError::into_inner)
 }
 
 impl<T: Operator> DynOp for Entry<T> {
@@ -621,8 +616,8 @@ impl<T: Operator> DynOp for Entry<T> {
         &self.params
     }
     fn parse(&self, values: &BTreeMap<String, ParamValue>) -> Result<Parsed, ParamError> {
-        let key = map_hash(values);
-        if let Some(p) = lock(&self.memo).get(&key) {
+        let key = map_hash(values, |_| false);
+        if let Some(p) = self.memo.lock().get(&key) {
             return Ok(p.clone());
         }
         let typed: T::Params = params::from_values(values)?;
@@ -635,7 +630,7 @@ impl<T: Operator> DynOp for Entry<T> {
             },
         })?;
         let p = self.wrap(typed);
-        let mut memo = lock(&self.memo);
+        let mut memo = self.memo.lock();
         if memo.len() >= MEMO {
             memo.clear();
         }
@@ -799,6 +794,11 @@ pub fn bound_op(ty: PortType) -> Option<&'static dyn DynOp> {
 /// The id of the reusable-graph node (a graph file used as a node; see `crate::graph`).
 pub const GRAPH_NODE_OP: &str = "graph";
 
+/// The id of the reroute node: a point on a wire, one input `in` and one output `out` of the
+/// type of what feeds it (see `crate::graph::reroute`). It runs nothing: the plan connects
+/// its users straight to its source.
+pub const REROUTE_OP: &str = "reroute";
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -811,6 +811,7 @@ mod tests {
         ids.dedup();
         assert_eq!(ids.len(), n, "duplicate operator ids");
         assert!(!ids.contains(&GRAPH_NODE_OP));
+        assert!(!ids.contains(&REROUTE_OP));
         for op in registry() {
             let s = op.spec();
             for ports in [&s.inputs, &s.outputs] {

@@ -54,13 +54,15 @@ impl Operator for PenNode {
             // Heights at the pixel corners around each pixel (integrable), gradients at the
             // pixel centres (analytic): one pixel.
             PenMode::Integrable | PenMode::Analytic => 1,
-            // Distances from the rasterised path matter up to the stroke's half width and taper.
+            // Distances from the rasterised path matter as far as a stroke reaches (the one
+            // definition, `reach_px`; a taper varies the height along the path, not how far
+            // across it a stroke reaches).
             PenMode::DistanceTransform => p
                 .strokes()
                 .unwrap_or_default()
                 .iter()
                 .chain([&p.stroke])
-                .map(|s| (s.width_px / 2.0 + s.taper_px).ceil() as usize + 2)
+                .map(|s| reach_px(s).ceil() as usize)
                 .max()
                 .unwrap_or(0),
         };

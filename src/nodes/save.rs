@@ -7,8 +7,10 @@
 
 use super::{Kind, OpSpec, Operator, RunContext, Value};
 use crate::error::RgbnError;
+use crate::raster::io::zarr::{Content, ZarrCompression, ZarrDtype, ZarrOptions};
 use crate::raster::io::{self, Format, SaveOptions};
 use crate::raster::io::{ExrCompression, ExrPrecision, NormalConvention};
+use crate::raster::window::Rect;
 use crate::raster::Plane;
 use crate::RgbnImage;
 use std::path::{Path, PathBuf};
@@ -27,7 +29,7 @@ crate::params! {
     /// Parameters of the image writer.
     #[derive(Clone, Debug, PartialEq)]
     pub struct SaveParams {
-        /// Output: .exr (colour + normals + mask) or .png/.tif (normal map).
+        /// Output: .exr or .zarr (an OME-Zarr store: colour + normals + mask, with its levels) or .png/.tif (normal map).
         pub path: String = String::new() => path.output(),
         /// Bits per channel of PNG/TIFF normal maps.
         pub bits: Bits = Bits::Sixteen => choice,
@@ -37,6 +39,12 @@ crate::params! {
         pub half: bool = false => bool,
         /// Compression of an EXR (lossless): zip (default: zlib over 16 lines, about OpenEXR's size for little more time than none), zips, rle, piz or none.
         pub exr_compression: ExrCompression = ExrCompression::default() => choice,
+        /// Data type of an OME-Zarr store: float32, float16, or uint16 over each channel's range.
+        pub zarr_dtype: ZarrDtype = ZarrDtype::F32 => choice,
+        /// Chunk side of an OME-Zarr store in pixels (level k's chunks are chunk / 2^k).
+        pub zarr_chunk: i64 = crate::raster::io::zarr::DEFAULT_CHUNK as i64 => int.unit("px").range(16.0, 8192.0),
+        /// Compression of an OME-Zarr store's chunks: zstd (default), blosc or none.
+        pub zarr_compression: ZarrCompression = ZarrCompression::Zstd => choice,
     }
 }
 
@@ -60,6 +68,12 @@ impl SaveParams {
                 ExrPrecision::Full
             },
             compression: self.exr_compression,
+            zarr: ZarrOptions {
+                dtype: self.zarr_dtype,
+                chunk: self.zarr_chunk as usize,
+                compression: self.zarr_compression,
+                ..ZarrOptions::default()
+            },
         }
     }
 }
@@ -69,6 +83,9 @@ impl SaveParams {
 /// mask → `.png`/`.tif` (16-bit grey) or `.exr`; scalar field → `.exr` (`Y` channel, f32);
 /// number → a text file with the value.
 pub fn write_value(value: &Value, path: &Path, opts: &SaveOptions) -> Result<(), RgbnError> {
+    if matches!(Format::of(path), Ok(Format::Zarr)) {
+        return write_value_zarr(value, path, &opts.zarr, None);
+    }
     match value {
         Value::Rgbn(img) => io::save(img, path, opts),
         Value::Picture(p) => match Format::of(path)? {
@@ -87,7 +104,7 @@ pub fn write_value(value: &Value, path: &Path, opts: &SaveOptions) -> Result<(),
                     .collect();
                 io::write_raster16(&data, m.width(), m.height(), 1, f, path)
             }
-            Format::Jpeg | Format::Ptm | Format::Rti => {
+            Format::Jpeg | Format::Ptm | Format::Rti | Format::Zarr => {
                 Err(unsupported(path, "masks are written as .png, .tif or .exr"))
             }
         },
@@ -99,6 +116,49 @@ pub fn write_value(value: &Value, path: &Path, opts: &SaveOptions) -> Result<(),
             use std::io::Write;
             writeln!(w, "{x}").map_err(|e| e.to_string())
         }),
+    }
+}
+
+/// Writes `value` as an OME-Zarr store ([`crate::raster::io::zarr`]): the whole store, or with
+/// `region` = (the output's whole size, a rectangle of it), `value` is that rectangle and only
+/// its chunks are written (the store is created at the whole size if it does not exist).
+pub fn write_value_zarr(
+    value: &Value,
+    path: &Path,
+    opts: &ZarrOptions,
+    region: Option<((usize, usize), Rect)>,
+) -> Result<(), RgbnError> {
+    let bytes: Vec<Vec<f32>>;
+    let (content, planes, size): (Content, Vec<&[f32]>, (usize, usize)) = match value {
+        Value::Rgbn(img) => {
+            let [r, g, b] = img.color();
+            let [x, y, z] = img.normal();
+            let mut p: Vec<&[f32]> = vec![r, g, b, x, y, z];
+            p.extend(img.mask());
+            let c = Content::Rgbn {
+                mask: img.mask().is_some(),
+            };
+            (c, p, (img.width(), img.height()))
+        }
+        Value::Picture(pic) => {
+            bytes = crate::raster::io::zarr::rgba_planes(&pic.rgba);
+            let p = bytes.iter().map(Vec::as_slice).collect();
+            (Content::Picture, p, (pic.width, pic.height))
+        }
+        Value::Mask(m) => (Content::Mask, vec![m.data()], (m.width(), m.height())),
+        Value::Scalar(f) => (Content::Scalar, vec![f.data()], (f.width(), f.height())),
+        Value::Number(_) => {
+            return Err(unsupported(
+                path,
+                "numbers are written as text files, not OME-Zarr stores",
+            ))
+        }
+    };
+    match region {
+        None => io::zarr::save_planes_zarr(path, size, content, &planes, opts, None),
+        Some((full, rect)) => {
+            io::zarr::save_planes_zarr(path, full, content, &planes, opts, Some(rect))
+        }
     }
 }
 
@@ -114,24 +174,11 @@ fn unsupported(path: &Path, why: &str) -> RgbnError {
     }
 }
 
-/// Writes one plane as a single-channel (`Y`) f32 EXR.
+/// Writes one plane as a single-channel (`Y`) f32 EXR (ZIP): the engine's writer, which
+/// compresses blocks on every core and stops between batches when the run is cancelled (the
+/// exr crate's own writer took a second, on one core, for a 4K height).
 fn write_exr_plane(p: &Plane, path: &Path) -> Result<(), RgbnError> {
-    use exr::prelude::*;
-    let list = vec![AnyChannel::new("Y", FlatSamples::F32(p.data().to_vec()))];
-    let layer = Layer::new(
-        (p.width(), p.height()),
-        LayerAttributes::named("rgbn"),
-        Encoding {
-            compression: Compression::ZIP16,
-            blocks: Blocks::ScanLines,
-            line_order: LineOrder::Increasing,
-        },
-        AnyChannels::sort(SmallVec::from_vec(list)),
-    );
-    let image = Image::from_layer(layer);
-    io::write_atomic(path, |out| {
-        image.write().to_buffered(out).map_err(|e| e.to_string())
-    })
+    io::save_plane_exr(p, "Y", path)
 }
 
 crate::inputs! {

@@ -153,28 +153,16 @@ impl BilateralParams {
         self
     }
 
-    /// Checks every parameter.
+    /// The window's radius in pixels, ⌈2σ⌉ (the node's halo too).
+    #[must_use]
+    pub fn radius_px(&self) -> usize {
+        (2.0 * self.sigma_spatial_px as f32).ceil() as usize
+    }
+
+    /// Checks every parameter: the ranges `params!` declares (σs finite and in range, 0 for
+    /// the range σs meaning "ignore"), then the detail frame.
     pub fn validate(&self) -> Result<(), RgbnError> {
-        let s = self.sigma_spatial_px as f32;
-        if !(s.is_finite() && s > 0.0 && s <= MAX_BILATERAL_SIGMA_PX) {
-            return Err(RgbnError::param(
-                "sigma_spatial_px",
-                format!("{s} must be in (0, {MAX_BILATERAL_SIGMA_PX}] pixels"),
-            ));
-        }
-        for (name, v) in [
-            ("sigma_color", self.color_sigma()),
-            ("sigma_normal", self.normal_sigma()),
-        ] {
-            if let Some(v) = v {
-                if !(v.is_finite() && v > 0.0 && v <= 1e6) {
-                    return Err(RgbnError::param(
-                        name,
-                        format!("{v} must be in (0, 1e6] (or 0 to ignore)"),
-                    ));
-                }
-            }
-        }
+        crate::params::check_ranges(self)?;
         self.detail_frame().validate()
     }
 }
@@ -203,7 +191,7 @@ pub fn filtered(img: &RgbnImage, params: &BilateralParams) -> Result<RgbnImage, 
     let sigma_spatial = params.sigma_spatial_px as f32;
     let spec = kernel::Spec {
         sigma_spatial,
-        radius: (2.0 * sigma_spatial).ceil() as usize,
+        radius: params.radius_px(),
         stride: 1,
         sigma_color: params.color_sigma(),
         sigma_normal: params.normal_sigma(),
@@ -790,7 +778,7 @@ mod tests {
                     sigma_normal: -1.0,
                     ..BilateralParams::default()
                 },
-                "(0, 1e6]",
+                "sigma_normal",
             ),
         ] {
             let e = bilateral(&img, &p).unwrap_err().to_string();

@@ -10,7 +10,7 @@ use crate::raster::strips::{self, StreamInput, Window};
 use crate::raster::Validation;
 
 /// The rows of context a strip needs so that [`filter_streamed`] gives it what
-/// [`filter_normals`] gives the whole image: the kernels' supports added up, plus one row for
+/// [`filter_normals`](crate::ops::filter::filter_normals) gives the whole image: the kernels' supports added up, plus one row for
 /// the curl readout's neighbour. `None` with the wrap border, which reads the opposite edge of
 /// the image.
 #[must_use]
@@ -19,7 +19,7 @@ pub fn stream_halo(kernels: &[Kernel], opts: &FilterOptions) -> Option<usize> {
         .then(|| kernels.iter().map(Kernel::support_px).sum::<usize>() + 1)
 }
 
-/// [`filter_normals`] over an image read row by row ([`crate::raster::strips`]): each strip is
+/// [`filter_normals`](crate::ops::filter::filter_normals) over an image read row by row ([`crate::raster::strips`]): each strip is
 /// filtered in a window grown by [`stream_halo`] rows (or `strip` rows when given; by default
 /// [`strips::strip_rows`]), and `out` receives the window and the filtered normals of its core
 /// rows, top to bottom. Returns the report, summed over the strips' core rows (`curl_after` is

@@ -2,9 +2,9 @@
 //! with its parameters, maths documentation and tests; no graph types (their node forms are in
 //! [`crate::nodes`], one file of the same name each).
 //!
-//! Parameters are declared once with [`params!`](crate::params) (and choices with
+//! Parameters are declared once with [`params!`](macro@crate::params) (and choices with
 //! [`choice_enum!`](crate::choice_enum)): the struct, its defaults and its
-//! [`params::Params::visit`], with each field's doc comment as its documentation. See
+//! [`Params::visit`](crate::params::Params::visit), with each field's doc comment as its documentation. See
 //! `CONTRIBUTING.md` for how to add an operator.
 //!
 //! ```

@@ -375,7 +375,8 @@ fn prepared_stamp_height(
     stamp: &RgbnImage,
     falloff_px: f32,
 ) -> Result<std::sync::Arc<Plane>, RgbnError> {
-    use std::sync::{Arc, Mutex};
+    use parking_lot::Mutex;
+    use std::sync::Arc;
     static MEMO: Mutex<Vec<(u128, Arc<Plane>)>> = Mutex::new(Vec::new());
     let mut h = xxhash_rust::xxh3::Xxh3::new();
     h.update(&(stamp.width() as u64).to_le_bytes());
@@ -398,10 +399,7 @@ fn prepared_stamp_height(
         feed(m);
     }
     let key = h.digest128();
-    let lock = || {
-        MEMO.lock()
-            .unwrap_or_else(std::sync::PoisonError::into_inner)
-    };
+    let lock = || MEMO.lock();
     if let Some((_, p)) = lock().iter().find(|(k, _)| *k == key) {
         return Ok(p.clone());
     }

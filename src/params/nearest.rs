@@ -1,21 +1,10 @@
 //! "Did you mean" suggestions: the nearest known name to a misspelt one.
 
-/// Levenshtein distance (for "did you mean" suggestions).
+/// Levenshtein distance in characters (for "did you mean" suggestions): `strsim`'s, the crate
+/// clap already uses for its own suggestions.
 #[must_use]
 pub fn edit_distance(a: &str, b: &str) -> usize {
-    let a: Vec<char> = a.chars().collect();
-    let b: Vec<char> = b.chars().collect();
-    let mut prev: Vec<usize> = (0..=b.len()).collect();
-    for (i, ca) in a.iter().enumerate() {
-        let mut cur = vec![i + 1; b.len() + 1];
-        for (j, cb) in b.iter().enumerate() {
-            cur[j + 1] = (prev[j] + usize::from(ca != cb))
-                .min(prev[j + 1] + 1)
-                .min(cur[j] + 1);
-        }
-        prev = cur;
-    }
-    prev[b.len()]
+    strsim::levenshtein(a, b)
 }
 
 /// The candidate nearest to `word` by edit distance, if it is close enough to be a likely typo

@@ -266,8 +266,8 @@ fn section(a: f32, b: f32, x: f32, xp: f32, s: &Section, y1: f32, y2: f32) -> f3
     (-s.d1).mul_add(y1, (-s.d2).mul_add(y2, input))
 }
 
-/// One causal step of both second-order sections for `LANES` lines: input `x` = x[i],
-/// `xp` = x[i-1], `st` = [a1, a2, b1, b2] (y[i-1], y[i-2] of each section); returns y[i].
+/// One causal step of both second-order sections for `LANES` lines: input `x` = x\[i\],
+/// `xp` = x\[i-1\], `st` = \[a1, a2, b1, b2\] (y\[i-1\], y\[i-2\] of each section); returns y\[i\].
 #[inline(always)]
 fn causal_step(x: &Lane, xp: &Lane, st: &mut [Lane; 4], s0: &Section, s1: &Section) -> Lane {
     let mut out = [0.0; LANES];
@@ -283,7 +283,7 @@ fn causal_step(x: &Lane, xp: &Lane, st: &mut [Lane; 4], s0: &Section, s1: &Secti
     out
 }
 
-/// One anticausal step: `x1` = x[i+1], `x2` = x[i+2]; returns the anticausal y[i].
+/// One anticausal step: `x1` = x\[i+1\], `x2` = x\[i+2\]; returns the anticausal y\[i\].
 #[inline(always)]
 fn anti_step(x1: &Lane, x2: &Lane, st: &mut [Lane; 4], s0: &Section, s1: &Section) -> Lane {
     let mut out = [0.0; LANES];
@@ -339,14 +339,12 @@ impl LineFilter for Deriche {
     fn run(&self, line: &mut [Lane], scratch: &mut Vec<Lane>, border: BorderMode) {
         #[cfg(target_arch = "x86_64")]
         {
-            if std::arch::is_x86_feature_detected!("avx512f") {
-                // SAFETY: `run_avx512` only requires AVX-512F, whose presence was just checked.
+            if crate::raster::simd::Simd::Avx512.runs() {
+                // SAFETY: `run_avx512` only requires AVX-512F, which is present (`Simd::runs`).
                 return unsafe { self.run_avx512(line, scratch, border) };
             }
-            if std::arch::is_x86_feature_detected!("avx2")
-                && std::arch::is_x86_feature_detected!("fma")
-            {
-                // SAFETY: `run_avx2` only requires AVX2 and FMA, just checked.
+            if crate::raster::simd::Simd::Avx2.runs() {
+                // SAFETY: `run_avx2` only requires AVX2 and FMA, which are present (`Simd::runs`).
                 return unsafe { self.run_avx2(line, scratch, border) };
             }
         }
@@ -476,14 +474,14 @@ pub(crate) fn rows_into_lanes(band: &[f32], width: usize, lanes: &mut [Lane]) {
         lanes.fill(lane_splat(0.0));
     }
     #[cfg(target_arch = "x86_64")]
-    if rows == LANES && std::arch::is_x86_feature_detected!("avx512f") {
-        // SAFETY: AVX-512F was just detected; `band` holds LANES rows of `width`, `lanes`
+    if rows == LANES && crate::raster::simd::Simd::Avx512.runs() {
+        // SAFETY: AVX-512F is present (`Simd::runs`); `band` holds LANES rows of `width`, `lanes`
         // `width`.
         return unsafe { transpose_avx512::rows_to_lanes(band, width, lanes) };
     }
     #[cfg(target_arch = "x86_64")]
-    if rows == LANES && std::arch::is_x86_feature_detected!("avx") {
-        // SAFETY: AVX was just detected; `band` holds LANES rows of `width`, `lanes` `width`.
+    if rows == LANES && crate::raster::simd::Simd::Avx2.runs() {
+        // SAFETY: AVX is present (`Simd::runs`: AVX2 implies it); `band` holds LANES rows of `width`, `lanes` `width`.
         return unsafe { transpose_avx::rows_to_lanes(band, width, lanes) };
     }
     for k in 0..rows {
@@ -504,13 +502,13 @@ pub(crate) fn lanes_to_rows(lanes: &[Lane], width: usize, band: &mut [f32]) {
     let rows = band.len() / width.max(1);
     assert!(rows <= LANES && band.len() == rows * width && lanes.len() == width);
     #[cfg(target_arch = "x86_64")]
-    if rows == LANES && std::arch::is_x86_feature_detected!("avx512f") {
-        // SAFETY: AVX-512F was just detected; the sizes were just checked.
+    if rows == LANES && crate::raster::simd::Simd::Avx512.runs() {
+        // SAFETY: AVX-512F is present (`Simd::runs`); the sizes were just checked.
         return unsafe { transpose_avx512::lanes_to_rows(lanes, width, band) };
     }
     #[cfg(target_arch = "x86_64")]
-    if rows == LANES && std::arch::is_x86_feature_detected!("avx") {
-        // SAFETY: AVX was just detected; the sizes were just checked.
+    if rows == LANES && crate::raster::simd::Simd::Avx2.runs() {
+        // SAFETY: AVX is present (`Simd::runs`: AVX2 implies it); the sizes were just checked.
         return unsafe { transpose_avx::lanes_to_rows(lanes, width, band) };
     }
     for k in 0..rows {

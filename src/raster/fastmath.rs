@@ -1,5 +1,5 @@
 //! Branch-free `f32` approximations of `log2` and `exp2` that vectorise (the relit preview's
-//! Blinn-Phong power, the bilateral filter's range weights). Their accuracy is tested in
+//! Blinn-Phong power) and the fused multiply-add switch of the kernels' twins. Their accuracy is tested in
 //! `render`'s tests against `f64`.
 
 /// `log2(x)` for normal `x > 0`, within 3e-7 of the exact value (absolute for `|log2 x| ≤ 1`,
@@ -54,26 +54,4 @@ pub(crate) fn madd<const F: bool>(a: f32, b: f32, c: f32) -> f32 {
     } else {
         a * b + c
     }
-}
-
-/// `2^−e` for `e ≥ 0` (flushed to `2^−126` beyond 126), as [`exp2_fast`] but with the `ln 2`
-/// powers folded into the Taylor coefficients and [`madd`] steps: 3e-7 relative.
-#[inline(always)]
-pub(crate) fn exp2_neg<const F: bool>(e: f32) -> f32 {
-    const L1: f32 = std::f32::consts::LN_2;
-    const L2: f32 = L1 * L1 / 2.0;
-    const L3: f32 = L2 * L1 / 3.0;
-    const L4: f32 = L3 * L1 / 4.0;
-    const L5: f32 = L4 * L1 / 5.0;
-    const L6: f32 = L5 * L1 / 6.0;
-    let y = (-e).max(-126.0);
-    let big = y + ROUND;
-    let f = y - (big - ROUND);
-    let mut p = madd::<F>(L6, f, L5);
-    p = madd::<F>(p, f, L4);
-    p = madd::<F>(p, f, L3);
-    p = madd::<F>(p, f, L2);
-    p = madd::<F>(p, f, L1);
-    p = madd::<F>(p, f, 1.0);
-    p * f32::from_bits(big.to_bits().wrapping_add(127) << 23)
 }

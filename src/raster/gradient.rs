@@ -454,7 +454,12 @@ pub fn curl_sums_of_normal_rows(
 pub fn corner_samples(w: usize, h: usize, f: impl Fn(usize, usize) -> f64 + Sync) -> Vec<f64> {
     let cw = w + 1;
     let mut z = vec![0.0; cw * (h + 1)];
+    // Cancelled: the remaining rows stay 0 and the caller discards them (crate::cancel).
+    let cancel = crate::cancel::Cancel::current();
     z.par_chunks_mut(cw).enumerate().for_each(|(r, line)| {
+        if cancel.is_cancelled() {
+            return;
+        }
         for (x, out) in line.iter_mut().enumerate() {
             *out = f(x, r);
         }

@@ -25,8 +25,13 @@ mod exr_write;
 mod format;
 mod openexr;
 mod png_normals;
+mod raster_write;
 pub mod stream;
 pub mod targets;
+pub mod zarr;
+
+use raster_write::png_format;
+pub use raster_write::{write_png8_text, write_raster16, write_raster8};
 
 pub use exr_write::ExrFormat;
 pub use format::Format;
@@ -125,6 +130,10 @@ pub fn load(spec: &InputSpec, opts: &LoadOptions) -> Result<Loaded, RgbnError> {
     let (mut image, normal_path, counted) = match (&spec.rgbn, &spec.normal) {
         (Some(p), None) | (None, Some(p)) => {
             let (img, counted) = match Format::of(p)? {
+                Format::Zarr if spec.color.is_none() && spec.mask.is_none() => {
+                    return zarr::load(p, opts)
+                }
+                Format::Zarr => (zarr::load(p, opts)?.image, None),
                 Format::Exr => (load_exr(p, opts)?, None),
                 Format::Ptm => (super::ptm::load_ptm(p)?, None),
                 Format::Rti => (super::hsh::load_hsh(p)?, None),
@@ -250,6 +259,7 @@ fn decode_raster(path: &Path) -> Result<Raster, RgbnError> {
         Format::Tiff => image::ImageFormat::Tiff,
         Format::Exr => unreachable!("EXR is decoded by the exr crate"),
         Format::Ptm | Format::Rti => return Err(ptm_not_a_raster(path)),
+        Format::Zarr => return Err(zarr::not_a_raster(path)),
     };
     let decode_err = |e: image::ImageError| {
         let detail = e.to_string();
@@ -424,6 +434,9 @@ fn deinterleave<T: Copy + Sync>(
 
 /// Loads a colour image as linear planes: PNG/JPEG/TIFF are sRGB, EXR `R,G,B` are linear.
 pub fn load_color(path: &Path) -> Result<(usize, usize, [Vec<f32>; 3]), RgbnError> {
+    if Format::of(path)? == Format::Zarr {
+        return zarr::load_color(path);
+    }
     if Format::of(path)? == Format::Exr {
         let e = read_exr_channels(path)?;
         let color = e.take_rgb(path)?;
@@ -466,6 +479,9 @@ pub fn load_color_linear(path: &Path) -> Result<(usize, usize, [Vec<f32>; 3]), R
 
 /// Loads a greyscale (or first-channel) mask in [0, 1]; EXR: `A`, else `Y`, else `R`.
 pub fn load_mask(path: &Path) -> Result<(usize, usize, Vec<f32>), RgbnError> {
+    if Format::of(path)? == Format::Zarr {
+        return zarr::load_mask(path);
+    }
     if Format::of(path)? == Format::Exr {
         let mut e = read_exr_channels(path)?;
         for name in ["A", "Y", "R"] {
@@ -608,6 +624,7 @@ pub fn dimensions(path: &Path) -> Option<(usize, usize)> {
         }
         Format::Ptm => super::ptm::dimensions(path),
         Format::Rti => super::hsh::dimensions(path),
+        Format::Zarr => zarr::dimensions(path),
         _ => image::image_dimensions(path)
             .ok()
             .map(|(w, h)| (w as usize, h as usize)),
@@ -632,6 +649,7 @@ pub fn write_atomic(
 /// Writes only the colour: EXR (linear `R,G,B`) or PNG/TIFF (sRGB, 8 or 16 bit).
 pub fn save_color(img: &RgbnImage, path: &Path, bits: u8) -> Result<(), RgbnError> {
     match Format::of(path)? {
+        Format::Zarr => Err(zarr::not_a_raster(path)),
         Format::Exr => {
             let [r, g, b] = img.color();
             openexr::write_planes_atomic(
@@ -689,6 +707,7 @@ pub fn save_normal_map(
             format: "jpeg (lossy; write normal maps as .png, .tif or .exr)".into(),
             path: path.into(),
         }),
+        Format::Zarr => Err(zarr::not_a_raster(path)),
         fmt => {
             if bits == 16 {
                 let data = interleave_normals(nx, ny, nz, flip, 65535.0, |v| v as u16);
@@ -744,186 +763,12 @@ fn interleave3<T: Copy + Default + Send>(
     out
 }
 
-fn color_type(channels: usize, sixteen: bool) -> image::ExtendedColorType {
-    use image::ExtendedColorType as C;
-    match (channels, sixteen) {
-        (1, false) => C::L8,
-        (1, true) => C::L16,
-        (4, false) => C::Rgba8,
-        (4, true) => C::Rgba16,
-        (_, false) => C::Rgb8,
-        (_, true) => C::Rgb16,
-    }
-}
-
-/// PNG row filter for 16-bit files (normal maps, the large time-critical case): `Up` pairs with
-/// the `png` crate's fast (fdeflate) compressor; adaptive filtering (trying all five filters
-/// per row) cost more time than it saved. 8-bit files (colour, masks, small) keep adaptive
-/// filtering, i.e. the bytes the image crate wrote before.
-const PNG16_FILTER: png::Filter = png::Filter::Up;
-
-/// Sets every PNG rgbn writes to the same format: `color`, 8 or 16 bits, fast compression,
-/// [`PNG16_FILTER`] for 16 bits and adaptive filtering for 8.
-fn png_format<W: std::io::Write>(
-    enc: &mut png::Encoder<'_, W>,
-    color: png::ColorType,
-    sixteen: bool,
-) {
-    enc.set_color(color);
-    enc.set_depth(if sixteen {
-        png::BitDepth::Sixteen
-    } else {
-        png::BitDepth::Eight
-    });
-    enc.set_compression(png::Compression::Fast);
-    enc.set_filter(if sixteen {
-        PNG16_FILTER
-    } else {
-        png::Filter::Adaptive
-    });
-}
-
-/// Writes a PNG with the `png` crate (fast compression). `bytes` are the samples, 16-bit ones
-/// big-endian as PNG stores them.
-fn encode_png(
-    bytes: &[u8],
-    w: usize,
-    h: usize,
-    channels: usize,
-    sixteen: bool,
-    path: &Path,
-) -> Result<(), RgbnError> {
-    encode_png_text(bytes, w, h, channels, sixteen, &[], path)
-}
-
-/// Writes 8-bit RGBA samples as a PNG carrying `text` as tEXt chunks (keyword, value), e.g.
-/// `rgbn:curvature_scale` written by `rgbn render --view curvature`.
-pub fn write_png8_text(
-    rgba: &[u8],
-    w: usize,
-    h: usize,
-    text: &[(&str, &str)],
-    path: &Path,
-) -> Result<(), RgbnError> {
-    encode_png_text(rgba, w, h, 4, false, text, path)
-}
-
-fn encode_png_text(
-    bytes: &[u8],
-    w: usize,
-    h: usize,
-    channels: usize,
-    sixteen: bool,
-    text: &[(&str, &str)],
-    path: &Path,
-) -> Result<(), RgbnError> {
-    write_atomic(path, |out| {
-        let mut enc = png::Encoder::new(out, w as u32, h as u32);
-        for (k, v) in text {
-            enc.add_text_chunk((*k).to_string(), (*v).to_string())
-                .map_err(|e| e.to_string())?;
-        }
-        png_format(
-            &mut enc,
-            match channels {
-                1 => png::ColorType::Grayscale,
-                2 => png::ColorType::GrayscaleAlpha,
-                4 => png::ColorType::Rgba,
-                _ => png::ColorType::Rgb,
-            },
-            sixteen,
-        );
-        let mut wr = enc.write_header().map_err(|e| e.to_string())?;
-        wr.write_image_data(bytes).map_err(|e| e.to_string())?;
-        wr.finish().map_err(|e| e.to_string())
-    })
-}
-
-fn encode_raster(
-    bytes: &[u8],
-    w: usize,
-    h: usize,
-    ct: image::ExtendedColorType,
-    fmt: Format,
-    path: &Path,
-) -> Result<(), RgbnError> {
-    use image::ImageEncoder;
-    write_atomic(path, |out| {
-        let r = match fmt {
-            Format::Tiff => image::codecs::tiff::TiffEncoder::new(out)
-                .write_image(bytes, w as u32, h as u32, ct),
-            Format::Jpeg => image::codecs::jpeg::JpegEncoder::new_with_quality(out, 95)
-                .write_image(bytes, w as u32, h as u32, ct),
-            Format::Png | Format::Exr | Format::Ptm | Format::Rti => {
-                unreachable!("PNG: encode_png; EXR: the exr crate; PTM/RTI: refused by the callers")
-            }
-        };
-        r.map_err(|e| e.to_string())
-    })
-}
-
-/// Writes interleaved 8-bit samples (1, 3 or 4 channels) as PNG/TIFF/JPEG.
-pub fn write_raster8(
-    data: &[u8],
-    w: usize,
-    h: usize,
-    channels: usize,
-    fmt: Format,
-    path: &Path,
-) -> Result<(), RgbnError> {
-    if matches!(fmt, Format::Ptm | Format::Rti) {
-        return Err(ptm_not_a_raster(path));
-    }
-    if fmt == Format::Png {
-        return encode_png(data, w, h, channels, false, path);
-    }
-    encode_raster(data, w, h, color_type(channels, false), fmt, path)
-}
-
-/// Writes interleaved 16-bit samples as PNG/TIFF.
-pub fn write_raster16(
-    data: &[u16],
-    w: usize,
-    h: usize,
-    channels: usize,
-    fmt: Format,
-    path: &Path,
-) -> Result<(), RgbnError> {
-    if matches!(fmt, Format::Ptm | Format::Rti) {
-        return Err(ptm_not_a_raster(path));
-    }
-    if fmt == Format::Jpeg {
-        return Err(RgbnError::UnsupportedFormat {
-            format: "jpeg (8-bit only; use .png or .tif for 16 bit)".into(),
-            path: path.into(),
-        });
-    }
-    // PNG stores big-endian samples; the image crate's TIFF encoder takes native order.
-    let png = fmt == Format::Png;
-    let mut bytes = buf::zeroed_u8(data.len() * 2);
-    bytes
-        .par_chunks_mut(2 << 16)
-        .zip(data.par_chunks(1 << 16))
-        .for_each(|(d, s)| {
-            for (d, v) in d.chunks_exact_mut(2).zip(s) {
-                d.copy_from_slice(&if png {
-                    v.to_be_bytes()
-                } else {
-                    v.to_ne_bytes()
-                });
-            }
-        });
-    if png {
-        return encode_png(&bytes, w, h, channels, true, path);
-    }
-    encode_raster(&bytes, w, h, color_type(channels, true), fmt, path)
-}
-
-/// Saves an RGBN image by extension: `.exr` gets everything (colour, normals, mask); PNG/TIFF get
-/// the normal map (`bits` 8 or 16).
+/// Saves an RGBN image by extension: `.exr` and `.zarr` (an OME-Zarr store) get everything
+/// (colour, normals, mask); PNG/TIFF get the normal map (`bits` 8 or 16).
 pub fn save(img: &RgbnImage, path: &Path, opts: &SaveOptions) -> Result<(), RgbnError> {
     match Format::of(path)? {
         Format::Exr => save_exr_with(img, path, opts.precision, opts.compression),
+        Format::Zarr => zarr::save_zarr(img, path, &opts.zarr),
         Format::Ptm => super::ptm::save_ptm(img, path),
         Format::Rti => Err(RgbnError::UnsupportedFormat {
             format: "rti (HSH files are read, not written: write .ptm for RTIViewer)".into(),
@@ -940,6 +785,8 @@ pub struct SaveOptions {
     pub convention: NormalConvention,
     pub precision: ExrPrecision,
     pub compression: ExrCompression,
+    /// How an OME-Zarr store is written.
+    pub zarr: zarr::ZarrOptions,
 }
 
 impl Default for SaveOptions {
@@ -949,6 +796,7 @@ impl Default for SaveOptions {
             convention: NormalConvention::OpenGl,
             precision: ExrPrecision::Full,
             compression: ExrCompression::default(),
+            zarr: zarr::ZarrOptions::default(),
         }
     }
 }

@@ -19,6 +19,7 @@ pub(crate) mod par;
 pub mod ptm;
 pub mod pyramid;
 pub mod sample;
+pub mod simd;
 pub mod smooth;
 pub mod srgb;
 pub mod strips;
@@ -100,14 +101,19 @@ impl Plane {
         })
     }
 
-    /// Samples `f(x, y_row)` at every pixel.
+    /// Samples `f(x, y_row)` at every pixel. Once the calling thread's evaluation is
+    /// cancelled, the remaining rows stay 0 (the caller discards them: [`crate::cancel`]).
     #[must_use]
     pub fn from_fn(width: usize, height: usize, f: impl Fn(usize, usize) -> f32 + Sync) -> Self {
         use rayon::prelude::*;
         let mut data = buf::zeroed_f32(width * height);
+        let cancel = crate::cancel::Cancel::current();
         data.par_chunks_mut(width.max(1))
             .enumerate()
             .for_each(|(row, out)| {
+                if cancel.is_cancelled() {
+                    return;
+                }
                 for (x, v) in out.iter_mut().enumerate() {
                     *v = f(x, row);
                 }

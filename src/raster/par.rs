@@ -170,9 +170,9 @@ pub struct Sequenced<'r, 's, T, S, F> {
 }
 
 struct SeqInner<T, S, F> {
-    q: std::sync::Mutex<SeqQueue<T>>,
-    cv: std::sync::Condvar,
-    state: std::sync::Mutex<Option<S>>,
+    q: parking_lot::Mutex<SeqQueue<T>>,
+    cv: parking_lot::Condvar,
+    state: parking_lot::Mutex<Option<S>>,
     work: F,
     cap: usize,
 }
@@ -194,13 +194,13 @@ where
     pub fn new(scope: &'r rayon::Scope<'s>, state: S, cap: usize, work: F) -> Self {
         Self {
             inner: std::sync::Arc::new(SeqInner {
-                q: std::sync::Mutex::new(SeqQueue {
+                q: parking_lot::Mutex::new(SeqQueue {
                     items: std::collections::VecDeque::new(),
                     running: false,
                     failed: None,
                 }),
-                cv: std::sync::Condvar::new(),
-                state: std::sync::Mutex::new(Some(state)),
+                cv: parking_lot::Condvar::new(),
+                state: parking_lot::Mutex::new(Some(state)),
                 work,
                 cap: cap.max(1),
             }),
@@ -214,10 +214,7 @@ where
         let inner = &self.inner;
         let mut q = inner.lock_q();
         while q.failed.is_none() && q.items.len() >= inner.cap {
-            q = inner
-                .cv
-                .wait(q)
-                .unwrap_or_else(std::sync::PoisonError::into_inner);
+            inner.cv.wait(&mut q);
         }
         if q.failed.is_some() {
             return Err(());
@@ -236,21 +233,14 @@ where
         let inner = &self.inner;
         let mut q = inner.lock_q();
         while q.running {
-            q = inner
-                .cv
-                .wait(q)
-                .unwrap_or_else(std::sync::PoisonError::into_inner);
+            inner.cv.wait(&mut q);
         }
         if let Some(e) = q.failed.take() {
             return Err(e);
         }
         drop(q);
         // The last task has ended (it lets the state go just after saying so).
-        let state = inner
-            .state
-            .lock()
-            .unwrap_or_else(std::sync::PoisonError::into_inner)
-            .take();
+        let state = inner.state.lock().take();
         Ok(state.expect("the state is taken once"))
     }
 }
@@ -259,10 +249,8 @@ impl<T, S, F> SeqInner<T, S, F>
 where
     F: Fn(&mut S, T) -> Result<(), crate::error::RgbnError>,
 {
-    fn lock_q(&self) -> std::sync::MutexGuard<'_, SeqQueue<T>> {
-        self.q
-            .lock()
-            .unwrap_or_else(std::sync::PoisonError::into_inner)
+    fn lock_q(&self) -> parking_lot::MutexGuard<'_, SeqQueue<T>> {
+        self.q.lock()
     }
 
     /// The task: the waiting items, in order, until none waits.
@@ -275,11 +263,7 @@ where
                 if self.1 {
                     return;
                 }
-                let mut q = self
-                    .0
-                    .q
-                    .lock()
-                    .unwrap_or_else(std::sync::PoisonError::into_inner);
+                let mut q = self.0.q.lock();
                 q.running = false;
                 q.failed.get_or_insert(crate::error::RgbnError::Decode {
                     detail: "a writing task panicked".into(),
@@ -290,10 +274,7 @@ where
             }
         }
         let mut ended = Ended(self, false);
-        let mut guard = self
-            .state
-            .lock()
-            .unwrap_or_else(std::sync::PoisonError::into_inner);
+        let mut guard = self.state.lock();
         let state = guard.as_mut().expect("the state is there until finished");
         loop {
             let item = {
@@ -432,13 +413,13 @@ mod tests {
             .num_threads(2)
             .build()
             .expect("a thread pool");
-        let handled = std::sync::Mutex::new(Vec::new());
+        let handled = parking_lot::Mutex::new(Vec::new());
         let (refused, err) = pool.in_place_scope(|scope| {
             let stage = Sequenced::new(scope, (), 2, |(): &mut (), x: usize| {
                 if x == 7 {
                     return Err(crate::error::RgbnError::InvalidImage(format!("item {x}")));
                 }
-                handled.lock().unwrap().push(x);
+                handled.lock().push(x);
                 Ok(())
             });
             let refused = (0..100).filter(|&i| stage.push(i).is_err()).count();
@@ -448,7 +429,7 @@ mod tests {
             };
             (refused, err)
         });
-        assert_eq!(*handled.lock().unwrap(), (0..7).collect::<Vec<_>>());
+        assert_eq!(*handled.lock(), (0..7).collect::<Vec<_>>());
         assert!(err.contains("item 7"), "{err}");
         // Items 0..7 handled, 7 failed; of the rest, at most the `cap` queued behind it were
         // accepted before the failure was known.

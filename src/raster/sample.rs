@@ -127,17 +127,29 @@ impl Surface {
             (self.height(u, v) / s) as f32
         });
         let [nx, ny, nz] = &mut normal;
+        // Cancelled: the remaining rows keep (0, 0, 1) and the caller discards them.
+        let cancel = crate::cancel::Cancel::current();
         for (i, ((a, b), (c, m))) in nx
             .iter_mut()
             .zip(ny.iter_mut())
             .zip(nz.iter_mut().zip(mask.iter_mut()))
             .enumerate()
         {
+            if i % width == 0 && cancel.is_cancelled() {
+                break;
+            }
             let (u, v) = at(i % width, i / width);
             match self.gradient(u, v) {
                 Some([p, q]) => [*a, *b, *c] = normal_of_gradient(p as f32, q as f32),
                 None => *m = 0.0,
             }
+        }
+        if cancel.is_cancelled() {
+            // Discarded by the caller: no colour planes filled.
+            let c = || buf::zeroed_f32(n);
+            let img = RgbnImage::new(width, height, [c(), c(), c()], normal, None)
+                .expect("sizes match by construction");
+            return (img, z);
         }
         let img = RgbnImage::new(
             width,
@@ -301,13 +313,33 @@ impl Surface {
     pub fn render_sampled_window(&self, full: (usize, usize), win: Window) -> (RgbnImage, Plane) {
         let (width, height) = (win.w, win.h);
         let zc = corner_heights(full, win, |u, v| self.height(u, v));
+        // Cancelled: zeros of the right size (untouched pages), which the caller discards
+        // (crate::cancel); each pass below is skipped once the token is set.
+        let cancel = crate::cancel::Cancel::current();
+        let discarded = || {
+            let z = || buf::zeroed_f32(width * height);
+            let img = RgbnImage::new(width, height, [z(), z(), z()], [z(), z(), z()], None)
+                .expect("sizes match by construction");
+            (
+                img,
+                Plane::from_vec(width, height, z()).expect("sizes match"),
+            )
+        };
+        if cancel.is_cancelled() {
+            return discarded();
+        }
         let (mut g, z) = GradientField::from_corner_heights(width, height, &zc);
+        drop(zc);
+        if cancel.is_cancelled() {
+            return discarded();
+        }
         let mask = self.undefined_somewhere(full).then(|| {
             let defined = corner_heights(full, win, |u, v| {
                 f64::from(u8::from(self.gradient(u, v).is_some()))
             });
             let cw = width + 1;
             let mask: Vec<f32> = (0..width * height)
+                .into_par_iter()
                 .map(|i| {
                     let (x, row) = (i % width, i / width);
                     let (a, b) = (row * cw + x, (row + 1) * cw + x);
@@ -323,6 +355,9 @@ impl Surface {
             }
             mask
         });
+        if cancel.is_cancelled() {
+            return discarded();
+        }
         let n = width * height;
         let img = RgbnImage::new(
             width,
@@ -353,25 +388,43 @@ pub fn demo_window(size: usize, win: Window) -> RgbnImage {
     let n = w * h;
     let c = size as f64 / 2.0;
     let rr = 0.45 * size as f64;
+    // Cancelled: every stage stops, and the image returned is zeros (untouched pages) that
+    // the caller discards (crate::cancel).
+    let cancel = crate::cancel::Cancel::current();
+    let discarded = || {
+        let z = || buf::zeroed_f32(n);
+        RgbnImage::new(w, h, [z(), z(), z()], [z(), z(), z()], None)
+            .expect("sizes match by construction")
+    };
     let zc = corner_heights((size, size), win, |u, v| medallion(u, v, rr).0);
+    if cancel.is_cancelled() {
+        return discarded();
+    }
     let (g, _) = GradientField::from_corner_heights(w, h, &zc);
+    drop(zc);
+    if cancel.is_cancelled() {
+        return discarded();
+    }
     let mut color = [buf::zeroed_f32(n), buf::zeroed_f32(n), buf::zeroed_f32(n)];
     let s = win.scale as f64;
-    let rows: Vec<Vec<[f32; 3]>> = (0..h)
-        .into_par_iter()
-        .map(|row| {
-            let v = c - ((win.y + row) as f64 + 0.5) * s;
-            (0..w)
-                .map(|x| medallion(((win.x + x) as f64 + 0.5) * s - c, v, rr).1)
-                .collect()
-        })
-        .collect();
-    for (row, cols) in rows.into_iter().enumerate() {
-        for (x, col) in cols.into_iter().enumerate() {
-            for k in 0..3 {
-                color[k][row * w + x] = col[k];
+    let [cr, cg, cb] = &mut color;
+    let row = w.max(1);
+    cr.par_chunks_mut(row)
+        .zip(cg.par_chunks_mut(row))
+        .zip(cb.par_chunks_mut(row))
+        .enumerate()
+        .for_each(|(y, ((r, g), b))| {
+            if cancel.is_cancelled() {
+                return;
             }
-        }
+            let v = c - ((win.y + y) as f64 + 0.5) * s;
+            for x in 0..w {
+                let col = medallion(((win.x + x) as f64 + 0.5) * s - c, v, rr).1;
+                (r[x], g[x], b[x]) = (col[0], col[1], col[2]);
+            }
+        });
+    if cancel.is_cancelled() {
+        return discarded();
     }
     RgbnImage::new(w, h, color, g.to_normals(), None).expect("sizes match by construction")
 }

@@ -5,7 +5,7 @@
 //! `filter_columns` → `curl_stats` → `to_normals` (what `ops::filter` runs for masks and
 //! compound kernels). Here:
 //!
-//! 1. **Row sweep** (bands of [`LANES`] rows), in chunks of [`GRADIENT_CHUNK`] columns that
+//! 1. **Row sweep** (bands of `LANES` rows), in chunks of `GRADIENT_CHUNK` columns that
 //!    stay in L1: each row's `(p, q)` is computed from the normals (same
 //!    [`gradient_of_normal`] and `n_z` clamp), its curl sums (averaged model) are taken with
 //!    the previous row's `p`, `q` (one extra row per band and one extra column per chunk are
@@ -13,9 +13,9 @@
 //!    row `k` of the band). `p` and `q` are filtered along x there (in L2), one after the
 //!    other (two recursions interleaved step by step measured slower: BENCHMARKS.md), then
 //!    *parked* in two planes laid out for the column sweep: each task's columns contiguous,
-//!    band after band ([`park_offset`]), written with non-temporal stores where the AVX-512
-//!    twin runs. The parked pair is kept between calls (see [`take_parked`]).
-//! 2. **Column sweep** (groups of [`LANES`] columns, [`TASK_GROUPS`] neighbouring groups a
+//!    band after band (`park_offset`), written with non-temporal stores where the AVX-512
+//!    twin runs. The parked pair is kept between calls (see `take_parked`).
+//! 2. **Column sweep** (groups of `LANES` columns, `TASK_GROUPS` neighbouring groups a
 //!    task): a task reads its columns in one sequential run per plane,
 //!    transposing each 16 × 16 block into rows; `p`, `q` are filtered along y, the curl sums
 //!    of the filtered field are taken from the lane buffers, and [`normal_of_gradient`] is
@@ -37,10 +37,11 @@ use super::gradient::{
     gradient_of_normal, normal_of_gradient, plaquette_covered, CurlSums, NZ_EPSILON,
 };
 use super::par::SharedMut;
+use super::simd::Simd;
 use crate::raster::buf;
 use crate::raster::par::OrderedReduce;
+use parking_lot::Mutex;
 use rayon::prelude::*;
-use std::sync::Mutex;
 
 /// The result of [`smooth_normals`].
 #[derive(Clone, Debug)]
@@ -94,6 +95,20 @@ pub fn smooth_normals<F: LineFilter>(
     f: &F,
     border: BorderMode,
 ) -> SmoothedNormals {
+    smooth_normals_twin(normal, mask, w, h, f, border, Simd::active())
+}
+
+/// [`smooth_normals`] running the twin of `simd` (clamped to what this CPU runs): the tests
+/// compare every twin with the portable one.
+fn smooth_normals_twin<F: LineFilter>(
+    normal: [&[f32]; 3],
+    mask: Option<&[f32]>,
+    w: usize,
+    h: usize,
+    f: &F,
+    border: BorderMode,
+    simd: Simd,
+) -> SmoothedNormals {
     let n = w * h;
     assert!(normal.iter().all(|p| p.len() == n) && mask.is_none_or(|m| m.len() == n));
     // Empty planes with room for the result: the column sweep writes every value.
@@ -117,6 +132,7 @@ pub fn smooth_normals<F: LineFilter>(
         h,
         f,
         border,
+        simd: simd.clamped(),
     };
     let mut park = [take_parked(parked_len(w, h)), take_parked(parked_len(w, h))];
     let (clamped, curl_before) = row_sweep(&sw, &mut park);
@@ -159,7 +175,7 @@ const PARKED_KEEP_BYTES: usize = 256 << 20;
 /// contents are stale; the row sweep writes every lane), else a new one. A 4K pair is 66 MB;
 /// reusing it saves the first-touch page faults of a fresh allocation on every filter.
 fn take_parked(len: usize) -> Vec<Lane> {
-    let kept = PARKED.lock().ok().and_then(|mut k| k.pop());
+    let kept = PARKED.lock().pop();
     match kept {
         Some(mut v) if v.capacity() >= len => {
             v.resize(len, lane_splat(0.0));
@@ -176,10 +192,9 @@ fn take_parked(len: usize) -> Vec<Lane> {
 /// Keeps `v` for the next [`take_parked`] (at most two, none over [`PARKED_KEEP_BYTES`]).
 fn give_parked(v: Vec<Lane>) {
     if v.capacity() * std::mem::size_of::<Lane>() <= PARKED_KEEP_BYTES {
-        if let Ok(mut k) = PARKED.lock() {
-            if k.len() < 2 {
-                k.push(v);
-            }
+        let mut k = PARKED.lock();
+        if k.len() < 2 {
+            k.push(v);
         }
     }
 }
@@ -224,6 +239,9 @@ struct Sweep<'a, F> {
     h: usize,
     f: &'a F,
     border: BorderMode,
+    /// The twin the sweeps run (one this CPU has).
+    #[cfg_attr(not(target_arch = "x86_64"), allow(dead_code))]
+    simd: Simd,
 }
 
 /// What a column group hands over for the plaquettes at its last column `x` (row by row):
@@ -254,12 +272,12 @@ impl<F: LineFilter> Sweep<'_, F> {
     ) -> (usize, CurlSums) {
         #[cfg(target_arch = "x86_64")]
         {
-            if std::arch::is_x86_feature_detected!("avx512f") {
-                // SAFETY: AVX-512F presence was just checked; the rest is the caller's contract.
+            if self.simd >= Simd::Avx512 {
+                // SAFETY: AVX-512F is present (`Sweep::simd` is clamped to the CPU); the rest is the caller's contract.
                 return unsafe { self.band_avx512(s, r0, park) };
             }
-            if std::arch::is_x86_feature_detected!("avx2") {
-                // SAFETY: AVX2 presence was just checked; the rest is the caller's contract.
+            if self.simd >= Simd::Avx2 {
+                // SAFETY: AVX2 is present (`Sweep::simd` is clamped to the CPU); the rest is the caller's contract.
                 return unsafe { self.band_avx2(s, r0, park) };
             }
         }
@@ -416,12 +434,12 @@ impl<F: LineFilter> Sweep<'_, F> {
     ) -> Vec<(CurlSums, Vec<Seam>)> {
         #[cfg(target_arch = "x86_64")]
         {
-            if std::arch::is_x86_feature_detected!("avx512f") {
-                // SAFETY: AVX-512F presence was just checked; the rest is the caller's contract.
+            if self.simd >= Simd::Avx512 {
+                // SAFETY: AVX-512F is present (`Sweep::simd` is clamped to the CPU); the rest is the caller's contract.
                 return unsafe { self.task_avx512(s, t, park, out) };
             }
-            if std::arch::is_x86_feature_detected!("avx2") {
-                // SAFETY: AVX2 presence was just checked; the rest is the caller's contract.
+            if self.simd >= Simd::Avx2 {
+                // SAFETY: AVX2 is present (`Sweep::simd` is clamped to the CPU); the rest is the caller's contract.
                 return unsafe { self.task_avx2(s, t, park, out) };
             }
         }
@@ -776,15 +794,20 @@ mod tests {
     fn check<F: LineFilter>(img: &RgbnImage, f: &F, border: BorderMode) {
         let (w, h) = (img.width(), img.height());
         let [nx, ny, nz] = img.normal();
-        let got = smooth_normals([nx, ny, nz], img.mask(), w, h, f, border);
         let (want, clamped, before, after) = reference(img, f, border);
-        // Same filter, same arithmetic: bit-identical normals.
-        for (k, (g, wa)) in got.normal.iter().zip(&want).enumerate() {
-            assert!(
-                g.iter().zip(wa).all(|(a, b)| a.to_bits() == b.to_bits()),
-                "{w}×{h} {border:?}: plane {k} differs"
-            );
+        // Every twin this CPU runs (the portable one included): the same arithmetic without
+        // fused multiply-adds, so bit-identical normals (and the same statistics).
+        for simd in Simd::supported_levels() {
+            let got = smooth_normals_twin([nx, ny, nz], img.mask(), w, h, f, border, simd);
+            for (k, (g, wa)) in got.normal.iter().zip(&want).enumerate() {
+                assert!(
+                    g.iter().zip(wa).all(|(a, b)| a.to_bits() == b.to_bits()),
+                    "{w}×{h} {border:?}, {simd} twin: plane {k} differs"
+                );
+            }
+            assert_eq!(got.clamped, clamped, "{simd} twin");
         }
+        let got = smooth_normals([nx, ny, nz], img.mask(), w, h, f, border);
         assert_eq!(got.clamped, clamped);
         // Statistics: the same terms summed in another order; stated tolerance 1e-5 relative
         // on the RMS values, the maximum exactly.

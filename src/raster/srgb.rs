@@ -40,7 +40,7 @@ pub fn linear_to_srgb(v: f32) -> f32 {
 /// Entries of the linear → sRGB 8-bit table.
 pub const SRGB8_LUT_SIZE: usize = 16384;
 
-/// The linear [0,1] → sRGB 8-bit table; index with [`srgb8_index`].
+/// The linear \[0,1\] → sRGB 8-bit table; index with [`srgb8_index`].
 #[must_use]
 pub fn srgb8_lut_encode() -> &'static [u8] {
     static LUT: std::sync::OnceLock<Vec<u8>> = std::sync::OnceLock::new();
@@ -58,7 +58,7 @@ pub fn srgb8_index(v: f32) -> usize {
     ((v.clamp(0.0, 1.0) * (SRGB8_LUT_SIZE - 1) as f32 + 0.5) as usize).min(SRGB8_LUT_SIZE - 1)
 }
 
-/// Linear [0,1] → sRGB 8-bit via a 16384-entry table (within 1 level of the formula).
+/// Linear \[0,1\] → sRGB 8-bit via a 16384-entry table (within 1 level of the formula).
 #[inline]
 #[must_use]
 pub fn linear_to_srgb8(v: f32) -> u8 {

@@ -1,4 +1,4 @@
-//! Strip streaming: an image whose files are read row by row ([`io::stream`]) is processed in
+//! Strip streaming: an image whose files are read row by row ([`io::stream`](crate::raster::io::stream)) is processed in
 //! horizontal strips, each with `halo` rows of context above and below, and the strips' results
 //! are written row by row. Peak memory is a window of `strip + 2·halo` rows, whatever the
 //! image's height (issue 12, item 5; libvips' "sequential" access).
@@ -85,7 +85,22 @@ impl StreamInput {
             Ok(Rows::open(p)?.map_err(|why| format!("the {what} is {why}")))
         };
         let (mut exr_color, mut exr_mask) = (None, None);
-        let normal = if Format::of(normal_path)? == Format::Exr {
+        let normal = if Format::of(normal_path)? == Format::Zarr {
+            if spec.color.is_some() || spec.mask.is_some() {
+                return Ok(Opened::Whole(
+                    "a colour or mask file is named beside the store (read whole)".into(),
+                ));
+            }
+            let z = std::sync::Arc::new(super::io::zarr::ZarrImage::open(normal_path)?);
+            if !matches!(z.content(), super::io::zarr::Content::Rgbn { .. }) {
+                // Read whole: the loader says what the store holds.
+                return Ok(Opened::Whole("the store holds no RGBN image".into()));
+            }
+            let (n, c, m) = z.rows();
+            exr_color = c.map(|r| Rows::Zarr(Box::new(r)));
+            exr_mask = m.map(|r| Rows::Zarr(Box::new(r)));
+            Rows::Zarr(Box::new(n))
+        } else if Format::of(normal_path)? == Format::Exr {
             let p = normal_path.as_path();
             let names = if opts.exr_rgb_is_normal {
                 ["R", "G", "B"]
@@ -174,6 +189,20 @@ impl StreamInput {
         self.normal.size()
     }
 
+    /// Reads only `window` of the image from now on, before the first strip (only OME-Zarr
+    /// stores: [`Rows::set_window`]); the strips are then the window's, whose edges the
+    /// operators take for the image's (a caller keeps only what lies a halo inside them).
+    pub fn set_window(&mut self, window: crate::raster::window::Rect) -> Result<(), String> {
+        self.normal.set_window(window)?;
+        if let Some(c) = &mut self.color {
+            c.set_window(window)?;
+        }
+        if let Some(m) = &mut self.mask {
+            m.set_window(window)?;
+        }
+        Ok(())
+    }
+
     /// Whether a colour image is read (else the colour is [`DEFAULT_ALBEDO`]).
     #[must_use]
     pub fn has_color(&self) -> bool {
@@ -260,7 +289,7 @@ impl Window<'_> {
 /// `(0, 0, 1)`) and counts what needed it. The loop is branch-free (selects and mask counts),
 /// so it vectorises; a pixel at a time through three zipped parallel iterators was a tenth of
 /// a streamed 4K graph's CPU time.
-fn repair_normals([nx, ny, nz]: [&mut [f32]; 3]) -> Validation {
+pub(crate) fn repair_normals([nx, ny, nz]: [&mut [f32]; 3]) -> Validation {
     let (mut zero, mut non_unit, mut back) = (0usize, 0usize, 0usize);
     for ((x, y), z) in nx.iter_mut().zip(ny.iter_mut()).zip(nz.iter_mut()) {
         let len = (*x * *x + *y * *y + *z * *z).sqrt();
@@ -683,7 +712,7 @@ fn decode_on_pool<E: From<RgbnError>>(
         &mut dyn FnMut(Option<Band>) -> Result<Band, RgbnError>,
     ) -> Result<Validation, E>,
 ) -> Result<Validation, E> {
-    use std::sync::{Condvar, Mutex};
+    use parking_lot::{Condvar, Mutex};
     let state = Mutex::new(Decoded {
         ready: std::collections::VecDeque::new(),
         spare: Vec::new(),
@@ -693,20 +722,13 @@ fn decode_on_pool<E: From<RgbnError>>(
     });
     let cv = Condvar::new();
     let reader = Mutex::new((input, bands));
-    let lock = || {
-        state
-            .lock()
-            .unwrap_or_else(std::sync::PoisonError::into_inner)
-    };
+    let lock = || state.lock();
     // Marks the task ended however it ends (a panic included: the consumer then sees the
     // bands end, and the scope re-raises the panic).
     struct Ended<'a>(&'a Mutex<Decoded>, &'a Condvar);
     impl Drop for Ended<'_> {
         fn drop(&mut self) {
-            let mut q = self
-                .0
-                .lock()
-                .unwrap_or_else(std::sync::PoisonError::into_inner);
+            let mut q = self.0.lock();
             q.running = false;
             // A panic while reading: no more bands (the consumer stops waiting for them).
             q.finished |= std::thread::panicking();
@@ -715,9 +737,7 @@ fn decode_on_pool<E: From<RgbnError>>(
     }
     let task = || {
         let _ended = Ended(&state, &cv);
-        let mut r = reader
-            .lock()
-            .unwrap_or_else(std::sync::PoisonError::into_inner);
+        let mut r = reader.lock();
         loop {
             let spare = {
                 let mut q = lock();
@@ -766,9 +786,7 @@ fn decode_on_pool<E: From<RgbnError>>(
                         path: path.to_path_buf(),
                     });
                 }
-                q = cv
-                    .wait(q)
-                    .unwrap_or_else(std::sync::PoisonError::into_inner);
+                cv.wait(&mut q);
             }
         });
         lock().stop = true;

@@ -25,6 +25,7 @@ fn graph(op: &str, params: &str, out: &str) -> LoadedGraph {
     LoadedGraph::from_text(&text, "cancel.ron", root().join("graphs")).unwrap()
 }
 
+#[allow(clippy::result_large_err)] // the library's own error type, as its API returns it
 fn eval(ev: &Evaluator, lg: &LoadedGraph, cancel: Cancel) -> Result<EvalResult, GraphError> {
     let plan = Plan::new(lg, &BTreeMap::new(), Path::new(".")).unwrap();
     ev.eval(
@@ -157,4 +158,41 @@ fn a_cancelled_conjugate_gradient_stops_at_its_next_iteration() {
     // Outside any token, the same call is unaffected.
     let (_, again) = integrate_normals(&img, &p).unwrap();
     assert_eq!(again.iterations, full.iterations);
+}
+
+/// The checks made evaluating one source node (`demo` or `surface`) of `rows` rows.
+fn source_checks(source: &str, rows: usize) -> u64 {
+    let params = if source == "demo" {
+        format!(r#""size": Int({rows})"#)
+    } else {
+        format!(
+            r#""shape": Choice("sphere"), "width": Int(64), "height": Int({rows}), "radius_px": Float(20.0)"#
+        )
+    };
+    let text = format!(
+        r#"(
+    version: 2,
+    next_id: 2,
+    outputs: {{ "out": (node: 1, port: "image") }},
+    nodes: [ (id: 1, op: "{source}", params: {{ {params} }}) ],
+)"#
+    );
+    let lg = LoadedGraph::from_text(&text, "source.ron", root().join("graphs")).unwrap();
+    let t = Cancel::after_checks(u64::MAX);
+    eval(&Evaluator::default(), &lg, t.clone()).unwrap();
+    t.checks()
+}
+
+#[test]
+fn the_procedural_sources_check_the_token_on_every_row() {
+    // A 4K demo takes seconds to compute: Ctrl-C while it runs must stop it, not wait for it.
+    // Every row of each pass checks, so 300 more rows make at least 300 more checks (the
+    // evaluator's own checks are the same for both sizes).
+    for source in ["demo", "surface"] {
+        let (small, large) = (source_checks(source, 64), source_checks(source, 364));
+        assert!(
+            large >= small + 300,
+            "{source}: {small} checks for 64 rows, {large} for 364"
+        );
+    }
 }

@@ -4,7 +4,9 @@
 
 use rgbn::eval::{EvalOptions, EvalResult, Evaluator, Plan};
 use rgbn::graph::LoadedGraph;
+use rgbn::nodes::Value;
 use std::collections::BTreeMap;
+use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
@@ -141,4 +143,72 @@ pub fn bilateral_split_example() -> (
         },
     )
     .unwrap()
+}
+
+/// One line per channel: name, mean, std, min, max, then 16 samples on a 4×4 grid.
+pub fn channel(out: &mut String, label: &str, w: usize, h: usize, at: impl Fn(usize) -> f64) {
+    let n = (w * h) as f64;
+    let (mut s, mut s2, mut lo, mut hi) = (0.0, 0.0, f64::INFINITY, f64::NEG_INFINITY);
+    for i in 0..w * h {
+        let v = at(i);
+        assert!(v.is_finite(), "{label}: non-finite value");
+        s += v;
+        s2 += v * v;
+        lo = lo.min(v);
+        hi = hi.max(v);
+    }
+    let mean = s / n;
+    let std = (s2 / n - mean * mean).max(0.0).sqrt();
+    let _ = write!(out, "{label} {mean:.6e} {std:.6e} {lo:.6e} {hi:.6e}");
+    for gy in 0..4 {
+        for gx in 0..4 {
+            let (x, y) = ((2 * gx + 1) * w / 8, (2 * gy + 1) * h / 8);
+            let _ = write!(out, " {:.6e}", at(y * w + x));
+        }
+    }
+    out.push('\n');
+}
+
+/// Every channel of `v` as [`channel`] lines labelled `name.CHANNEL`.
+pub fn summarise(name: &str, v: &Value) -> String {
+    let mut s = String::new();
+    match v {
+        Value::Rgbn(img) => {
+            let (w, h) = (img.width(), img.height());
+            let planes = img.color().iter().chain(img.normal().iter());
+            for (c, p) in ["R", "G", "B", "N.X", "N.Y", "N.Z"].iter().zip(planes) {
+                channel(&mut s, &format!("{name}.{c}"), w, h, |i| f64::from(p[i]));
+            }
+            if let Some(m) = img.mask() {
+                channel(&mut s, &format!("{name}.A"), w, h, |i| f64::from(m[i]));
+            }
+        }
+        Value::Mask(p) | Value::Scalar(p) => {
+            let d = p.data();
+            channel(&mut s, name, p.width(), p.height(), |i| f64::from(d[i]));
+        }
+        Value::Picture(p) => {
+            for (k, c) in ["r", "g", "b", "a"].iter().enumerate() {
+                channel(&mut s, &format!("{name}.{c}"), p.width, p.height, |i| {
+                    f64::from(p.rgba[4 * i + k])
+                });
+            }
+        }
+        Value::Number(x) => {
+            let _ = writeln!(s, "{name} {x:.6e}");
+        }
+    }
+    s
+}
+
+/// How far a [`channel`] statistic may move and still be the same result: ½ level for 8-bit
+/// picture channels (labels ending `.r`, `.g`, `.b`, `.a`); 1e-5 absolute + 1e-4 relative for
+/// floats (SIMD twins and thread counts change last bits, never this much).
+pub fn tolerance(label: &str, golden: f64) -> f64 {
+    let picture = [".r", ".g", ".b", ".a"].iter().any(|s| label.ends_with(s));
+    if picture {
+        0.5
+    } else {
+        1e-5 + 1e-4 * golden.abs()
+    }
 }

@@ -290,11 +290,13 @@ fn a_wire_dropped_in_empty_space_offers_what_takes_it_and_connects_the_new_node(
             port: "image".into()
         })
     );
-    // Only operators with an RGBN input are offered: no sources, no mask loaders.
+    // Only operators with an RGBN input are offered: no sources, no mask loaders; and a
+    // reroute, which takes any wire.
     let listed = menu.listed();
     assert!(listed.contains(&"normalize") && listed.contains(&"relight"));
     assert!(!listed.contains(&"demo") && !listed.contains(&"load_mask"));
-    for id in &listed {
+    assert!(listed.contains(&rgbn::nodes::REROUTE_OP));
+    for id in listed.iter().filter(|id| **id != rgbn::nodes::REROUTE_OP) {
         let op = rgbn::nodes::find(id).unwrap();
         assert!(
             op.spec().inputs.iter().any(|p| p.ty == PortType::Rgbn),

@@ -12,7 +12,6 @@ use rgbn::nodes::{registry, Value};
 use rgbn::ops::filter::{filter_normals, FilterOptions, Kernel};
 use rgbn::raster::sample::Surface;
 use std::collections::BTreeSet;
-use std::fmt::Write as _;
 
 fn update() -> bool {
     std::env::var_os("UPDATE_GOLDEN").is_some_and(|v| v == "1")
@@ -44,61 +43,6 @@ fn every_graph_loads_saves_and_reloads_identically() {
     }
 }
 
-/// One line per channel: name, mean, std, min, max, then 16 samples on a 4×4 grid.
-fn channel(out: &mut String, label: &str, w: usize, h: usize, at: impl Fn(usize) -> f64) {
-    let n = (w * h) as f64;
-    let (mut s, mut s2, mut lo, mut hi) = (0.0, 0.0, f64::INFINITY, f64::NEG_INFINITY);
-    for i in 0..w * h {
-        let v = at(i);
-        assert!(v.is_finite(), "{label}: non-finite value");
-        s += v;
-        s2 += v * v;
-        lo = lo.min(v);
-        hi = hi.max(v);
-    }
-    let mean = s / n;
-    let std = (s2 / n - mean * mean).max(0.0).sqrt();
-    let _ = write!(out, "{label} {mean:.6e} {std:.6e} {lo:.6e} {hi:.6e}");
-    for gy in 0..4 {
-        for gx in 0..4 {
-            let (x, y) = ((2 * gx + 1) * w / 8, (2 * gy + 1) * h / 8);
-            let _ = write!(out, " {:.6e}", at(y * w + x));
-        }
-    }
-    out.push('\n');
-}
-
-fn summarise(name: &str, v: &Value) -> String {
-    let mut s = String::new();
-    match v {
-        Value::Rgbn(img) => {
-            let (w, h) = (img.width(), img.height());
-            let planes = img.color().iter().chain(img.normal().iter());
-            for (c, p) in ["R", "G", "B", "N.X", "N.Y", "N.Z"].iter().zip(planes) {
-                channel(&mut s, &format!("{name}.{c}"), w, h, |i| f64::from(p[i]));
-            }
-            if let Some(m) = img.mask() {
-                channel(&mut s, &format!("{name}.A"), w, h, |i| f64::from(m[i]));
-            }
-        }
-        Value::Mask(p) | Value::Scalar(p) => {
-            let d = p.data();
-            channel(&mut s, name, p.width(), p.height(), |i| f64::from(d[i]));
-        }
-        Value::Picture(p) => {
-            for (k, c) in ["r", "g", "b", "a"].iter().enumerate() {
-                channel(&mut s, &format!("{name}.{c}"), p.width, p.height, |i| {
-                    f64::from(p.rgba[4 * i + k])
-                });
-            }
-        }
-        Value::Number(x) => {
-            let _ = writeln!(s, "{name} {x:.6e}");
-        }
-    }
-    s
-}
-
 fn compare(golden: &str, got: &str, file: &str) {
     let g: Vec<&str> = golden.lines().collect();
     let o: Vec<&str> = got.lines().collect();
@@ -108,14 +52,9 @@ fn compare(golden: &str, got: &str, file: &str) {
         let ow: Vec<&str> = ol.split_whitespace().collect();
         assert_eq!(gw[0], ow[0], "{file}: channel differs");
         assert_eq!(gw.len(), ow.len(), "{file}: {}", gw[0]);
-        // 8-bit pictures: ½ level; floats: 1e-5 absolute + 1e-4 relative.
-        let picture = gw[0].ends_with(".r")
-            || gw[0].ends_with(".g")
-            || gw[0].ends_with(".b")
-            || gw[0].ends_with(".a");
         for (a, b) in gw[1..].iter().zip(&ow[1..]) {
             let (a, b): (f64, f64) = (a.parse().unwrap(), b.parse().unwrap());
-            let tol = if picture { 0.5 } else { 1e-5 + 1e-4 * a.abs() };
+            let tol = tolerance(gw[0], a);
             assert!(
                 (a - b).abs() <= tol,
                 "{file}: {} golden {a} got {b} (tolerance {tol})",

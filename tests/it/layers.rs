@@ -134,3 +134,74 @@ fn the_checker_sees_an_upward_path() {
         vec![("raster/bad.rs".into(), 2, "raster".into(), "eval".into())]
     );
 }
+
+/// Files that hold only tests: a module's sibling `*_tests.rs` or a `tests.rs`.
+fn is_test_file(p: &Path) -> bool {
+    let name = p
+        .file_name()
+        .map(|n| n.to_string_lossy())
+        .unwrap_or_default();
+    name == "tests.rs" || name.ends_with("_tests.rs")
+}
+
+#[test]
+fn no_source_file_is_over_1000_lines() {
+    // docs/ARCHITECTURE.md promises it; this keeps the promise checked.
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let mut files = Vec::new();
+    rust_files(&root.join("src"), &mut files);
+    files.sort();
+    let long: Vec<String> = files
+        .iter()
+        .filter(|f| !is_test_file(f))
+        .filter_map(|f| {
+            let n = std::fs::read_to_string(f)
+                .expect("readable")
+                .lines()
+                .count();
+            (n > 1000).then(|| format!("{}: {n} lines", f.display()))
+        })
+        .collect();
+    assert!(
+        long.is_empty(),
+        "over 1000 lines (split the module, tests into a sibling *_tests.rs):\n{}",
+        long.join("\n")
+    );
+}
+
+#[test]
+fn the_architecture_doc_lists_the_layers_of_lib_rs() {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let order = layers(root);
+    let doc = std::fs::read_to_string(root.join("docs/ARCHITECTURE.md")).expect("docs");
+    let line = doc
+        .lines()
+        .find_map(|l| l.trim().strip_prefix("layers:"))
+        .expect("docs/ARCHITECTURE.md writes the `layers:` line");
+    let in_doc: Vec<String> = line.split_whitespace().map(str::to_string).collect();
+    assert_eq!(
+        in_doc, order,
+        "docs/ARCHITECTURE.md's layers: line differs from src/lib.rs's"
+    );
+    // Every layer has a row in the module map.
+    let missing: Vec<&String> = order
+        .iter()
+        .filter(|m| !doc.contains(&format!("\n| `{m}` |")))
+        .collect();
+    assert!(
+        missing.is_empty(),
+        "no module-map row for {missing:?} in docs/ARCHITECTURE.md"
+    );
+    // Every top-level module in src/ is a layer.
+    for e in std::fs::read_dir(root.join("src")).expect("src") {
+        let p = e.expect("entry").path();
+        let stem = p.file_stem().expect("name").to_string_lossy().to_string();
+        if matches!(stem.as_str(), "lib" | "main") || (p.is_file() && is_test_file(&p)) {
+            continue;
+        }
+        assert!(
+            order.contains(&stem),
+            "src/{stem} is not on the layers: line"
+        );
+    }
+}

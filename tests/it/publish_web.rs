@@ -373,22 +373,11 @@ drawer: "canvas", visibilityRatio: 1, minZoomImageRatio: 0.1}});</script></body>
     )
     .unwrap();
     let server = Server::start(&folder);
-    let shot = shoot(
-        &browser,
-        &format!("{}osd.html", server.url),
-        (w as usize + 40, h as usize + 40),
-        false,
-    );
     let want = reference(
         &["render", &n, "--color", &c],
         "albedo",
         LIGHTS[0],
         dir.path(),
-    );
-    let fetched = server.tiles_requested();
-    assert!(
-        fetched.iter().any(|l| l.contains("albedo_files/10/")),
-        "OpenSeadragon fetched no full-resolution tile: {fetched:?}"
     );
     let f = Fitted {
         zoom: 1.0,
@@ -397,11 +386,46 @@ drawer: "canvas", visibilityRatio: 1, minZoomImageRatio: 0.1}});</script></body>
         s: 1,
         covering: 2,
     };
-    let crop = image::imageops::crop_imm(&shot, 0, 0, w, h).to_image();
-    let share = share_within(&crop, &want, &f, 3);
-    eprintln!(
-        "publish: OpenSeadragon on albedo.dzi vs rgbn render --view albedo: {:.2} % of pixels within 3 levels",
-        share * 100.0
+    // Headless Chromium takes its screenshot when the virtual-time budget runs out; on a loaded
+    // machine OpenSeadragon may not have drawn its tiles by then (CI once saw a black page). The
+    // comparison is the same every time; only the screenshot is taken again, at most three times.
+    let mut share = 0.0;
+    for attempt in 1..=3 {
+        let shot = shoot(
+            &browser,
+            &format!("{}osd.html", server.url),
+            (w as usize + 40, h as usize + 40),
+            false,
+        );
+        let crop = image::imageops::crop_imm(&shot, 0, 0, w, h).to_image();
+        share = share_within(&crop, &want, &f, 3);
+        eprintln!(
+            "publish: OpenSeadragon on albedo.dzi vs rgbn render --view albedo (shot {attempt}): {:.2} % of pixels within 3 levels",
+            share * 100.0
+        );
+        if share >= 0.95 {
+            break;
+        }
+        let mean = |img: &image::RgbaImage| {
+            let n = (img.width() * img.height()).max(1) as f64;
+            let mut m = [0.0f64; 3];
+            for p in img.pixels() {
+                for (k, mk) in m.iter_mut().enumerate() {
+                    *mk += f64::from(p.0[k]) / n;
+                }
+            }
+            m.map(|v| v.round())
+        };
+        eprintln!(
+            "publish: mean RGB of the shot {:?}, of rgbn's render {:?}",
+            mean(&crop),
+            mean(&want)
+        );
+    }
+    let fetched = server.tiles_requested();
+    assert!(
+        fetched.iter().any(|l| l.contains("albedo_files/10/")),
+        "OpenSeadragon fetched no full-resolution tile: {fetched:?}"
     );
     assert!(share >= 0.95, "only {:.2} % within 3 levels", share * 100.0);
 }

@@ -321,3 +321,44 @@ proptest! {
         prop_assert!(d <= tol, "{node}.{port} tile {tile} rect {rect} on {w}×{h}: {d} > {tol}");
     }
 }
+
+#[test]
+fn a_tapered_stroke_across_tile_edges_evaluates_by_tiles_as_whole() {
+    // A long taper (beyond the stroke's half width) on a path that crosses many 16-pixel tile
+    // edges, in every mode: the tiled evaluation equals the whole one, so the halo the node
+    // declares (`reach_px`, one definition) covers everything the stroke changes.
+    for mode in ["integrable", "analytic", "distance_transform"] {
+        for port in ["image", "height"] {
+            let text = format!(
+                r#"(
+    version: 2,
+    next_id: 3,
+    outputs: {{ "out": (node: 2, port: "{port}") }},
+    nodes: [
+        (id: 1, op: "surface", params: {{ "shape": Choice("sphere"), "width": Int(96), "height": Int(80), "radius_px": Float(30.0) }}),
+        (id: 2, op: "pen", params: {{ "paths": Paths([(points: [(5.0, 7.0), (40.0, 33.0), (61.0, 18.0), (90.0, 70.0)])]), "width_px": Float(7.0), "taper_px": Float(40.0), "mode": Choice("{mode}") }}, inputs: {{ "image": Node(1, "image") }}),
+    ],
+)"#
+            );
+            let lg = LoadedGraph::from_text(&text, "taper.ron", std::env::temp_dir())
+                .unwrap_or_else(|e| panic!("{e}"));
+            let plan = Plan::new(&lg, &BTreeMap::new(), Path::new(".")).unwrap();
+            let whole = Evaluator::default()
+                .eval(&plan, &["out"], &EvalOptions::default())
+                .unwrap();
+            let rect = Rect::full((96, 80));
+            let r = Evaluator::default()
+                .eval_region(
+                    &plan,
+                    "out",
+                    rect,
+                    &RegionOptions::tiles(16),
+                    &EvalOptions::default(),
+                )
+                .unwrap();
+            assert!(r.tiles.len() > 1, "{mode}: not tiled");
+            let d = super::region::max_diff(&whole.outputs["out"], &r.value);
+            assert!(d <= 2e-6, "{mode} {port}: tiles differ from whole by {d}");
+        }
+    }
+}

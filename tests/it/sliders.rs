@@ -22,7 +22,8 @@ enum Usable {
 fn verdict(meta: &rgbn::params::Meta, default: f64, integer: bool) -> Result<Usable, String> {
     let (hard_lo, hard_hi) = meta.range.ok_or("no range: an unbounded drag value")?;
     let s = meta.slider().ok_or("no slider")?;
-    if !(s.lo < s.hi) {
+    // NaN bounds count as empty too.
+    if s.lo.partial_cmp(&s.hi) != Some(std::cmp::Ordering::Less) {
         return Err(format!("empty slider [{}, {}]", s.lo, s.hi));
     }
     if s.lo < hard_lo || s.hi > hard_hi {

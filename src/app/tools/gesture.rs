@@ -50,7 +50,7 @@ pub enum GestureKind {
 pub struct Press {
     /// Image position.
     pub at: [f64; 2],
-    /// Pick tolerance in image pixels ([`PICK_RADIUS_PT`] at the current zoom).
+    /// Pick tolerance in image pixels ([`PICK_RADIUS_PT`](super::PICK_RADIUS_PT) at the current zoom).
     pub tol_px: f64,
     /// Rotate handle gap in image pixels.
     pub gap_px: f64,

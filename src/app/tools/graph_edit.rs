@@ -22,7 +22,7 @@ pub fn points_param(op: &str) -> Option<&'static str> {
 }
 
 /// Fewest points a node's list must keep (a pen path needs two; a closed one three: see
-/// [`min_path_points`]).
+/// `min_path_points`).
 #[must_use]
 pub fn min_points(op: &str) -> usize {
     if op == "pen" {

@@ -52,7 +52,7 @@ pub(super) fn footprint(plan: &Plan, lp: &LevelParams, i: usize, k: usize) -> Fo
 }
 
 /// The largest halo of an instance's local inputs, `None` when it has no connected local
-/// input and is not [regional](crate::nodes::Operator::regional), or has no form at the level
+/// input and is not regional (`Entry::regional` in `crate::nodes`), or has no form at the level
 /// (then it is evaluated whole).
 pub(super) fn local_halo(plan: &Plan, lp: &LevelParams, i: usize) -> Option<usize> {
     let inst = &plan.instances[i];

@@ -18,7 +18,7 @@
 //!    the image, so a crop edge is either a real image edge, where the border mode applies as
 //!    on the whole image, or at least a halo away), global inputs are passed whole, and the
 //!    operator runs on the crop with its positional parameters shifted
-//!    ([`crate::nodes::Operator::shifted`]); the tile is cut out of the result. Tiles of one
+//!    ([`crate::params::shifted`]); the tile is cut out of the result. Tiles of one
 //!    instance run in parallel.
 //! 4. **Caching.** Tiles live in the evaluator's byte-budgeted memory cache under
 //!    (content key, level, tile size, tile position); an edit changes the content key of what
@@ -361,7 +361,7 @@ impl Evaluator {
         // pixels.
         let mut trails: Vec<Trail> = vec![Vec::new(); n];
         {
-            let mut hist = super::lock(&self.seen);
+            let mut hist = self.seen.lock();
             for i in 0..=root {
                 if mode[i] != Mode::Tiled {
                     continue;
@@ -442,7 +442,7 @@ impl Evaluator {
             root_inst.at.file.clone(),
             root_inst.at.node,
         );
-        let last = super::lock(&self.seen).last.take().and_then(|l| {
+        let last = self.seen.lock().last.take().and_then(|l| {
             let same = (&l.ident, l.port, l.rect, l.tile, l.level)
                 == (&ident, root_port, rect, tile, level);
             let damage = if l.key == keys[&root] {
@@ -695,7 +695,7 @@ impl Evaluator {
             None => assemble(&have[root], root_port, tile, out_size, rect),
         };
         if mode[root] == Mode::Tiled {
-            super::lock(&self.seen).last = Some(LastResult {
+            self.seen.lock().last = Some(LastResult {
                 ident,
                 port: root_port,
                 rect,
@@ -762,10 +762,10 @@ impl Evaluator {
     }
 
     fn mem_get(&self, key: CacheKey) -> Option<Arc<CacheEntry>> {
-        super::lock(&self.mem).get(key)
+        self.mem.lock().get(key)
     }
 
     fn mem_insert(&self, key: CacheKey, e: Arc<CacheEntry>) {
-        super::lock(&self.mem).insert(key, e);
+        self.mem.lock().insert(key, e);
     }
 }

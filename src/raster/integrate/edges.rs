@@ -26,7 +26,7 @@
 //! The V-cycle: one red-black Gauss–Seidel sweep (red, then black), residual restricted by
 //! summing the four children (`Pᵀ`), the coarse correction from the next level, added back to
 //! the four children (`P`), one sweep in the reverse order (black, then red), so the cycle is a
-//! symmetric linear operator. The **coarsest level (≤ [`COARSEST_NODES`] nodes) is solved
+//! symmetric linear operator. The **coarsest level (≤ `COARSEST_NODES` nodes) is solved
 //! exactly**: per connected component the right-hand side's mean is projected out (a pure
 //! Neumann component is singular and only consistent right-hand sides have a solution), one
 //! node per component is pinned, the rest solved by a dense Cholesky factorisation (`f64`),
@@ -93,9 +93,8 @@ pub(crate) struct EdgeSolve {
 /// # Errors
 /// Slices whose lengths are not `w·h`, negative or non-finite weights, non-finite targets on
 /// an edge of positive weight, a non-finite `z0`, or a tolerance outside (0, 1).
-// The entry point for bilateral normal integration (branch `bini`); masked Poisson calls
+// The entry point of bilateral normal integration (`bini.rs`); masked Poisson calls
 // [`solve_edges_owned`].
-#[cfg_attr(not(test), allow(dead_code))]
 pub(crate) fn solve_edges(
     sys: &EdgeSystem,
     z0: Option<&[f32]>,
@@ -106,7 +105,6 @@ pub(crate) fn solve_edges(
 }
 
 /// [`solve_edges`], and whether the CG guard fired (the Jacobi restart of [`pcg`]).
-#[cfg_attr(not(test), allow(dead_code))]
 fn solve_edges_guarded(
     sys: &EdgeSystem,
     z0: Option<&[f32]>,
@@ -139,13 +137,31 @@ fn solve_edges_guarded(
 pub(super) fn solve_edges_owned(
     w: usize,
     h: usize,
+    wx: Vec<f32>,
+    ex: &[f32],
+    wy: Vec<f32>,
+    ey: &[f32],
+    z0: Option<&[f32]>,
+    tolerance: f64,
+    max_iterations: u32,
+) -> Result<(EdgeSolve, bool), RgbnError> {
+    let start = Preconditioner::Multigrid;
+    solve_edges_from(w, h, wx, ex, wy, ey, z0, (tolerance, max_iterations), start)
+}
+
+/// [`solve_edges_owned`] with CG started on the preconditioner `start` (the tests start one
+/// that makes CG diverge, to see the guard recover).
+#[allow(clippy::too_many_arguments)]
+fn solve_edges_from(
+    w: usize,
+    h: usize,
     mut wx: Vec<f32>,
     ex: &[f32],
     mut wy: Vec<f32>,
     ey: &[f32],
     z0: Option<&[f32]>,
-    tolerance: f64,
-    max_iterations: u32,
+    (tolerance, max_iterations): (f64, u32),
+    start: Preconditioner,
 ) -> Result<(EdgeSolve, bool), RgbnError> {
     let sys = EdgeSystem {
         w,
@@ -171,9 +187,34 @@ pub(super) fn solve_edges_owned(
     wx.par_chunks_mut(w).for_each(|row| row[w - 1] = 0.0);
     wy[n - w..].fill(0.0);
     let mut b = rhs(w, ex, ey, &wx, &wy);
+    // Cancelled while the system is set up: the caller discards the zeros (crate::cancel).
+    let cancel = crate::cancel::Cancel::current();
+    let cancelled = || {
+        cancel.is_cancelled().then(|| {
+            let z = vec![0.0; n];
+            let (iterations, relative_residual) = (0, f64::NAN);
+            (
+                EdgeSolve {
+                    z,
+                    iterations,
+                    relative_residual,
+                },
+                false,
+            )
+        })
+    };
+    if let Some(r) = cancelled() {
+        return Ok(r);
+    }
     let mut mg = Multigrid::new(w, h, wx, wy);
+    if let Some(r) = cancelled() {
+        return Ok(r);
+    }
     let l0 = &mg.levels[0];
     let (label, count) = components(w, h, &l0.wx, &l0.wy, &l0.inv_diag, &l0.spans);
+    if let Some(r) = cancelled() {
+        return Ok(r);
+    }
     // b is consistent (zero sum per component) up to rounding; the rounding part is projected
     // out: CG cannot reduce it, and the V-cycle amplifies constants (module docs).
     let means = component_means(&b, &label, count);
@@ -195,11 +236,14 @@ pub(super) fn solve_edges_owned(
             &mut x,
             tolerance,
             max_iterations,
-            Preconditioner::Multigrid,
+            start,
         )
     } else {
         (0, 0.0, false)
     };
+    if let Some(r) = cancelled() {
+        return Ok(r);
+    }
     let z = fix_constants(&x, z0, &label, count);
     Ok((
         EdgeSolve {
@@ -406,14 +450,20 @@ pub(super) enum Preconditioner {
     Multigrid,
     /// `1 / degree` (the safeguard's fallback; also a test oracle).
     Jacobi,
+    /// Jacobi with signs alternating in a checkerboard: symmetric but indefinite, under which
+    /// CG is not bound to converge (the guard's test).
+    #[cfg(test)]
+    Indefinite,
 }
 
 /// Preconditioned CG on `A x = b` from `x`; returns (iterations, relative residual, whether
 /// the guard restarted with Jacobi).
 ///
 /// Guard: with a fixed symmetric positive semi-definite preconditioner CG's residual cannot
-/// run away, but should rounding ever make it grow past 10× the best seen, CG restarts from
-/// the current iterate with the Jacobi preconditioner (which always converges).
+/// run away, but should rounding ever make it grow past 10× the best seen, or CG break down
+/// (`r·z ≤ 0` or `d·A d ≤ 0`), CG restarts from the current iterate with the Jacobi
+/// preconditioner (which always converges). The tests make it fire with an indefinite
+/// preconditioner (`edges_tests.rs`).
 ///
 /// Every vector operation runs over level 0's [spans](Level::spans) only: outside them `b`,
 /// the residual, the direction and `A·dir` are 0, and `x` is not read.
@@ -449,17 +499,22 @@ fn pcg(
     let mut dir = zeros::<f64>(n);
     let mut rz = 0.0;
     let mut iterations = 0u32;
-    let mut best = (pre == Preconditioner::Multigrid).then_some(rel);
+    // The guard watches every preconditioner but its own fallback.
+    let mut best = (pre != Preconditioner::Jacobi).then_some(rel);
     let mut restart = true;
     let mut restarted = false;
+    // CG broke down (a preconditioned residual with `r·z ≤ 0`, a direction with `d·A d ≤ 0`):
+    // under any preconditioner but Jacobi, the guard restarts with Jacobi.
+    let mut broke_down = false;
     while iterations < max_iterations && rel > tolerance {
         // Cancelled: the caller discards whatever `x` holds (crate::cancel).
         if cancel.is_cancelled() {
             break;
         }
-        if best.is_some_and(|best| rel > 10.0 * best) {
+        if broke_down || best.is_some_and(|best| rel > 10.0 * best) {
             pre = Preconditioner::Jacobi;
             best = None;
+            broke_down = false;
             restarted = true;
             rel = residual(x, &mut ax, &mut res, &mg.levels[0]);
             restart = true;
@@ -467,6 +522,9 @@ fn pcg(
         }
         if restart {
             mg.precondition(pre, &res);
+            if cancel.is_cancelled() {
+                break;
+            }
             let zv = &mg.levels[0].x;
             rz = rows_map(w, &spans, &mut dir, |r, lo, hi, d| {
                 let (z, res) = (&zv[r * w + lo..r * w + hi], &res[r * w + lo..r * w + hi]);
@@ -479,12 +537,20 @@ fn pcg(
             });
             restart = false;
             if rz <= 0.0 {
-                break;
+                if pre == Preconditioner::Jacobi {
+                    break;
+                }
+                broke_down = true;
+                continue;
             }
         }
         let dad = apply_a(&mg.levels[0], &dir, &mut ax);
         if dad <= 0.0 {
-            break;
+            if pre == Preconditioner::Jacobi {
+                break;
+            }
+            broke_down = true;
+            continue;
         }
         let alpha = rz / dad;
         let rr: f64 = x
@@ -516,6 +582,9 @@ fn pcg(
             break;
         }
         mg.precondition(pre, &res);
+        if cancel.is_cancelled() {
+            break;
+        }
         let zv = &mg.levels[0].x;
         let rz_new = rows_sum(&spans, |r, lo, hi| {
             let (z, res) = (&zv[r * w + lo..r * w + hi], &res[r * w + lo..r * w + hi]);
@@ -525,7 +594,11 @@ fn pcg(
                 .sum::<f64>()
         });
         if rz_new <= 0.0 {
-            break;
+            if pre == Preconditioner::Jacobi {
+                break;
+            }
+            broke_down = true;
+            continue;
         }
         let beta = rz_new / rz;
         rz = rz_new;

@@ -1,11 +1,12 @@
 //! Cached FFT plans, the paired real DCT (Makhoul) and the row-pair driver shared by the DCT
 //! Poisson and Frankot–Chellappa solvers.
 
+use parking_lot::{Mutex, MutexGuard};
 use rayon::prelude::*;
 use rustfft::num_complex::Complex;
 use rustfft::{Fft, FftPlanner};
 use std::collections::HashMap;
-use std::sync::{Arc, Mutex, MutexGuard, OnceLock, PoisonError};
+use std::sync::{Arc, OnceLock};
 
 pub(super) type C32 = Complex<f32>;
 
@@ -33,7 +34,6 @@ fn plans() -> MutexGuard<'static, Plans> {
             })
         })
         .lock()
-        .unwrap_or_else(PoisonError::into_inner)
 }
 
 /// The cached [`PairedDct`] of one length.

@@ -104,10 +104,10 @@ impl GreenVerdict {
 /// Why [`green_convention`] does not decide.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Uncertainty {
-    /// Fewer than [`RELIEF_PLAQUETTES_MIN`] plaquettes carry a measurable mixed slope.
+    /// Fewer than `RELIEF_PLAQUETTES_MIN` plaquettes carry a measurable mixed slope.
     TooLittleRelief,
-    /// The curl energies of the two readings are too close (`|C| <` [`CONTRAST_MIN`] or
-    /// `|z| <` [`Z_MIN`]).
+    /// The curl energies of the two readings are too close (`|C| <` `CONTRAST_MIN` or
+    /// `|z| <` `Z_MIN`).
     Balanced,
 }
 

@@ -149,7 +149,7 @@ pub enum IntegrationMethod {
     /// multigrid V-cycle, warm-started from the DCT solution. Without a mask it equals
     /// `PoissonDct`.
     MaskedPoisson,
-    /// Bilateral normal integration (Cao et al. 2022, [`bini`] source docs): iteratively
+    /// Bilateral normal integration (Cao et al. 2022, `bini` source docs): iteratively
     /// reweighted least squares with one-sided equations, keeping depth discontinuities.
     /// Over the mask (all pixels without one).
     Bilateral,
@@ -181,7 +181,7 @@ pub struct IntegrateParams {
     #[serde(default = "default_irls_tolerance")]
     pub irls_tolerance: f64,
     /// Bilateral: the factor `β` by which each reweighting step's change `u_new − u` is
-    /// extrapolated when that lowers the energy ([`bini`] docs); 1 = the plain steps of the
+    /// extrapolated when that lowers the energy (`bini` docs); 1 = the plain steps of the
     /// reference implementation. Finite, in [1, 10].
     #[serde(default = "default_over_relaxation")]
     pub over_relaxation: f64,
@@ -457,6 +457,10 @@ fn integrate_field(
     } else {
         None
     };
+    // Cancelled: the result is discarded, its residual not measured (crate::cancel).
+    if crate::cancel::Cancel::current().is_cancelled() {
+        return Ok((z, report));
+    }
     report.rms_residual = edge_rms(Some(z.data()), g, dom, d);
     Ok((z, report))
 }

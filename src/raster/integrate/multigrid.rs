@@ -402,6 +402,22 @@ impl Multigrid {
                     .zip(r.par_iter().zip(&l0.inv_diag))
                     .for_each(|(z, (r, &d))| *z = (r * f64::from(d)) as f32);
             }
+            #[cfg(test)]
+            Preconditioner::Indefinite => {
+                let l0 = &mut self.levels[0];
+                let w = l0.w;
+                l0.x.iter_mut()
+                    .zip(r.iter().zip(&l0.inv_diag))
+                    .enumerate()
+                    .for_each(|(i, (z, (r, &d)))| {
+                        let sign = if (i % w + i / w).is_multiple_of(2) {
+                            1.0
+                        } else {
+                            -1.0
+                        };
+                        *z = (sign * r * f64::from(d)) as f32;
+                    });
+            }
         }
     }
 
@@ -413,14 +429,20 @@ impl Multigrid {
         } else {
             self.levels[0].first_sweep(Some(r));
         }
-        self.vcycle(0);
+        // Cancelled: the cycle stops between sweeps and CG, which checks the token after each
+        // preconditioning, discards what it holds (crate::cancel).
+        let cancel = crate::cancel::Cancel::current();
+        self.vcycle(0, &cancel);
     }
 
-    fn vcycle(&mut self, k: usize) {
+    fn vcycle(&mut self, k: usize, cancel: &crate::cancel::Cancel) {
         let last = k + 1 == self.levels.len();
         let l = &mut self.levels[k];
         if last {
             self.coarse.solve(&l.b, &mut l.x);
+            return;
+        }
+        if cancel.is_cancelled() {
             return;
         }
         if k > 0 {
@@ -429,7 +451,10 @@ impl Multigrid {
         l.gs_colour(1);
         let (fine, coarse) = self.levels.split_at_mut(k + 1);
         fine[k].restrict_residual(&mut coarse[0]);
-        self.vcycle(k + 1);
+        self.vcycle(k + 1, cancel);
+        if cancel.is_cancelled() {
+            return;
+        }
         let (fine, coarse) = self.levels.split_at_mut(k + 1);
         let l = &mut fine[k];
         l.prolong_add(&coarse[0]);

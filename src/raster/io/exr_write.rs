@@ -308,7 +308,9 @@ type Compressed = exr::error::Result<(usize, exr::block::chunk::Chunk)>;
 ///
 /// Blocks are compressed [`BATCH`] at a time on the rayon pool while the calling thread writes
 /// the batch before (a pipeline of two): the write — a copy into the page cache, a tenth of
-/// a second per 100 MB on this machine — no longer leaves the pool idle between batches.
+/// a second per 100 MB on this machine — no longer leaves the pool idle between batches. The
+/// calling thread's cancellation token ([`crate::cancel::Cancel::current`]) stops it between
+/// batches with `Error::Aborted`.
 fn write_rows<W: ChunksWriter>(
     writer: &mut W,
     headers: &[Header],
@@ -345,9 +347,15 @@ fn write_rows<W: ChunksWriter>(
             })
             .collect()
     };
+    // Cancelled (the command line's Ctrl-C enters its token around writes): the write stops
+    // between batches and its temporary file is removed; nothing is renamed into place.
+    let cancel = crate::cancel::Cancel::current();
     let mut batch = if blocks > 0 { compress(0) } else { Vec::new() };
     let mut b = 0;
     while !batch.is_empty() {
+        if cancel.is_cancelled() {
+            return Err(exr::error::Error::Aborted);
+        }
         let next_b = b + BATCH;
         let mut next = Vec::new();
         // The next batch is compressed on the pool while this thread writes the current one

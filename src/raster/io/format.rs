@@ -15,6 +15,8 @@ pub enum Format {
     Ptm,
     /// RTI file with hemispherical harmonics (read only, see [`crate::raster::hsh`]).
     Rti,
+    /// An OME-Zarr store, a folder ([`super::zarr`]).
+    Zarr,
 }
 
 impl Format {
@@ -32,6 +34,7 @@ impl Format {
             "tif" | "tiff" => Self::Tiff,
             "ptm" => Self::Ptm,
             "rti" => Self::Rti,
+            "zarr" => Self::Zarr,
             _ => {
                 return Err(RgbnError::UnsupportedFormat {
                     format: if ext.is_empty() {

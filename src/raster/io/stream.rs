@@ -10,7 +10,8 @@
 //! - [`TiffRows`] does the same for a TIFF stored in strips of 8- or 16-bit interleaved
 //!   samples, one strip decoded at a time (a tiled or planar TIFF is read whole), and
 //!   [`ExrRows`] for channels of an EXR stored in scan-line blocks top to bottom (a tiled one
-//!   is read whole); [`Rows`] is any of them, by the file's extension.
+//!   is read whole), and [`super::zarr::ZarrRows`] for the channels of an OME-Zarr store, a
+//!   row of chunks at a time; [`Rows`] is any of them, by the file's extension.
 
 use super::ahead::ReadAhead;
 use super::{open_check, png_decode_error, NormalConvention};
@@ -230,6 +231,8 @@ pub enum Rows {
     Tiff(Box<TiffRows>),
     /// Channels of an EXR.
     Exr(Box<ExrRows>),
+    /// Channels of an OME-Zarr store's level 0.
+    Zarr(Box<super::zarr::ZarrRows>),
 }
 
 impl Rows {
@@ -250,6 +253,18 @@ impl Rows {
         })
     }
 
+    /// Reads only `window` of the image from now on (before the first read): only an OME-Zarr
+    /// store's rows can be cut to a window (its chunks cover it); a file is read whole rows.
+    pub fn set_window(&mut self, window: crate::raster::window::Rect) -> Result<(), String> {
+        match self {
+            Rows::Zarr(r) => r.set_window(window),
+            _ => Err(format!(
+                "{} is read in whole rows (only OME-Zarr stores are read in windows)",
+                self.path().display()
+            )),
+        }
+    }
+
     /// Width and height in pixels.
     #[must_use]
     pub fn size(&self) -> (usize, usize) {
@@ -257,6 +272,7 @@ impl Rows {
             Rows::Png(r) => r.size(),
             Rows::Tiff(r) => (r.width, r.height),
             Rows::Exr(r) => (r.width, r.height),
+            Rows::Zarr(r) => r.size(),
         }
     }
 
@@ -268,6 +284,7 @@ impl Rows {
             Rows::Png(r) => r.channels(),
             Rows::Tiff(r) => r.channels,
             Rows::Exr(r) => r.want.len(),
+            Rows::Zarr(r) => r.channels(),
         }
     }
 
@@ -278,6 +295,7 @@ impl Rows {
             Rows::Png(r) => r.path(),
             Rows::Tiff(r) => &r.path,
             Rows::Exr(r) => &r.path,
+            Rows::Zarr(r) => r.path(),
         }
     }
 
@@ -293,6 +311,18 @@ impl Rows {
             Rows::Png(r) => r.read_samples_reusing(rows, spare),
             Rows::Tiff(r) => r.read_samples_reusing(rows, spare),
             Rows::Exr(r) => r.read_samples_reusing(rows, spare),
+            Rows::Zarr(r) => {
+                let mut planes = Samples::spare_planes(spare, r.channels());
+                let before = r.size().0;
+                r.read_rows(rows, &mut planes)?;
+                Ok(Samples {
+                    width: before,
+                    rows: planes[0].len() / before.max(1),
+                    channels: planes.len(),
+                    sixteen: false,
+                    data: SampleData::Planes(planes),
+                })
+            }
         }
     }
 }

@@ -90,11 +90,11 @@ impl AtomicFile {
 /// trimmed), 13–20 ms for a 100 MB EXR on this machine's ext4 against 0.1 ms for a rename over
 /// no file — at the end of a run, with nothing left to overlap (BENCHMARKS.md, tenth session).
 /// A file still open is not freed by the rename, only when it is closed: with
-/// [`free_replaced_after_exit`] on (the command line; not the editor, whose process lives on),
+/// [`free_replaced_after_exit`](replaced::free_replaced_after_exit) on (the command line; not the editor, whose process lives on),
 /// the commit opens a big target it replaces before renaming and hands the descriptor to a
 /// helper process (`cat`, reading a pipe this process holds open) that exits when this process
 /// does, freeing the file then. The replaced file has no name from the rename on, as without
-/// this; only its blocks are given back later. At most [`HELD_MAX`] bytes are held at once
+/// this; only its blocks are given back later. At most [`HELD_MAX`](replaced::HELD_MAX) bytes are held at once
 /// (a batch replacing many big files frees the rest at once), and any failure (no `cat`, no
 /// process) frees the file at once, as before.
 pub mod replaced {
@@ -203,7 +203,7 @@ fn forget_cached(_path: &Path) {}
 /// Bytes written between two requests to start writing back ([`TargetFile`]).
 const WRITEBACK_EVERY: usize = 8 << 20;
 
-/// The writing side of an [`AtomicFile`]: a file that, every [`WRITEBACK_EVERY`] bytes, asks
+/// The writing side of an [`AtomicFile`]: a file that, every `WRITEBACK_EVERY` bytes, asks
 /// the kernel to start writing its dirty pages to the disk (Linux `sync_file_range` with
 /// `SYNC_FILE_RANGE_WRITE`: asynchronous, a hint). The disk then works while the rest of the
 /// file is encoded, and the sync in [`AtomicFile::commit`] waits only for the last pages
