@@ -5,7 +5,12 @@
 //! cargo run --release --no-default-features --example diligent_ps -- [DIR] [--repeat 5]
 //!     [--methods ls,trimmed,l1,sbl] [--sizes 6-13] [--all-subsets]
 //!     [--shadow-level F] [--robust-min-shading F] [--lambda F] [--iters N] [--delta F]
+//!     [--exponent auto|K]
 //! ```
+//!
+//! **Rows.** `woodham` is least squares with the Lambertian exponent `k = 1` (Woodham 1980,
+//! the benchmark's L2); every other row runs its estimator with `--exponent` (default `auto`:
+//! `k` estimated from the photos, printed in the `k` column).
 //!
 //! **Subsets.** The `k`-photo subset is the first `k` of a farthest-point order of the 13
 //! lights: the most frontal light first, then repeatedly the light whose smallest angle to the
@@ -129,6 +134,7 @@ fn main() {
     let mut repeat = 5usize;
     let mut methods = vec![
         PsMethod::LeastSquares,
+        PsMethod::LeastSquares,
         PsMethod::Trimmed,
         PsMethod::L1,
         PsMethod::Sbl,
@@ -144,7 +150,13 @@ fn main() {
             "--methods" => {
                 methods = val()
                     .split(',')
-                    .map(|m| PsMethod::from_name(m).expect("a method name"))
+                    .map(|m| {
+                        if m == "woodham" {
+                            PsMethod::LeastSquares
+                        } else {
+                            PsMethod::from_name(m).expect("a method name")
+                        }
+                    })
                     .collect();
             }
             "--sizes" => {
@@ -162,6 +174,10 @@ fn main() {
             "--clean" => base.robust.clean_residual = val().parse().unwrap(),
             "--saturation" => base.saturation_level = val().parse().unwrap(),
             "--diagnose" => diagnose = true,
+            "--exponent" => {
+                let v = val();
+                base.exponent = (v != "auto").then(|| v.parse().expect("auto or a number"));
+            }
             f if f.starts_with("--") => panic!("unknown flag {f}"),
             d => dir = Some(PathBuf::from(d)),
         }
@@ -219,34 +235,49 @@ fn main() {
         e2.mean, e2.median, e2.p90
     );
     println!("params: {base:?}");
-    println!("| photos | estimator | mean | median | p90 | ms / MP | × ls |");
-    println!("|---|---|---|---|---|---|---|");
+    // The first least-squares row is Woodham's (k = 1), the time baseline.
+    let woodham = methods.iter().position(|&m| m == PsMethod::LeastSquares);
+    let params_of = |mi: usize, method: PsMethod| PhotometricParams {
+        method,
+        exponent: if Some(mi) == woodham {
+            Some(1.0)
+        } else {
+            base.exponent
+        },
+        ..base.clone()
+    };
+    let name_of = |mi: usize, method: PsMethod| {
+        if Some(mi) == woodham {
+            "woodham"
+        } else {
+            method.name()
+        }
+    };
+    println!("| photos | estimator | k | mean | median | p90 | ms / MP | × woodham |");
+    println!("|---|---|---|---|---|---|---|---|");
     for k in lo..=hi {
         let (stack, lights) = subset(&inputs.stack, &inputs.lights, &order[..k]);
         let mut times = vec![Vec::new(); methods.len()];
         let mut outs = vec![None; methods.len()];
+        let mut ks = vec![1.0f32; methods.len()];
         for _ in 0..repeat.max(1) {
             for (mi, &method) in methods.iter().enumerate() {
-                let p = PhotometricParams {
-                    method,
-                    ..base.clone()
-                };
+                let p = params_of(mi, method);
                 let t = Instant::now();
-                let (out, _) = photometric_stereo(&stack, &lights, Some(&mask), &p).unwrap();
+                let (out, rep) = photometric_stereo(&stack, &lights, Some(&mask), &p).unwrap();
                 times[mi].push(t.elapsed().as_secs_f64());
                 outs[mi] = Some(out);
+                ks[mi] = rep.exponent;
             }
         }
-        let ls_t = methods
-            .iter()
-            .position(|&m| m == PsMethod::LeastSquares)
-            .map(|i| median(times[i].clone()));
+        let ls_t = woodham.map(|i| median(times[i].clone()));
         for (mi, &method) in methods.iter().enumerate() {
             let e = errors(outs[mi].as_ref().unwrap(), &gt, &inside);
             let t = median(times[mi].clone());
             println!(
-                "| {k} | {} | {:.2}° | {:.2}° | {:.2}° | {:.1} | {} |",
-                method.name(),
+                "| {k} | {} | {:.3} | {:.2}° | {:.2}° | {:.2}° | {:.1} | {} |",
+                name_of(mi, method),
+                ks[mi],
                 e.mean,
                 e.median,
                 e.p90,
@@ -256,15 +287,17 @@ fn main() {
         }
         if diagnose {
             for (mi, &method) in methods.iter().enumerate() {
-                diagnose_errors(method.name(), outs[mi].as_ref().unwrap(), &gt, &inside);
+                diagnose_errors(
+                    name_of(mi, method),
+                    outs[mi].as_ref().unwrap(),
+                    &gt,
+                    &inside,
+                );
             }
         }
         if all_subsets {
-            for &method in &methods {
-                let p = PhotometricParams {
-                    method,
-                    ..base.clone()
-                };
+            for (mi, &method) in methods.iter().enumerate() {
+                let p = params_of(mi, method);
                 let (mut sum, mut worst, mut count) = (0.0, 0.0f64, 0usize);
                 for_each_subset(13, k, &mut |idx| {
                     let (st, li) = subset(&inputs.stack, &inputs.lights, idx);
@@ -276,8 +309,8 @@ fn main() {
                     }
                 });
                 println!(
-                    "|   all {count} subsets of {k} | {} | mean of means {:.2}°, worst {:.2}° | | | | |",
-                    method.name(),
+                    "|   all {count} subsets of {k} | {} | | mean of means {:.2}°, worst {:.2}° | | | | |",
+                    name_of(mi, method),
                     sum / count as f64,
                     worst
                 );

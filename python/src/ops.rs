@@ -375,10 +375,12 @@ pub fn integrate_depth<'py>(
 /// node's solver (Woodham 1980; ``method="trimmed"`` drops the darkest, brightest and
 /// shadowed observations). ``photos``: N arrays H×W×3 float32 (linear), or one N×H×W×3 array;
 /// ``lights``: N×3 directions (x right, y up, z towards the camera); ``intensities``: N×3 RGB
-/// (all 1 when ``None``); ``mask``: H×W float32. Returns an ``Image`` (albedo colour, normals,
-/// mask of the solved pixels).
+/// (all 1 when ``None``); ``mask``: H×W float32; ``exponent``: the shading exponent k of
+/// ``I ∝ ρ (n·l)^k`` in [0.5, 2] (1 = Lambert), ``None`` estimates it from the photos (``rgbn
+/// capture --exponent auto``). Returns an ``Image`` (albedo colour, normals, mask of the solved
+/// pixels).
 #[pyfunction]
-#[pyo3(signature = (photos, lights, *, intensities=None, mask=None, method="trimmed"))]
+#[pyo3(signature = (photos, lights, *, intensities=None, mask=None, method="trimmed", exponent=None))]
 pub fn capture<'py>(
     py: Python<'py>,
     photos: &Bound<'py, PyAny>,
@@ -386,6 +388,7 @@ pub fn capture<'py>(
     intensities: Option<&Bound<'py, PyAny>>,
     mask: Option<&Bound<'py, PyAny>>,
     method: &str,
+    exponent: Option<f32>,
 ) -> PyResult<Image> {
     let method = PsMethod::from_name(method).ok_or_else(|| {
         input(format!(
@@ -466,6 +469,7 @@ pub fn capture<'py>(
     };
     let params = PhotometricParams {
         method,
+        exponent,
         ..PhotometricParams::default()
     };
     let (img, _report) = interruptible(py, None, move || {

@@ -288,3 +288,147 @@ fn a_set_cancellation_token_stops_every_estimator() {
         assert!(photometric_stereo(&stack, &lights, None, &params).is_ok());
     }
 }
+
+/// Renders Minnaert photos, `ρ e max(0, n·l)^k (n·v)^(k−1)` with the view `v = (0, 0, 1)`.
+fn render_minnaert(img: &RgbnImage, lights: &Lights, k: f32) -> PhotoStack {
+    let n = img.len();
+    let photos = lights
+        .directions
+        .iter()
+        .map(|d| {
+            let len = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
+            let l = d.map(|c| c / len);
+            std::array::from_fn(|c| {
+                (0..n)
+                    .map(|i| {
+                        let nn = [img.normal()[0][i], img.normal()[1][i], img.normal()[2][i]];
+                        let s = (nn[0] * l[0] + nn[1] * l[1] + nn[2] * l[2]).max(0.0);
+                        img.color()[c][i] * s.powf(k) * nn[2].max(0.0).powf(k - 1.0)
+                    })
+                    .collect()
+            })
+        })
+        .collect();
+    PhotoStack::new(img.width(), img.height(), photos).unwrap()
+}
+
+fn mean_angle_deg(a: &RgbnImage, b: &RgbnImage, sel: &[f32]) -> f64 {
+    let idx: Vec<usize> = (0..a.len()).filter(|&i| sel[i] >= 0.5).collect();
+    idx.iter()
+        .map(|&i| {
+            let x = a.normal_at(i % a.width(), i / a.width());
+            let y = b.normal_at(i % b.width(), i / b.width());
+            angle_deg(x, y)
+        })
+        .sum::<f64>()
+        / idx.len() as f64
+}
+
+/// A sphere under 12 lights at 50° and a frontal one (attached shadows on every side).
+fn steep_sphere() -> (RgbnImage, Lights, Vec<f32>) {
+    let (img, _) = Surface::Sphere { radius_px: 30.0 }.render(64, 64);
+    let img = coloured(img);
+    let lights = Lights {
+        directions: ring_lights(12, 50.0)
+            .into_iter()
+            .chain([[0.0, 0.0, 1.0]])
+            .collect(),
+        intensities: None,
+    };
+    // Inside the sphere and not grazing (n_z ≥ 0.3).
+    let sel = (0..img.len())
+        .map(|i| f32::from(u8::from(img.normal()[2][i] >= 0.3)))
+        .collect();
+    (img, lights, sel)
+}
+
+#[test]
+fn the_shading_exponent_of_a_minnaert_render_is_recovered_and_removes_the_polar_bias() {
+    let (img, lights, sel) = steep_sphere();
+    for k in [0.8f32, 1.25] {
+        let stack = render_minnaert(&img, &lights, k);
+        let (est, rep) =
+            photometric_stereo(&stack, &lights, Some(&sel), &PhotometricParams::default()).unwrap();
+        assert!((rep.exponent - k).abs() < 0.01 * k, "k {k}: {rep:?}");
+        let e_est = mean_angle_deg(&est, &img, &sel);
+        let lambert = PhotometricParams {
+            exponent: Some(1.0),
+            ..Default::default()
+        };
+        let (lam, rep1) = photometric_stereo(&stack, &lights, Some(&sel), &lambert).unwrap();
+        assert_eq!(rep1.exponent, 1.0);
+        let e_lam = mean_angle_deg(&lam, &img, &sel);
+        // Lambert's model on k ≠ 1 data tilts every normal; the estimated k fits the
+        // generating model, so only the ~0.5 % error of the estimate is left.
+        assert!(e_est < 0.25, "k {k}: {e_est}° with k = {}", rep.exponent);
+        assert!(
+            e_lam > 4.0 * e_est.max(0.1),
+            "k {k}: Lambert {e_lam}°, estimated {e_est}°"
+        );
+        // The albedo fit with the model's shading: ρ (n·v)^(k−1), the view factor included.
+        for c in 0..3 {
+            for i in (0..img.len()).filter(|&i| sel[i] >= 0.5) {
+                let want = img.color()[c][i] * img.normal()[2][i].powf(k - 1.0);
+                let got = est.color()[c][i];
+                assert!((got - want).abs() < 0.03 * want, "k {k}: ρ {got} vs {want}");
+            }
+        }
+    }
+}
+
+#[test]
+fn an_exponent_beyond_the_search_band_is_estimated_at_its_edge_and_given_by_hand_exactly() {
+    let (img, lights, sel) = steep_sphere();
+    let k = 1.6f32;
+    let stack = render_minnaert(&img, &lights, k);
+    let run = |exponent| {
+        let params = PhotometricParams {
+            exponent,
+            ..Default::default()
+        };
+        let (out, rep) = photometric_stereo(&stack, &lights, Some(&sel), &params).unwrap();
+        (mean_angle_deg(&out, &img, &sel), rep.exponent)
+    };
+    let (e_auto, k_auto) = run(None);
+    assert_eq!(k_auto, EXPONENT_SEARCH.1);
+    let (e_lam, _) = run(Some(1.0));
+    let (e_exact, k_exact) = run(Some(k));
+    assert_eq!(k_exact, k);
+    assert!(e_exact < 0.05, "{e_exact}°");
+    assert!(
+        e_exact < e_auto && e_auto < e_lam,
+        "{e_exact}° < {e_auto}° < {e_lam}°"
+    );
+}
+
+#[test]
+fn lambertian_photos_keep_the_exponent_one_and_too_few_observations_cannot_move_it() {
+    let (img, lights, sel) = steep_sphere();
+    let stack = render(&img, &lights);
+    let (_, rep) =
+        photometric_stereo(&stack, &lights, Some(&sel), &PhotometricParams::default()).unwrap();
+    assert!((rep.exponent - 1.0).abs() < 0.005, "{rep:?}");
+    // Three lights: every pixel is fitted exactly by any exponent, so nothing is learnt.
+    let three = Lights {
+        directions: ring_lights(3, 30.0),
+        intensities: None,
+    };
+    let stack = render_minnaert(&img, &three, 1.3);
+    let (_, rep) =
+        photometric_stereo(&stack, &three, Some(&sel), &PhotometricParams::default()).unwrap();
+    assert_eq!(rep.exponent, 1.0, "{rep:?}");
+}
+
+#[test]
+fn an_exponent_outside_its_range_is_refused_by_name() {
+    let (img, lights, _) = steep_sphere();
+    let stack = render(&img, &lights);
+    for k in [0.2f32, 2.5, f32::NAN] {
+        let params = PhotometricParams {
+            exponent: Some(k),
+            ..Default::default()
+        };
+        let e = photometric_stereo(&stack, &lights, None, &params).unwrap_err();
+        assert!(e.to_string().contains("exponent"), "{e}");
+    }
+}

@@ -162,10 +162,21 @@ fn diligent_ball_angular_error() {
     let err = |m: PsMethod| errs.iter().find(|(k, _)| *k == m).unwrap().1;
     // Measured (docs/capture.md): ls 4.16°, trimmed 2.29°, l1 BOUND_L1, sbl BOUND_SBL; bounds
     // with a margin of ~0.1°.
-    assert!(err(PsMethod::LeastSquares) <= 4.3, "least squares");
-    assert!(err(PsMethod::Trimmed) <= 2.4, "trimmed");
-    assert!(err(PsMethod::L1) <= 2.3, "l1");
-    assert!(err(PsMethod::Sbl) <= 2.2, "sbl");
+    // Measured (docs/capture.md), shading exponent estimated (k ≈ 1.07): ls 3.76°, trimmed
+    // 1.25°, l1 and sbl 1.37°; bounds with a margin of ~0.1°. The goal of the default is 1.9°.
+    assert!(err(PsMethod::LeastSquares) <= 3.9, "least squares");
+    assert!(err(PsMethod::Trimmed) <= 1.35, "trimmed");
+    assert!(err(PsMethod::L1) <= 1.5, "l1");
+    assert!(err(PsMethod::Sbl) <= 1.5, "sbl");
+    // Woodham's model (k = 1) on the same photos: the exponent is worth about 1°.
+    let lambert = PhotometricParams {
+        exponent: Some(1.0),
+        ..Default::default()
+    };
+    let (out, _) = photometric_stereo(&inputs.stack, &inputs.lights, Some(mask), &lambert).unwrap();
+    let e1 = mean_angle_deg(&out, &gt, mask);
+    eprintln!("DiLiGenT ball, 13 lights, trimmed with k = 1: {e1:.3}°");
+    assert!(e1 > err(PsMethod::Trimmed) + 0.5, "{e1}°");
     // The default estimator on the 6-photo subset of docs/capture.md: the first six of the
     // farthest-point order of the 13 lights (examples/diligent_ps.rs prints it).
     let six = ["052", "048", "041", "096", "089", "008"];
@@ -231,6 +242,90 @@ fn uw_objects_give_plausible_rgbn() {
             "{obj}: {rep:?}"
         );
     }
+}
+
+/// The UW grey sphere's normals from its mask: a circle fitted (least squares) to the mask's
+/// boundary above the stand (the upper 60 % of its rows), orthographic sphere normals inside
+/// 0.95 of its radius and above the stand. Returns the normals and the selection.
+fn sphere_from_mask(mask: &[f32], w: usize, h: usize) -> ([Vec<f32>; 3], Vec<f32>) {
+    let inside = |x: usize, y: usize| mask[y * w + x] >= 0.5;
+    let rows: Vec<usize> = (0..h).filter(|&y| (0..w).any(|x| inside(x, y))).collect();
+    let (top, bottom) = (rows[0], *rows.last().unwrap());
+    let cut = top as f64 + 0.6 * (bottom - top) as f64;
+    // Boundary: inside pixels with an outside 4-neighbour; rows x² + y² = 2ax + 2by + c.
+    let (mut a, mut v) = ([[0.0f64; 3]; 3], [0.0f64; 3]);
+    for y in 1..h - 1 {
+        for x in 1..w - 1 {
+            let edge = inside(x, y)
+                && (!inside(x - 1, y)
+                    || !inside(x + 1, y)
+                    || !inside(x, y - 1)
+                    || !inside(x, y + 1));
+            if edge && (y as f64) < cut {
+                let (fx, fy) = (x as f64, y as f64);
+                let row = [2.0 * fx, 2.0 * fy, 1.0];
+                for i in 0..3 {
+                    for j in 0..3 {
+                        a[i][j] += row[i] * row[j];
+                    }
+                    v[i] += row[i] * (fx * fx + fy * fy);
+                }
+            }
+        }
+    }
+    let [cx, cy, c] = crate::capture::linalg::solve3(&a, v);
+    let r = (c + cx * cx + cy * cy).sqrt();
+    let mut n = [
+        vec![0.0f32; w * h],
+        vec![0.0f32; w * h],
+        vec![0.0f32; w * h],
+    ];
+    let mut sel = vec![0.0f32; w * h];
+    for y in 0..h {
+        for x in 0..w {
+            let (nx, ny) = ((x as f64 - cx) / r, -(y as f64 - cy) / r);
+            let r2 = nx * nx + ny * ny;
+            let i = y * w + x;
+            if inside(x, y) && r2 < 0.95 * 0.95 && (y as f64) < cy + 0.5 * r {
+                n[0][i] = nx as f32;
+                n[1][i] = ny as f32;
+                n[2][i] = (1.0 - r2).sqrt() as f32;
+                sel[i] = 1.0;
+            }
+        }
+    }
+    (n, sel)
+}
+
+#[test]
+fn uw_grey_sphere_estimated_exponent_is_no_worse_than_lambert() {
+    // The one UW object with a known shape. Its photos are 8-bit of undocumented response
+    // and its lights come from a chrome ball, so the errors are large for every model; the
+    // exponent estimate must not make them much larger (a residual normalised by Σ g² instead
+    // of the variance picked k = 1.41 here and doubled the error). Measured: k = 1.02, 5.87°
+    // against 5.58° with k = 1 (this sphere's error moves ~0.15° per 0.01 of k).
+    let Some(d) = data_dir("uw-psm-images") else {
+        return;
+    };
+    let inputs = load_inputs(&uw_spec(&d, "gray")).unwrap();
+    let (w, h) = (inputs.stack.width, inputs.stack.height);
+    let (gt, sel) = sphere_from_mask(inputs.mask.as_deref().unwrap(), w, h);
+    let run = |exponent| {
+        let params = PhotometricParams {
+            exponent,
+            ..Default::default()
+        };
+        let (out, rep) =
+            photometric_stereo(&inputs.stack, &inputs.lights, Some(&sel), &params).unwrap();
+        (mean_angle_deg(&out, &gt, &sel), rep.exponent)
+    };
+    let (e_auto, k) = run(None);
+    let (e_lambert, _) = run(Some(1.0));
+    eprintln!(
+        "UW grey sphere vs its mask's sphere: k = {k:.3} → {e_auto:.2}°; k = 1 → {e_lambert:.2}°"
+    );
+    assert!(e_auto <= e_lambert + 0.5, "{e_auto}° vs {e_lambert}°");
+    assert!((0.9..=1.15).contains(&k), "k {k}");
 }
 
 #[test]

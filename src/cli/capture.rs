@@ -52,6 +52,10 @@ pub struct CaptureArgs {
     /// Estimator.
     #[arg(long, value_enum, default_value_t = MethodArg::Trimmed)]
     pub method: MethodArg,
+    /// Shading exponent k of `I ∝ ρ (n·l)^k`: `auto` (default) estimates it from the photos
+    /// (docs/capture.md), a number in [0.5, 2] fixes it (1 = Lambert, Woodham's model).
+    #[arg(long, default_value = "auto", value_parser = parse_exponent)]
+    pub exponent: Exponent,
     /// Photos are linear (raw) data (default).
     #[arg(long, conflicts_with = "srgb")]
     pub linear: bool,
@@ -165,6 +169,10 @@ pub fn capture_cmd(a: &CaptureArgs, out: &mut Out<'_>) -> Result<(), CliError> {
             MethodArg::L1 => PsMethod::L1,
             MethodArg::Sbl => PsMethod::Sbl,
         },
+        exponent: match a.exponent {
+            Exponent::Auto => None,
+            Exponent::Fixed(k) => Some(k),
+        },
         ..PhotometricParams::default()
     };
     let (img, rep) = photometric_stereo(&ps.stack, &ps.lights, ps.mask.as_deref(), &params)?;
@@ -175,7 +183,7 @@ pub fn capture_cmd(a: &CaptureArgs, out: &mut Out<'_>) -> Result<(), CliError> {
         .map(|m| curl_interior(m, img.width(), img.height()));
     let curl = GradientField::from_normals(&img).curl_stats(interior.as_deref());
     out.line(format_args!(
-        "{}×{} from {} photos: {} of {} pixels solved ({} dark, {} unsolvable, {} with saturated samples); relative RMS curl {:.3e} (mask interior) → {}",
+        "{}×{} from {} photos: {} of {} pixels solved ({} dark, {} unsolvable, {} with saturated samples); shading exponent {:.3}{}; relative RMS curl {:.3e} (mask interior) → {}",
         img.width(),
         img.height(),
         ps.stack.photos.len(),
@@ -184,8 +192,34 @@ pub fn capture_cmd(a: &CaptureArgs, out: &mut Out<'_>) -> Result<(), CliError> {
         rep.dark,
         rep.unsolvable,
         rep.with_saturated,
+        rep.exponent,
+        if matches!(a.exponent, Exponent::Auto) {
+            " (estimated)"
+        } else {
+            ""
+        },
         curl.relative,
         a.output.display()
     ))?;
     Ok(())
+}
+
+/// `--exponent`: estimated from the photos, or fixed.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Exponent {
+    Auto,
+    Fixed(f32),
+}
+
+fn parse_exponent(s: &str) -> Result<Exponent, String> {
+    if s.eq_ignore_ascii_case("auto") {
+        return Ok(Exponent::Auto);
+    }
+    let (lo, hi) = crate::capture::photometric::EXPONENT_RANGE;
+    match s.parse::<f32>() {
+        Ok(k) if (lo..=hi).contains(&k) => Ok(Exponent::Fixed(k)),
+        _ => Err(format!(
+            "expected `auto` or a number in [{lo}, {hi}], got `{s}`"
+        )),
+    }
 }

@@ -36,6 +36,10 @@ crate::params! {
         pub mask: String = String::new() => path.optional(),
         /// The estimator: trimmed (drop the darkest/brightest and the shadowed observations, re-solve), ls (Woodham's least squares), l1 (L1 regression by reweighted least squares), sbl (sparse Bayesian learning, Ikehata et al. 2012); docs/capture.md says which to use when.
         pub method: PsMethod = PsMethod::Trimmed => choice,
+        /// Estimate the shading exponent k of I ∝ ρ (n·l)^k from the photos (the k whose linearised photos fit the Lambertian model best; docs/capture.md); off uses exponent.
+        pub estimate_exponent: bool = true => bool,
+        /// The shading exponent k when estimate_exponent is off: 1 is Lambert (Woodham); above 1 the shading falls off faster than the cosine (Minnaert).
+        pub exponent: f64 = 1.0 => float.range(0.5, 2.0).soft(0.7, 1.5),
         /// The photos are sRGB-encoded (decoded to linear); off for linear/raw data.
         pub srgb: bool = false => bool,
     }
@@ -131,8 +135,10 @@ impl Operator for PhotometricStereoNode {
             "photometric_stereo",
             "Photometric stereo",
             "input",
-            "Builds an RGBN image from photos of one viewpoint under known directional lights (Woodham 1980; trimmed robust variant): albedo colour, unit normals and a mask of the solved pixels.",
+            "Builds an RGBN image from photos of one viewpoint under known directional lights (Woodham 1980; trimmed robust variant; shading exponent estimated from the photos): albedo colour, unit normals and a mask of the solved pixels.",
         )
+        // 2: the shading exponent is estimated by default.
+        .version(2)
     }
     fn check(p: &PhotometricSettings) -> Result<(), RgbnError> {
         p.check_files()
@@ -149,6 +155,7 @@ impl Operator for PhotometricStereoNode {
         let inputs = load_inputs(&p.inputs()?)?;
         let params = PhotometricParams {
             method: p.method,
+            exponent: (!p.estimate_exponent).then_some(p.exponent as f32),
             ..PhotometricParams::default()
         };
         let (image, rep) = photometric_stereo(
