@@ -26,7 +26,8 @@ pub(crate) fn log2_fast(x: f32) -> f32 {
 /// (Rust's saturating `as i32` does not, on x86).
 pub(crate) const ROUND: f32 = 12_582_912.0;
 
-/// `2^y` for `y ≤ 0` (flushed to `2^−126` below −126), within 3e-7 relative of `f32::exp2`:
+/// `2^y` for `y ≤ 127` (flushed to `2^−126` below −126), within 3e-7 relative of `f32::exp2`
+/// (tested for `y ≤ 0` by `render`, up to 20 by `capture::photometric`'s `pow_fast`):
 /// nearest integer `i` by [`ROUND`], `2^f` for `f ∈ [−½, ½]` by its Taylor series to `f⁶`
 /// (remainder `< 2e-7`), scaled by building `2^i`'s bits. Branch-free.
 #[inline(always)]
