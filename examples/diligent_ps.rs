@@ -343,7 +343,7 @@ fn for_each_subset(n: usize, k: usize, f: &mut dyn FnMut(&[usize])) {
 /// The mean difference vector and the error by the ground truth's tilt (diagnostics).
 fn diagnose_errors(name: &str, n: &rgbn::RgbnImage, gt: &[Vec<f32>; 3], inside: &[usize]) {
     let mut d = [0.0f64; 3];
-    let mut bins = vec![(0.0f64, 0usize); 9];
+    let mut bins = [(0.0f64, 0usize); 9];
     for &i in inside {
         let e = [n.normal()[0][i], n.normal()[1][i], n.normal()[2][i]];
         let g = [gt[0][i], gt[1][i], gt[2][i]];

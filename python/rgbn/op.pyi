@@ -89,17 +89,19 @@ def apply_mask(image: Image, mask: numpy.ndarray | None = None, *, invert: bool 
     The graph node 'apply_mask', run by rgbn.run_op.
     """
 
-def photometric_stereo(*, photos: str | os.PathLike[str] = '', lights: str | os.PathLike[str] = '', intensities: str | os.PathLike[str] = '', mask: str | os.PathLike[str] = '', method: Literal['ls', 'trimmed'] = 'trimmed', srgb: bool = False) -> dict[str, Any]:
+def photometric_stereo(*, photos: str | os.PathLike[str] = '', lights: str | os.PathLike[str] = '', intensities: str | os.PathLike[str] = '', mask: str | os.PathLike[str] = '', method: Literal['trimmed', 'ls', 'l1', 'sbl'] = 'trimmed', estimate_exponent: bool = True, exponent: float = 1.0, srgb: bool = False) -> dict[str, Any]:
     """Photometric stereo.
     
-    Builds an RGBN image from photos of one viewpoint under known directional lights (Woodham 1980; trimmed robust variant): albedo colour, unit normals and a mask of the solved pixels.
+    Builds an RGBN image from photos of one viewpoint under known directional lights (Woodham 1980; trimmed robust variant; shading exponent estimated from the photos): albedo colour, unit normals and a mask of the solved pixels.
     
     Parameters:
         photos (path; default ''): Text file listing the photos (one file name per line, relative to the list's folder), in light-row order; or an RTI light-position file (.lp: a count line, then 'NAME x y z' per photo), which names the photos and their lights at once (leave lights empty).
         lights (path; default ''): Light directions, one 'x y z' row per photo (x right, y up, z to the camera); an optional first line with the row count. Empty when photos is an .lp file.
         intensities (path; default ''): Optional per-light 'r g b' intensities, same layout (all 1 when empty).
         mask (path; default ''): Optional object mask (white = object), the photos' size.
-        method (choice; default 'trimmed'): ls: Woodham's least squares on all unsaturated observations; trimmed: drop the darkest/brightest and the shadowed observations, re-solve (robust to shadows and highlights).
+        method (choice; default 'trimmed'): The estimator: trimmed (drop the darkest/brightest and the shadowed observations, re-solve), ls (Woodham's least squares), l1 (L1 regression by reweighted least squares), sbl (sparse Bayesian learning, Ikehata et al. 2012); docs/capture.md says which to use when.
+        estimate_exponent (bool; default True): Estimate the shading exponent k of I ∝ ρ (n·l)^k from the photos (the k whose linearised photos fit the Lambertian model best; docs/capture.md); off uses exponent.
+        exponent (float; in [0.5, 2], default 1.0): The shading exponent k when estimate_exponent is off: 1 is Lambert (Woodham); above 1 the shading falls off faster than the cosine (Minnaert).
         srgb (bool; default False): The photos are sRGB-encoded (decoded to linear); off for linear/raw data.
     
     Returns a dict of the outputs:

@@ -99,6 +99,7 @@ pub(super) fn is_clean(
 }
 
 /// `(Σ w_j l_j l_jᵀ, Σ w_j l_j y_j)` over `sel`, weights and values by light index.
+#[allow(clippy::needless_range_loop)]
 fn weighted_normal_equations(
     sel: &[usize],
     w: &[f64],

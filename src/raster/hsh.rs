@@ -239,6 +239,7 @@ impl Grid {
 
 /// Least squares `y ≈ b · l (+ c)` over the virtual lights `keep` selects: `b`, with an
 /// offset `c` when `offset` (4 unknowns), by Gaussian elimination with partial pivoting.
+#[allow(clippy::needless_range_loop, clippy::neg_cmp_op_on_partial_ord)]
 fn lambert_fit(
     grid: &Grid,
     y: &[f64],
@@ -334,6 +335,7 @@ fn model_dome() -> Vec<[f64; 3]> {
 }
 
 /// Solves the square system `a x = b` by Gaussian elimination with partial pivoting.
+#[allow(clippy::needless_range_loop)]
 fn solve_dense(mut a: Vec<Vec<f64>>, mut b: Vec<f64>) -> Option<Vec<f64>> {
     let n = b.len();
     for c in 0..n {

@@ -4,6 +4,7 @@ use super::*;
 
 /// The pseudo-inverse `(BᵀB)⁻¹ Bᵀ` (`terms × m`) of the basis matrix `B` (`m × terms`) of the
 /// lights: least-squares HSH fitting, as an RTI fitter does it.
+#[allow(clippy::needless_range_loop)]
 fn fitter(lights: &[[f64; 3]], terms: usize) -> Vec<Vec<f64>> {
     let b: Vec<[f64; MAX_TERMS]> = lights.iter().map(|&l| hsh_basis(l, terms)).collect();
     // [BᵀB | I] → [I | (BᵀB)⁻¹] by Gauss–Jordan with partial pivoting.
@@ -136,6 +137,7 @@ fn sphere_errors(img: &RgbnImage, nz_min: f64) -> (f64, f64, usize, usize) {
     (sum / count as f64, max, count, masked)
 }
 
+#[allow(clippy::needless_range_loop)]
 #[test]
 fn the_basis_is_orthonormal_over_the_hemisphere() {
     // ∫ H_i H_j dω = δ_ij (Gautron et al. 2004): checks every formula, sign-free, against an
