@@ -53,7 +53,7 @@
 //!   readers of PTMs use, is biased for HSH: a low-order fit of a clamped cosine peaks before
 //!   the pole (12.9° mean error on the test sphere, order 3); the lobe fit reads it at 1.4°
 //!   mean over the whole visible hemisphere and 0.9° where the tilt is at most 60°. What is
-//!   left is a radial bias near the horizon, which [`TiltCorrection`] removes by simulation
+//!   left is a radial bias near the horizon, which `TiltCorrection` removes by simulation
 //!   (a Lambertian pixel under a model dome, fitted and read the same way): on the test sphere
 //!   (a dome of rings at 15°–75°, not the model dome) 0.90° mean at order 3 and 0.66° at
 //!   order 4 over the whole visible hemisphere, 1.85° at order 2.

@@ -650,7 +650,7 @@ fn rgbn_ptm_grid() -> ([f32; 6], [i32; 6]) {
     )
 }
 
-/// An RGBN image as LRGB PTM data on the grid of [`rgbn_ptm_grid`]: per pixel a paraboloid
+/// An RGBN image as LRGB PTM data on the grid of `rgbn_ptm_grid`: per pixel a paraboloid
 /// `L(u, v) = a5 + a0 (u² − 2 u u0) + a1 (v² − 2 v v0)` — the second-order shape of a
 /// Lambertian `255 · n · l` about its maximum, peaking at 255 — whose maximum `(u0, v0)` is the
 /// normal's `(n_x, n_y)`, so a PTM reader (rgbn's, RTIViewer's `calculateNormal`) finds the
