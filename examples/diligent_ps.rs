@@ -33,28 +33,15 @@ use rgbn::capture::inputs::{load_inputs, Lights, PhotoStack, PsInputSpec, Transf
 use rgbn::capture::linalg::angle_deg;
 use rgbn::capture::photometric::{photometric_stereo, PhotometricParams, PsMethod};
 use rgbn::params::Choice;
-use std::path::{Path, PathBuf};
+#[path = "../src/capture/diligent_mat.rs"]
+mod diligent_mat;
+use diligent_mat::read_mat_normals;
+use std::path::PathBuf;
 use std::time::Instant;
 
 const NAMES: [&str; 13] = [
     "001", "008", "019", "023", "041", "045", "048", "052", "068", "071", "089", "093", "096",
 ];
-
-/// Reads a MATLAB `h × w × 3` double array (column-major) into normal planes.
-fn read_mat_normals(path: &Path, name: &str, w: usize, h: usize) -> [Vec<f32>; 3] {
-    let file = std::fs::File::open(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
-    let mat = matfile::MatFile::parse(file).expect("a MAT v5 file");
-    let arr = mat.find_by_name(name).expect("the variable");
-    assert_eq!(arr.size(), &vec![h, w, 3]);
-    let matfile::NumericData::Double { real, .. } = arr.data() else {
-        panic!("expected doubles");
-    };
-    std::array::from_fn(|k| {
-        (0..w * h)
-            .map(|i| real[(i / w) + h * ((i % w) + w * k)] as f32)
-            .collect()
-    })
-}
 
 /// Farthest-point order of the light directions (module docs).
 fn farthest_point_order(dirs: &[[f32; 3]]) -> Vec<usize> {

@@ -34,10 +34,9 @@ pub(crate) fn condition(a: &M3) -> f64 {
     }
 }
 
-/// Solves `A x = y` for a well-conditioned symmetric `A` (adjugate).
-pub(crate) fn solve3(a: &M3, y: [f64; 3]) -> [f64; 3] {
-    let d = det3(a);
-    let inv = [
+/// The adjugate of `A` (`A⁻¹ = adj(A) / det(A)`).
+fn adj3(a: &M3) -> M3 {
+    [
         [
             a[1][1] * a[2][2] - a[1][2] * a[2][1],
             a[0][2] * a[2][1] - a[0][1] * a[2][2],
@@ -53,7 +52,13 @@ pub(crate) fn solve3(a: &M3, y: [f64; 3]) -> [f64; 3] {
             a[0][1] * a[2][0] - a[0][0] * a[2][1],
             a[0][0] * a[1][1] - a[0][1] * a[1][0],
         ],
-    ];
+    ]
+}
+
+/// Solves `A x = y` for a well-conditioned symmetric `A` (adjugate).
+pub(crate) fn solve3(a: &M3, y: [f64; 3]) -> [f64; 3] {
+    let d = det3(a);
+    let inv = adj3(a);
     std::array::from_fn(|r| (inv[r][0] * y[0] + inv[r][1] * y[1] + inv[r][2] * y[2]) / d)
 }
 
@@ -79,23 +84,7 @@ pub(crate) fn inverse3(a: &M3) -> Option<M3> {
         return None;
     }
     let d = det3(a);
-    let adj = [
-        [
-            a[1][1] * a[2][2] - a[1][2] * a[2][1],
-            a[0][2] * a[2][1] - a[0][1] * a[2][2],
-            a[0][1] * a[1][2] - a[0][2] * a[1][1],
-        ],
-        [
-            a[1][2] * a[2][0] - a[1][0] * a[2][2],
-            a[0][0] * a[2][2] - a[0][2] * a[2][0],
-            a[0][2] * a[1][0] - a[0][0] * a[1][2],
-        ],
-        [
-            a[1][0] * a[2][1] - a[1][1] * a[2][0],
-            a[0][1] * a[2][0] - a[0][0] * a[2][1],
-            a[0][0] * a[1][1] - a[0][1] * a[1][0],
-        ],
-    ];
+    let adj = adj3(a);
     let inv = adj.map(|row| row.map(|v| v / d));
     inv.iter().flatten().all(|v| v.is_finite()).then_some(inv)
 }

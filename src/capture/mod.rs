@@ -16,4 +16,6 @@ pub mod photometric;
 pub mod robust;
 
 #[cfg(test)]
+mod diligent_mat;
+#[cfg(test)]
 mod real_data_tests;

@@ -5,28 +5,9 @@ use crate::capture::linalg::angle_deg;
 use crate::raster::sample::Surface;
 
 /// Renders Lambertian photos of an RGBN (albedo × intensity × max(0, n·l)).
+/// Lambertian photos of `img` (`k = 1` of [`render_minnaert`]).
 fn render(img: &RgbnImage, lights: &Lights) -> PhotoStack {
-    let n = img.len();
-    let photos = lights
-        .directions
-        .iter()
-        .enumerate()
-        .map(|(j, d)| {
-            let len = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
-            let l = d.map(|c| c / len);
-            let e = lights.intensities.as_ref().map_or([1.0; 3], |i| i[j]);
-            std::array::from_fn(|c| {
-                (0..n)
-                    .map(|i| {
-                        let nn = [img.normal()[0][i], img.normal()[1][i], img.normal()[2][i]];
-                        let s = (nn[0] * l[0] + nn[1] * l[1] + nn[2] * l[2]).max(0.0);
-                        img.color()[c][i] * e[c] * s
-                    })
-                    .collect()
-            })
-        })
-        .collect();
-    PhotoStack::new(img.width(), img.height(), photos).unwrap()
+    render_minnaert(img, lights, 1.0)
 }
 
 fn ring_lights(m: usize, tilt_deg: f32) -> Vec<[f32; 3]> {
@@ -295,15 +276,17 @@ fn render_minnaert(img: &RgbnImage, lights: &Lights, k: f32) -> PhotoStack {
     let photos = lights
         .directions
         .iter()
-        .map(|d| {
+        .enumerate()
+        .map(|(j, d)| {
             let len = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
             let l = d.map(|c| c / len);
+            let e = lights.intensities.as_ref().map_or([1.0; 3], |i| i[j]);
             std::array::from_fn(|c| {
                 (0..n)
                     .map(|i| {
                         let nn = [img.normal()[0][i], img.normal()[1][i], img.normal()[2][i]];
                         let s = (nn[0] * l[0] + nn[1] * l[1] + nn[2] * l[2]).max(0.0);
-                        img.color()[c][i] * s.powf(k) * nn[2].max(0.0).powf(k - 1.0)
+                        img.color()[c][i] * e[c] * s.powf(k) * nn[2].max(0.0).powf(k - 1.0)
                     })
                     .collect()
             })

@@ -2,27 +2,12 @@
 //! `$RGBN_DATA` or `../shared/data`; each test is skipped with a message when its data is absent.
 
 use super::chrome::{calibrate_chrome, ChromeParams};
+use super::diligent_mat::read_mat_normals;
 use super::inputs::{load_inputs, PsInputSpec, Transfer};
 use super::linalg::angle_deg;
 use super::photometric::{photometric_stereo, PhotometricParams, PsMethod};
 use crate::raster::RgbnImage;
 use std::path::{Path, PathBuf};
-
-/// Reads a MATLAB `h × w × 3` double array (column-major) into normal planes.
-fn read_mat_normals(path: &Path, name: &str, w: usize, h: usize) -> [Vec<f32>; 3] {
-    let file = std::fs::File::open(path).unwrap();
-    let mat = matfile::MatFile::parse(file).unwrap();
-    let arr = mat.find_by_name(name).unwrap();
-    assert_eq!(arr.size(), &vec![h, w, 3]);
-    let matfile::NumericData::Double { real, .. } = arr.data() else {
-        panic!("expected doubles");
-    };
-    std::array::from_fn(|k| {
-        (0..w * h)
-            .map(|i| real[(i / w) + h * ((i % w) + w * k)] as f32)
-            .collect()
-    })
-}
 
 fn mean_angle_deg(out: &RgbnImage, gt: &[Vec<f32>; 3], mask: &[f32]) -> f64 {
     let (s, n) = (0..out.len())

@@ -75,6 +75,7 @@
 //! - M. Mudge, T. Malzbender, C. Schroer, M. Lum, "New Reflection Transformation Imaging
 //!   Methods for Rock Art and Multiple-Viewpoint Display", VAST 2006 (HSH in RTI).
 
+use super::ptm::{image_from_pixels, srgb8_to_linear};
 use super::{check_size, RgbnImage};
 use crate::error::RgbnError;
 use crate::raster::io::write_atomic;
@@ -769,24 +770,13 @@ fn decode(h: &Header, scale: &[f64], bias: &[f64], data: &[u8]) -> Result<Hsh, R
         }
     });
     cancel.check()?;
-    let plane = |k: usize| -> Vec<f32> { px.par_iter().map(|p| p[k]).collect() };
-    let color = [plane(0), plane(1), plane(2)];
-    let normal = [plane(3), plane(4), plane(5)];
-    let mask = plane(6);
-    let no_maximum = mask.par_iter().filter(|&&m| m == 0.0).count();
-    let image = RgbnImage::new(w, ht, color, normal, Some(mask))
-        .expect("planes have width × height values");
+    let (image, no_maximum) = image_from_pixels(w, ht, &px);
     Ok(Hsh {
         image,
         layout: h.layout,
         terms,
         no_maximum,
     })
-}
-
-fn srgb8_to_linear() -> &'static [f32; 256] {
-    static LUT: std::sync::OnceLock<[f32; 256]> = std::sync::OnceLock::new();
-    LUT.get_or_init(|| std::array::from_fn(|i| srgb_to_linear(i as f32 / 255.0)))
 }
 
 /// [`read_hsh`] for [`crate::raster::io::load`]: the image, with a warning naming how many

@@ -470,13 +470,7 @@ fn decode(h: &Header, data: &[u8]) -> Ptm {
             ];
         }
     });
-    let plane = |k: usize| -> Vec<f32> { px.par_iter().map(|p| p[k]).collect() };
-    let color = [plane(0), plane(1), plane(2)];
-    let normal = [plane(3), plane(4), plane(5)];
-    let mask = plane(6);
-    let no_maximum = mask.par_iter().filter(|&&m| m == 0.0).count();
-    let image = RgbnImage::new(w, ht, color, normal, Some(mask))
-        .expect("planes have width × height values");
+    let (image, no_maximum) = image_from_pixels(w, ht, &px);
     Ptm {
         image,
         format: h.format,
@@ -484,7 +478,21 @@ fn decode(h: &Header, data: &[u8]) -> Ptm {
     }
 }
 
-fn srgb8_to_linear() -> &'static [f32; 256] {
+/// Colour, normal and mask planes from per-pixel `[r, g, b, nx, ny, nz, mask]` (the PTM and
+/// HSH decoders' output), and how many pixels are masked out (no maximum).
+pub(super) fn image_from_pixels(w: usize, h: usize, px: &[[f32; 7]]) -> (RgbnImage, usize) {
+    let plane = |k: usize| -> Vec<f32> { px.par_iter().map(|p| p[k]).collect() };
+    let color = [plane(0), plane(1), plane(2)];
+    let normal = [plane(3), plane(4), plane(5)];
+    let mask = plane(6);
+    let no_maximum = mask.par_iter().filter(|&&m| m == 0.0).count();
+    let image =
+        RgbnImage::new(w, h, color, normal, Some(mask)).expect("planes have width × height values");
+    (image, no_maximum)
+}
+
+/// sRGB 8-bit code → linear value.
+pub(super) fn srgb8_to_linear() -> &'static [f32; 256] {
     static LUT: std::sync::OnceLock<[f32; 256]> = std::sync::OnceLock::new();
     LUT.get_or_init(|| std::array::from_fn(|i| srgb_to_linear(i as f32 / 255.0)))
 }
