@@ -12,7 +12,10 @@
    - the peer: the σ 8 px Gaussian on the foreshortened gradients (p, q) = (−nx/nz, −ny/nz)
      as a Dask user writes it today — `dask_image.ndfilters.gaussian_filter` on p and q read
      with `dask.array.from_zarr`, normals rebuilt, written with `to_zarr` — on the same cluster;
-   - the same Gaussian in rgbn (`filter.gaussian`, σ 8 px) through rgbn.dask on the cluster.
+   - the same Gaussian in rgbn (`filter.gaussian`, σ 8 px) through rgbn.dask on the cluster,
+     once as rgbn writes a store by default (level 0 and its `multiscales` pyramid) and once
+     with `levels=1` (level 0 alone, as the peer's `to_zarr` writes: the like-for-like row).
+   `--gauss-only` skips the first two (the σ 8 rows alone).
    rgbn's calls run on one LocalCluster, the peer on a second one of the same shape, used in
    turn (never at once), so that each worker's memory is its own tool's.
 3. Peak RSS of each worker during each call (its VmHWM, reset before the call through
@@ -123,6 +126,7 @@ def main():
     ap.add_argument("--runs", type=int, default=5)
     ap.add_argument("--dir", default="target/dask_bench")
     ap.add_argument("--chunks", type=int, default=None)
+    ap.add_argument("--gauss-only", action="store_true", help="only the σ 8 rows (rgbn.dask and the peer)")
     a = ap.parse_args()
     os.makedirs(a.dir, exist_ok=True)
     import distributed
@@ -134,7 +138,7 @@ def main():
     open(gg, "w").write(GAUSS)
     env2 = dict(os.environ, RAYON_NUM_THREADS="2")
     outs = lambda tag: {"image": os.path.join(a.dir, f"{tag}_image.zarr"), "relit": os.path.join(a.dir, f"{tag}_relit.zarr")}  # noqa: E731
-    t = {"whole": [], "dask": [], "peer": [], "rgbn_gauss": [], "whole_gauss": []}
+    t = {"whole": [], "dask": [], "peer": [], "rgbn_gauss": [], "rgbn_gauss_l0": [], "whole_gauss": []}
     stats = []
     peaks = {}
     # Two clusters of the same shape, used one at a time: rgbn's tasks on one, the peer on the
@@ -145,18 +149,19 @@ def main():
         for run in range(a.runs):
             for p in list(outs("w").values()) + list(outs("d").values()):
                 shutil.rmtree(p, ignore_errors=True)
-            o = outs("w")
-            t["whole"].append(rgbn_cli(["eval", g, "--input", f"image={store}", "-o", f"image={o['image']}", "-o", f"relit={o['relit']}"], env=env2))
-            # Task compute times from the scheduler's task stream (seconds inside each task).
-            with distributed.get_task_stream(client) as ts:
-                t0 = time.perf_counter()
-                peak_during(client, peaks, "rgbn.dask input_image", lambda: rd.evaluate(g, {"image": store}, outs("d"), chunks=a.chunks))
-                t["dask"].append(time.perf_counter() - t0)
-            stats.append([
-                sum(s["stop"] - s["start"] for s in d.get("startstops", ()) if s["action"] == "compute")
-                for d in ts.data
-                if "rgbn-chunk" in str(d.get("key", ""))
-            ])
+            if not a.gauss_only:
+                o = outs("w")
+                t["whole"].append(rgbn_cli(["eval", g, "--input", f"image={store}", "-o", f"image={o['image']}", "-o", f"relit={o['relit']}"], env=env2))
+                # Task compute times from the scheduler's task stream (seconds inside each task).
+                with distributed.get_task_stream(client) as ts:
+                    t0 = time.perf_counter()
+                    peak_during(client, peaks, "rgbn.dask input_image", lambda: rd.evaluate(g, {"image": store}, outs("d"), chunks=a.chunks))
+                    t["dask"].append(time.perf_counter() - t0)
+                stats.append([
+                    sum(s["stop"] - s["start"] for s in d.get("startstops", ()) if s["action"] == "compute")
+                    for d in ts.data
+                    if "rgbn-chunk" in str(d.get("key", ""))
+                ])
             shutil.rmtree(os.path.join(a.dir, "peer.zarr"), ignore_errors=True)
             t0 = time.perf_counter()
             with peer_client.as_current():
@@ -166,26 +171,34 @@ def main():
             t0 = time.perf_counter()
             peak_during(client, peaks, "rgbn.dask gauss8", lambda: rd.evaluate(gg, {"image": store}, {"image": os.path.join(a.dir, "gauss.zarr")}, chunks=a.chunks))
             t["rgbn_gauss"].append(time.perf_counter() - t0)
+            # Level 0 alone, as the peer writes it.
+            shutil.rmtree(os.path.join(a.dir, "gauss_l0.zarr"), ignore_errors=True)
+            t0 = time.perf_counter()
+            peak_during(client, peaks, "rgbn.dask gauss8 levels=1", lambda: rd.evaluate(gg, {"image": store}, {"image": os.path.join(a.dir, "gauss_l0.zarr")}, chunks=a.chunks, levels=1))
+            t["rgbn_gauss_l0"].append(time.perf_counter() - t0)
             shutil.rmtree(os.path.join(a.dir, "gauss_w.zarr"), ignore_errors=True)
             t["whole_gauss"].append(rgbn_cli(["eval", gg, "--input", f"image={store}", "-o", f"image={os.path.join(a.dir, 'gauss_w.zarr')}"], env=env2))
-            print(f"run {run}: " + ", ".join(f"{k} {v[-1]:.2f}s" for k, v in t.items()), flush=True)
+            print(f"run {run}: " + ", ".join(f"{k} {v[-1]:.2f}s" for k, v in t.items() if v), flush=True)
         rss = rss_of_workers(client)
         peer_rss = rss_of_workers(peer_client)
-    med = {k: statistics.median(v) for k, v in t.items()}
+    med = {k: statistics.median(v) for k, v in t.items() if v}
     ratios = [d / w for d, w in zip(t["dask"], t["whole"])]
     pr = [r / p for r, p in zip(t["rgbn_gauss"], t["peer"])]
-    last = stats[-1]
+    pr0 = [r / p for r, p in zip(t["rgbn_gauss_l0"], t["peer"])]
+    last = stats[-1] if stats else []
     n_tasks = len(last)
     busy = sum(last)
-    wall = t["dask"][-1]
+    wall = t["dask"][-1] if t["dask"] else 0.0
     # Per task: the wall the two workers spend beyond the tasks' compute, per task.
     overhead = (2 * wall - busy) / max(n_tasks, 1)
     res = {
         "size": a.size,
         "runs": t,
         "median": med,
-        "dask/whole median of per-run ratios": statistics.median(ratios),
+        "dask/whole median of per-run ratios": statistics.median(ratios) if ratios else None,
         "rgbn_gauss/peer median of per-run ratios": statistics.median(pr),
+        "rgbn_gauss levels=1/peer median of per-run ratios": statistics.median(pr0),
+        "per-run ratios": {"rgbn_gauss/peer": pr, "rgbn_gauss levels=1/peer": pr0},
         "worker peak RSS GiB during each call (max over runs)": {
             key: {w: max(v) / 2**30 for w, v in per.items()} for key, per in peaks.items()
         },
@@ -197,7 +210,7 @@ def main():
         "tasks": n_tasks,
         "task compute s (mean)": busy / max(n_tasks, 1),
         "overhead ms per task": overhead * 1e3,
-        "overhead fraction": overhead / (overhead + busy / max(n_tasks, 1)),
+        "overhead fraction": overhead / max(overhead + busy / max(n_tasks, 1), 1e-12),
     }
     print(json.dumps(res, indent=1))
 

@@ -122,12 +122,12 @@ def _describe(region):
     return f"chunk at {x},{y} ({w}×{h} px; rgbn eval --region {x},{y},{w},{h})"
 
 
-def _task(graph, inputs, outputs, region, level, zarr_chunk, tile, threads):
+def _task(graph, inputs, outputs, region, level, zarr_chunk, tile, threads, levels=None):
     """One Dask task: the graph over ``region``; writes it into the output stores (``outputs``
     a dict) or returns ``{name: value}`` (a list). An rgbn error is raised again, of the same
     class, naming the chunk (the engine's message names the node)."""
     try:
-        return _rgbn._dask_region(graph, inputs, outputs, region, level, zarr_chunk, tile, threads)
+        return _rgbn._dask_region(graph, inputs, outputs, region, level, zarr_chunk, tile, threads, levels)
     except Error as e:
         raise type(e)(f"{_describe(region)}: {e}") from None
 
@@ -227,7 +227,7 @@ def _client():
         return None
 
 
-def evaluate(graph, inputs, outputs, *, chunks=None, level=0, set=None, zarr_chunk=ZARR_CHUNK, threads=1):
+def evaluate(graph, inputs, outputs, *, chunks=None, level=0, set=None, zarr_chunk=ZARR_CHUNK, threads=1, levels=None):
     """Evaluates ``graph`` chunk by chunk on Dask and writes ``outputs`` into OME-Zarr stores.
 
     - ``graph``: a graph file path (``.ron``) or an :class:`rgbn.Graph` (with its parameters).
@@ -245,6 +245,9 @@ def evaluate(graph, inputs, outputs, *, chunks=None, level=0, set=None, zarr_chu
     - ``set``: ``{"node.param": value}``, as ``rgbn eval --set``.
     - ``threads``: threads of rgbn's own per task (default 1: Dask's workers and threads are
       the parallelism).
+    - ``levels``: most pyramid levels each output store gets, level 0 included (``rgbn eval
+      --zarr-levels``); ``None`` (default): every level the size allows, as ``rgbn eval``
+      writes (the ``multiscales`` pyramid). ``levels=1`` writes level 0 alone.
 
     Returns ``{name: path}`` when every chunk is written. Raises :class:`rgbn.InputError` for a
     global operator, a bad store or bad arguments, and a failing task's :class:`rgbn.Error`
@@ -255,6 +258,8 @@ def evaluate(graph, inputs, outputs, *, chunks=None, level=0, set=None, zarr_chu
         if not p.endswith(".zarr"):
             raise _rgbn.InputError(f"output {name!r}: {p} is not an OME-Zarr store (a path ending in .zarr)")
     side = _chunk_side(chunks, zarr_chunk)
+    if levels is not None and (isinstance(levels, bool) or not isinstance(levels, int) or levels < 1):
+        raise _rgbn.InputError(f"levels={levels!r}: give at least 1 (level 0 alone), or None for every level")
     src, paths, tmp, sizes = _prepare(graph, inputs, outs, level, set, zarr_chunk)
     try:
         import dask
@@ -265,9 +270,12 @@ def evaluate(graph, inputs, outputs, *, chunks=None, level=0, set=None, zarr_chu
             streams = int(level) == 0 and _rgbn._dask_streams(src, paths, list(outs))
             side = _auto_side(w, h, zarr_chunk, streams, _threads(client))
         task = dask.delayed(_task, pure=True)
-        token = _token(src, paths, outs, level, side, zarr_chunk)
+        token = _token(src, paths, outs, level, side, zarr_chunk, levels)
         tasks = [
-            task(src, paths, outs, r, int(level), zarr_chunk, TILE, threads, dask_key_name=f"rgbn-chunk-{r[0]}-{r[1]}-{token}")
+            task(
+                src, paths, outs, r, int(level), zarr_chunk, TILE, threads, levels,
+                dask_key_name=f"rgbn-chunk-{r[0]}-{r[1]}-{token}",
+            )
             for r in _regions(w, h, side)
         ]
         if client is not None:

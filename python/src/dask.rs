@@ -262,10 +262,11 @@ impl From<TaskError> for PyErr {
 
 /// One task: the graph over `region` (x, y, w, h, in the level's pixels) at `level`. With
 /// `outputs` mapping names to store paths, each output's chunks of the region are written
-/// (chunk side `chunk`) and `None` is returned; with `outputs` a list of names, returns
-/// `{name: value}` over the region (`rgbn.Image`, H×W float32, H×W×4 uint8).
+/// (chunk side `chunk`; at most `levels` pyramid levels, every level when `None`) and `None`
+/// is returned; with `outputs` a list of names, returns `{name: value}` over the region
+/// (`rgbn.Image`, H×W float32, H×W×4 uint8).
 #[pyfunction]
-#[pyo3(signature = (graph, inputs, outputs, region, level=0, chunk=512, tile=512, threads=1))]
+#[pyo3(signature = (graph, inputs, outputs, region, level=0, chunk=512, tile=512, threads=1, levels=None))]
 #[allow(clippy::too_many_arguments)]
 pub fn _dask_region<'py>(
     py: Python<'py>,
@@ -277,7 +278,11 @@ pub fn _dask_region<'py>(
     chunk: usize,
     tile: usize,
     threads: usize,
+    levels: Option<usize>,
 ) -> PyResult<Option<Bound<'py, PyDict>>> {
+    if levels == Some(0) {
+        return Err(input("levels: at least 1 (level 0 alone), or None for every level"));
+    }
     let (text, label, base) = graph;
     let files: Option<BTreeMap<String, PathBuf>> = outputs.extract().ok();
     let names: Vec<String> = match &files {
@@ -289,6 +294,7 @@ pub fn _dask_region<'py>(
     let rect = Rect::new(region.0, region.1, region.2, region.3);
     let zopts = ZarrOptions {
         chunk,
+        levels,
         ..ZarrOptions::default()
     };
     let ropts = RegionOptions { tile, level };

@@ -186,6 +186,24 @@ def test_a_streamed_gaussian_whose_halo_crosses_chunks_equals_the_whole_eval(clu
         k += 1
 
 
+def test_levels_caps_the_pyramid_as_zarr_levels_does(cluster, big_store, tmp_path):
+    # levels=1: level 0 alone in the store and in its multiscales, as `rgbn eval --zarr-levels 1`;
+    # level 0 the same as with the whole pyramid (within the streamed Gaussian's truncation).
+    g = tmp_path / "gauss8.ron"
+    g.write_text(GAUSS8)
+    rgbn_cli(["eval", g, "--input", f"image={big_store}", "-o", f"image={tmp_path / 'w.zarr'}", "--zarr-levels", "1"])
+    rd.evaluate(g, {"image": big_store}, {"image": tmp_path / "d.zarr"}, chunks=1024, levels=1)
+    assert sorted(files(tmp_path / "d.zarr")) == sorted(files(tmp_path / "w.zarr"))
+    assert not (tmp_path / "d.zarr" / "1").exists()
+    group = zarr.open_group(str(tmp_path / "d.zarr"), mode="r")
+    assert [d["path"] for d in group.attrs["ome"]["multiscales"][0]["datasets"]] == ["0"]
+    a = zarr.open_array(str(tmp_path / "d.zarr" / "0"))[:]
+    b = zarr.open_array(str(tmp_path / "w.zarr" / "0"))[:]
+    assert a.shape == b.shape == (6, SIZE, SIZE) and np.abs(a - b).max() <= 2e-3
+    with pytest.raises(rgbn.InputError, match="levels=0"):
+        rd.evaluate(g, {"image": big_store}, {"image": tmp_path / "e.zarr"}, levels=0)
+
+
 def test_the_task_side_grows_for_streamed_tasks_and_shrinks_with_the_workers():
     # Streamed tasks: the largest of 1024, 2048, 4096 leaving 4 tasks per worker thread.
     assert rd._auto_side(16384, 16384, 512, True, 2) == 4096  # 16 tasks

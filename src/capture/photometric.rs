@@ -541,16 +541,17 @@ fn estimate_exponent(
             .reduce(|| (0.0, 0.0, 0), |a, b| (a.0 + b.0, a.1 + b.1, a.2 + b.2))
     };
     // The fraction of the shading's variance the model leaves unexplained (pooled).
-    let cost = |inv_k: f64| -> f64 {
-        let (r2, v2, _) = sums(inv_k);
+    let unexplained = |(r2, v2, _): (f64, f64, usize)| -> f64 {
         if v2 > 0.0 {
             r2 / v2
         } else {
             f64::INFINITY
         }
     };
-    let (_, _, pixels) = sums(1.0);
-    let c1 = cost(1.0);
+    let cost = |inv_k: f64| unexplained(sums(inv_k));
+    // Lambert's point, once: its cost, and how many sampled pixels can tell exponents apart.
+    let at_one = sums(1.0);
+    let (pixels, c1) = (at_one.2, unexplained(at_one));
     cancel.check()?;
     if pixels < EXPONENT_MIN_PIXELS {
         return Ok(1.0);
