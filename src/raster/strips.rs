@@ -786,6 +786,10 @@ fn decode_on_pool<E: From<RgbnError>>(
                         path: path.to_path_buf(),
                     });
                 }
+                // A task that found the queue full and was still ending when the band above was
+                // taken (`running` still set, so nothing was started) has ended since: start
+                // another, or this wait would never be woken again.
+                start(&mut q);
                 cv.wait(&mut q);
             }
         });
